@@ -1,0 +1,121 @@
+#pragma once
+// Strict reading of TOML scene files. Every value is checked on the way in: its type, that
+// it is finite, and its range; a key nobody read is an error. Every message names the file,
+// the line and the full dotted key, so a user can fix a scene without reading code.
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <initializer_list>
+#include <memory>
+#include <optional>
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace toml {
+inline namespace v3 {
+class table;
+class node;
+}  // namespace v3
+}  // namespace toml
+
+namespace demfem::scene {
+
+/// @brief Error in a scene file; what() names file, line and key.
+class SceneError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// @brief An accepted interval for a number; open or closed at each end.
+struct Range {
+  double min = -1e308;
+  double max = 1e308;
+  bool min_open = false;
+  bool max_open = false;
+
+  static Range any() { return {}; }
+  static Range positive() { return {0.0, 1e308, true, false}; }
+  static Range non_negative() { return {0.0, 1e308, false, false}; }
+  static Range closed(double lo, double hi) { return {lo, hi, false, false}; }
+  static Range open_closed(double lo, double hi) { return {lo, hi, true, false}; }
+  bool contains(double v) const;
+  std::string describe() const;
+};
+
+/// @brief One TOML table of a scene, with its file and dotted path, that tracks which keys
+/// were read so that finish() can reject unknown ones.
+class Table {
+ public:
+  Table(const toml::table* table, std::shared_ptr<const std::string> file, std::string path);
+
+  bool has(std::string_view key) const;
+
+  double number(std::string_view key, Range range = Range::any()) const;
+  double number(std::string_view key, double fallback, Range range = Range::any()) const;
+  std::int64_t integer(std::string_view key, std::int64_t lo, std::int64_t hi) const;
+  std::int64_t integer(std::string_view key, std::int64_t fallback, std::int64_t lo,
+                       std::int64_t hi) const;
+  bool boolean(std::string_view key) const;
+  bool boolean(std::string_view key, bool fallback) const;
+  std::string string(std::string_view key) const;
+  std::string string(std::string_view key, std::string_view fallback) const;
+  /// A string that must be one of `choices`.
+  std::string choice(std::string_view key, std::initializer_list<std::string_view> choices) const;
+  std::string choice(std::string_view key, std::string_view fallback,
+                     std::initializer_list<std::string_view> choices) const;
+  std::array<double, 3> vec3(std::string_view key, Range range = Range::any()) const;
+  std::array<double, 3> vec3(std::string_view key, std::array<double, 3> fallback,
+                             Range range = Range::any()) const;
+  /// An array of numbers; `size` 0 accepts any non-empty length.
+  std::vector<double> numbers(std::string_view key, std::size_t size = 0,
+                              Range range = Range::any()) const;
+  /// A path, resolved relative to the scene file's folder.
+  std::filesystem::path path(std::string_view key) const;
+
+  std::optional<Table> table(std::string_view key) const;
+  Table required_table(std::string_view key) const;
+  std::vector<Table> tables(std::string_view key) const;  ///< array of tables ([[key]])
+
+  /// Throws for any key of this table that was never read.
+  void finish() const;
+
+  /// "file:line:col: key 'a.b.c'" for messages about a key of this table.
+  std::string where(std::string_view key) const;
+  [[noreturn]] void fail(std::string_view key, const std::string& message) const;
+
+  const std::string& file() const { return *file_; }
+  const std::string& dotted_path() const { return path_; }
+
+ private:
+  const toml::node* get(std::string_view key) const;
+  const toml::node& require(std::string_view key) const;
+  std::string full_key(std::string_view key) const;
+  double as_finite(std::string_view key, const toml::node& n, Range range) const;
+
+  const toml::table* table_;
+  std::shared_ptr<const std::string> file_;
+  std::string path_;
+  mutable std::shared_ptr<std::set<std::string, std::less<>>> used_;
+};
+
+/// @brief A parsed scene file; keeps the TOML tree alive for its Tables.
+class Document {
+ public:
+  /// Parses `file`; throws SceneError naming the file and line on a syntax error or when the
+  /// file cannot be read.
+  static Document load(const std::filesystem::path& file);
+  static Document parse(std::string_view text, const std::string& name);
+
+  Table root() const;
+  const std::filesystem::path& file() const { return file_; }
+
+ private:
+  std::filesystem::path file_;
+  std::shared_ptr<toml::table> tree_;
+};
+
+}  // namespace demfem::scene

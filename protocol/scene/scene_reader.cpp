@@ -1,0 +1,260 @@
+#include "demfem/scene/scene_reader.hpp"
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <toml++/toml.h>
+
+namespace demfem::scene {
+
+namespace {
+
+std::string format_number(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+std::string type_name(const toml::node& n) {
+  switch (n.type()) {
+    case toml::node_type::table: return "a table";
+    case toml::node_type::array: return "an array";
+    case toml::node_type::string: return "a string";
+    case toml::node_type::integer: return "an integer";
+    case toml::node_type::floating_point: return "a number";
+    case toml::node_type::boolean: return "a boolean";
+    default: return "a date/time";
+  }
+}
+
+}  // namespace
+
+bool Range::contains(double v) const {
+  const bool lo_ok = min_open ? v > min : v >= min;
+  const bool hi_ok = max_open ? v < max : v <= max;
+  return lo_ok && hi_ok;
+}
+
+std::string Range::describe() const {
+  const bool has_lo = min > -1e307;
+  const bool has_hi = max < 1e307;
+  if (!has_lo && !has_hi) return "any finite number";
+  if (!has_hi) return std::string(min_open ? "> " : ">= ") + format_number(min);
+  if (!has_lo) return std::string(max_open ? "< " : "<= ") + format_number(max);
+  return std::string(min_open ? "(" : "[") + format_number(min) + ", " + format_number(max) +
+         (max_open ? ")" : "]");
+}
+
+Table::Table(const toml::table* table, std::shared_ptr<const std::string> file, std::string path)
+    : table_(table),
+      file_(std::move(file)),
+      path_(std::move(path)),
+      used_(std::make_shared<std::set<std::string, std::less<>>>()) {}
+
+std::string Table::full_key(std::string_view key) const {
+  return path_.empty() ? std::string(key) : path_ + "." + std::string(key);
+}
+
+std::string Table::where(std::string_view key) const {
+  const toml::node* n = table_ ? table_->get(key) : nullptr;
+  const auto& src = n ? n->source() : table_->source();
+  std::ostringstream s;
+  s << *file_;
+  if (src.begin.line > 0) s << ":" << src.begin.line << ":" << src.begin.column;
+  s << ": key '" << full_key(key) << "'";
+  return s.str();
+}
+
+void Table::fail(std::string_view key, const std::string& message) const {
+  throw SceneError(where(key) + ": " + message);
+}
+
+bool Table::has(std::string_view key) const { return table_->contains(key); }
+
+const toml::node* Table::get(std::string_view key) const {
+  const toml::node* n = table_->get(key);
+  if (n) used_->emplace(key);
+  return n;
+}
+
+const toml::node& Table::require(std::string_view key) const {
+  const toml::node* n = get(key);
+  if (!n) fail(key, "is required but missing");
+  return *n;
+}
+
+double Table::as_finite(std::string_view key, const toml::node& n, Range range) const {
+  double v = 0.0;
+  if (auto i = n.value_exact<std::int64_t>()) {
+    v = static_cast<double>(*i);
+  } else if (auto d = n.value_exact<double>()) {
+    v = *d;
+  } else {
+    fail(key, "must be a number, found " + type_name(n));
+  }
+  if (!std::isfinite(v)) fail(key, "must be finite, found " + format_number(v));
+  if (!range.contains(v)) {
+    fail(key, "is " + format_number(v) + ", outside the accepted range " + range.describe());
+  }
+  return v;
+}
+
+double Table::number(std::string_view key, Range range) const {
+  return as_finite(key, require(key), range);
+}
+
+double Table::number(std::string_view key, double fallback, Range range) const {
+  const toml::node* n = get(key);
+  return n ? as_finite(key, *n, range) : fallback;
+}
+
+std::int64_t Table::integer(std::string_view key, std::int64_t lo, std::int64_t hi) const {
+  const toml::node& n = require(key);
+  auto i = n.value_exact<std::int64_t>();
+  if (!i) fail(key, "must be an integer, found " + type_name(n));
+  if (*i < lo || *i > hi) {
+    fail(key, "is " + std::to_string(*i) + ", outside the accepted range [" + std::to_string(lo) +
+                  ", " + std::to_string(hi) + "]");
+  }
+  return *i;
+}
+
+std::int64_t Table::integer(std::string_view key, std::int64_t fallback, std::int64_t lo,
+                            std::int64_t hi) const {
+  return has(key) ? integer(key, lo, hi) : fallback;
+}
+
+bool Table::boolean(std::string_view key) const {
+  const toml::node& n = require(key);
+  auto b = n.value_exact<bool>();
+  if (!b) fail(key, "must be true or false, found " + type_name(n));
+  return *b;
+}
+
+bool Table::boolean(std::string_view key, bool fallback) const {
+  return has(key) ? boolean(key) : fallback;
+}
+
+std::string Table::string(std::string_view key) const {
+  const toml::node& n = require(key);
+  auto s = n.value_exact<std::string>();
+  if (!s) fail(key, "must be a string, found " + type_name(n));
+  return *s;
+}
+
+std::string Table::string(std::string_view key, std::string_view fallback) const {
+  return has(key) ? string(key) : std::string(fallback);
+}
+
+std::string Table::choice(std::string_view key,
+                          std::initializer_list<std::string_view> choices) const {
+  std::string s = string(key);
+  for (auto c : choices) {
+    if (c == s) return s;
+  }
+  std::string list;
+  for (auto c : choices) list += (list.empty() ? "" : ", ") + std::string("\"") + std::string(c) + "\"";
+  fail(key, "is \"" + s + "\", accepted: " + list);
+}
+
+std::string Table::choice(std::string_view key, std::string_view fallback,
+                          std::initializer_list<std::string_view> choices) const {
+  return has(key) ? choice(key, choices) : std::string(fallback);
+}
+
+std::vector<double> Table::numbers(std::string_view key, std::size_t size, Range range) const {
+  const toml::node& n = require(key);
+  const toml::array* a = n.as_array();
+  if (!a) fail(key, "must be an array of numbers, found " + type_name(n));
+  if (size != 0 && a->size() != size) {
+    fail(key, "must have " + std::to_string(size) + " entries, found " + std::to_string(a->size()));
+  }
+  if (a->empty()) fail(key, "must not be empty");
+  std::vector<double> out;
+  out.reserve(a->size());
+  for (const toml::node& e : *a) out.push_back(as_finite(key, e, range));
+  return out;
+}
+
+std::array<double, 3> Table::vec3(std::string_view key, Range range) const {
+  auto v = numbers(key, 3, range);
+  return {v[0], v[1], v[2]};
+}
+
+std::array<double, 3> Table::vec3(std::string_view key, std::array<double, 3> fallback,
+                                  Range range) const {
+  return has(key) ? vec3(key, range) : fallback;
+}
+
+std::filesystem::path Table::path(std::string_view key) const {
+  std::filesystem::path p = string(key);
+  if (p.empty()) fail(key, "must not be empty");
+  if (p.is_absolute()) return p;
+  return std::filesystem::path(*file_).parent_path() / p;
+}
+
+std::optional<Table> Table::table(std::string_view key) const {
+  const toml::node* n = get(key);
+  if (!n) return std::nullopt;
+  const toml::table* t = n->as_table();
+  if (!t) fail(key, "must be a table, found " + type_name(*n));
+  return Table(t, file_, full_key(key));
+}
+
+Table Table::required_table(std::string_view key) const {
+  auto t = table(key);
+  if (!t) fail(key, "is required but missing");
+  return *t;
+}
+
+std::vector<Table> Table::tables(std::string_view key) const {
+  std::vector<Table> out;
+  const toml::node* n = get(key);
+  if (!n) return out;
+  const toml::array* a = n->as_array();
+  if (!a) fail(key, "must be an array of tables ([[" + full_key(key) + "]])");
+  for (std::size_t i = 0; i < a->size(); ++i) {
+    const toml::table* t = a->get(i)->as_table();
+    if (!t) fail(key, "entry " + std::to_string(i) + " must be a table");
+    out.emplace_back(t, file_, full_key(key) + "[" + std::to_string(i) + "]");
+  }
+  return out;
+}
+
+void Table::finish() const {
+  for (const auto& [k, v] : *table_) {
+    if (!used_->contains(k.str())) {
+      fail(k.str(), "is not a known key here (misspelt, or not accepted in this section)");
+    }
+  }
+}
+
+Document Document::load(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw SceneError(file.string() + ": cannot open scene file");
+  std::stringstream buf;
+  buf << in.rdbuf();
+  Document d = parse(buf.str(), file.string());
+  d.file_ = file;
+  return d;
+}
+
+Document Document::parse(std::string_view text, const std::string& name) {
+  Document d;
+  d.file_ = name;
+  try {
+    d.tree_ = std::make_shared<toml::table>(toml::parse(text, name));
+  } catch (const toml::parse_error& e) {
+    std::ostringstream s;
+    s << name << ":" << e.source().begin.line << ":" << e.source().begin.column
+      << ": TOML syntax error: " << e.description();
+    throw SceneError(s.str());
+  }
+  return d;
+}
+
+Table Document::root() const {
+  return Table(tree_.get(), std::make_shared<const std::string>(file_.string()), "");
+}
+
+}  // namespace demfem::scene
