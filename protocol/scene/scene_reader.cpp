@@ -1,6 +1,7 @@
 #include "demfem/scene/scene_reader.hpp"
 
 #include <cmath>
+#include <cstdint>
 #include <fstream>
 #include <sstream>
 #include <toml++/toml.h>
@@ -221,6 +222,10 @@ std::vector<Table> Table::tables(std::string_view key) const {
   return out;
 }
 
+void Table::skip(std::string_view key) const {
+  if (table_->contains(key)) used_->emplace(key);
+}
+
 void Table::finish() const {
   for (const auto& [k, v] : *table_) {
     if (!used_->contains(k.str())) {
@@ -255,6 +260,23 @@ Document Document::parse(std::string_view text, const std::string& name) {
 
 Table Document::root() const {
   return Table(tree_.get(), std::make_shared<const std::string>(file_.string()), "");
+}
+
+RunSettings read_run_settings(const Document& scene) {
+  Table root = scene.root();
+  Table run = root.required_table("run");
+  RunSettings s;
+  s.name = run.string("name", scene.file().stem().string());
+  if (s.name.empty()) run.fail("name", "must not be empty");
+  s.end_time = run.number("end_time", Range::positive());
+  s.output_dir = run.has("output_dir") ? std::filesystem::path(run.string("output_dir"))
+                                       : std::filesystem::path("out") / s.name;
+  s.seed = static_cast<std::uint64_t>(run.integer("seed", 1, 0, INT64_MAX));
+  s.output_interval = run.number("output_interval", 0.0, Range::non_negative());
+  run.finish();
+  for (auto section : kSceneSections) root.skip(section);
+  root.finish();
+  return s;
 }
 
 }  // namespace demfem::scene

@@ -46,3 +46,15 @@ TEST_CASE("scene reader reports syntax errors and missing files", "[scene]") {
   CHECK_THROWS_WITH(Document::load("/nonexistent/scene.toml"),
                     Contains("/nonexistent/scene.toml") && Contains("cannot open"));
 }
+
+TEST_CASE("run settings: defaults, ranges and unknown sections", "[scene]") {
+  auto ok = Document::parse("[run]\nend_time = 0.5\n[dem]\nanything = 1\n", "runs/beam.toml");
+  auto s = demfem::scene::read_run_settings(ok);
+  CHECK(s.name == "beam");
+  CHECK(s.end_time == 0.5);
+  CHECK(s.output_dir == std::filesystem::path("out/beam"));
+  auto bad = Document::parse("[run]\nend_time = 0.5\n[demm]\n", "s.toml");
+  CHECK_THROWS_WITH(demfem::scene::read_run_settings(bad), Contains("'demm'"));
+  auto neg = Document::parse("[run]\nend_time = -1\n", "s.toml");
+  CHECK_THROWS_WITH(demfem::scene::read_run_settings(neg), Contains("'run.end_time'"));
+}

@@ -80,6 +80,9 @@ class Table {
   Table required_table(std::string_view key) const;
   std::vector<Table> tables(std::string_view key) const;  ///< array of tables ([[key]])
 
+  /// Marks a key as handled elsewhere (a section another process reads), so finish() accepts it.
+  void skip(std::string_view key) const;
+
   /// Throws for any key of this table that was never read.
   void finish() const;
 
@@ -117,5 +120,24 @@ class Document {
   std::filesystem::path file_;
   std::shared_ptr<toml::table> tree_;
 };
+
+/// @brief The [run] section every process reads: what the run is called, how long it runs
+/// and where its output goes.
+struct RunSettings {
+  std::string name;                    ///< run.name (default: the scene file's stem)
+  double end_time = 0.0;               ///< run.end_time, s, > 0
+  std::filesystem::path output_dir;    ///< run.output_dir (default "out/<name>", relative to
+                                       ///< the current directory)
+  std::uint64_t seed = 1;              ///< run.seed, for random insertion
+  double output_interval = 0.0;        ///< run.output_interval, s (0 = only the end state)
+};
+
+/// @brief Reads and checks [run] (required) of a scene; the other top-level sections are
+/// left for their owners, and an unknown top-level section is an error.
+RunSettings read_run_settings(const Document& scene);
+
+/// @brief Top-level sections a scene may have.
+inline constexpr std::string_view kSceneSections[] = {"run", "dem", "fem", "coupling",
+                                                      "checkpoint"};
 
 }  // namespace demfem::scene

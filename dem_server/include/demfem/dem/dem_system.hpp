@@ -1,0 +1,168 @@
+#pragma once
+// The in-process API of the DEM engine. dem_server is a thin protocol loop around it; scene
+// tools (insertion, sensors, output) and tests drive it directly. The physics behind it
+// (contact laws, integrator, wall geometry) lives in __host__ __device__ headers shared by
+// the CPU and CUDA backends. Units: SI.
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "demfem/interface/interface_mesh.hpp"
+
+namespace demfem::io {
+class H5File;
+}
+
+namespace demfem::dem {
+
+/// @brief Elastic properties of one material (particles or walls).
+struct Material {
+  std::string name;
+  double youngs_modulus = 0.0;  ///< Pa
+  double poisson_ratio = 0.0;   ///< -
+  double density = 0.0;         ///< kg/m^3 (unused for walls)
+};
+
+/// @brief Interaction parameters of a pair of materials.
+struct MaterialPair {
+  double friction = 0.0;          ///< Coulomb sliding friction coefficient
+  double restitution = 0.5;       ///< coefficient of restitution, (0, 1]
+  double rolling_friction = 0.0;  ///< rolling resistance coefficient (0 = off)
+};
+
+/// @brief Global settings of a DEM system.
+struct DemSettings {
+  double dt = 1e-5;                            ///< s
+  std::array<double, 3> gravity{0, 0, -9.81};  ///< m/s^2
+  std::vector<Material> materials;
+  /// Symmetric table, materials.size()^2 entries, row-major: pairs[i * n + j].
+  std::vector<MaterialPair> pairs;
+  double skin = 0.0;        ///< neighbour-list skin, m; 0 = 0.2 * largest radius
+  std::string backend = "cpu";  ///< "cpu" or "cuda"
+  int threads = 0;          ///< CPU threads; 0 = OpenMP default
+};
+
+/// @brief Shape of a particle. Only spheres exist now; dilated polyhedra come later and
+/// will carry an index into a shape table.
+enum class ParticleShape : std::uint8_t { sphere = 0 };
+
+/// @brief Initial state of a new particle.
+struct ParticleInit {
+  std::array<double, 3> position{};
+  std::array<double, 3> velocity{};
+  std::array<double, 3> angular_velocity{};
+  double radius = 0.0;
+  std::int32_t material = 0;
+  ParticleShape shape = ParticleShape::sphere;
+};
+
+/// @brief Host copy of the particle state, structure of arrays (index = particle).
+struct ParticleState {
+  std::vector<double> px, py, pz;            ///< position, m
+  std::vector<double> vx, vy, vz;            ///< velocity, m/s
+  std::vector<double> wx, wy, wz;            ///< angular velocity, rad/s
+  std::vector<double> qw, qx, qy, qz;        ///< orientation quaternion
+  std::vector<double> fx, fy, fz;            ///< force of the last step, N
+  std::vector<double> radius, mass, inertia; ///< m, kg, kg m^2
+  std::vector<std::int32_t> material;
+  std::vector<std::uint8_t> shape;
+  std::size_t size() const { return px.size(); }
+};
+
+/// @brief Prescribed rigid motion of a wall mesh, active for start_time <= t < end_time
+/// (at rest outside it, keeping the pose it reached).
+struct WallMotion {
+  enum class Kind : std::uint8_t { fixed, translation, rotation, sinusoid };
+  Kind kind = Kind::fixed;
+  std::array<double, 3> velocity{};    ///< translation: m/s
+  std::array<double, 3> axis_point{};  ///< rotation: a point on the axis, m
+  std::array<double, 3> axis{0, 0, 1}; ///< rotation axis (unit) / sinusoid direction (unit)
+  double angular_velocity = 0.0;       ///< rotation: rad/s
+  double amplitude = 0.0;              ///< sinusoid: m, x(t) = A sin(2 pi f (t - t0) + phase)
+  double frequency = 0.0;              ///< sinusoid: Hz
+  double phase = 0.0;                  ///< sinusoid: rad
+  double start_time = 0.0;             ///< s
+  double end_time = 1e300;             ///< s
+};
+
+/// @brief A rigid triangle mesh (from STL or generated).
+struct WallMesh {
+  std::string name;
+  std::vector<double> vertices;        ///< 3 per vertex, m
+  std::vector<std::int32_t> triangles; ///< 3 vertex indices per triangle
+  std::int32_t material = 0;
+  WallMotion motion;
+};
+
+/// @brief A DEM system of particles, walls and (optionally) the flexible coupled mesh.
+class DemSystem {
+ public:
+  explicit DemSystem(DemSettings settings);
+  ~DemSystem();
+  DemSystem(DemSystem&&) noexcept;
+  DemSystem& operator=(DemSystem&&) noexcept;
+
+  const DemSettings& settings() const;
+
+  /// Adds particles (between steps); returns the index of the first one.
+  std::size_t add_particles(std::span<const ParticleInit> particles);
+  /// Removes the particles whose keep[i] is false; contact history of the others is kept.
+  void remove_particles(std::span<const std::uint8_t> keep);
+  /// Host copy of the particle state (synchronises the device on the CUDA backend).
+  const ParticleState& particles() const;
+  std::size_t particle_count() const;
+
+  /// Adds a rigid wall; returns its index.
+  std::int32_t add_wall(WallMesh wall);
+  std::size_t wall_count() const;
+  /// Total force (N) and torque about the origin (N m) that the particles exert on a wall
+  /// in the last step.
+  std::array<double, 3> wall_force(std::int32_t wall) const;
+  std::array<double, 3> wall_torque(std::int32_t wall) const;
+  /// Current vertex positions of a wall (it may move).
+  std::vector<double> wall_vertices(std::int32_t wall) const;
+
+  /// Sets the flexible coupled mesh (at most one) and its wall material.
+  void set_flexible_mesh(const InterfaceMesh& mesh, std::int32_t material);
+  bool has_flexible_mesh() const;
+  /// Node kinematics at the start of the next advance(); during the substeps each node moves
+  /// as x(tau) = x + v tau + a tau^2 / 2, v(tau) = v + a tau.
+  void set_flexible_kinematics(std::span<const double> positions,
+                               std::span<const double> velocities,
+                               std::span<const double> accelerations);
+  /// Per-node forces on the flexible mesh over the last advance(), as its ForceMode asked.
+  void flexible_forces(std::span<double> forces) const;
+  /// Current node positions of the flexible mesh as the DEM moved them.
+  std::vector<double> flexible_positions() const;
+  /// Largest particle overlap with the flexible mesh in the last advance(), m.
+  double flexible_max_overlap() const;
+
+  /// Runs `substeps` steps of settings().dt.
+  void advance(std::int64_t substeps, ForceMode mode = ForceMode::last_substep);
+  double time() const;
+  std::int64_t step_count() const;
+
+  /// Rayleigh time step (thesis eq. 2.27) of the smallest particle, s.
+  double rayleigh_time_step() const;
+  /// Total kinetic energy (translational + rotational), J.
+  double kinetic_energy() const;
+  /// Largest particle-particle or particle-wall overlap of the last step, m.
+  double max_overlap() const;
+
+  /// Complete state, contact history included, for a bitwise-identical continuation.
+  void save(io::H5File& file, const std::string& group) const;
+  void restore(const io::H5File& file, const std::string& group);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// @brief True when this build has the CUDA backend and a CUDA device is present.
+bool cuda_available();
+
+}  // namespace demfem::dem

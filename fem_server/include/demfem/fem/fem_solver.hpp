@@ -1,0 +1,71 @@
+#pragma once
+// The in-process API of the FEM engine. fem_server is a thin protocol loop around it; tests
+// and benchmarks drive it directly.
+
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "demfem/fem/fem_problem.hpp"
+#include "demfem/interface/interface_mesh.hpp"
+
+namespace demfem::io {
+class H5File;
+}
+
+namespace demfem::fem {
+
+/// @brief Element results for output (per element, at its centroid).
+struct ElementResults {
+  std::vector<double> strain;      ///< 6 per element: exx, eyy, ezz, gxy, gyz, gzx (engineering)
+  std::vector<double> von_mises;   ///< Pa, one per element
+  std::vector<double> max_principal_strain;  ///< one per element
+};
+
+/// @brief Linear-elastic FEM solver: static and Bossak-Newmark dynamic analysis.
+class FemSolver {
+ public:
+  explicit FemSolver(FemProblem problem);
+  ~FemSolver();
+  FemSolver(FemSolver&&) noexcept;
+  FemSolver& operator=(FemSolver&&) noexcept;
+
+  const FemProblem& problem() const;
+  std::size_t dof_count() const;
+
+  /// The coupled surface (see interface_mesh.hpp); fixed for the solver's life.
+  const InterfaceMesh& interface_mesh() const;
+  /// Forces on the interface nodes (3 * interface node count, N); held until replaced.
+  void set_interface_forces(std::span<const double> forces);
+
+  /// Static solve K u = F(t) for the current time's external and interface loads.
+  void solve_static();
+  /// One Bossak-Newmark step from time() to time() + dt. The effective matrix is factorised
+  /// on the first step and again only when dt changes.
+  void advance(double dt);
+  double time() const;
+  std::int64_t step_count() const;
+
+  /// Interface kinematics at the current time (each 3 * interface node count).
+  void interface_kinematics(std::span<double> positions, std::span<double> velocities,
+                            std::span<double> accelerations) const;
+
+  /// Nodal fields, 3 translations per mesh node (rotations of shell nodes are internal).
+  std::vector<double> displacements() const;
+  std::vector<double> velocities() const;
+  std::vector<double> accelerations() const;
+  /// Reaction forces at constrained DOFs, 3 per mesh node (zero where free), N.
+  std::vector<double> reaction_forces() const;
+  ElementResults element_results() const;
+
+  /// Complete state for a bitwise-identical continuation (u, v, a, time, step, forces).
+  void save(io::H5File& file, const std::string& group) const;
+  void restore(const io::H5File& file, const std::string& group);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace demfem::fem
