@@ -1,0 +1,290 @@
+#pragma once
+// demfem inter-process protocol: the one public header.
+//
+// A run is one coupler process and up to two solver processes (the DEM and the FEM). The
+// coupler creates a fixed-layout POSIX shared-memory segment ("/demfem-<runid>", mode 0600);
+// each solver attaches to it by name (`--segment NAME`) and speaks through two lock-free
+// single-producer single-consumer rings of fixed-size messages. Interface arrays (node
+// positions, velocities, accelerations, forces) live in a second segment
+// ("/demfem-<runid>-bulk"), created by the coupler once the FEM's Hello has reported the
+// interface size, double-buffered and read in place. See docs/protocol.md for the layout, the
+// messages and the lockstep sequence.
+//
+// An outside solver links `demfem::protocol` (find_package(demfemProtocol)), implements
+// SolverBackend and calls serve(). The coupler uses CouplerSession.
+
+#include <array>
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <span>
+#include <stdexcept>
+#include <string>
+
+#include <sys/types.h>
+
+#include "demfem/interface/interface_mesh.hpp"
+
+namespace demfem::protocol {
+
+/// @brief Version of the segment layout and the messages. Peers of different versions are
+/// refused at the handshake.
+inline constexpr std::uint32_t kProtocolVersion = 1;
+
+/// @brief Which solver a process is.
+enum class Role : std::uint8_t { dem = 0, fem = 1 };
+inline constexpr std::size_t kRoleCount = 2;
+
+/// @brief "dem" or "fem".
+const char* role_name(Role role);
+
+/// @brief Kinds of the fixed-size ring messages (docs/protocol.md has the table).
+enum class MessageKind : std::uint32_t {
+  hello,
+  config,
+  mesh,
+  step,
+  step_done,
+  checkpoint,
+  checkpoint_done,
+  restore,
+  restore_done,
+  shutdown,
+  error
+};
+
+/// @brief "hello", "step_done", ...
+const char* message_kind_name(MessageKind kind);
+
+// Step flags (generic: the coupler's schemes give them meaning).
+inline constexpr std::uint32_t kStepStatic = 1;         ///< FEM: static solve, not a dynamic step
+inline constexpr std::uint32_t kStepSetKinematics = 2;  ///< DEM: take the buffer's kinematics
+                                                        ///< before stepping
+
+/// @brief What a Step message asks a solver to do.
+struct StepCommand {
+  std::int64_t step = 0;      ///< coupling step index (0-based)
+  double time = 0.0;          ///< simulated time at the step's start, s
+  double dt = 0.0;            ///< coupling step, s
+  std::int64_t substeps = 1;  ///< DEM substeps per coupling step (n^D); 1 for the FEM
+  std::uint32_t buffer = 0;   ///< bulk buffer (0 or 1) to read inputs from and write outputs to
+  ForceMode force_mode = ForceMode::last_substep;
+  std::uint32_t flags = 0;  ///< kStep* bits
+};
+
+/// @brief Scalar diagnostics returned in StepDone (meaning defined by each solver, e.g. max
+/// overlap, kinetic energy).
+struct StepResult {
+  std::array<double, 8> values{};
+};
+
+/// @brief In-place views of the bulk interface arrays of one run (both buffers). Arrays are
+/// node-major xyz, 3 * node_count() doubles each. Empty (node_count() == 0) when the run has
+/// no coupled surface (DEM-only scene).
+class InterfaceBuffers {
+ public:
+  static constexpr std::uint32_t kBufferCount = 2;
+
+  InterfaceBuffers() = default;
+
+  std::size_t node_count() const { return node_count_; }
+  std::size_t triangle_count() const { return triangle_count_; }
+  bool empty() const { return node_count_ == 0; }
+
+  /// FEM → DEM kinematics.
+  std::span<double> positions(std::uint32_t buffer) { return array(buffer, 0); }
+  std::span<double> velocities(std::uint32_t buffer) { return array(buffer, 1); }
+  std::span<double> accelerations(std::uint32_t buffer) { return array(buffer, 2); }
+  /// DEM → FEM interface forces (forces the particles exert on the structure), N.
+  std::span<double> forces(std::uint32_t buffer) { return array(buffer, 3); }
+  /// The DEM's own copy of the mesh node positions at the step's end (drift diagnostic).
+  std::span<double> dem_positions(std::uint32_t buffer) { return array(buffer, 4); }
+
+  /// @brief Copy of the reference mesh published by the FEM.
+  InterfaceMesh reference_mesh() const;
+
+  /// Internal: set by the library when the bulk segment is mapped.
+  void bind(std::size_t nodes, std::size_t triangles, double* reference_positions,
+            std::int32_t* triangle_indices, double* arrays);
+
+ private:
+  static constexpr std::size_t kArraysPerBuffer = 5;
+  std::span<double> array(std::uint32_t buffer, std::size_t which);
+
+  std::size_t node_count_ = 0;
+  std::size_t triangle_count_ = 0;
+  double* reference_positions_ = nullptr;
+  std::int32_t* triangles_ = nullptr;
+  double* arrays_ = nullptr;  // [buffer][which][3n]
+};
+
+/// @brief Solver side: implemented by each solver (dem_server, fem_server, or an outside code).
+/// Exceptions thrown by these functions are sent to the coupler as an Error message and end
+/// serve() with a non-zero code.
+class SolverBackend {
+ public:
+  virtual ~SolverBackend() = default;
+  /// e.g. "demfem-fem 0.1 (cpu)"; sent in Hello (at most 127 characters are kept).
+  virtual std::string name() const = 0;
+  /// The FEM returns its coupled surface (called once, before Hello); the DEM returns nullopt.
+  virtual std::optional<InterfaceMesh> published_mesh() = 0;
+  /// The DEM receives the FEM's mesh (not called when the run has no FEM).
+  virtual void on_mesh(const InterfaceMesh& mesh) = 0;
+  /// One coupling step; reads inputs from and writes outputs to buffers (cmd.buffer) in place.
+  virtual StepResult step(const StepCommand& cmd, InterfaceBuffers& buffers) = 0;
+  virtual void write_checkpoint(const std::filesystem::path& file, std::int64_t step) = 0;
+  virtual void restore_checkpoint(const std::filesystem::path& file, std::int64_t step) = 0;
+};
+
+/// @brief How a waiting process waits: spin for `spin` then block on a futex in slices,
+/// checking the peer's liveness between slices.
+struct WaitPolicy {
+  /// Busy-wait time before blocking. Zero: block at once (never burns a core).
+  std::chrono::microseconds spin{20};
+  /// Block after spinning; false = spin until the message comes (benchmarks only: it
+  /// occupies a core; liveness is still checked every few milliseconds).
+  bool block = true;
+};
+
+struct ServeOptions {
+  std::string segment;  ///< "/demfem-<runid>" as given by the coupler (--segment)
+  Role role = Role::dem;
+  /// A coupler whose pid is gone or whose heartbeat has not advanced for this long is dead.
+  std::chrono::milliseconds peer_timeout{2000};
+  WaitPolicy wait{};
+  /// Testing only: the protocol version this process claims (0 = kProtocolVersion). Lets a
+  /// test act as a peer of another version to check the refusal.
+  std::uint32_t claimed_version = 0;
+  /// Install SIGTERM/SIGINT handlers for the duration of serve() so that either signal
+  /// makes it return promptly (exit code 128 + signal) after detaching cleanly.
+  bool handle_signals = true;
+};
+
+/// @brief Attaches to the segment, Hello (version check), mesh exchange, then serves
+/// Step/Checkpoint/Restore until Shutdown. Returns the process exit code: 0 after Shutdown;
+/// non-zero with a message on stderr when the coupler died, the version differs, the segment
+/// cannot be opened, a signal arrived, or the backend threw (its exception text is sent as an
+/// Error message first).
+int serve(SolverBackend& backend, const ServeOptions& options);
+
+/// @brief Exit codes of serve().
+inline constexpr int kExitOk = 0;
+inline constexpr int kExitBackendError = 1;
+inline constexpr int kExitCouplerDied = 2;
+inline constexpr int kExitVersionMismatch = 3;
+inline constexpr int kExitProtocolError = 4;  ///< cannot attach, bad message, role taken
+
+/// @brief Base of every protocol failure.
+class ProtocolError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// @brief A peer process is gone (pid gone, or heartbeat stale, or never said Hello).
+class PeerDied : public ProtocolError {
+ public:
+  PeerDied(Role role, const std::string& why);
+  Role role() const { return role_; }
+
+ private:
+  Role role_;
+};
+
+/// @brief An Error message from a solver, with its text.
+class SolverError : public ProtocolError {
+ public:
+  SolverError(Role role, const std::string& text);
+  Role role() const { return role_; }
+  const std::string& text() const { return text_; }
+
+ private:
+  Role role_;
+  std::string text_;
+};
+
+/// @brief A solver of another protocol version tried to attach; the message names both.
+class VersionMismatch : public ProtocolError {
+ public:
+  VersionMismatch(Role role, std::uint32_t ours, std::uint32_t theirs);
+  std::uint32_t ours() const { return ours_; }
+  std::uint32_t theirs() const { return theirs_; }
+
+ private:
+  std::uint32_t ours_;
+  std::uint32_t theirs_;
+};
+
+struct CouplerOptions {
+  /// A solver whose pid is gone or whose heartbeat has not advanced for this long is dead.
+  std::chrono::milliseconds peer_timeout{2000};
+  /// How long wait_hello() waits for a solver that is not known to be dead.
+  std::chrono::milliseconds hello_timeout{60000};
+  WaitPolicy wait{};
+  /// On SIGTERM/SIGINT/SIGHUP with the default action, remove the segments before dying
+  /// (handlers the program installed itself are kept and called instead).
+  bool unlink_on_signal = true;
+};
+
+/// @brief The solver's Hello as the coupler received it.
+struct PeerInfo {
+  Role role = Role::dem;
+  pid_t pid = 0;
+  std::string name;
+  std::size_t node_count = 0;
+  std::size_t triangle_count = 0;
+};
+
+/// @brief Coupler side of one run.
+class CouplerSession {
+ public:
+  /// Creates the segment (removes stale ones of dead owners first).
+  explicit CouplerSession(CouplerOptions options = {});
+  /// Removes the segments (also on exceptions; exit() and fatal signals via handlers).
+  ~CouplerSession();
+  CouplerSession(const CouplerSession&) = delete;
+  CouplerSession& operator=(const CouplerSession&) = delete;
+
+  /// "/demfem-<runid>", to pass to the solvers as --segment.
+  const std::string& segment_name() const;
+  /// This run uses this solver.
+  void expect(Role role);
+  /// Handshake; `pid` is the launched process, if known, to watch while waiting.
+  /// Throws VersionMismatch, PeerDied (pid gone, or no Hello within hello_timeout).
+  void wait_hello(Role role, std::optional<pid_t> pid);
+  /// The Hello of a solver after wait_hello().
+  const PeerInfo& peer(Role role) const;
+  /// FEM publishes → bulk sized → DEM receives (when both). Returns the mesh (empty when the
+  /// run has no FEM).
+  InterfaceMesh exchange_mesh();
+  void send_step(Role role, const StepCommand& cmd);
+  /// Throws PeerDied / SolverError.
+  StepResult wait_step_done(Role role);
+  /// Sends Checkpoint; wait with wait_done().
+  void checkpoint(Role role, const std::filesystem::path& file, std::int64_t step);
+  /// Sends Restore; wait with wait_done().
+  void restore(Role role, const std::filesystem::path& file, std::int64_t step);
+  /// Waits for checkpoint_done / restore_done. Throws PeerDied / SolverError.
+  void wait_done(Role role);
+  /// Asks the solver to exit and waits briefly (peer_timeout) for its acknowledgement or its
+  /// death. Never throws; returns true when the solver acknowledged.
+  bool shutdown(Role role);
+  InterfaceBuffers& buffers();
+  /// After a solver died: clear its rings and slot so a restarted solver can attach again.
+  void reset_peer(Role role);
+  /// Simulated time stamped on the coupler's messages (informational).
+  void set_time(double time);
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+/// @brief Removes "demfem-*" segments in /dev/shm whose owner process is gone. Returns how
+/// many were removed. CouplerSession calls it on construction.
+int remove_stale_segments();
+
+}  // namespace demfem::protocol
