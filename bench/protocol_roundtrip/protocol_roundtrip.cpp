@@ -1,0 +1,178 @@
+// Round trip of a Step -> StepDone exchange between the coupler (this process) and a solver
+// (this program re-executed with --serve), for several interface sizes, with spinning and
+// with blocking waits. The interface arrays are read in place, so the message cost should
+// not grow with the node count; the "touch" rows add the solver writing 3n force values,
+// which is the smallest real work a DEM does per step.
+//
+//   protocol_roundtrip [--json FILE] [--iterations N]
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "bench_report.hpp"
+#include "demfem/protocol/protocol.hpp"
+
+namespace proto = demfem::protocol;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+proto::WaitPolicy policy(bool spin) {
+  proto::WaitPolicy p;
+  if (spin) {
+    p.block = false;
+  } else {
+    p.block = true;
+    p.spin = std::chrono::microseconds(0);
+  }
+  return p;
+}
+
+class BenchBackend : public proto::SolverBackend {
+ public:
+  std::size_t nodes = 0;
+  bool touch = false;
+  std::string name() const override { return "protocol_roundtrip solver"; }
+  std::optional<demfem::InterfaceMesh> published_mesh() override {
+    if (nodes == 0) return std::nullopt;
+    demfem::InterfaceMesh mesh;
+    mesh.reference_positions.assign(3 * nodes, 0.0);
+    for (std::size_t i = 0; i + 2 < nodes; i += 3)
+      mesh.triangles.insert(mesh.triangles.end(),
+                            {static_cast<std::int32_t>(i), static_cast<std::int32_t>(i + 1),
+                             static_cast<std::int32_t>(i + 2)});
+    return mesh;
+  }
+  void on_mesh(const demfem::InterfaceMesh&) override {}
+  proto::StepResult step(const proto::StepCommand& cmd, proto::InterfaceBuffers& b) override {
+    proto::StepResult r;
+    r.values[0] = static_cast<double>(cmd.step);
+    if (touch && !b.empty()) {
+      auto f = b.forces(cmd.buffer);
+      const double v = static_cast<double>(cmd.step);
+      std::fill(f.begin(), f.end(), v);
+    }
+    return r;
+  }
+  void write_checkpoint(const std::filesystem::path&, std::int64_t) override {}
+  void restore_checkpoint(const std::filesystem::path&, std::int64_t) override {}
+};
+
+int serve_mode(int argc, char** argv) {
+  BenchBackend backend;
+  proto::ServeOptions options;
+  options.role = proto::Role::fem;
+  bool spin = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--serve" && i + 1 < argc)
+      options.segment = argv[++i];
+    else if (a == "--nodes" && i + 1 < argc)
+      backend.nodes = std::stoul(argv[++i]);
+    else if (a == "--spin")
+      spin = true;
+    else if (a == "--touch")
+      backend.touch = true;
+  }
+  options.wait = policy(spin);
+  return proto::serve(backend, options);
+}
+
+struct Stats {
+  double median_us;
+  double p99_us;
+  double mean_us;
+};
+
+Stats measure(std::size_t nodes, bool spin, bool touch, int iterations) {
+  proto::CouplerOptions options;
+  options.wait = policy(spin);
+  proto::CouplerSession session(options);
+  std::vector<std::string> args = {"/proc/self/exe", "--serve", session.segment_name(), "--nodes",
+                                   std::to_string(nodes)};
+  if (spin) args.emplace_back("--spin");
+  if (touch) args.emplace_back("--touch");
+  const pid_t pid = ::fork();
+  if (pid < 0) throw std::runtime_error("fork failed");
+  if (pid == 0) {
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    ::execv("/proc/self/exe", argv.data());
+    ::_exit(127);
+  }
+  session.expect(proto::Role::fem);
+  session.wait_hello(proto::Role::fem, pid);
+  session.exchange_mesh();
+  const int warmup = std::max(100, iterations / 10);
+  std::vector<double> samples;
+  samples.reserve(static_cast<std::size_t>(iterations));
+  for (int i = 0; i < warmup + iterations; ++i) {
+    proto::StepCommand cmd;
+    cmd.step = i;
+    cmd.buffer = static_cast<std::uint32_t>(i % 2);
+    const auto t0 = Clock::now();
+    session.send_step(proto::Role::fem, cmd);
+    session.wait_step_done(proto::Role::fem);
+    const auto t1 = Clock::now();
+    if (i >= warmup) samples.push_back(std::chrono::duration<double, std::micro>(t1 - t0).count());
+  }
+  session.shutdown(proto::Role::fem);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  std::sort(samples.begin(), samples.end());
+  Stats s{};
+  s.median_us = samples[samples.size() / 2];
+  s.p99_us = samples[std::min(samples.size() - 1, samples.size() * 99 / 100)];
+  double sum = 0.0;
+  for (double x : samples) sum += x;
+  s.mean_us = sum / static_cast<double>(samples.size());
+  return s;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    for (int i = 1; i < argc; ++i)
+      if (std::strcmp(argv[i], "--serve") == 0) return serve_mode(argc, argv);
+    int iterations = 20000;
+    for (int i = 1; i + 1 < argc; ++i)
+      if (std::strcmp(argv[i], "--iterations") == 0) iterations = std::stoi(argv[i + 1]);
+    if (iterations < 100) throw std::invalid_argument("--iterations must be at least 100");
+
+    demfem::bench::Report report("protocol_roundtrip", {"nodes", "wait", "solver work", "median_us",
+                                                        "p99_us", "mean_us", "samples"});
+    report.set_info("machine", demfem::bench::machine_description());
+    report.set_info("commit", demfem::bench::git_commit());
+    report.set_info("protocol_version", static_cast<long long>(proto::kProtocolVersion));
+    report.set_info("iterations", static_cast<long long>(iterations));
+    for (std::size_t nodes : {std::size_t{0}, std::size_t{1000}, std::size_t{100000}}) {
+      for (bool spin : {true, false}) {
+        for (bool touch : {false, true}) {
+          if (touch && nodes == 0) continue;
+          // Writing 3n forces for 10^5 nodes is ~2.4 MB per step: fewer samples suffice.
+          const int n = touch && nodes >= 100000 ? std::max(100, iterations / 20) : iterations;
+          const Stats s = measure(nodes, spin, touch, n);
+          report.add_row({static_cast<long long>(nodes), std::string(spin ? "spin" : "block"),
+                          std::string(touch ? "write 3n forces" : "none"), s.median_us, s.p99_us,
+                          s.mean_us, static_cast<long long>(n)});
+        }
+      }
+    }
+    report.print();
+    report.write_json(demfem::bench::json_path_from_args(argc, argv));
+    return 0;
+  } catch (const std::exception& e) {
+    std::cerr << "protocol_roundtrip: " << e.what() << '\n';
+    return 1;
+  }
+}
