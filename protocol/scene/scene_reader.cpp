@@ -177,6 +177,42 @@ std::vector<double> Table::numbers(std::string_view key, std::size_t size, Range
   return out;
 }
 
+std::vector<std::vector<double>> Table::number_rows(std::string_view key, std::size_t row_size,
+                                                    Range range) const {
+  const toml::node& n = require(key);
+  const toml::array* a = n.as_array();
+  if (!a) fail(key, "must be an array of arrays of numbers, found " + type_name(n));
+  if (a->empty()) fail(key, "must not be empty");
+  std::vector<std::vector<double>> out;
+  for (std::size_t r = 0; r < a->size(); ++r) {
+    const toml::array* row = a->get(r)->as_array();
+    if (!row) fail(key, "entry " + std::to_string(r) + " must be an array of numbers");
+    if (row->empty() || (row_size != 0 && row->size() != row_size)) {
+      fail(key, "entry " + std::to_string(r) + " must have " +
+                    (row_size ? std::to_string(row_size) : std::string("at least one")) +
+                    " entries, found " + std::to_string(row->size()));
+    }
+    std::vector<double> v;
+    for (const toml::node& e : *row) v.push_back(as_finite(key, e, range));
+    out.push_back(std::move(v));
+  }
+  return out;
+}
+
+std::vector<std::string> Table::strings(std::string_view key) const {
+  const toml::node& n = require(key);
+  const toml::array* a = n.as_array();
+  if (!a) fail(key, "must be an array of strings, found " + type_name(n));
+  if (a->empty()) fail(key, "must not be empty");
+  std::vector<std::string> out;
+  for (const toml::node& e : *a) {
+    auto s = e.value_exact<std::string>();
+    if (!s) fail(key, "must be an array of strings, found an entry that is " + type_name(e));
+    out.push_back(*s);
+  }
+  return out;
+}
+
 std::array<double, 3> Table::vec3(std::string_view key, Range range) const {
   auto v = numbers(key, 3, range);
   return {v[0], v[1], v[2]};

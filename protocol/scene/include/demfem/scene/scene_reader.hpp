@@ -73,6 +73,12 @@ class Table {
   /// An array of numbers; `size` 0 accepts any non-empty length.
   std::vector<double> numbers(std::string_view key, std::size_t size = 0,
                               Range range = Range::any()) const;
+  /// An array of rows of numbers ([[t, f], [t, f], ...]); each row has `row_size` entries
+  /// (0 = any non-empty length), at least one row.
+  std::vector<std::vector<double>> number_rows(std::string_view key, std::size_t row_size = 0,
+                                               Range range = Range::any()) const;
+  /// A non-empty array of strings.
+  std::vector<std::string> strings(std::string_view key) const;
   /// A path, resolved relative to the scene file's folder.
   std::filesystem::path path(std::string_view key) const;
 

@@ -1,0 +1,47 @@
+#pragma once
+// The [fem] section of a scene: the structure (mesh, materials, sections, clamps, loads) as a
+// FemProblem, plus the analysis settings a standalone run or the server needs. Every key is
+// documented in docs/scene_fem.md; every error names the scene file, the line and the key.
+
+#include <string>
+#include <vector>
+
+#include "demfem/fem/fem_problem.hpp"
+#include "demfem/scene/scene_reader.hpp"
+
+namespace demfem::fem {
+
+enum class Analysis : std::uint8_t { static_analysis, dynamic };
+
+/// @brief [fem.output]: what FemOutput writes and how often.
+struct FemOutputSettings {
+  bool enabled = true;              ///< write = true
+  double interval = 0.0;            ///< s; 0 = every run.output_interval (or only the end state)
+  std::vector<std::string> fields;  ///< subset of kFemOutputFields; default all
+  bool csv = true;                  ///< the scalar series CSV
+};
+
+/// @brief Field names accepted in fem.output.fields.
+inline constexpr const char* kFemOutputFields[] = {
+    "displacement", "velocity", "acceleration",        "reaction_force",
+    "von_mises",    "strain",   "max_principal_strain"};
+
+/// @brief Everything [fem] defines.
+struct FemScene {
+  FemProblem problem;
+  Analysis analysis = Analysis::dynamic;
+  double dt = 0.0;          ///< s; 0 = not given (a coupled run takes it from the coupler)
+  std::string dt_location;  ///< "file:line: key 'fem.dt'", for messages about dt
+  FemOutputSettings output;
+};
+
+/// @brief Reads and checks [fem]. Throws scene::SceneError naming file, line and key for
+/// any bad value, unknown key, missing or malformed mesh file, or selector that selects
+/// nothing.
+FemScene read_fem_scene(const scene::Table& fem);
+
+/// @brief Reads a load amplitude table ({ type = "table" | "constant" | "sine" | "sleeper",
+/// ... }) as documented in docs/scene_fem.md.
+TimeFunction read_time_function(const scene::Table& amplitude);
+
+}  // namespace demfem::fem

@@ -1,0 +1,172 @@
+// The [fem] scene section: a complete scene read into a FemProblem, and errors that name the
+// file, line and key.
+#include <catch2/catch.hpp>
+
+#include <filesystem>
+#include <string>
+
+#include "demfem/fem/fem_scene.hpp"
+
+using namespace demfem;
+using namespace demfem::fem;
+
+namespace {
+
+// Scenes are parsed as if they lived in cases/meshes/, so mesh files resolve there.
+const std::string kSceneName =
+    (std::filesystem::path(DEMFEM_SOURCE_DIR) / "cases/meshes/test_scene.toml").string();
+
+FemScene read(const std::string& text) {
+  const auto doc = scene::Document::parse(text, kSceneName);
+  return read_fem_scene(doc.root().required_table("fem"));
+}
+
+std::string error_of(const std::string& text) {
+  try {
+    read(text);
+  } catch (const scene::SceneError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+const std::string kBox = R"([fem]
+mesh = { box = { lo = [0, 0, 0], hi = [2, 0.2, 0.2], cells = [10, 1, 1] } }
+materials = [{ name = "steel", youngs_modulus = 2.1e11, poisson_ratio = 0.3, density = 7850 }]
+)";
+
+}  // namespace
+
+TEST_CASE("fem scene: box mesh, clamps, loads, amplitudes, dynamics settings") {
+  const FemScene s = read(kBox + R"(
+analysis = "dynamic"
+dt = 1e-4
+gravity = [0, 0, -9.81]
+mass = "lumped"
+interface_surface = "z >= 0.2"
+[[fem.clamps]]
+nodes = "x <= 0"
+[[fem.clamps]]
+nodes = "x >= 2"
+dofs = ["z"]
+[[fem.pressures]]
+surface = "zmax"
+total_force = 1.0
+amplitude = { type = "sleeper", time_scale = 10 }
+[[fem.pressures]]
+surface = "z >= 0.2 and x <= 1"
+magnitude = 5e3
+amplitude = { type = "table", points = [[0, 0], [1, 2]] }
+[[fem.nodal_loads]]
+nodes = "x >= 2 and y >= 0.2 and z >= 0.2"
+force = [0, 0, -10]
+amplitude = { type = "sine", amplitude = 1, frequency = 5 }
+[fem.bossak]
+alpha = -0.2
+[fem.damping]
+mass_factor = 0.5
+stiffness_factor = 1e-5
+[fem.output]
+interval = 0.01
+fields = ["displacement", "von_mises"]
+)");
+  const FemProblem& p = s.problem;
+  CHECK(s.analysis == Analysis::dynamic);
+  CHECK(s.dt == 1e-4);
+  CHECK(p.mesh.elements.size() == 10);
+  REQUIRE(p.sections.size() == 1);
+  CHECK(p.materials[0].youngs_modulus == 2.1e11);
+  REQUIRE(p.constraints.size() == 2);
+  CHECK(p.constraints[0].nodes.size() == 4);
+  CHECK(p.constraints[0].fixed == std::array<bool, 6>{true, true, true, true, true, true});
+  CHECK(p.constraints[1].fixed == std::array<bool, 6>{false, false, true, false, false, false});
+  REQUIRE(p.pressures.size() == 2);
+  CHECK(p.pressures[0].faces.size() == 10);
+  // total_force 1 N over the 2 x 0.2 m top: 2.5 Pa per newton of the amplitude.
+  CHECK(p.pressures[0].magnitude == Approx(2.5));
+  CHECK(p.pressures[0].amplitude(0.15) == Approx(110e3));  // sleeper ramp, time scale 10
+  CHECK(p.pressures[1].faces.size() == 5);
+  CHECK(p.pressures[1].amplitude(0.5) == Approx(1.0));
+  REQUIRE(p.nodal_loads.size() == 1);
+  CHECK(p.nodal_loads[0].nodes.size() == 1);
+  CHECK(p.nodal_loads[0].amplitude(0.05) == Approx(1.0));  // sin(pi/2)
+  CHECK(p.gravity[2] == -9.81);
+  CHECK(p.mass == MassLumping::lumped);
+  CHECK(p.bossak.alpha == -0.2);
+  CHECK(p.bossak.gamma == Approx(0.7));
+  CHECK(p.bossak.beta == Approx(0.36));
+  CHECK(p.damping.mass_factor == 0.5);
+  CHECK(p.interface_surface == "interface_surface");
+  CHECK(p.mesh.surfaces.at("interface_surface").size() == 10);
+  CHECK(s.output.interval == 0.01);
+  CHECK(s.output.fields == std::vector<std::string>{"displacement", "von_mises"});
+}
+
+TEST_CASE("fem scene: .inp mesh with its own materials and sections") {
+  const FemScene s = read(R"([fem]
+analysis = "static"
+mesh = { file = "plate_s4r.inp" }
+[[fem.clamps]]
+nodes = "EDGE"
+)");
+  CHECK(s.analysis == Analysis::static_analysis);
+  CHECK(s.problem.mesh.elements.size() == 2);
+  REQUIRE(s.problem.sections.size() == 1);
+  CHECK(s.problem.sections[0].thickness == 0.002);
+  CHECK(s.problem.materials[s.problem.sections[0].material].density == 7800.0);
+  CHECK(s.problem.interface_surface.empty());
+  CHECK(s.output.fields.size() == 7);  // all by default
+}
+
+TEST_CASE("fem scene: errors name file, line and key") {
+  // Unknown key.
+  CHECK_THAT(error_of(kBox + "damping_ratio = 0.1\n"),
+             Catch::Contains("test_scene.toml:4:17: key 'fem.damping_ratio'") &&
+                 Catch::Contains("not a known key"));
+  // Value out of range.
+  CHECK_THAT(error_of(R"([fem]
+mesh = { box = { lo = [0, 0, 0], hi = [1, 1, 1], cells = [1, 1, 1] } }
+[[fem.materials]]
+name = "m"
+youngs_modulus = 1e9
+poisson_ratio = 0.6
+density = 1000
+)"),
+             Catch::Contains("test_scene.toml:6:17: key 'fem.materials[0].poisson_ratio'") &&
+                 Catch::Contains("outside the accepted range (-1, 0.5)"));
+  // NaN.
+  CHECK_THAT(error_of(kBox + "gravity = [0, 0, nan]\n"), Catch::Contains("test_scene.toml:4:") &&
+                                                             Catch::Contains("'fem.gravity'") &&
+                                                             Catch::Contains("must be finite"));
+  // Negative time step.
+  CHECK_THAT(error_of(kBox + "dt = -1e-3\n"),
+             Catch::Contains("test_scene.toml:4:6: key 'fem.dt'") && Catch::Contains("> 0"));
+  // Missing mesh file: the scene key and the file.
+  CHECK_THAT(error_of("[fem]\nmesh = { file = \"no_such_beam.inp\" }\n"),
+             Catch::Contains("test_scene.toml:2:") && Catch::Contains("'fem.mesh.file'") &&
+                 Catch::Contains("no_such_beam.inp: cannot open mesh file"));
+  // A malformed mesh file: both the scene key and the .inp line.
+  CHECK_THAT(error_of("[fem]\nmesh = { file = \"malformed_missing_node.inp\" }\n"),
+             Catch::Contains("test_scene.toml:2:") && Catch::Contains("'fem.mesh.file'") &&
+                 Catch::Contains("malformed_missing_node.inp:7: element 12 references node 99, "
+                                 "which is not defined"));
+  // A selector that selects nothing.
+  CHECK_THAT(
+      error_of("[fem]\nmesh = { file = \"plate_s4r.inp\" }\n[[fem.clamps]]\nnodes = \"x <= -5\"\n"),
+      Catch::Contains("test_scene.toml:4:9: key 'fem.clamps[0].nodes'") &&
+          Catch::Contains("selects no node"));
+  CHECK_THAT(error_of(kBox + "[[fem.clamps]]\nnodes = \"x <= 0\"\ndofs = [\"x\", \"q\"]\n"),
+             Catch::Contains("'fem.clamps[0].dofs'") && Catch::Contains("\"q\" is not a DOF"));
+  CHECK_THAT(error_of(kBox + "[[fem.sections]]\nmaterial = \"wood\"\n"),
+             Catch::Contains("test_scene.toml:5:12: key 'fem.sections[0].material'"));
+  CHECK_THAT(error_of(kBox + "[[fem.pressures]]\nsurface = \"zmax\"\nmagnitude = 1\n"
+                             "amplitude = { type = \"table\", points = [[0, 0], [0, 1]] }\n"),
+             Catch::Contains("'fem.pressures[0].amplitude.points'") &&
+                 Catch::Contains("increase strictly"));
+  CHECK_THAT(error_of(R"([fem]
+mesh = { box = { lo = [0, 0, 0], hi = [1, 1, 1], cells = [0, 1, 1] } }
+)"),
+             Catch::Contains("'fem.mesh.box.cells'") && Catch::Contains("[1, 1e+06]"));
+  CHECK_THAT(error_of(kBox + "[fem.output]\nfields = [\"stress\"]\n"),
+             Catch::Contains("'fem.output.fields'") && Catch::Contains("not an output field"));
+}
