@@ -1,0 +1,110 @@
+#pragma once
+// The coupling schemes and the run loop, written once over SolverLink (solver_link.hpp).
+// Each coupling step sends Step commands in the scheme's order, moves forces and kinematics
+// through the interface buffers, and records the diagnostics of docs/coupling.md: drift
+// between the DEM and FEM copies of the interface, the interface work seen by each side, the
+// largest particle-interface overlap, and the wall time of DEM, FEM and coupling. A NaN, an
+// overlap or an energy error beyond its bound stops the run with a BlowUp that names the step
+// and the quantity; the series written so far stay on disk.
+
+#include <atomic>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "demfem/coupling/coupling_settings.hpp"
+#include "demfem/coupling/solver_link.hpp"
+
+namespace demfem::coupling {
+
+/// @brief A step that went wrong numerically; what() names the step, time and quantity.
+class BlowUp : public std::runtime_error {
+ public:
+  BlowUp(std::int64_t step, double time, std::string quantity, double value, double bound,
+         const std::string& text);
+  std::int64_t step() const { return step_; }
+  double time() const { return time_; }
+  const std::string& quantity() const { return quantity_; }
+  double value() const { return value_; }
+  double bound() const { return bound_; }
+
+ private:
+  std::int64_t step_;
+  double time_;
+  std::string quantity_;
+  double value_;
+  double bound_;
+};
+
+/// @brief The run was asked to stop (signal) between two steps.
+class Interrupted : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// @brief Diagnostics of one coupling step (one CSV row).
+struct StepDiagnostics {
+  std::int64_t step = 0;
+  double time = 0.0;                  ///< s, at the step's end
+  double drift = 0.0;                 ///< max node distance DEM copy vs FEM copy at step end, m
+  double work_dem = 0.0;              ///< cumulative interface work as the DEM sees it, J
+  double work_fem = 0.0;              ///< cumulative interface work as the FEM sees it, J
+  double energy_error = 0.0;          ///< work_dem - work_fem, J
+  double max_overlap = 0.0;           ///< largest particle-interface overlap of the step, m
+  double dem_max_overlap = 0.0;       ///< largest overlap of any DEM contact, m
+  double kinetic_energy = 0.0;        ///< DEM kinetic energy, J
+  double fem_max_displacement = 0.0;  ///< max |u| reported by the FEM, m
+  double force_sum_z = 0.0;           ///< sum of interface forces (z), N
+  double wall_dem = 0.0;              ///< s in the DEM step (send to done)
+  double wall_fem = 0.0;              ///< s in the FEM step
+  double wall_coupling = 0.0;         ///< s in the coupler for this step (mapping, bookkeeping,
+                                      ///< diagnostics, output)
+};
+
+/// @brief Totals of a finished (or stopped) run.
+struct RunSummary {
+  std::int64_t steps = 0;
+  double time = 0.0;        ///< simulated time reached, s
+  double wall_total = 0.0;  ///< s, from the first step to the last
+  double wall_dem = 0.0;
+  double wall_fem = 0.0;
+  double wall_coupling = 0.0;
+  bool settled = false;  ///< one_way_static: the settle criterion was met
+  StepDiagnostics last;
+  InterfaceMesh mesh;
+  std::vector<double> positions;  ///< FEM interface positions at the end (3n)
+  std::vector<double> forces;     ///< last interface forces (3n)
+};
+
+/// @brief Called after every coupling step (progress display).
+using StepObserver = std::function<void(const StepDiagnostics&, const CouplingSettings&)>;
+
+/// @brief Runs a scene's coupling loop over `link`.
+class CouplingRun {
+ public:
+  /// `output_dir`: where coupling.csv and coupling.h5 go (created). `stop`: polled between
+  /// steps; when set, the run ends with Interrupted.
+  CouplingRun(SolverLink& link, const CouplingSettings& settings, std::filesystem::path output_dir,
+              const std::atomic<bool>* stop = nullptr);
+
+  void set_observer(StepObserver observer) { observer_ = std::move(observer); }
+
+  /// Runs to the end. Throws BlowUp, Interrupted, or protocol errors; the CSV written so far
+  /// is flushed and coupling.h5 holds the state of the last step in every case.
+  RunSummary run();
+
+ private:
+  SolverLink& link_;
+  const CouplingSettings& settings_;
+  std::filesystem::path output_dir_;
+  const std::atomic<bool>* stop_;
+  StepObserver observer_;
+};
+
+/// @brief Index of the interface node nearest to `point` (ties: the lowest index).
+std::size_t nearest_node(const InterfaceMesh& mesh, const std::array<double, 3>& point);
+
+}  // namespace demfem::coupling

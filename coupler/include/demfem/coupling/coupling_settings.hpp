@@ -1,0 +1,96 @@
+#pragma once
+// The [coupling] section of a scene and the coupling step that follows from [dem].dt and
+// [fem].dt (thesis eq. 3.1-3.2: dt_C = dt_F = n_D dt_D). The coupler reads only [run] and
+// [coupling]; it peeks read-only at [dem].dt and [fem].dt (and [fem].analysis when present)
+// and leaves every other key of [dem] and [fem] to the solvers that own them.
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <limits>
+#include <optional>
+#include <string>
+
+#include "demfem/interface/interface_mesh.hpp"
+#include "demfem/scene/scene_reader.hpp"
+
+namespace demfem::coupling {
+
+/// @brief The coupling algorithm (docs/coupling.md).
+enum class Scheme : std::uint8_t {
+  dem_only,        ///< no [fem]: the DEM runs alone
+  fem_only,        ///< no [dem]: the FEM runs alone
+  one_way_static,  ///< DEM to rest on a fixed mesh, then its forces once into a static FEM solve
+  just_in_time,    ///< thesis Algorithm 3: DEM then FEM each coupling step
+  predictive,      ///< thesis eq. 3.4-3.7: FEM then DEM with the predicted velocity
+};
+
+/// @brief "one_way_static", "just_in_time", ...
+const char* scheme_name(Scheme scheme);
+
+/// @brief Optional verification of a beam under a uniform load (thesis ch. 4): after the run
+/// the coupler solves the same FEM structure with the load as a pressure and prints the
+/// deflections side by side with the analytical clamped-clamped value.
+struct BeamCheck {
+  std::array<double, 3> probe{};  ///< point whose nearest interface node is measured, m
+  double load_mass = 0.0;         ///< kg
+  double gravity = 9.81;          ///< m/s^2 (magnitude; the load acts along -z)
+  std::string surface;            ///< FEM surface name the pressure acts on
+  double length = 0.0;            ///< beam length, m (analytical formula)
+  double width = 0.0;             ///< m
+  double height = 0.0;            ///< m
+  double youngs_modulus = 0.0;    ///< Pa
+};
+
+/// @brief Everything the coupler takes from a scene.
+struct CouplingSettings {
+  scene::RunSettings run;
+  std::filesystem::path scene_file;
+  bool has_dem = false;
+  bool has_fem = false;
+  Scheme scheme = Scheme::dem_only;
+  bool force_averaging = false;
+  /// FEM-only runs: a single static solve (from [fem].analysis = "static").
+  bool fem_static = false;
+
+  double dem_dt = 0.0;            ///< [dem].dt, s
+  double fem_dt = 0.0;            ///< [fem].dt, s
+  double coupling_dt = 0.0;       ///< dt_C, s
+  std::int64_t dem_substeps = 1;  ///< n_D per coupling step
+  std::int64_t step_count = 0;    ///< coupling steps to reach run.end_time
+
+  // one_way_static: the DEM runs on the fixed mesh until t >= settle_min_time and its
+  // kinetic energy <= settle_kinetic_energy (0 = no criterion: until run.end_time).
+  double settle_min_time = 0.0;        ///< s
+  double settle_kinetic_energy = 0.0;  ///< J
+
+  // Blow-up bounds (infinity = off).
+  double max_overlap = std::numeric_limits<double>::infinity();       ///< m
+  double max_energy_error = std::numeric_limits<double>::infinity();  ///< J
+
+  std::int64_t diagnostics_interval = 1;  ///< coupling steps between CSV rows
+
+  std::optional<BeamCheck> beam_check;
+
+  ForceMode force_mode() const {
+    return force_averaging ? ForceMode::average : ForceMode::last_substep;
+  }
+};
+
+/// @brief Relative tolerance of the n_D = dt_F / dt_D integrality check.
+inline constexpr double kSubstepTolerance = 1e-9;
+
+/// @brief n_D = fem_dt / dem_dt when it is an integer within kSubstepTolerance (relative);
+/// otherwise throws scene::SceneError naming both keys, their values and the ratio.
+std::int64_t dem_substeps(double fem_dt, double dem_dt, const std::string& fem_where,
+                          const std::string& dem_where);
+
+/// @brief Number of steps of `dt` that reach `end_time` (the last step may end past it when
+/// end_time is not a multiple of dt within 1e-9).
+std::int64_t steps_to_reach(double end_time, double dt);
+
+/// @brief Reads [run] and [coupling] (strictly) and the step sizes. Throws scene::SceneError
+/// naming file, line and key.
+CouplingSettings read_coupling_settings(const scene::Document& scene);
+
+}  // namespace demfem::coupling

@@ -1,0 +1,95 @@
+#pragma once
+// The coupler's view of its solvers. The schemes (coupling_run.hpp) are written once against
+// SolverLink; RemoteLink drives real solver processes through a protocol::CouplerSession,
+// LocalLink holds the solvers' SolverBackend adapters in this process and calls them directly
+// over process-local interface buffers. Both run the same adapter code on the same inputs in
+// the same order, so a run through three processes equals the in-process run bit for bit.
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <sys/types.h>
+
+#include "demfem/interface/interface_mesh.hpp"
+#include "demfem/protocol/protocol.hpp"
+
+namespace demfem::coupling {
+
+using protocol::InterfaceBuffers;
+using protocol::Role;
+using protocol::StepCommand;
+using protocol::StepResult;
+
+/// @brief The solvers of one run, as the coupling schemes see them.
+class SolverLink {
+ public:
+  virtual ~SolverLink() = default;
+  /// This run has this solver.
+  virtual bool has(Role role) const = 0;
+  /// Handshakes and the mesh exchange (FEM publishes, DEM receives). Returns the interface
+  /// mesh (empty when there is no FEM). Call once, before any step.
+  virtual InterfaceMesh start() = 0;
+  /// The solver's name as it reported it ("demfem-fem 0.1 (cpu)").
+  virtual std::string name(Role role) const = 0;
+  /// Starts one step; the solver reads and writes buffers() (cmd.buffer) in place.
+  virtual void send_step(Role role, const StepCommand& cmd) = 0;
+  /// Waits for the step started by send_step(). Throws protocol::ProtocolError subclasses.
+  virtual StepResult wait_step_done(Role role) = 0;
+  /// The interface arrays shared with the solvers (valid after start()).
+  virtual InterfaceBuffers& buffers() = 0;
+  /// Ends the solvers cleanly (never throws).
+  virtual void shutdown() = 0;
+};
+
+/// @brief Solvers in this process, driven through their SolverBackend adapters.
+class LocalLink final : public SolverLink {
+ public:
+  /// Either pointer may be null (a run without that solver).
+  LocalLink(std::unique_ptr<protocol::SolverBackend> dem,
+            std::unique_ptr<protocol::SolverBackend> fem);
+  ~LocalLink() override;
+
+  bool has(Role role) const override;
+  InterfaceMesh start() override;
+  std::string name(Role role) const override;
+  void send_step(Role role, const StepCommand& cmd) override;
+  StepResult wait_step_done(Role role) override;
+  InterfaceBuffers& buffers() override { return buffers_; }
+  void shutdown() override {}
+
+  protocol::SolverBackend* backend(Role role) const;
+
+ private:
+  std::unique_ptr<protocol::SolverBackend> backends_[protocol::kRoleCount];
+  std::optional<StepResult> pending_[protocol::kRoleCount];
+  InterfaceBuffers buffers_;
+  // Process-local storage behind buffers_, laid out as the bulk segment is.
+  std::vector<double> reference_;
+  std::vector<std::int32_t> triangles_;
+  std::vector<double> arrays_;
+};
+
+/// @brief Solvers in their own processes, through the shared-memory protocol.
+class RemoteLink final : public SolverLink {
+ public:
+  /// `pids`: the launched solver processes (watched while waiting for their Hello); a role
+  /// without a pid is not part of the run.
+  RemoteLink(protocol::CouplerSession& session, std::optional<pid_t> dem_pid,
+             std::optional<pid_t> fem_pid);
+
+  bool has(Role role) const override;
+  InterfaceMesh start() override;
+  std::string name(Role role) const override;
+  void send_step(Role role, const StepCommand& cmd) override;
+  StepResult wait_step_done(Role role) override;
+  InterfaceBuffers& buffers() override;
+  void shutdown() override;
+
+ private:
+  protocol::CouplerSession& session_;
+  std::optional<pid_t> pids_[protocol::kRoleCount];
+};
+
+}  // namespace demfem::coupling

@@ -1,0 +1,70 @@
+#pragma once
+// Child solver processes of a run and the coupler's signal handling. The launcher starts
+// each solver as a SolverProcess (posix_spawn), watches it, and on SIGINT/SIGTERM/SIGHUP
+// sets the stop flag and forwards SIGTERM to every live child so that all three processes
+// end cleanly. A SolverProcess keeps its executable and arguments so that a crashed solver
+// can be started again (from a checkpoint, a later addition) with the same command line.
+
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <sys/types.h>
+
+namespace demfem::coupling {
+
+/// @brief One child solver process.
+class SolverProcess {
+ public:
+  SolverProcess(std::string label, std::filesystem::path executable,
+                std::vector<std::string> arguments);
+  ~SolverProcess();
+  SolverProcess(const SolverProcess&) = delete;
+  SolverProcess& operator=(const SolverProcess&) = delete;
+
+  /// Starts the process (throws std::runtime_error naming the executable on failure) and
+  /// registers it for signal forwarding.
+  pid_t start();
+  pid_t pid() const { return pid_; }
+  const std::string& label() const { return label_; }
+  /// True while the process runs (reaps it when it has ended).
+  bool running();
+  /// Sends `sig` when running.
+  void signal(int sig);
+  /// Waits up to `timeout` for the process to end; returns its exit code (128 + signal
+  /// number when a signal ended it), or nullopt while it still runs.
+  std::optional<int> wait_for(std::chrono::milliseconds timeout);
+  /// Waits up to `grace`, then SIGTERM, another `grace`, then SIGKILL. Returns the exit code.
+  int stop(std::chrono::milliseconds grace);
+  /// Exit code once ended.
+  std::optional<int> exit_code() const { return exit_code_; }
+
+ private:
+  void reaped(int status);
+  std::string label_;
+  std::filesystem::path executable_;
+  std::vector<std::string> arguments_;
+  pid_t pid_ = -1;
+  int slot_ = -1;
+  std::optional<int> exit_code_;
+};
+
+/// @brief Process-wide stop request from SIGINT/SIGTERM/SIGHUP.
+class SignalGuard {
+ public:
+  /// Installs the handlers (restored by the destructor).
+  SignalGuard();
+  ~SignalGuard();
+  SignalGuard(const SignalGuard&) = delete;
+  SignalGuard& operator=(const SignalGuard&) = delete;
+
+  /// Set by the handler; the run loop polls it between steps.
+  static const std::atomic<bool>& stop_flag();
+  /// The signal that set it (0 = none).
+  static int signal_number();
+};
+
+}  // namespace demfem::coupling

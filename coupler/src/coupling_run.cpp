@@ -1,0 +1,369 @@
+#include "demfem/coupling/coupling_run.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <optional>
+#include <sstream>
+
+#include "demfem/io/atomic_file.hpp"
+#include "demfem/io/csv_writer.hpp"
+#include "demfem/io/h5_file.hpp"
+
+namespace demfem::coupling {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double>(b - a).count();
+}
+
+std::string fmt(double v) {
+  std::ostringstream s;
+  s.precision(6);
+  s << v;
+  return s.str();
+}
+
+const std::vector<std::string> kColumns = {
+    "step",         "time",        "drift",           "work_dem",       "work_fem",
+    "energy_error", "max_overlap", "dem_max_overlap", "kinetic_energy", "fem_max_displacement",
+    "force_sum_z",  "wall_dem",    "wall_fem",        "wall_coupling"};
+
+std::vector<double> row_of(const StepDiagnostics& d) {
+  return {static_cast<double>(d.step),
+          d.time,
+          d.drift,
+          d.work_dem,
+          d.work_fem,
+          d.energy_error,
+          d.max_overlap,
+          d.dem_max_overlap,
+          d.kinetic_energy,
+          d.fem_max_displacement,
+          d.force_sum_z,
+          d.wall_dem,
+          d.wall_fem,
+          d.wall_coupling};
+}
+
+// Trapezoidal work of node forces that change linearly from f0 to f1 over the node
+// displacement x1 - x0 (the same rule on both sides, so their difference is the scheme's).
+double trapezoid_work(std::span<const double> f0, std::span<const double> f1,
+                      std::span<const double> x0, std::span<const double> x1) {
+  double w = 0.0;
+  for (std::size_t k = 0; k < x0.size(); ++k) w += 0.5 * (f0[k] + f1[k]) * (x1[k] - x0[k]);
+  return w;
+}
+
+double max_node_distance(std::span<const double> a, std::span<const double> b) {
+  double m = 0.0;
+  for (std::size_t i = 0; i + 2 < a.size(); i += 3) {
+    const double dx = a[i] - b[i], dy = a[i + 1] - b[i + 1], dz = a[i + 2] - b[i + 2];
+    m = std::max(m, std::sqrt(dx * dx + dy * dy + dz * dz));
+  }
+  return m;
+}
+
+// First non-finite entry, or -1.
+std::ptrdiff_t first_non_finite(std::span<const double> v) {
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    if (!std::isfinite(v[i])) return static_cast<std::ptrdiff_t>(i);
+  }
+  return -1;
+}
+
+void copy(std::span<const double> from, std::span<double> to) {
+  std::copy(from.begin(), from.end(), to.begin());
+}
+
+}  // namespace
+
+BlowUp::BlowUp(std::int64_t step, double time, std::string quantity, double value, double bound,
+               const std::string& text)
+    : std::runtime_error(text),
+      step_(step),
+      time_(time),
+      quantity_(std::move(quantity)),
+      value_(value),
+      bound_(bound) {}
+
+std::size_t nearest_node(const InterfaceMesh& mesh, const std::array<double, 3>& p) {
+  std::size_t best = 0;
+  double best_d = INFINITY;
+  for (std::size_t i = 0; i < mesh.node_count(); ++i) {
+    const double* x = &mesh.reference_positions[3 * i];
+    const double d = (x[0] - p[0]) * (x[0] - p[0]) + (x[1] - p[1]) * (x[1] - p[1]) +
+                     (x[2] - p[2]) * (x[2] - p[2]);
+    if (d < best_d) {
+      best_d = d;
+      best = i;
+    }
+  }
+  return best;
+}
+
+CouplingRun::CouplingRun(SolverLink& link, const CouplingSettings& settings,
+                         std::filesystem::path output_dir, const std::atomic<bool>* stop)
+    : link_(link), settings_(settings), output_dir_(std::move(output_dir)), stop_(stop) {}
+
+RunSummary CouplingRun::run() {
+  const CouplingSettings& s = settings_;
+  std::filesystem::create_directories(output_dir_);
+  io::CsvWriter csv(output_dir_ / "coupling.csv", kColumns);
+  std::vector<std::vector<double>> series(kColumns.size());
+
+  RunSummary sum;
+  sum.mesh = link_.start();
+  const std::size_t n3 = 3 * sum.mesh.node_count();
+  const bool coupled = s.has_dem && s.has_fem;
+  InterfaceBuffers& buf = link_.buffers();
+  constexpr std::uint32_t b = 0;  // one buffer: the schemes here are sequential
+
+  // The coupler's own copies: the FEM interface state at t_i (P, V, A), the forces the FEM
+  // was last given and the DEM's last forces, for the schemes and the work diagnostics.
+  std::vector<double> pos = sum.mesh.reference_positions, vel(n3, 0.0), acc(n3, 0.0);
+  std::vector<double> next_pos(n3), dem_start(n3), dem_end(n3);
+  std::vector<double> dem_force(n3, 0.0), dem_force_prev(n3, 0.0);
+  std::vector<double> fem_force(n3, 0.0), fem_force_prev(n3, 0.0);
+  double work_dem = 0.0, work_fem = 0.0;
+  bool settled = false;
+
+  auto write_row = [&](const StepDiagnostics& d) {
+    const auto r = row_of(d);
+    csv.row(r);
+    csv.flush();
+    for (std::size_t k = 0; k < r.size(); ++k) series[k].push_back(r[k]);
+  };
+  auto write_h5 = [&]() {
+    const auto final_path = output_dir_ / "coupling.h5";
+    io::H5File h5(io::partial_path(final_path), io::H5File::Mode::create);
+    h5.set_attribute("/", "scheme", std::string(scheme_name(s.scheme)));
+    h5.set_attribute("/", "steps", sum.steps);
+    h5.set_attribute("/", "time", sum.time);
+    h5.create_group("series");
+    for (std::size_t k = 0; k < kColumns.size(); ++k) h5.write("series/" + kColumns[k], series[k]);
+    if (n3 > 0) {
+      h5.create_group("interface");
+      h5.write("interface/reference_positions",
+               std::span<const double>(sum.mesh.reference_positions), {sum.mesh.node_count(), 3});
+      std::vector<std::int64_t> tri(sum.mesh.triangles.begin(), sum.mesh.triangles.end());
+      h5.write("interface/triangles", std::span<const std::int64_t>(tri),
+               {sum.mesh.triangle_count(), 3});
+      h5.write("interface/positions", std::span<const double>(pos), {sum.mesh.node_count(), 3});
+      h5.write("interface/forces", std::span<const double>(dem_force), {sum.mesh.node_count(), 3});
+      h5.write("interface/dem_positions", std::span<const double>(dem_end),
+               {sum.mesh.node_count(), 3});
+    }
+    h5.close();
+    io::commit_partial(final_path);
+  };
+
+  auto dem_step = [&](const StepCommand& cmd, StepDiagnostics& d) {
+    const auto t0 = Clock::now();
+    link_.send_step(Role::dem, cmd);
+    const StepResult r = link_.wait_step_done(Role::dem);
+    d.wall_dem += seconds(t0, Clock::now());
+    d.max_overlap = r.values[0];
+    d.kinetic_energy = r.values[1];
+    d.dem_max_overlap = r.values[2];
+    if (n3 > 0) {
+      copy(buf.forces(b), dem_force);
+      copy(buf.dem_positions(b), dem_end);
+    }
+  };
+  auto fem_step = [&](const StepCommand& cmd, StepDiagnostics& d) {
+    const auto t0 = Clock::now();
+    link_.send_step(Role::fem, cmd);
+    const StepResult r = link_.wait_step_done(Role::fem);
+    d.wall_fem += seconds(t0, Clock::now());
+    d.fem_max_displacement = r.values[0];
+  };
+  auto fail = [&](const StepDiagnostics& d, const std::string& quantity, double value, double bound,
+                  const std::string& why) {
+    write_row(d);
+    sum.last = d;
+    std::ostringstream m;
+    m << "blow-up at coupling step " << d.step << " (t = " << fmt(d.time) << " s): " << why;
+    throw BlowUp(d.step, d.time, quantity, value, bound, m.str());
+  };
+  auto check = [&](StepDiagnostics& d) {
+    const std::pair<const char*, std::span<const double>> arrays[] = {
+        {"interface force", dem_force},
+        {"FEM interface position", pos},
+        {"DEM interface position", dem_end}};
+    for (const auto& [what, v] : arrays) {
+      if (auto k = first_non_finite(v); k >= 0) {
+        fail(d, what, v[k], 0.0,
+             std::string(what) + " of node " + std::to_string(k / 3) + " (component " +
+                 std::to_string(k % 3) + ") is not finite (" + fmt(v[k]) + ")");
+      }
+    }
+    const std::pair<const char*, double> scalars[] = {
+        {"max_overlap", d.max_overlap},         {"kinetic_energy", d.kinetic_energy},
+        {"dem_max_overlap", d.dem_max_overlap}, {"fem_max_displacement", d.fem_max_displacement},
+        {"energy_error", d.energy_error},       {"drift", d.drift}};
+    for (const auto& [what, v] : scalars) {
+      if (!std::isfinite(v)) fail(d, what, v, 0.0, std::string(what) + " is not finite");
+    }
+    if (d.max_overlap > s.max_overlap) {
+      fail(d, "max_overlap", d.max_overlap, s.max_overlap,
+           "particle-interface overlap " + fmt(d.max_overlap) +
+               " m exceeds coupling.blowup.max_overlap = " + fmt(s.max_overlap) + " m");
+    }
+    if (s.scheme != Scheme::one_way_static && std::abs(d.energy_error) > s.max_energy_error) {
+      fail(d, "energy_error", d.energy_error, s.max_energy_error,
+           "interface energy error |W_dem - W_fem| = " + fmt(std::abs(d.energy_error)) +
+               " J exceeds coupling.blowup.max_energy_error = " + fmt(s.max_energy_error) + " J");
+    }
+  };
+
+  const auto run_start = Clock::now();
+  try {
+    for (std::int64_t i = 0; i < s.step_count; ++i) {
+      if (stop_ && stop_->load()) {
+        throw Interrupted("stopped by a signal before coupling step " + std::to_string(i) +
+                          " (t = " + fmt(static_cast<double>(i) * s.coupling_dt) + " s)");
+      }
+      const auto step_start = Clock::now();
+      StepDiagnostics d;
+      d.step = i;
+      const double t = static_cast<double>(i) * s.coupling_dt;
+      d.time = static_cast<double>(i + 1) * s.coupling_dt;
+      StepCommand dem_cmd;
+      dem_cmd.step = i;
+      dem_cmd.time = t;
+      dem_cmd.dt = s.coupling_dt;
+      dem_cmd.substeps = s.dem_substeps;
+      dem_cmd.buffer = b;
+      dem_cmd.force_mode = s.force_mode();
+      StepCommand fem_cmd = dem_cmd;
+      fem_cmd.substeps = 1;
+
+      switch (s.scheme) {
+        case Scheme::dem_only:
+          dem_step(dem_cmd, d);
+          break;
+        case Scheme::fem_only:
+          if (s.fem_static) fem_cmd.flags |= protocol::kStepStatic;
+          fem_step(fem_cmd, d);
+          if (n3 > 0) copy(buf.positions(b), pos);
+          break;
+        case Scheme::one_way_static: {
+          // The DEM mesh stays at the reference (no kinematics are sent).
+          if (i == 0) dem_start = pos;
+          dem_step(dem_cmd, d);
+          const bool last = i + 1 == s.step_count;
+          const bool ke_ok = s.settle_kinetic_energy > 0.0 &&
+                             d.time >= s.settle_min_time * (1.0 - 1e-12) &&
+                             d.kinetic_energy <= s.settle_kinetic_energy;
+          if (ke_ok || (last && s.settle_kinetic_energy == 0.0)) {
+            settled = true;
+            copy(dem_force, buf.forces(b));
+            fem_force = dem_force;
+            fem_cmd.flags |= protocol::kStepStatic;
+            fem_step(fem_cmd, d);
+            copy(buf.positions(b), next_pos);
+            // A slowly applied load does W = F.u / 2 (the strain energy); the DEM's mesh did
+            // not move, so its side is zero by construction (not a scheme error).
+            work_fem = trapezoid_work(fem_force_prev, fem_force, pos, next_pos);
+            pos = next_pos;
+          }
+          break;
+        }
+        case Scheme::just_in_time: {
+          // Algorithm 3: the DEM moves the mesh from the FEM's state at t_i (x + v tau +
+          // a tau^2/2) for n_D substeps; its forces then drive one FEM step.
+          copy(pos, buf.positions(b));
+          copy(vel, buf.velocities(b));
+          copy(acc, buf.accelerations(b));
+          dem_start = pos;
+          dem_cmd.flags |= protocol::kStepSetKinematics;
+          dem_step(dem_cmd, d);
+          // The DEM adapter left its forces in the buffer; the FEM reads them there.
+          fem_force = dem_force;
+          fem_step(fem_cmd, d);
+          copy(buf.positions(b), next_pos);
+          copy(buf.velocities(b), vel);
+          copy(buf.accelerations(b), acc);
+          break;
+        }
+        case Scheme::predictive: {
+          // eq. 3.4-3.7: the FEM steps first with the last DEM forces; the DEM then moves the
+          // mesh from P_i with V = (P_{i+1} - P_i) / dt_F and A = 0, ending where the FEM is.
+          fem_force = dem_force_prev;
+          copy(fem_force, buf.forces(b));
+          fem_step(fem_cmd, d);
+          copy(buf.positions(b), next_pos);
+          const double inv_dt = 1.0 / s.coupling_dt;
+          auto v = buf.velocities(b);
+          for (std::size_t k = 0; k < n3; ++k) v[k] = (next_pos[k] - pos[k]) * inv_dt;
+          copy(pos, buf.positions(b));
+          std::fill(buf.accelerations(b).begin(), buf.accelerations(b).end(), 0.0);
+          dem_start = pos;
+          dem_cmd.flags |= protocol::kStepSetKinematics;
+          dem_step(dem_cmd, d);
+          break;
+        }
+      }
+
+      if (coupled && s.scheme != Scheme::one_way_static) {
+        work_dem += trapezoid_work(dem_force_prev, dem_force, dem_start, dem_end);
+        work_fem += trapezoid_work(fem_force_prev, fem_force, pos, next_pos);
+        d.drift = max_node_distance(dem_end, next_pos);
+        pos = next_pos;
+      } else if (s.scheme == Scheme::one_way_static) {
+        d.drift = settled ? 0.0 : max_node_distance(dem_end, pos);
+      }
+      if (coupled) {
+        dem_force_prev = dem_force;
+        fem_force_prev = fem_force;
+      }
+      d.work_dem = work_dem;
+      d.work_fem = work_fem;
+      d.energy_error = work_dem - work_fem;
+      for (std::size_t k = 2; k < n3; k += 3) d.force_sum_z += dem_force[k];
+      check(d);
+      d.wall_coupling = std::max(0.0, seconds(step_start, Clock::now()) - d.wall_dem - d.wall_fem);
+      sum.steps = i + 1;
+      sum.time = d.time;
+      sum.wall_dem += d.wall_dem;
+      sum.wall_fem += d.wall_fem;
+      const bool row_due =
+          (i + 1) % s.diagnostics_interval == 0 || i + 1 == s.step_count || settled;
+      if (row_due) write_row(d);
+      // The row's own write is part of the coupler's time; account it to the totals.
+      d.wall_coupling = std::max(0.0, seconds(step_start, Clock::now()) - d.wall_dem - d.wall_fem);
+      sum.wall_coupling += d.wall_coupling;
+      sum.last = d;
+      if (observer_) observer_(d, s);
+      if (settled) break;
+    }
+    if (s.scheme == Scheme::one_way_static && !settled) {
+      throw std::runtime_error(
+          "one_way_static: the DEM did not settle by run.end_time = " + fmt(s.run.end_time) +
+          " s (kinetic energy " + fmt(sum.last.kinetic_energy) +
+          " J > coupling.settle.kinetic_energy = " + fmt(s.settle_kinetic_energy) +
+          " J); raise run.end_time or the threshold");
+    }
+  } catch (...) {
+    sum.wall_total = seconds(run_start, Clock::now());
+    csv.flush();
+    try {
+      write_h5();
+    } catch (...) {
+      // The original error matters more than a failed final file.
+    }
+    throw;
+  }
+  sum.wall_total = seconds(run_start, Clock::now());
+  sum.settled = settled;
+  sum.positions = pos;
+  sum.forces = dem_force;
+  write_h5();
+  return sum;
+}
+
+}  // namespace demfem::coupling

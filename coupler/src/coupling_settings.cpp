@@ -1,0 +1,160 @@
+#include "demfem/coupling/coupling_settings.hpp"
+
+#include <charconv>
+#include <cmath>
+#include <sstream>
+
+namespace demfem::coupling {
+
+using scene::Range;
+using scene::SceneError;
+using scene::Table;
+
+const char* scheme_name(Scheme scheme) {
+  switch (scheme) {
+    case Scheme::dem_only:
+      return "dem_only";
+    case Scheme::fem_only:
+      return "fem_only";
+    case Scheme::one_way_static:
+      return "one_way_static";
+    case Scheme::just_in_time:
+      return "just_in_time";
+    case Scheme::predictive:
+      return "predictive";
+  }
+  return "?";
+}
+
+namespace {
+
+// Shortest text that reads back as the same double: what the user wrote, usually.
+std::string format(double v) {
+  char text[32];
+  const auto r = std::to_chars(text, text + sizeof(text), v);
+  return std::string(text, r.ptr);
+}
+
+// Single-solver runs have no coupling step of their own; the coupler still advances them in
+// slices of about this length so that progress and diagnostics come at a steady rate.
+constexpr double kSoloSlice = 1e-3;  // s
+
+}  // namespace
+
+std::int64_t dem_substeps(double fem_dt, double dem_dt, const std::string& fem_where,
+                          const std::string& dem_where) {
+  const double ratio = fem_dt / dem_dt;
+  const double n = std::round(ratio);
+  if (!(n >= 1.0) || std::abs(ratio - n) > kSubstepTolerance * ratio) {
+    throw SceneError(fem_where + " = " + format(fem_dt) + " s is not an integer multiple of " +
+                     dem_where + " = " + format(dem_dt) + " s (ratio " + format(ratio) +
+                     "); the coupling step dt_C = dt_F must equal n_D * dt_D with an integer "
+                     "n_D >= 1 (thesis eq. 3.2, relative tolerance 1e-9)");
+  }
+  return static_cast<std::int64_t>(n);
+}
+
+std::int64_t steps_to_reach(double end_time, double dt) {
+  const double r = end_time / dt;
+  const double n = std::round(r);
+  if (std::abs(r - n) <= 1e-9 * std::max(1.0, r)) return std::max<std::int64_t>(1, std::llround(n));
+  return static_cast<std::int64_t>(std::ceil(r));
+}
+
+CouplingSettings read_coupling_settings(const scene::Document& doc) {
+  CouplingSettings s;
+  s.run = scene::read_run_settings(doc);
+  s.scene_file = doc.file();
+  const Table root = doc.root();
+  const auto dem = root.table("dem");
+  const auto fem = root.table("fem");
+  s.has_dem = dem.has_value();
+  s.has_fem = fem.has_value();
+  if (!s.has_dem && !s.has_fem) {
+    throw SceneError(doc.file().string() + ": the scene has neither a [dem] nor a [fem] section; " +
+                     "nothing to run");
+  }
+  // Read-only peeks: the owners check these keys (and the rest of their sections) themselves.
+  if (s.has_dem) s.dem_dt = dem->number("dt", Range::positive());
+  if (s.has_fem) {
+    if (fem->has("analysis")) {
+      s.fem_static = fem->string("analysis") == "static";
+    }
+    if (!s.fem_static || s.has_dem) s.fem_dt = fem->number("dt", Range::positive());
+  }
+
+  const auto coupling = root.table("coupling");
+  if (s.has_dem && s.has_fem) {
+    if (!coupling) {
+      throw SceneError(doc.file().string() +
+                       ": a scene with both [dem] and [fem] needs a [coupling] section with "
+                       "at least 'scheme' (one_way_static, just_in_time or predictive)");
+    }
+    const std::string scheme =
+        coupling->choice("scheme", {"one_way_static", "just_in_time", "predictive"});
+    s.scheme = scheme == "one_way_static" ? Scheme::one_way_static
+               : scheme == "just_in_time" ? Scheme::just_in_time
+                                          : Scheme::predictive;
+    s.dem_substeps = dem_substeps(s.fem_dt, s.dem_dt, fem->where("dt"), dem->where("dt"));
+    s.coupling_dt = s.fem_dt;
+  } else if (s.has_dem) {
+    s.scheme = Scheme::dem_only;
+    s.dem_substeps = std::max<std::int64_t>(1, static_cast<std::int64_t>(kSoloSlice / s.dem_dt));
+    s.coupling_dt = static_cast<double>(s.dem_substeps) * s.dem_dt;
+  } else {
+    s.scheme = Scheme::fem_only;
+    s.dem_substeps = 1;
+    s.coupling_dt = s.fem_static ? s.run.end_time : s.fem_dt;
+  }
+  s.step_count = steps_to_reach(s.run.end_time, s.coupling_dt);
+
+  if (coupling) {
+    if (s.scheme == Scheme::dem_only || s.scheme == Scheme::fem_only) {
+      // A single-solver scene may keep its [coupling] section (e.g. a variant of a coupled
+      // scene) but only the diagnostics keys mean anything there.
+      coupling->skip("scheme");
+      coupling->skip("force_averaging");
+      coupling->skip("settle");
+      coupling->skip("blowup");
+      coupling->skip("beam_check");
+    } else {
+      s.force_averaging = coupling->boolean("force_averaging", false);
+      if (auto settle = coupling->table("settle")) {
+        if (s.scheme != Scheme::one_way_static) {
+          coupling->fail("settle", "is only used by scheme = \"one_way_static\"");
+        }
+        s.settle_min_time = settle->number("min_time", 0.0, Range::non_negative());
+        s.settle_kinetic_energy = settle->number("kinetic_energy", 0.0, Range::non_negative());
+        if (s.settle_min_time > s.run.end_time) {
+          settle->fail("min_time", "must not exceed run.end_time = " + format(s.run.end_time) +
+                                       " s (the DEM stops at run.end_time)");
+        }
+        settle->finish();
+      }
+      if (auto blowup = coupling->table("blowup")) {
+        s.max_overlap = blowup->number("max_overlap", s.max_overlap, Range::positive());
+        s.max_energy_error =
+            blowup->number("max_energy_error", s.max_energy_error, Range::positive());
+        blowup->finish();
+      }
+      if (auto beam = coupling->table("beam_check")) {
+        BeamCheck b;
+        b.probe = beam->vec3("probe");
+        b.load_mass = beam->number("load_mass", Range::positive());
+        b.gravity = beam->number("gravity", 9.81, Range::positive());
+        b.surface = beam->string("surface");
+        b.length = beam->number("length", Range::positive());
+        b.width = beam->number("width", Range::positive());
+        b.height = beam->number("height", Range::positive());
+        b.youngs_modulus = beam->number("youngs_modulus", Range::positive());
+        beam->finish();
+        s.beam_check = b;
+      }
+    }
+    s.diagnostics_interval = coupling->integer("diagnostics_interval", 1, 1, INT64_MAX);
+    coupling->finish();
+  }
+  return s;
+}
+
+}  // namespace demfem::coupling

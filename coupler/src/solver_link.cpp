@@ -1,0 +1,119 @@
+#include "demfem/coupling/solver_link.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+
+namespace demfem::coupling {
+
+namespace {
+std::size_t index(Role role) {
+  return static_cast<std::size_t>(role);
+}
+}  // namespace
+
+LocalLink::LocalLink(std::unique_ptr<protocol::SolverBackend> dem,
+                     std::unique_ptr<protocol::SolverBackend> fem) {
+  backends_[index(Role::dem)] = std::move(dem);
+  backends_[index(Role::fem)] = std::move(fem);
+}
+
+LocalLink::~LocalLink() = default;
+
+bool LocalLink::has(Role role) const {
+  return backends_[index(role)] != nullptr;
+}
+
+protocol::SolverBackend* LocalLink::backend(Role role) const {
+  return backends_[index(role)].get();
+}
+
+InterfaceMesh LocalLink::start() {
+  InterfaceMesh mesh;
+  // serve() asks every backend for its mesh before Hello; do the same, in the same order.
+  if (auto* dem = backend(Role::dem)) (void)dem->published_mesh();
+  if (auto* fem = backend(Role::fem)) {
+    auto published = fem->published_mesh();
+    if (!published) throw std::runtime_error("the FEM backend published no interface mesh");
+    mesh = std::move(*published);
+  }
+  // The same layout as the bulk segment: reference mesh, then [buffer][array][3n].
+  const std::size_t n = mesh.node_count();
+  reference_ = mesh.reference_positions;
+  triangles_ = mesh.triangles;
+  arrays_.assign(InterfaceBuffers::kBufferCount * 5 * 3 * n, 0.0);
+  buffers_.bind(n, mesh.triangle_count(), reference_.data(), triangles_.data(), arrays_.data());
+  // As serve() does for the mesh owner: both buffers start at the reference configuration.
+  for (std::uint32_t b = 0; b < InterfaceBuffers::kBufferCount; ++b) {
+    std::copy(reference_.begin(), reference_.end(), buffers_.positions(b).begin());
+    std::copy(reference_.begin(), reference_.end(), buffers_.dem_positions(b).begin());
+  }
+  if (auto* dem = backend(Role::dem); dem && backend(Role::fem)) dem->on_mesh(mesh);
+  return mesh;
+}
+
+std::string LocalLink::name(Role role) const {
+  auto* b = backend(role);
+  return b ? b->name() : std::string();
+}
+
+void LocalLink::send_step(Role role, const StepCommand& cmd) {
+  auto* b = backend(role);
+  if (!b) throw std::logic_error(std::string("no ") + protocol::role_name(role) + " solver");
+  // Executed at once: the in-process link has no concurrency, which is what makes it the
+  // reference for the three-process run.
+  pending_[index(role)] = b->step(cmd, buffers_);
+}
+
+StepResult LocalLink::wait_step_done(Role role) {
+  auto& p = pending_[index(role)];
+  if (!p) throw std::logic_error("wait_step_done without send_step");
+  StepResult r = *p;
+  p.reset();
+  return r;
+}
+
+RemoteLink::RemoteLink(protocol::CouplerSession& session, std::optional<pid_t> dem_pid,
+                       std::optional<pid_t> fem_pid)
+    : session_(session) {
+  pids_[index(Role::dem)] = dem_pid;
+  pids_[index(Role::fem)] = fem_pid;
+}
+
+bool RemoteLink::has(Role role) const {
+  return pids_[index(role)].has_value();
+}
+
+InterfaceMesh RemoteLink::start() {
+  for (Role r : {Role::fem, Role::dem}) {
+    if (has(r)) session_.expect(r);
+  }
+  for (Role r : {Role::fem, Role::dem}) {
+    if (has(r)) session_.wait_hello(r, pids_[index(r)]);
+  }
+  return session_.exchange_mesh();
+}
+
+std::string RemoteLink::name(Role role) const {
+  return has(role) ? session_.peer(role).name : std::string();
+}
+
+void RemoteLink::send_step(Role role, const StepCommand& cmd) {
+  session_.set_time(cmd.time);
+  session_.send_step(role, cmd);
+}
+
+StepResult RemoteLink::wait_step_done(Role role) {
+  return session_.wait_step_done(role);
+}
+
+InterfaceBuffers& RemoteLink::buffers() {
+  return session_.buffers();
+}
+
+void RemoteLink::shutdown() {
+  for (Role r : {Role::dem, Role::fem}) {
+    if (has(r)) session_.shutdown(r);
+  }
+}
+
+}  // namespace demfem::coupling

@@ -1,0 +1,146 @@
+#include "demfem/coupling/supervisor.hpp"
+
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <cerrno>
+#include <csignal>
+#include <cstring>
+#include <stdexcept>
+#include <thread>
+
+extern char** environ;
+
+namespace demfem::coupling {
+
+namespace {
+
+// Pids to forward signals to. Lock-free atomics so that the handler may read them.
+constexpr int kMaxChildren = 8;
+std::array<std::atomic<pid_t>, kMaxChildren> g_children{};
+std::atomic<bool> g_stop{false};
+std::atomic<int> g_signal{0};
+static_assert(std::atomic<pid_t>::is_always_lock_free);
+
+void on_signal(int sig) {
+  g_signal.store(sig);
+  g_stop.store(true);
+  for (auto& c : g_children) {
+    const pid_t p = c.load();
+    if (p > 0) ::kill(p, SIGTERM);
+  }
+}
+
+constexpr int kSignals[] = {SIGINT, SIGTERM, SIGHUP};
+struct sigaction g_old[3];
+
+}  // namespace
+
+SolverProcess::SolverProcess(std::string label, std::filesystem::path executable,
+                             std::vector<std::string> arguments)
+    : label_(std::move(label)),
+      executable_(std::move(executable)),
+      arguments_(std::move(arguments)) {}
+
+SolverProcess::~SolverProcess() {
+  if (pid_ > 0 && !exit_code_) stop(std::chrono::milliseconds(2000));
+  if (slot_ >= 0) g_children[slot_].store(0);
+}
+
+pid_t SolverProcess::start() {
+  if (::access(executable_.c_str(), X_OK) != 0) {
+    throw std::runtime_error("cannot start the " + label_ + ": " + executable_.string() +
+                             " is missing or not executable (build it, or pass --bin-dir)");
+  }
+  std::vector<std::string> argv_store;
+  argv_store.push_back(executable_.string());
+  argv_store.insert(argv_store.end(), arguments_.begin(), arguments_.end());
+  std::vector<char*> argv;
+  for (auto& a : argv_store) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  pid_t pid = -1;
+  const int rc = ::posix_spawn(&pid, executable_.c_str(), nullptr, nullptr, argv.data(), environ);
+  if (rc != 0) {
+    throw std::runtime_error("cannot start the " + label_ + " (" + executable_.string() +
+                             "): " + std::strerror(rc));
+  }
+  pid_ = pid;
+  exit_code_.reset();
+  for (int i = 0; i < kMaxChildren; ++i) {
+    pid_t expected = 0;
+    if (g_children[i].compare_exchange_strong(expected, pid)) {
+      slot_ = i;
+      break;
+    }
+  }
+  return pid;
+}
+
+void SolverProcess::reaped(int status) {
+  exit_code_ = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  if (slot_ >= 0) {
+    g_children[slot_].store(0);
+    slot_ = -1;
+  }
+}
+
+bool SolverProcess::running() {
+  if (pid_ <= 0 || exit_code_) return false;
+  int status = 0;
+  const pid_t r = ::waitpid(pid_, &status, WNOHANG);
+  if (r == pid_) {
+    reaped(status);
+    return false;
+  }
+  return r == 0;
+}
+
+void SolverProcess::signal(int sig) {
+  if (running()) ::kill(pid_, sig);
+}
+
+std::optional<int> SolverProcess::wait_for(std::chrono::milliseconds timeout) {
+  const auto end = std::chrono::steady_clock::now() + timeout;
+  while (running()) {
+    if (std::chrono::steady_clock::now() >= end) return std::nullopt;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return exit_code_;
+}
+
+int SolverProcess::stop(std::chrono::milliseconds grace) {
+  if (auto c = wait_for(grace)) return *c;
+  signal(SIGTERM);
+  if (auto c = wait_for(grace)) return *c;
+  signal(SIGKILL);
+  int status = 0;
+  if (::waitpid(pid_, &status, 0) == pid_) reaped(status);
+  return exit_code_.value_or(128 + SIGKILL);
+}
+
+SignalGuard::SignalGuard() {
+  g_stop.store(false);
+  g_signal.store(0);
+  for (int i = 0; i < 3; ++i) {
+    struct sigaction sa {};
+    sa.sa_handler = on_signal;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = 0;  // no SA_RESTART: blocking calls return early with EINTR
+    ::sigaction(kSignals[i], &sa, &g_old[i]);
+  }
+}
+
+SignalGuard::~SignalGuard() {
+  for (int i = 0; i < 3; ++i) ::sigaction(kSignals[i], &g_old[i], nullptr);
+}
+
+const std::atomic<bool>& SignalGuard::stop_flag() {
+  return g_stop;
+}
+int SignalGuard::signal_number() {
+  return g_signal.load();
+}
+
+}  // namespace demfem::coupling

@@ -1,0 +1,95 @@
+// [coupling] reading: every error names file, line and key; n_D consistency (eq. 3.2).
+#include <catch2/catch.hpp>
+
+#include "demfem/coupling/coupling_settings.hpp"
+
+using namespace demfem;
+using coupling::read_coupling_settings;
+
+namespace {
+
+coupling::CouplingSettings read(const std::string& text) {
+  return read_coupling_settings(scene::Document::parse(text, "scene.toml"));
+}
+
+std::string error_of(const std::string& text) {
+  try {
+    read(text);
+  } catch (const scene::SceneError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+const char* kRun = "[run]\nend_time = 0.01\n";
+
+}  // namespace
+
+TEST_CASE("coupled scene: n_D, step count and scheme") {
+  auto s = read(std::string(kRun) +
+                "[dem]\ndt = 1e-6\n[fem]\ndt = 1e-4\n[coupling]\nscheme = \"predictive\"\n"
+                "force_averaging = true\n");
+  CHECK(s.scheme == coupling::Scheme::predictive);
+  CHECK(s.dem_substeps == 100);
+  CHECK(s.coupling_dt == 1e-4);
+  CHECK(s.step_count == 100);
+  CHECK(s.force_mode() == ForceMode::average);
+}
+
+TEST_CASE("a non-integer dt_F / dt_D is refused naming both keys and values") {
+  const std::string msg = error_of(std::string(kRun) +
+                                   "[dem]\ndt = 3e-6\n[fem]\ndt = 1e-4\n[coupling]\n"
+                                   "scheme = \"just_in_time\"\n");
+  CHECK_THAT(msg, Catch::Contains("fem.dt"));
+  CHECK_THAT(msg, Catch::Contains("dem.dt"));
+  CHECK_THAT(msg, Catch::Contains("1e-04"));
+  CHECK_THAT(msg, Catch::Contains("3e-06"));
+  CHECK_THAT(msg, Catch::Contains("scene.toml:"));
+  // A DEM step larger than the FEM step gives n_D < 1: refused as well.
+  CHECK_THAT(error_of(std::string(kRun) + "[dem]\ndt = 2e-4\n[fem]\ndt = 1e-4\n[coupling]\n"
+                                          "scheme = \"just_in_time\"\n"),
+             Catch::Contains("integer"));
+}
+
+TEST_CASE("n_D within the relative tolerance is accepted; just outside is not") {
+  CHECK(coupling::dem_substeps(1e-4, 1e-6 * (1 + 1e-12), "f", "d") == 100);
+  CHECK_THROWS_AS(coupling::dem_substeps(1e-4, 1e-6 * (1 + 1e-7), "f", "d"), scene::SceneError);
+}
+
+TEST_CASE("[coupling] errors name file, line and key") {
+  const std::string base = std::string(kRun) + "[dem]\ndt = 1e-6\n[fem]\ndt = 1e-4\n";
+  CHECK_THAT(error_of(base), Catch::Contains("[coupling]"));
+  std::string msg = error_of(base + "[coupling]\nscheme = \"implicit\"\n");
+  CHECK_THAT(msg, Catch::Contains("coupling.scheme"));
+  CHECK_THAT(msg, Catch::Contains("just_in_time"));
+  msg = error_of(base + "[coupling]\nscheme = \"predictive\"\nforce_averagin = true\n");
+  CHECK_THAT(msg, Catch::Contains("coupling.force_averagin"));
+  CHECK_THAT(msg, Catch::Contains("scene.toml:9"));
+  msg =
+      error_of(base + "[coupling]\nscheme = \"predictive\"\n[coupling.blowup]\nmax_overlap = -1\n");
+  CHECK_THAT(msg, Catch::Contains("coupling.blowup.max_overlap"));
+  msg = error_of(base + "[coupling]\nscheme = \"predictive\"\n[coupling.settle]\nmin_time = 0\n");
+  CHECK_THAT(msg, Catch::Contains("one_way_static"));
+  msg =
+      error_of(base + "[coupling]\nscheme = \"one_way_static\"\n[coupling.settle]\nmin_time = 1\n");
+  CHECK_THAT(msg, Catch::Contains("coupling.settle.min_time"));
+  msg = error_of(base + "[coupling]\nscheme = \"one_way_static\"\ndiagnostics_interval = 0\n");
+  CHECK_THAT(msg, Catch::Contains("coupling.diagnostics_interval"));
+}
+
+TEST_CASE("single-solver scenes") {
+  auto dem = read(std::string(kRun) + "[dem]\ndt = 1e-5\n");
+  CHECK(dem.scheme == coupling::Scheme::dem_only);
+  CHECK(dem.dem_substeps == 100);  // slices of 1 ms
+  CHECK(dem.step_count == 10);
+  auto fem = read(std::string(kRun) + "[fem]\ndt = 1e-3\n");
+  CHECK(fem.scheme == coupling::Scheme::fem_only);
+  CHECK(fem.step_count == 10);
+  CHECK_THAT(error_of(kRun), Catch::Contains("neither"));
+}
+
+TEST_CASE("steps_to_reach rounds a near multiple and covers a remainder") {
+  CHECK(coupling::steps_to_reach(0.3, 0.1) == 3);
+  CHECK(coupling::steps_to_reach(0.35, 0.1) == 4);
+  CHECK(coupling::steps_to_reach(1e-4, 1e-4) == 1);
+}
