@@ -284,6 +284,19 @@ TEST_CASE("a solver killed with SIGKILL mid-step is reported dead within the tim
     WARN("SIGKILL detected after "
          << std::chrono::duration_cast<std::chrono::milliseconds>(elapsed).count() << " ms");
     kill_and_reap(fem);
+
+    // Recovery: a restarted FEM attaches to the same run and gets the existing arrays.
+    session.buffers().positions(1)[4] = 42.0;  // run state that must survive the reattach
+    session.reset_peer(proto::Role::fem);
+    Child again = spawn({"serve", session.segment_name(), "fem", "--nodes", "10"});
+    session.wait_hello(proto::Role::fem, again.pid);
+    session.reattach(proto::Role::fem);
+    CHECK(session.buffers().positions(1)[4] == 42.0);
+    session.send_step(proto::Role::fem, step_cmd(3, 0));
+    CHECK(session.wait_step_done(proto::Role::fem).values[0] == 3.0);
+    CHECK(session.buffers().positions(0)[4] == 2e-3 * 1 + 1e-3 * 3);  // written in place
+    CHECK(session.shutdown(proto::Role::fem));
+    CHECK(exit_code(wait_exit(again, 5s)) == proto::kExitOk);
   }
   require_removed(names);
 }
@@ -319,7 +332,7 @@ TEST_CASE("a stopped solver (heartbeat stale) is reported dead within the timeou
   require_removed(names);
 }
 
-TEST_CASE("a solver notices a SIGKILLed coupler and exits; the next run removes its segment",
+TEST_CASE("a solver notices a SIGKILLed coupler and exits, and the next run removes its segment",
           "[protocol][process]") {
   Child coupler = spawn({"coupler-steps"}, true);
   const std::string name = read_line(coupler.stdout_fd);
@@ -409,7 +422,7 @@ TEST_CASE("a backend exception reaches the coupler as SolverError and ends the s
   require_removed(names);
 }
 
-TEST_CASE("SIGTERM makes serve() return promptly; the coupler then sees the solver gone",
+TEST_CASE("SIGTERM makes serve() return promptly and the coupler then sees the solver gone",
           "[protocol][process]") {
   std::vector<std::string> names;
   {

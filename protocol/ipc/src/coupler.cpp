@@ -145,6 +145,30 @@ struct CouplerSession::Impl {
     return msg;
   }
 
+  // Config: where the bulk arrays are (or that there are none).
+  void send_config(Role role) {
+    shm::ConfigPayload config{};
+    config.node_count = buffers.node_count();
+    config.triangle_count = buffers.triangle_count();
+    if (!buffers.empty())
+      shm::copy_text(config.bulk_segment, shm::kNameLength, bulk_name, "bulk name");
+    shm::Message msg{};
+    msg.kind = MessageKind::config;
+    msg.set(config);
+    send(role, msg);
+    receive_kind(role, MessageKind::config);
+  }
+
+  void send_mesh(Role role, bool initialize_buffers) {
+    shm::MeshPayload payload{};
+    payload.initialize_buffers = initialize_buffers ? 1 : 0;
+    shm::Message msg{};
+    msg.kind = MessageKind::mesh;
+    msg.set(payload);
+    send(role, msg);
+    receive_kind(role, MessageKind::mesh);
+  }
+
   void require_hello(Role role, const char* what) {
     if (!hello[index(role)])
       throw ProtocolError(std::string(what) + ": the " + role_name(role) +
@@ -262,6 +286,9 @@ InterfaceMesh CouplerSession::exchange_mesh() {
   const std::size_t nodes = fem ? s.peers[index(Role::fem)].node_count : 0;
   const std::size_t triangles = fem ? s.peers[index(Role::fem)].triangle_count : 0;
 
+  if (s.bulk.valid() &&
+      (nodes != s.buffers.node_count() || triangles != s.buffers.triangle_count()))
+    throw ProtocolError("exchange_mesh called again with another interface size");
   if (nodes > 0 && !s.bulk.valid()) {
     s.bulk_name = s.name + "-bulk";
     const shm::BulkHeader layout = shm::bulk_layout(nodes, triangles);
@@ -276,39 +303,32 @@ InterfaceMesh CouplerSession::exchange_mesh() {
                    reinterpret_cast<double*>(base + layout.arrays_offset));
   }
 
-  // Config: where the bulk arrays are (or that there are none).
-  shm::ConfigPayload config{};
-  config.node_count = nodes;
-  config.triangle_count = triangles;
-  if (nodes > 0) shm::copy_text(config.bulk_segment, shm::kNameLength, s.bulk_name, "bulk name");
-  for (Role role : {Role::fem, Role::dem}) {
-    if (!s.expected[index(role)]) continue;
-    shm::Message msg{};
-    msg.kind = MessageKind::config;
-    msg.set(config);
-    s.send(role, msg);
-    s.receive_kind(role, MessageKind::config);
-  }
+  for (Role role : {Role::fem, Role::dem})
+    if (s.expected[index(role)]) s.send_config(role);
   if (!fem) return {};
   // The FEM writes its reference mesh into the bulk segment, then the DEM reads it.
-  {
-    shm::Message msg{};
-    msg.kind = MessageKind::mesh;
-    s.send(Role::fem, msg);
-    s.receive_kind(Role::fem, MessageKind::mesh);
-  }
+  s.send_mesh(Role::fem, true);
   InterfaceMesh mesh = s.buffers.reference_mesh();
   for (std::int32_t t : mesh.triangles)
     if (t < 0 || static_cast<std::size_t>(t) >= nodes)
       throw ProtocolError("the FEM's interface mesh has triangle node index " + std::to_string(t) +
                           " outside [0, " + std::to_string(nodes) + ")");
-  if (s.expected[index(Role::dem)]) {
-    shm::Message msg{};
-    msg.kind = MessageKind::mesh;
-    s.send(Role::dem, msg);
-    s.receive_kind(Role::dem, MessageKind::mesh);
-  }
+  if (s.expected[index(Role::dem)]) s.send_mesh(Role::dem, false);
   return mesh;
+}
+
+void CouplerSession::reattach(Role role) {
+  Impl& s = *impl_;
+  s.require_hello(role, "reattach");
+  if (role == Role::fem && (s.peers[index(role)].node_count != s.buffers.node_count() ||
+                            s.peers[index(role)].triangle_count != s.buffers.triangle_count()))
+    throw ProtocolError("the restarted FEM reports " +
+                        std::to_string(s.peers[index(role)].node_count) + " interface nodes and " +
+                        std::to_string(s.peers[index(role)].triangle_count) +
+                        " triangles; the run has " + std::to_string(s.buffers.node_count()) +
+                        " and " + std::to_string(s.buffers.triangle_count()));
+  s.send_config(role);
+  if (!s.buffers.empty()) s.send_mesh(role, false);
 }
 
 void CouplerSession::send_step(Role role, const StepCommand& cmd) {

@@ -64,7 +64,8 @@ void wait_until(std::atomic<std::uint32_t>& word, std::atomic<std::uint32_t>& wa
   using clock = std::chrono::steady_clock;
   const auto start = clock::now();
   auto next_check = start + waiter.slice;
-  for (;;) {
+  const bool spin = !waiter.policy.block || waiter.policy.spin.count() > 0;
+  while (spin) {
     for (int i = 0; i < 64; ++i) {
       if (ready()) return;
       cpu_relax();

@@ -207,7 +207,7 @@ class Server {
                   reinterpret_cast<double*>(base + expected.arrays_offset));
   }
 
-  void handle_mesh() {
+  void handle_mesh(const shm::MeshPayload& request) {
     if (mesh_) {
       // The mesh owner writes its reference mesh into the bulk segment.
       if (buffers_.node_count() != mesh_->node_count() ||
@@ -221,8 +221,10 @@ class Server {
                   mesh_->reference_positions.size() * sizeof(double));
       std::memcpy(base + layout.triangles_offset, mesh_->triangles.data(),
                   mesh_->triangles.size() * sizeof(std::int32_t));
-      // Start both buffers at the reference configuration.
-      for (std::uint32_t b = 0; b < InterfaceBuffers::kBufferCount; ++b) {
+      // Start both buffers at the reference configuration (not when a restarted FEM
+      // re-publishes its mesh: the buffers then hold the run's current state).
+      for (std::uint32_t b = 0;
+           request.initialize_buffers != 0 && b < InterfaceBuffers::kBufferCount; ++b) {
         auto pos = buffers_.positions(b);
         std::copy(mesh_->reference_positions.begin(), mesh_->reference_positions.end(),
                   pos.begin());
@@ -283,7 +285,7 @@ class Server {
           reply.kind = MessageKind::config;
           break;
         case MessageKind::mesh:
-          handle_mesh();
+          handle_mesh(msg.get<shm::MeshPayload>());
           reply.kind = MessageKind::mesh;
           break;
         case MessageKind::step: {

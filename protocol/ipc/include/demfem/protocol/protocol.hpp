@@ -274,6 +274,11 @@ class CouplerSession {
   InterfaceBuffers& buffers();
   /// After a solver died: clear its rings and slot so a restarted solver can attach again.
   void reset_peer(Role role);
+  /// After reset_peer() and wait_hello() of a restarted solver: give it the existing bulk
+  /// arrays (Config) and the mesh (the FEM rewrites the reference mesh, the DEM receives it
+  /// via on_mesh). The buffers' contents are kept. Throws ProtocolError if a restarted FEM
+  /// reports another interface size.
+  void reattach(Role role);
   /// Simulated time stamped on the coupler's messages (informational).
   void set_time(double time);
 

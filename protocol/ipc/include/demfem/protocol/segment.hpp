@@ -73,6 +73,11 @@ struct ConfigPayload {
   std::uint64_t triangle_count;
   char bulk_segment[kNameLength];  ///< "" when the run has no coupled surface
 };
+struct MeshPayload {
+  std::uint32_t initialize_buffers;  ///< 1: the mesh owner also sets both buffers' positions
+                                     ///< and dem_positions to the reference positions
+  std::uint32_t reserved;
+};
 struct StepDonePayload {
   std::int64_t step;
   StepResult result;
