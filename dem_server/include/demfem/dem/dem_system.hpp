@@ -41,9 +41,9 @@ struct DemSettings {
   std::vector<Material> materials;
   /// Symmetric table, materials.size()^2 entries, row-major: pairs[i * n + j].
   std::vector<MaterialPair> pairs;
-  double skin = 0.0;        ///< neighbour-list skin, m; 0 = 0.2 * largest radius
+  double skin = 0.0;            ///< neighbour-list skin, m; 0 = 0.2 * largest radius
   std::string backend = "cpu";  ///< "cpu" or "cuda"
-  int threads = 0;          ///< CPU threads; 0 = OpenMP default
+  int threads = 0;              ///< CPU threads; 0 = OpenMP default
 };
 
 /// @brief Shape of a particle. Only spheres exist now; dilated polyhedra come later and
@@ -62,12 +62,12 @@ struct ParticleInit {
 
 /// @brief Host copy of the particle state, structure of arrays (index = particle).
 struct ParticleState {
-  std::vector<double> px, py, pz;            ///< position, m
-  std::vector<double> vx, vy, vz;            ///< velocity, m/s
-  std::vector<double> wx, wy, wz;            ///< angular velocity, rad/s
-  std::vector<double> qw, qx, qy, qz;        ///< orientation quaternion
-  std::vector<double> fx, fy, fz;            ///< force of the last step, N
-  std::vector<double> radius, mass, inertia; ///< m, kg, kg m^2
+  std::vector<double> px, py, pz;             ///< position, m
+  std::vector<double> vx, vy, vz;             ///< velocity, m/s
+  std::vector<double> wx, wy, wz;             ///< angular velocity, rad/s
+  std::vector<double> qw, qx, qy, qz;         ///< orientation quaternion
+  std::vector<double> fx, fy, fz;             ///< force of the last step, N
+  std::vector<double> radius, mass, inertia;  ///< m, kg, kg m^2
   std::vector<std::int32_t> material;
   std::vector<std::uint8_t> shape;
   std::size_t size() const { return px.size(); }
@@ -78,22 +78,22 @@ struct ParticleState {
 struct WallMotion {
   enum class Kind : std::uint8_t { fixed, translation, rotation, sinusoid };
   Kind kind = Kind::fixed;
-  std::array<double, 3> velocity{};    ///< translation: m/s
-  std::array<double, 3> axis_point{};  ///< rotation: a point on the axis, m
-  std::array<double, 3> axis{0, 0, 1}; ///< rotation axis (unit) / sinusoid direction (unit)
-  double angular_velocity = 0.0;       ///< rotation: rad/s
-  double amplitude = 0.0;              ///< sinusoid: m, x(t) = A sin(2 pi f (t - t0) + phase)
-  double frequency = 0.0;              ///< sinusoid: Hz
-  double phase = 0.0;                  ///< sinusoid: rad
-  double start_time = 0.0;             ///< s
-  double end_time = 1e300;             ///< s
+  std::array<double, 3> velocity{};     ///< translation: m/s
+  std::array<double, 3> axis_point{};   ///< rotation: a point on the axis, m
+  std::array<double, 3> axis{0, 0, 1};  ///< rotation axis (unit) / sinusoid direction (unit)
+  double angular_velocity = 0.0;        ///< rotation: rad/s
+  double amplitude = 0.0;               ///< sinusoid: m, x(t) = A sin(2 pi f (t - t0) + phase)
+  double frequency = 0.0;               ///< sinusoid: Hz
+  double phase = 0.0;                   ///< sinusoid: rad
+  double start_time = 0.0;              ///< s
+  double end_time = 1e300;              ///< s
 };
 
 /// @brief A rigid triangle mesh (from STL or generated).
 struct WallMesh {
   std::string name;
-  std::vector<double> vertices;        ///< 3 per vertex, m
-  std::vector<std::int32_t> triangles; ///< 3 vertex indices per triangle
+  std::vector<double> vertices;         ///< 3 per vertex, m
+  std::vector<std::int32_t> triangles;  ///< 3 vertex indices per triangle
   std::int32_t material = 0;
   WallMotion motion;
 };
@@ -152,6 +152,17 @@ class DemSystem {
   double kinetic_energy() const;
   /// Largest particle-particle or particle-wall overlap of the last step, m.
   double max_overlap() const;
+
+  /// @brief Wall-clock seconds spent in each phase since construction (for benchmarks).
+  struct Timings {
+    double detection = 0.0;    ///< neighbour-list and triangle-list rebuilds
+    double forces = 0.0;       ///< pair and wall contact forces, gathering
+    double integration = 0.0;  ///< kicks, drift, wall motion
+  };
+  Timings timings() const;
+  /// Number of neighbour-list rebuilds so far and pairs in the current list.
+  std::int64_t neighbour_rebuilds() const;
+  std::size_t neighbour_pairs() const;
 
   /// Complete state, contact history included, for a bitwise-identical continuation.
   void save(io::H5File& file, const std::string& group) const;

@@ -1,0 +1,121 @@
+#pragma once
+// The [dem] section of a scene (docs/scene_dem.md lists every key) and DemRun, which builds a
+// DemSystem from it (walls, lattice fills, random insertion, settling, removal above a
+// height) and carries the sensors and particle output along as the system advances.
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <iosfwd>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "demfem/dem/dem_system.hpp"
+#include "demfem/dem/insertion.hpp"
+#include "demfem/dem/sensors.hpp"
+#include "demfem/scene/scene_reader.hpp"
+
+namespace demfem::dem {
+
+/// @brief One [[dem.walls]] entry.
+struct WallSpec {
+  enum class Kind { stl, box, plane };
+  Kind kind = Kind::stl;
+  std::string name;
+  std::filesystem::path stl;  ///< stl: resolved path
+  double weld_tolerance = -1.0;
+  std::array<double, 3> lo{}, hi{};  ///< box
+  bool open_top = false;             ///< box
+  std::array<double, 3> point{}, normal{0, 0, 1};  ///< plane
+  double size = 0.0;                               ///< plane
+  std::int32_t material = 0;
+  WallMotion motion;
+  std::string where;  ///< file:line of the entry, for errors found later (bad STL)
+};
+
+/// @brief One [[dem.insert]] entry (material index and density resolved).
+struct InsertSpec {
+  RandomInsertion request;
+  bool has_seed = false;  ///< false: seed = run seed + entry index
+  std::string where;
+};
+
+/// @brief One [[dem.lattice]] entry.
+struct LatticeSpec {
+  LatticeFill request;
+  std::string where;
+};
+
+/// @brief Everything [dem] says.
+struct DemScene {
+  std::string file;
+  DemSettings settings;
+  std::string dt_where;  ///< file:line: key 'dem.dt', for the Rayleigh check
+  std::vector<WallSpec> walls;
+  std::vector<LatticeSpec> lattices;
+  std::vector<InsertSpec> inserts;
+  double settle_time = 0.0;           ///< s of settling after insertion (before remove_above)
+  std::optional<double> remove_above; ///< m
+  std::vector<SensorSpec> sensors;    ///< wall_force: wall = index into walls
+  std::optional<double> output_interval;  ///< [dem.output] interval (else the run's)
+  bool output_particles = true;
+  std::int32_t interface_material = -1;   ///< -1: not given
+  std::string interface_material_where;
+};
+
+/// @brief Reads and checks [dem] (a Table from the scene's root: root.required_table("dem")).
+/// Every table's finish() is called; errors are scene::SceneError naming file, line, key.
+DemScene read_dem_scene(const scene::Table& dem);
+
+/// @brief Rayleigh time-step check (eq. 2.27): error above 1, warning above this fraction.
+inline constexpr double kRayleighWarnFraction = 0.2;
+
+/// @brief A DEM system built from a scene, with stable particle ids, sensors and output.
+class DemRun {
+ public:
+  /// Builds the system: walls, lattice fills, random insertions (seed: the entry's seed, or
+  /// `seed` + entry index), settle_time of settling, remove_above. Prints the Rayleigh time
+  /// step to `log` (may be nullptr) and warns when dt > 0.2 of it; throws SceneError (naming
+  /// dem.dt) when dt exceeds it. `output_dir` empty = no files.
+  DemRun(const DemScene& scene, const std::filesystem::path& output_dir, std::uint64_t seed,
+         double run_output_interval, std::ostream* log);
+  ~DemRun();
+
+  DemSystem& system() { return *system_; }
+  const DemSystem& system() const { return *system_; }
+  std::span<const std::int64_t> ids() const { return ids_; }
+  const SensorSet& sensors() const { return *sensors_; }
+  const DemScene& scene() const { return scene_; }
+
+  /// advance(substeps) of the system, then the sensors and output that are due.
+  void advance(std::int64_t substeps, ForceMode mode = ForceMode::last_substep);
+  /// Advances to `end_time` in pieces that end on the sensor and output times;
+  /// `progress(time)` is called after each piece.
+  void run_to(double end_time, const std::function<void(double)>& progress = {});
+  /// Writes a particle snapshot now (no-op without output).
+  void write_snapshot();
+  /// Sensor samples and snapshot due at the current time.
+  void after_advance();
+
+  /// Checkpoint: the system (DemSystem::save into `group`) and the tools' state (ids, output
+  /// and sensor row counts) into `group` + "_tools".
+  void save(io::H5File& file, const std::string& group) const;
+  void restore(const io::H5File& file, const std::string& group);
+
+ private:
+  DemScene scene_;
+  std::unique_ptr<DemSystem> system_;
+  std::vector<std::int64_t> ids_;
+  std::int64_t next_id_ = 0;
+  std::unique_ptr<SensorSet> sensors_;
+  std::unique_ptr<class ParticleOutput> output_;
+  double output_interval_ = 0.0;
+  double next_output_ = 0.0;
+
+  void add(std::span<const ParticleInit> particles);
+};
+
+}  // namespace demfem::dem

@@ -1,0 +1,81 @@
+#pragma once
+// Filling a scene with particles: random non-overlapping insertion in a box up to a count or
+// a mass, lattice fill, and removal of particles above a height.
+
+#include <array>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "demfem/dem/dem_system.hpp"
+#include "demfem/dem/size_distribution.hpp"
+
+namespace demfem::dem {
+
+/// @brief An axis-aligned box, m.
+struct Box {
+  std::array<double, 3> lo{};
+  std::array<double, 3> hi{};
+  double volume() const { return (hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]); }
+  std::string describe() const;
+};
+
+/// @brief An insertion that cannot be done; what() says what was asked and what was achieved.
+class InsertionError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// @brief Random insertion request: exactly one of count and mass is > 0.
+struct RandomInsertion {
+  Box region;                      ///< particles lie wholly inside it
+  SizeDistribution sizes;
+  std::int64_t count = 0;          ///< number of particles, or 0
+  double mass = 0.0;               ///< kg: insert until the total reaches it, or 0
+  double density = 0.0;            ///< kg/m^3 of the particle material
+  std::int32_t material = 0;
+  std::array<double, 3> velocity{};
+  std::uint64_t seed = 1;
+  std::int64_t max_attempts = 2000;  ///< random positions tried per particle before giving up
+};
+
+/// @brief Solid fraction above which random sequential insertion is refused up front. Random
+/// sequential addition of equal spheres jams at about 0.38; polydisperse sets reach a little
+/// more, so requests above 0.40 are not attempted.
+inline constexpr double kMaxRandomPackingFraction = 0.40;
+
+/// @brief Places particles at random positions (uniform in the box, drawn from
+/// Rng(seed)) so that none overlaps another new one or a particle of `existing` (may be
+/// nullptr). A uniform cell grid makes each overlap test O(1). Deterministic for a given
+/// request and existing state. Throws InsertionError when the request exceeds
+/// kMaxRandomPackingFraction of the region, when the largest particle does not fit, or when a
+/// particle finds no free place in max_attempts tries (the message names the request and
+/// how many particles / how much mass were placed).
+std::vector<ParticleInit> insert_random(const RandomInsertion& request,
+                                        const ParticleState* existing = nullptr);
+
+/// @brief Lattice fill: spheres of one diameter on a simple cubic lattice of the given
+/// spacing (>= diameter) filling the box, lowest layer first.
+struct LatticeFill {
+  Box region;
+  double diameter = 0.0;
+  double spacing = 0.0;  ///< centre distance, m; 0 = 1.001 * diameter
+  std::int32_t material = 0;
+  std::array<double, 3> velocity{};
+  std::int64_t max_count = 0;  ///< 0 = as many as fit
+};
+
+/// @brief Particles of a lattice fill; throws InsertionError when not one fits.
+std::vector<ParticleInit> lattice_fill(const LatticeFill& request);
+
+/// @brief keep[i] = 1 for the particles whose centre is at or below `height` (m).
+std::vector<std::uint8_t> keep_at_or_below(const ParticleState& particles, double height);
+
+/// @brief Removes the particles whose centre is above `height`; returns how many.
+std::size_t remove_above(DemSystem& system, double height);
+
+/// @brief Mass of a sphere of diameter d and density rho, kg.
+double sphere_mass(double diameter, double density);
+
+}  // namespace demfem::dem

@@ -1,0 +1,123 @@
+#pragma once
+// Hertz–Mindlin contact law with history (thesis eq. 2.6–2.19), in the LIGGGHTS form:
+//   normal:      F_n = k_n δ n + γ_n v_n,   k_n = 4/3 E* sqrt(R δ)            (eq. 2.6)
+//                S_n = 2 E* sqrt(R δ) (the tangent stiffness dF/dδ, eq. 2.12)
+//                γ_n = -2 sqrt(5/6) β sqrt(S_n m*),  β = ln e / sqrt(ln² e + π²) (eq. 2.10)
+//   tangential:  S_t = 8 G* sqrt(R δ)                                         (eq. 2.16)
+//                s  ← s rotated into the current contact plane + v_t Δt      (history)
+//                F_t = -S_t s - γ_t v_t,   γ_t = -2 sqrt(5/6) β sqrt(S_t m*)  (eq. 2.15/2.18)
+//                |F_t| ≤ μ |F_n|: on sliding F_t is scaled to μ|F_n| and s is reset so
+//                that -S_t s - γ_t v_t = F_t (Coulomb limit, eq. 2.18)
+// Because F_t = S_t(δ) s uses the current stiffness, the spring force follows the change of
+// stiffness under unloading (the k_t^n / k_t^{n-1} factor of eq. 2.15).
+//   rolling:     constant directional torque (CDT model) M_r = -μ_r R F_n ω̂_rel.
+// The head-on restitution of this law equals e to < 1e-5 (checked by the tests).
+// Every function here is shared by the CPU and CUDA backends; no other file holds a formula.
+
+#include "demfem/dem/physics/hd.hpp"
+
+namespace demfem::dem::phys {
+
+/// Per-material-pair constants, precomputed on the host (pair_constants()).
+struct PairConstants {
+  double e_star;    ///< effective Young's modulus E*, Pa (eq. 2.7)
+  double g_star;    ///< effective shear modulus G*, Pa (eq. 2.17)
+  double beta;      ///< ln e / sqrt(ln² e + π²) (≤ 0)
+  double friction;  ///< μ
+  double rolling;   ///< μ_r (0 = off)
+};
+
+/// E*, G*, β of a pair from the two materials and the restitution coefficient e ∈ (0, 1].
+inline PairConstants pair_constants(double e1, double nu1, double e2, double nu2,
+                                    double restitution, double friction, double rolling) {
+  PairConstants c{};
+  c.e_star = 1.0 / ((1.0 - nu1 * nu1) / e1 + (1.0 - nu2 * nu2) / e2);
+  // 1/G* = (2 - ν1)/G1 + (2 - ν2)/G2 with G = E / (2(1 + ν)) (Mindlin; the form used by
+  // LIGGGHTS/EDEM; eq. 2.17 of the thesis writes the same sum with 1 - ν² in the numerator).
+  c.g_star = 1.0 / (2.0 * (2.0 - nu1) * (1.0 + nu1) / e1 + 2.0 * (2.0 - nu2) * (1.0 + nu2) / e2);
+  const double pi = 3.14159265358979323846;
+  if (restitution >= 1.0) {
+    c.beta = 0.0;
+  } else {
+    const double l = std::log(restitution);
+    c.beta = l / std::sqrt(l * l + pi * pi);
+  }
+  c.friction = friction;
+  c.rolling = rolling;
+  return c;
+}
+
+/// Result of one contact evaluation: the force on body i (the other body gets -force).
+struct ContactResult {
+  Vec3 force;   ///< total contact force on i, N
+  Vec3 torque;  ///< n × F_t: torque on i is a_i (n × F_t) with lever a_i (n points i → j)
+  Vec3 roll;    ///< rolling-resistance torque on i (j gets -roll), N m
+  double fn;    ///< magnitude of the normal force (≥ 0 or damped), N
+};
+
+/// Evaluates the contact law.
+/// @param n        unit normal from i towards j (for walls: from the particle to the wall)
+/// @param delta    overlap > 0, m
+/// @param r_eff    effective radius R (eq. 2.8), m
+/// @param m_eff    effective mass m* (eq. 2.11), kg
+/// @param vrel     velocity of i relative to j at the contact point, m/s
+/// @param wrel     angular velocity of i relative to j (rolling resistance), rad/s
+/// @param shear    tangential spring (history), updated in place; untouched when frictionless
+template <bool Friction>
+DEMFEM_HD ContactResult hertz_mindlin(const PairConstants& c, Vec3 n, double delta, double r_eff,
+                                      double m_eff, Vec3 vrel, Vec3 wrel, Vec3& shear, double dt) {
+  ContactResult out{};
+  const double sqrt_rd = std::sqrt(r_eff * delta);
+  const double kn = (4.0 / 3.0) * c.e_star * sqrt_rd;
+  const double sn = 2.0 * c.e_star * sqrt_rd;
+  const double damp = -2.0 * 0.91287092917527685576 * c.beta;  // 2 sqrt(5/6) |β|
+  const double vn = dot(vrel, n);  // > 0: approaching (i moves towards j)
+  // Force on i along n: elastic repulsion pushes i away from j (-n), damping opposes vn.
+  const double gamma_n = damp * std::sqrt(sn * m_eff);
+  const double fn = kn * delta + gamma_n * vn;  // magnitude pushing i along -n
+  out.fn = fn;
+  out.force = (-fn) * n;
+  out.torque = Vec3{0, 0, 0};
+  out.roll = Vec3{0, 0, 0};
+  if constexpr (Friction) {
+    const Vec3 vt = vrel - vn * n;
+    // Rotate the stored spring into the current tangent plane, keeping its length.
+    const double s2_old = norm2(shear);
+    Vec3 s = shear - dot(shear, n) * n;
+    const double s2_new = norm2(s);
+    if (s2_new > 0.0 && s2_old > 0.0) s = std::sqrt(s2_old / s2_new) * s;
+    s = s + dt * vt;
+    const double st = 8.0 * c.g_star * sqrt_rd;
+    const double gamma_t = damp * std::sqrt(st * m_eff);
+    Vec3 ft = (-st) * s - gamma_t * vt;
+    const double ft2 = norm2(ft);
+    const double fmax = c.friction * (fn > 0.0 ? fn : -fn);
+    if (ft2 > fmax * fmax) {
+      // Sliding: scale to the Coulomb limit and make the spring consistent with it.
+      const double scale = fmax / std::sqrt(ft2);
+      ft = scale * ft;
+      s = (-1.0 / st) * (ft + gamma_t * vt);
+    }
+    shear = s;
+    out.force = out.force + ft;
+    out.torque = cross(n, ft);
+    if (c.rolling > 0.0) {
+      const Vec3 wr = wrel - dot(wrel, n) * n;  // rolling part only (no twist)
+      const double w2 = norm2(wr);
+      if (w2 > 0.0) {
+        const double m = c.rolling * r_eff * (fn > 0.0 ? fn : 0.0) / std::sqrt(w2);
+        out.roll = (-m) * wr;
+      }
+    }
+  }
+  return out;
+}
+
+/// Rayleigh time step (thesis eq. 2.27) of a sphere of radius r, density rho, shear modulus
+/// G, Poisson ratio nu.
+DEMFEM_HD double rayleigh_time_step(double r, double rho, double shear_modulus, double nu) {
+  const double pi = 3.14159265358979323846;
+  return pi * r / (0.1631 * nu + 0.8766) * std::sqrt(rho / shear_modulus);
+}
+
+}  // namespace demfem::dem::phys

@@ -1,0 +1,61 @@
+#pragma once
+// Particle size distributions and a portable seeded random stream. std::uniform_real_distribution
+// and std::normal_distribution differ between standard libraries, so the transforms here are
+// our own: the same seed gives the same particles with any compiler.
+
+#include <cstdint>
+#include <random>
+#include <string>
+#include <vector>
+
+namespace demfem::dem {
+
+/// @brief Deterministic random stream: mt19937_64 with explicit transforms.
+class Rng {
+ public:
+  explicit Rng(std::uint64_t seed) : engine_(seed) {}
+  /// Uniform in [0, 1) with 53 random bits.
+  double uniform() { return double(engine_() >> 11) * 0x1.0p-53; }
+  /// Uniform in [a, b).
+  double uniform(double a, double b) { return a + (b - a) * uniform(); }
+  /// Standard normal (Marsaglia polar method; the spare value is kept).
+  double normal();
+
+ private:
+  std::mt19937_64 engine_;
+  bool has_spare_ = false;
+  double spare_ = 0.0;
+};
+
+/// @brief A distribution of particle diameters (m).
+struct SizeDistribution {
+  enum class Kind { constant, uniform, normal, gradation };
+  Kind kind = Kind::constant;
+  double d_min = 0.0;  ///< constant: the diameter; uniform/normal: lower bound
+  double d_max = 0.0;  ///< uniform/normal: upper bound
+  double mean = 0.0;   ///< normal: mean of the untruncated normal
+  double stddev = 0.0; ///< normal: standard deviation of the untruncated normal
+  /// gradation: sieve sizes d_0 < d_1 < ... < d_k (m) and the mass fraction of each of the k
+  /// classes [d_i, d_{i+1}) (sum 1). Within a class diameters are uniform by number.
+  std::vector<double> sieves;
+  std::vector<double> mass_fractions;
+
+  static SizeDistribution constant(double d);
+  static SizeDistribution uniform(double d_min, double d_max);
+  static SizeDistribution normal(double mean, double stddev, double d_min, double d_max);
+  static SizeDistribution gradation(std::vector<double> sieves, std::vector<double> mass_fractions);
+
+  /// Throws std::invalid_argument with the reason when the parameters are inconsistent
+  /// (d_min > d_max, non-positive sizes, fractions not summing to 1, a normal with almost no
+  /// probability inside its bounds, ...).
+  void validate() const;
+  /// One diameter, in [smallest(), largest()].
+  double sample(Rng& rng) const;
+  double smallest() const;
+  double largest() const;
+  /// Expected d^3 of one sampled particle, m^3 (by numerical integration for the normal).
+  double mean_cube() const;
+  std::string describe() const;
+};
+
+}  // namespace demfem::dem

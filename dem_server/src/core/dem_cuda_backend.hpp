@@ -1,0 +1,56 @@
+#pragma once
+// Internal interface between DemSystem (g++) and the CUDA backend (cuda/dem_cuda.cu, nvcc).
+// Plain pointers only, so that the .cu translation unit needs nothing but the physics
+// headers. Without CUDA (DEMFEM_HAVE_CUDA undefined) the functions are provided by
+// cuda_stub.cpp and report that no device exists.
+
+#include <cstddef>
+#include <cstdint>
+
+#include "demfem/dem/physics/contact.hpp"
+
+namespace demfem::dem {
+
+struct CudaBackend;
+
+/// Host arrays of the particle state and the neighbour list (views into DemSystem::Impl).
+struct GpuHostView {
+  std::size_t n = 0;
+  double *px, *py, *pz, *vx, *vy, *vz, *wx, *wy, *wz, *qw, *qx, *qy, *qz;
+  double *fx, *fy, *fz, *tx, *ty, *tz;
+  const double *radius, *mass, *inertia;
+  const std::int32_t* material;
+  // neighbour list (CSR rows i < j and their transpose), springs, build positions
+  std::size_t npairs = 0;
+  const std::int64_t *row, *trow, *tpair;
+  const std::int32_t* nbr;
+  double* shear;  // 3 per pair (may be null when frictionless)
+  const double *bx, *by, *bz;
+  // parameters
+  const phys::PairConstants* pc;
+  std::size_t nmat = 0;
+  double dt = 0.0;
+  double gravity[3] = {0, 0, 0};
+  bool friction = false, rolling = false;
+};
+
+bool cuda_device_present();
+CudaBackend* cuda_backend_create();
+void cuda_backend_destroy(CudaBackend* b);
+/// Copies the particle state and parameters to the device.
+void cuda_upload_state(CudaBackend* b, const GpuHostView& v);
+/// Copies the neighbour list, springs and build positions to the device.
+void cuda_upload_lists(CudaBackend* b, const GpuHostView& v);
+/// Copies the particle state and the springs back to the host.
+void cuda_download_state(CudaBackend* b, const GpuHostView& v);
+/// Runs up to `steps` steps on the device (one CUDA graph for the whole chunk) and stops
+/// early when a particle has moved more than `half_skin` since the last build: returns the
+/// number of steps done. The displacement is checked on the device; the host reads one flag
+/// per chunk.
+std::int64_t cuda_run_steps(CudaBackend* b, std::int64_t steps, double half_skin);
+/// Completes a step whose drift was done but whose forces were held back for a rebuild.
+void cuda_finish_step(CudaBackend* b);
+/// Largest overlap seen since the last upload_state, m.
+double cuda_max_overlap(CudaBackend* b);
+
+}  // namespace demfem::dem

@@ -1,0 +1,1364 @@
+// DemSystem: state, contact detection, walls and the CPU (OpenMP) backend. The physics
+// (contact law, integrator, triangle geometry) comes from include/demfem/dem/physics/*.hpp,
+// shared with the CUDA backend (cuda/*.cu).
+//
+// Step structure (velocity Verlet, see physics/integrator.hpp):
+//   1. per particle: half kick with the last force, drift, max displacement since the build
+//   2. walls: vertex positions/velocities at the new time (moving walls, flexible mesh)
+//   3. neighbour list rebuild when some particle moved more than half the skin
+//   4. per particle i (parallel): forces of the pairs (i, j > i) of its CSR row, written to
+//      per-pair slots, own share summed in row order
+//   5. per particle (parallel): own share - transposed pair slots (fixed order) + walls +
+//      gravity, second half kick
+//   6. walls (serial, fixed order): per-wall force/torque and flexible node forces
+// No floating-point atomics: every sum has a fixed order independent of the thread count, so
+// the result is bitwise identical for any number of threads.
+
+#include "demfem/dem/dem_system.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <map>
+#include <stdexcept>
+#include <utility>
+
+#include "dem_cuda_backend.hpp"
+#include "demfem/dem/physics/contact.hpp"
+#include "demfem/dem/physics/geometry.hpp"
+#include "demfem/dem/physics/integrator.hpp"
+#include "demfem/io/h5_file.hpp"
+
+namespace demfem::dem {
+
+using phys::Vec3;
+
+namespace {
+
+constexpr int kMaxWallContacts = 8;  // per particle; a sphere rarely touches more features
+constexpr std::int64_t kFeatureShift = 60;
+
+[[noreturn]] void bad(const std::string& what) {
+  throw std::invalid_argument("DemSystem: " + what);
+}
+
+bool finite3(const std::array<double, 3>& a) {
+  return std::isfinite(a[0]) && std::isfinite(a[1]) && std::isfinite(a[2]);
+}
+
+void validate(const DemSettings& s) {
+  if (!(s.dt > 0.0) || !std::isfinite(s.dt))
+    bad("settings.dt = " + std::to_string(s.dt) + " must be finite and > 0 s");
+  if (!finite3(s.gravity)) bad("settings.gravity must be finite");
+  if (s.materials.empty()) bad("settings.materials is empty (need at least one material)");
+  const std::size_t n = s.materials.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto& m = s.materials[i];
+    const std::string where = "settings.materials[" + std::to_string(i) + "] ('" + m.name + "')";
+    if (!(m.youngs_modulus > 0.0) || !std::isfinite(m.youngs_modulus))
+      bad(where + ".youngs_modulus = " + std::to_string(m.youngs_modulus) + " must be > 0 Pa");
+    if (!(m.poisson_ratio >= 0.0 && m.poisson_ratio < 0.5))
+      bad(where + ".poisson_ratio = " + std::to_string(m.poisson_ratio) + " outside [0, 0.5)");
+    if (!(m.density >= 0.0) || !std::isfinite(m.density))
+      bad(where + ".density = " + std::to_string(m.density) + " must be >= 0 kg/m^3");
+  }
+  if (s.pairs.size() != n * n)
+    bad("settings.pairs has " + std::to_string(s.pairs.size()) +
+        " entries, need materials^2 = " + std::to_string(n * n));
+  for (std::size_t k = 0; k < s.pairs.size(); ++k) {
+    const auto& p = s.pairs[k];
+    const std::string where = "settings.pairs[" + std::to_string(k) + "]";
+    if (!(p.restitution > 0.0 && p.restitution <= 1.0))
+      bad(where + ".restitution = " + std::to_string(p.restitution) + " outside (0, 1]");
+    if (!(p.friction >= 0.0) || !std::isfinite(p.friction))
+      bad(where + ".friction = " + std::to_string(p.friction) + " must be >= 0");
+    if (!(p.rolling_friction >= 0.0) || !std::isfinite(p.rolling_friction))
+      bad(where + ".rolling_friction = " + std::to_string(p.rolling_friction) + " must be >= 0");
+  }
+  if (!(s.skin >= 0.0) || !std::isfinite(s.skin))
+    bad("settings.skin = " + std::to_string(s.skin) + " must be >= 0 m");
+  if (s.backend != "cpu" && s.backend != "cuda")
+    bad("settings.backend = '" + s.backend + "', accepted: 'cpu', 'cuda'");
+  if (s.threads < 0) bad("settings.threads = " + std::to_string(s.threads) + " must be >= 0");
+}
+
+double dist_from_origin_pose(const WallMotion& m, double t, double& phase_out) {
+  const double tc = std::clamp(t, m.start_time, m.end_time);
+  phase_out = tc - m.start_time;
+  return tc;
+}
+
+}  // namespace
+
+struct DemSystem::Impl {
+  DemSettings s;
+  int threads = 1;
+  std::size_t nmat = 0;
+  std::vector<phys::PairConstants> pc;
+  bool friction = false;  // some pair has friction or rolling resistance
+  bool rolling = false;
+
+  ParticleState st;
+  std::vector<double> tx, ty, tz;  // torque of the last step
+  std::vector<double> acc;         // 3 per particle: own-row share of the pair forces
+  std::vector<double> acct;        // 3 per particle: own-row share of the torques
+  double t = 0.0;
+  std::int64_t steps = 0;
+  double rmax = 0.0;
+  double skin = 0.0;
+
+  // Neighbour list: CSR rows of pairs (i, j > i), j ascending; transposed index per j.
+  bool need_rebuild = true;
+  std::vector<std::int64_t> row;    // n + 1
+  std::vector<std::int32_t> nbr;    // j of each pair
+  std::vector<std::int64_t> trow;   // n + 1
+  std::vector<std::int64_t> tpair;  // pair index, grouped by j, i ascending
+  std::vector<std::int32_t> tsrc;   // i of each transposed entry
+  std::vector<double> shear;        // 3 per pair
+  std::vector<double> pf, pt, pr;   // 3 per pair: force on i, n x F_t, rolling torque on i
+  std::vector<double> bx, by, bz;   // positions at the last build
+  double max_ov = 0.0;
+  std::int64_t rebuilds = 0;
+
+  // Walls: all triangles (rigid walls first, then the flexible mesh) in one store.
+  struct Wall {
+    WallMesh mesh;
+    std::int64_t vbase = 0, tbase = 0;  // offsets in the global vertex / triangle store
+    std::array<double, 3> force{}, torque{};
+    bool flexible = false;
+  };
+  std::vector<Wall> walls;  // rigid walls; the flexible one is `flex`
+  bool has_flex = false;
+  Wall flex;
+  std::vector<double> flex_x, flex_v, flex_a;  // kinematics at the start of advance()
+  double flex_tau = 0.0;                       // time since that start
+  std::vector<double> flex_force;              // per node, as ForceMode asked
+  double flex_max_ov = 0.0;
+  // global stores
+  std::vector<double> vpos, vvel, vbuild;  // 3 per vertex
+  std::vector<std::int32_t> tri_v, tri_e;  // 3 per triangle: vertices / edge ids
+  std::vector<std::int32_t> tri_wall;      // wall index, -1 = flexible mesh
+  std::vector<std::int32_t> tri_mat;
+  std::size_t nedges = 0;
+  bool walls_dirty = true;  // topology must be rebuilt
+  bool walls_moving = false;
+  // particle -> candidate triangles (built with the neighbour list)
+  std::vector<std::int64_t> prow;
+  std::vector<std::int32_t> ptri;
+  // per-particle wall contact slots
+  std::vector<std::int64_t> wkey;  // kMaxWallContacts per particle, -1 = empty
+  std::vector<double> wshear;      // 3 per slot
+  std::vector<double> wf, wp, wb;  // force on particle, contact point, barycentric weights
+  std::vector<std::int32_t> wtri;
+  std::vector<std::uint8_t> wcount;
+
+  CudaBackend* gpu = nullptr;
+  DemSystem::Timings timing;
+
+  ~Impl() { cuda_backend_destroy(gpu); }
+
+  // ---------------------------------------------------------------------------------------
+  void setup_pairs() {
+    nmat = s.materials.size();
+    pc.resize(nmat * nmat);
+    friction = rolling = false;
+    for (std::size_t a = 0; a < nmat; ++a)
+      for (std::size_t b = 0; b < nmat; ++b) {
+        const auto& ma = s.materials[a];
+        const auto& mb = s.materials[b];
+        const auto& p = s.pairs[a * nmat + b];
+        pc[a * nmat + b] =
+            phys::pair_constants(ma.youngs_modulus, ma.poisson_ratio, mb.youngs_modulus,
+                                 mb.poisson_ratio, p.restitution, p.friction, p.rolling_friction);
+        friction = friction || p.friction > 0.0 || p.rolling_friction > 0.0;
+        rolling = rolling || p.rolling_friction > 0.0;
+      }
+  }
+
+  std::size_t n() const { return st.px.size(); }
+
+  // ---------------------------------------------------------------------------------------
+  // Wall topology: unique edge ids over the whole store so that a contact at an edge or a
+  // vertex shared by neighbouring triangles is counted once.
+  void build_wall_store() {
+    vpos.clear();
+    vvel.clear();
+    tri_v.clear();
+    tri_wall.clear();
+    tri_mat.clear();
+    auto append = [&](Wall& w, std::int32_t widx) {
+      w.vbase = static_cast<std::int64_t>(vpos.size() / 3);
+      w.tbase = static_cast<std::int64_t>(tri_v.size() / 3);
+      vpos.insert(vpos.end(), w.mesh.vertices.begin(), w.mesh.vertices.end());
+      for (std::size_t k = 0; k < w.mesh.triangles.size(); ++k)
+        tri_v.push_back(static_cast<std::int32_t>(w.vbase + w.mesh.triangles[k]));
+      for (std::size_t k = 0; k < w.mesh.triangles.size() / 3; ++k) {
+        tri_wall.push_back(widx);
+        tri_mat.push_back(w.mesh.material);
+      }
+    };
+    for (std::size_t w = 0; w < walls.size(); ++w) append(walls[w], static_cast<std::int32_t>(w));
+    if (has_flex) {
+      append(flex, -1);
+      if (flex_x.size() == flex.mesh.vertices.size())
+        std::copy(flex_x.begin(), flex_x.end(), vpos.begin() + 3 * flex.vbase);
+    }
+    vvel.assign(vpos.size(), 0.0);
+    vbuild = vpos;
+    // unique undirected edges
+    const std::size_t nt = tri_v.size() / 3;
+    std::vector<std::pair<std::pair<std::int32_t, std::int32_t>, std::int64_t>> edges;
+    edges.reserve(3 * nt);
+    for (std::size_t k = 0; k < nt; ++k)
+      for (int e = 0; e < 3; ++e) {
+        std::int32_t a = tri_v[3 * k + e], b = tri_v[3 * k + (e + 1) % 3];
+        if (a > b) std::swap(a, b);
+        edges.push_back({{a, b}, static_cast<std::int64_t>(3 * k + e)});
+      }
+    std::sort(edges.begin(), edges.end());
+    tri_e.assign(3 * nt, 0);
+    std::int32_t id = -1;
+    for (std::size_t k = 0; k < edges.size(); ++k) {
+      if (k == 0 || edges[k].first != edges[k - 1].first) ++id;
+      tri_e[edges[k].second] = id;
+    }
+    nedges = static_cast<std::size_t>(id + 1);
+    walls_moving = has_flex;
+    for (auto& w : walls)
+      walls_moving = walls_moving || w.mesh.motion.kind != WallMotion::Kind::fixed;
+    walls_dirty = false;
+    need_rebuild = true;
+  }
+
+  // Vertex positions and velocities of the walls at time tt (tau: time into the advance()).
+  void update_walls(double tt, double tau) {
+    for (auto& w : walls) {
+      const WallMotion& m = w.mesh.motion;
+      if (m.kind == WallMotion::Kind::fixed) continue;
+      double el = 0.0;
+      const double tc = dist_from_origin_pose(m, tt, el);
+      const bool active = tt >= m.start_time && tt < m.end_time;
+      const std::size_t nv = w.mesh.vertices.size() / 3;
+      double* x = vpos.data() + 3 * w.vbase;
+      double* v = vvel.data() + 3 * w.vbase;
+      const double* x0 = w.mesh.vertices.data();
+      if (m.kind == WallMotion::Kind::translation) {
+        for (std::size_t k = 0; k < nv; ++k)
+          for (int d = 0; d < 3; ++d) {
+            x[3 * k + d] = x0[3 * k + d] + m.velocity[d] * el;
+            v[3 * k + d] = active ? m.velocity[d] : 0.0;
+          }
+      } else if (m.kind == WallMotion::Kind::sinusoid) {
+        const double pi = 3.14159265358979323846;
+        const double arg = 2 * pi * m.frequency * el + m.phase;
+        const double u = m.amplitude * std::sin(arg);
+        const double du = active ? m.amplitude * 2 * pi * m.frequency * std::cos(arg) : 0.0;
+        (void)tc;
+        for (std::size_t k = 0; k < nv; ++k)
+          for (int d = 0; d < 3; ++d) {
+            x[3 * k + d] = x0[3 * k + d] + m.axis[d] * u;
+            v[3 * k + d] = m.axis[d] * du;
+          }
+      } else {  // rotation about axis through axis_point by angle ω el (Rodrigues)
+        const Vec3 ax{m.axis[0], m.axis[1], m.axis[2]};
+        const double an = std::sqrt(phys::norm2(ax));
+        const Vec3 a = (1.0 / an) * ax;
+        const double th = m.angular_velocity * el;
+        const double c = std::cos(th), sn = std::sin(th);
+        const Vec3 o{m.axis_point[0], m.axis_point[1], m.axis_point[2]};
+        const double wv = active ? m.angular_velocity : 0.0;
+        for (std::size_t k = 0; k < nv; ++k) {
+          const Vec3 r = Vec3{x0[3 * k], x0[3 * k + 1], x0[3 * k + 2]} - o;
+          const Vec3 rr = c * r + sn * phys::cross(a, r) + ((1 - c) * phys::dot(a, r)) * a;
+          const Vec3 p = o + rr;
+          const Vec3 vel = wv * phys::cross(a, rr);
+          x[3 * k] = p.x, x[3 * k + 1] = p.y, x[3 * k + 2] = p.z;
+          v[3 * k] = vel.x, v[3 * k + 1] = vel.y, v[3 * k + 2] = vel.z;
+        }
+      }
+    }
+    if (has_flex && flex_x.size() == flex.mesh.vertices.size()) {
+      const std::size_t nv = flex.mesh.vertices.size() / 3;
+      double* x = vpos.data() + 3 * flex.vbase;
+      double* v = vvel.data() + 3 * flex.vbase;
+      for (std::size_t k = 0; k < 3 * nv; ++k) {
+        x[k] = flex_x[k] + flex_v[k] * tau + 0.5 * flex_a[k] * tau * tau;
+        v[k] = flex_v[k] + flex_a[k] * tau;
+      }
+    }
+  }
+
+  double wall_displacement() const {
+    if (!walls_moving) return 0.0;
+    double m2 = 0.0;
+    for (std::size_t k = 0; k < vpos.size(); k += 3) {
+      const double dx = vpos[k] - vbuild[k], dy = vpos[k + 1] - vbuild[k + 1],
+                   dz = vpos[k + 2] - vbuild[k + 2];
+      m2 = std::max(m2, dx * dx + dy * dy + dz * dz);
+    }
+    return std::sqrt(m2);
+  }
+
+  // ---------------------------------------------------------------------------------------
+  // Neighbour list: uniform grid by counting sort, pairs within r_i + r_j + skin.
+  void rebuild() {
+    const std::size_t np = n();
+    ++rebuilds;
+    double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
+    const double* P[3] = {st.px.data(), st.py.data(), st.pz.data()};
+    for (std::size_t i = 0; i < np; ++i)
+      for (int d = 0; d < 3; ++d) {
+        lo[d] = std::min(lo[d], P[d][i]);
+        hi[d] = std::max(hi[d], P[d][i]);
+      }
+    if (np == 0)
+      for (int d = 0; d < 3; ++d) lo[d] = hi[d] = 0.0;
+    double h = std::max(2.0 * rmax + skin, 1e-12);
+    std::int64_t dim[3];
+    for (;;) {
+      std::int64_t tot = 1;
+      for (int d = 0; d < 3; ++d) {
+        dim[d] = std::max<std::int64_t>(1, static_cast<std::int64_t>((hi[d] - lo[d]) / h) + 1);
+        tot *= dim[d];
+      }
+      if (tot <= static_cast<std::int64_t>(4 * np + 4096)) break;
+      h *= 1.26;  // a sparse cloud: coarser cells keep the grid small
+    }
+    const std::int64_t ncell = dim[0] * dim[1] * dim[2];
+    const double inv_h = 1.0 / h;
+    std::vector<std::int32_t> cell(np);
+    auto cell_coord = [&](double x, int d) {
+      return std::clamp<std::int64_t>(static_cast<std::int64_t>((x - lo[d]) * inv_h), 0,
+                                      dim[d] - 1);
+    };
+    for (std::size_t i = 0; i < np; ++i)
+      cell[i] = static_cast<std::int32_t>(
+          (cell_coord(P[2][i], 2) * dim[1] + cell_coord(P[1][i], 1)) * dim[0] +
+          cell_coord(P[0][i], 0));
+    std::vector<std::int64_t> cstart(ncell + 1, 0);
+    for (std::size_t i = 0; i < np; ++i) ++cstart[cell[i] + 1];
+    for (std::int64_t c = 0; c < ncell; ++c) cstart[c + 1] += cstart[c];
+    std::vector<std::int32_t> sorted(np);
+    {
+      std::vector<std::int64_t> fill(cstart.begin(), cstart.end() - 1);
+      for (std::size_t i = 0; i < np; ++i) sorted[fill[cell[i]]++] = static_cast<std::int32_t>(i);
+    }
+    // two passes over particles: count, then fill (deterministic, parallel)
+    std::vector<std::int64_t> nrow(np + 1, 0);
+    const double* R = st.radius.data();
+    auto scan = [&](std::size_t i, auto&& emit) {
+      const std::int64_t cx = cell_coord(P[0][i], 0), cy = cell_coord(P[1][i], 1),
+                         cz = cell_coord(P[2][i], 2);
+      for (std::int64_t z = std::max<std::int64_t>(0, cz - 1); z <= std::min(dim[2] - 1, cz + 1);
+           ++z)
+        for (std::int64_t y = std::max<std::int64_t>(0, cy - 1); y <= std::min(dim[1] - 1, cy + 1);
+             ++y)
+          for (std::int64_t x = std::max<std::int64_t>(0, cx - 1);
+               x <= std::min(dim[0] - 1, cx + 1); ++x) {
+            const std::int64_t c = (z * dim[1] + y) * dim[0] + x;
+            for (std::int64_t k = cstart[c]; k < cstart[c + 1]; ++k) {
+              const std::size_t j = static_cast<std::size_t>(sorted[k]);
+              if (j <= i) continue;
+              const double dx = P[0][j] - P[0][i], dy = P[1][j] - P[1][i], dz = P[2][j] - P[2][i];
+              const double cut = R[i] + R[j] + skin;
+              if (dx * dx + dy * dy + dz * dz < cut * cut) emit(static_cast<std::int32_t>(j));
+            }
+          }
+    };
+    const std::int64_t sn = static_cast<std::int64_t>(np);
+#pragma omp parallel for num_threads(threads) schedule(static)
+    for (std::int64_t i = 0; i < sn; ++i) {
+      std::int64_t c = 0;
+      scan(static_cast<std::size_t>(i), [&](std::int32_t) { ++c; });
+      nrow[i + 1] = c;
+    }
+    for (std::size_t i = 0; i < np; ++i) nrow[i + 1] += nrow[i];
+    std::vector<std::int32_t> nnbr(static_cast<std::size_t>(nrow[np]));
+#pragma omp parallel for num_threads(threads) schedule(static)
+    for (std::int64_t i = 0; i < sn; ++i) {
+      std::int64_t k = nrow[i];
+      scan(static_cast<std::size_t>(i), [&](std::int32_t j) { nnbr[k++] = j; });
+      std::sort(nnbr.begin() + nrow[i], nnbr.begin() + nrow[i + 1]);
+    }
+    // carry the tangential springs over (merge of the sorted old and new rows)
+    const std::size_t npair = nnbr.size();
+    std::vector<double> nshear;
+    if (friction) {
+      nshear.assign(3 * npair, 0.0);
+      if (row.size() == np + 1) {
+#pragma omp parallel for num_threads(threads) schedule(static)
+        for (std::int64_t i = 0; i < sn; ++i) {
+          std::int64_t a = row[i], b = nrow[i];
+          while (a < row[i + 1] && b < nrow[i + 1]) {
+            if (nbr[a] < nnbr[b]) {
+              ++a;
+            } else if (nbr[a] > nnbr[b]) {
+              ++b;
+            } else {
+              for (int d = 0; d < 3; ++d) nshear[3 * b + d] = shear[3 * a + d];
+              ++a, ++b;
+            }
+          }
+        }
+      }
+    }
+    row.swap(nrow);
+    nbr.swap(nnbr);
+    shear.swap(nshear);
+    pf.assign(3 * npair, 0.0);
+    if (friction)
+      pt.assign(3 * npair, 0.0);
+    else
+      pt.clear();
+    if (rolling)
+      pr.assign(3 * npair, 0.0);
+    else
+      pr.clear();
+    // transposed index: for each j the pairs (i, j), i ascending (counting sort is stable)
+    trow.assign(np + 1, 0);
+    for (std::size_t p = 0; p < npair; ++p) ++trow[nbr[p] + 1];
+    for (std::size_t i = 0; i < np; ++i) trow[i + 1] += trow[i];
+    tpair.resize(npair);
+    tsrc.resize(npair);
+    {
+      std::vector<std::int64_t> fill(trow.begin(), trow.end() - 1);
+      for (std::size_t i = 0; i < np; ++i)
+        for (std::int64_t p = row[i]; p < row[i + 1]; ++p) {
+          const std::int64_t k = fill[nbr[p]]++;
+          tpair[k] = p;
+          tsrc[k] = static_cast<std::int32_t>(i);
+        }
+    }
+    bx = st.px, by = st.py, bz = st.pz;
+    // triangles: binned into the particle cells their AABB (grown by rmax + skin) touches
+    prow.assign(np + 1, 0);
+    ptri.clear();
+    const std::size_t nt = tri_v.size() / 3;
+    if (nt > 0 && np > 0) {
+      const double grow = rmax + skin;
+      std::vector<std::int64_t> tcount(ncell + 1, 0);
+      std::vector<std::array<std::int64_t, 6>> box(nt);
+      for (std::size_t k = 0; k < nt; ++k) {
+        double tl[3] = {1e300, 1e300, 1e300}, th[3] = {-1e300, -1e300, -1e300};
+        for (int e = 0; e < 3; ++e)
+          for (int d = 0; d < 3; ++d) {
+            const double x = vpos[3 * tri_v[3 * k + e] + d];
+            tl[d] = std::min(tl[d], x - grow);
+            th[d] = std::max(th[d], x + grow);
+          }
+        bool out = false;
+        for (int d = 0; d < 3; ++d) {
+          if (th[d] < lo[d] || tl[d] > lo[d] + dim[d] * h) out = true;
+          box[k][d] = cell_coord(tl[d], d);
+          box[k][3 + d] = cell_coord(th[d], d);
+        }
+        if (out)
+          box[k][0] = -1;
+        else
+          for (std::int64_t z = box[k][2]; z <= box[k][5]; ++z)
+            for (std::int64_t y = box[k][1]; y <= box[k][4]; ++y)
+              for (std::int64_t x = box[k][0]; x <= box[k][3]; ++x)
+                ++tcount[(z * dim[1] + y) * dim[0] + x + 1];
+      }
+      for (std::int64_t c = 0; c < ncell; ++c) tcount[c + 1] += tcount[c];
+      std::vector<std::int32_t> tbin(static_cast<std::size_t>(tcount[ncell]));
+      {
+        std::vector<std::int64_t> fill(tcount.begin(), tcount.end() - 1);
+        for (std::size_t k = 0; k < nt; ++k) {
+          if (box[k][0] < 0) continue;
+          for (std::int64_t z = box[k][2]; z <= box[k][5]; ++z)
+            for (std::int64_t y = box[k][1]; y <= box[k][4]; ++y)
+              for (std::int64_t x = box[k][0]; x <= box[k][3]; ++x)
+                tbin[fill[(z * dim[1] + y) * dim[0] + x]++] = static_cast<std::int32_t>(k);
+        }
+      }
+      auto near = [&](std::size_t i, std::int32_t k) {
+        const Vec3 p{P[0][i], P[1][i], P[2][i]};
+        const double* v = vpos.data();
+        const std::int32_t* tv = tri_v.data() + 3 * k;
+        const auto cp =
+            phys::closest_point_triangle(p, Vec3{v[3 * tv[0]], v[3 * tv[0] + 1], v[3 * tv[0] + 2]},
+                                         Vec3{v[3 * tv[1]], v[3 * tv[1] + 1], v[3 * tv[1] + 2]},
+                                         Vec3{v[3 * tv[2]], v[3 * tv[2] + 1], v[3 * tv[2] + 2]});
+        const double cut = R[i] + skin;
+        return phys::norm2(p - cp.point) < cut * cut;
+      };
+#pragma omp parallel for num_threads(threads) schedule(static)
+      for (std::int64_t i = 0; i < sn; ++i) {
+        const std::int32_t c = cell[i];
+        std::int64_t cnt = 0;
+        for (std::int64_t k = tcount[c]; k < tcount[c + 1]; ++k)
+          if (near(static_cast<std::size_t>(i), tbin[k])) ++cnt;
+        prow[i + 1] = cnt;
+      }
+      for (std::size_t i = 0; i < np; ++i) prow[i + 1] += prow[i];
+      ptri.resize(static_cast<std::size_t>(prow[np]));
+#pragma omp parallel for num_threads(threads) schedule(static)
+      for (std::int64_t i = 0; i < sn; ++i) {
+        const std::int32_t c = cell[i];
+        std::int64_t o = prow[i];
+        for (std::int64_t k = tcount[c]; k < tcount[c + 1]; ++k)
+          if (near(static_cast<std::size_t>(i), tbin[k])) ptri[o++] = tbin[k];
+      }
+    }
+    vbuild = vpos;
+    need_rebuild = false;
+  }
+
+  // ---------------------------------------------------------------------------------------
+  template <bool Friction>
+  void pair_forces() {
+    const std::int64_t sn = static_cast<std::int64_t>(n());
+    const double* px = st.px.data();
+    const double* py = st.py.data();
+    const double* pz = st.pz.data();
+    const double* vx = st.vx.data();
+    const double* vy = st.vy.data();
+    const double* vz = st.vz.data();
+    const double* wx = st.wx.data();
+    const double* wy = st.wy.data();
+    const double* wz = st.wz.data();
+    const double* rad = st.radius.data();
+    const double* mass = st.mass.data();
+    const std::int32_t* mat = st.material.data();
+    const double dt = s.dt;
+    const bool roll = rolling;
+    double mo = 0.0;
+#pragma omp parallel for num_threads(threads) schedule(static) reduction(max : mo)
+    for (std::int64_t i = 0; i < sn; ++i) {
+      double ax = 0, ay = 0, az = 0, qx = 0, qy = 0, qz = 0;
+      const double xi = px[i], yi = py[i], zi = pz[i], ri = rad[i];
+      const std::size_t mrow = static_cast<std::size_t>(mat[i]) * nmat;
+      for (std::int64_t p = row[i]; p < row[i + 1]; ++p) {
+        const std::int32_t j = nbr[p];
+        const double dx = px[j] - xi, dy = py[j] - yi, dz = pz[j] - zi;
+        const double rs = ri + rad[j];
+        const double d2 = dx * dx + dy * dy + dz * dz;
+        double* f = pf.data() + 3 * p;
+        if (d2 >= rs * rs) {
+          f[0] = f[1] = f[2] = 0.0;
+          if constexpr (Friction) {
+            double* sh = shear.data() + 3 * p;
+            sh[0] = sh[1] = sh[2] = 0.0;
+            double* tq = pt.data() + 3 * p;
+            tq[0] = tq[1] = tq[2] = 0.0;
+            if (roll) {
+              double* rq = pr.data() + 3 * p;
+              rq[0] = rq[1] = rq[2] = 0.0;
+            }
+          }
+          continue;
+        }
+        const double d = std::sqrt(d2);
+        const double inv = 1.0 / d;
+        const Vec3 nn{dx * inv, dy * inv, dz * inv};
+        const double delta = rs - d;
+        mo = std::max(mo, delta);
+        const double rj = rad[j];
+        const double reff = ri * rj / rs;
+        const double meff = mass[i] * mass[j] / (mass[i] + mass[j]);
+        Vec3 vrel{vx[i] - vx[j], vy[i] - vy[j], vz[i] - vz[j]};
+        Vec3 wrel{0, 0, 0};
+        Vec3 sh{0, 0, 0};
+        if constexpr (Friction) {
+          const Vec3 wsum{ri * wx[i] + rj * wx[j], ri * wy[i] + rj * wy[j],
+                          ri * wz[i] + rj * wz[j]};
+          vrel = vrel + phys::cross(wsum, nn);
+          wrel = Vec3{wx[i] - wx[j], wy[i] - wy[j], wz[i] - wz[j]};
+          sh = Vec3{shear[3 * p], shear[3 * p + 1], shear[3 * p + 2]};
+        }
+        const auto r = phys::hertz_mindlin<Friction>(pc[mrow + mat[j]], nn, delta, reff, meff, vrel,
+                                                     wrel, sh, dt);
+        f[0] = r.force.x, f[1] = r.force.y, f[2] = r.force.z;
+        ax += r.force.x, ay += r.force.y, az += r.force.z;
+        if constexpr (Friction) {
+          double* shp = shear.data() + 3 * p;
+          shp[0] = sh.x, shp[1] = sh.y, shp[2] = sh.z;
+          double* tq = pt.data() + 3 * p;
+          tq[0] = r.torque.x, tq[1] = r.torque.y, tq[2] = r.torque.z;
+          qx += ri * r.torque.x, qy += ri * r.torque.y, qz += ri * r.torque.z;
+          if (roll) {
+            double* rq = pr.data() + 3 * p;
+            rq[0] = r.roll.x, rq[1] = r.roll.y, rq[2] = r.roll.z;
+            qx += r.roll.x, qy += r.roll.y, qz += r.roll.z;
+          }
+        }
+      }
+      acc[3 * i] = ax, acc[3 * i + 1] = ay, acc[3 * i + 2] = az;
+      if constexpr (Friction) acct[3 * i] = qx, acct[3 * i + 1] = qy, acct[3 * i + 2] = qz;
+    }
+    max_ov = mo;
+  }
+
+  // Wall contacts of particle i; adds force and torque; keeps the per-particle slots.
+  template <bool Friction>
+  void wall_contacts(std::size_t i, double& fx, double& fy, double& fz, double& qx, double& qy,
+                     double& qz, double& mo, double& fmo) {
+    struct Cand {
+      phys::ClosestPoint cp;
+      std::int32_t tri;
+      std::int64_t key;
+      double d2;
+    };
+    Cand cand[16];
+    int nc = 0;
+    const Vec3 p{st.px[i], st.py[i], st.pz[i]};
+    const double ri = st.radius[i];
+    const double* v = vpos.data();
+    for (std::int64_t k = prow[i]; k < prow[i + 1]; ++k) {
+      const std::int32_t tri = ptri[k];
+      const std::int32_t* tv = tri_v.data() + 3 * tri;
+      const auto cp =
+          phys::closest_point_triangle(p, Vec3{v[3 * tv[0]], v[3 * tv[0] + 1], v[3 * tv[0] + 2]},
+                                       Vec3{v[3 * tv[1]], v[3 * tv[1] + 1], v[3 * tv[1] + 2]},
+                                       Vec3{v[3 * tv[2]], v[3 * tv[2] + 1], v[3 * tv[2] + 2]});
+      const double d2 = phys::norm2(p - cp.point);
+      if (d2 >= ri * ri || nc == 16) continue;
+      std::int64_t key;
+      if (cp.feature == phys::kFace)
+        key = tri;
+      else if (cp.feature <= phys::kEdgeCA)
+        key = (std::int64_t{1} << kFeatureShift) | tri_e[3 * tri + cp.feature - 1];
+      else
+        key = (std::int64_t{2} << kFeatureShift) | tv[cp.feature - phys::kVertexA];
+      cand[nc++] = {cp, tri, key, d2};
+    }
+    // Count each contact once: an edge contact is dropped when a triangle with that edge
+    // already touches with its face (or the edge was counted); a vertex contact when a
+    // triangle with that vertex touches with its face or an edge with that vertex touches.
+    bool keep[16];
+    for (int a = 0; a < nc; ++a) {
+      keep[a] = true;
+      const std::int64_t type = cand[a].key >> kFeatureShift;
+      if (type == 0) continue;
+      const std::int64_t fid = cand[a].key & ((std::int64_t{1} << kFeatureShift) - 1);
+      for (int b = 0; b < nc && keep[a]; ++b) {
+        if (b == a) continue;
+        const std::int64_t tb = cand[b].key >> kFeatureShift;
+        if (cand[b].key == cand[a].key && b < a) keep[a] = false;
+        if (type == 1 && tb == 0) {
+          for (int e = 0; e < 3; ++e)
+            if (tri_e[3 * cand[b].tri + e] == fid) keep[a] = false;
+        } else if (type == 2 && tb < 2) {
+          if (tb == 0) {
+            for (int e = 0; e < 3; ++e)
+              if (tri_v[3 * cand[b].tri + e] == fid) keep[a] = false;
+          } else {
+            const int f = cand[b].cp.feature - 1;
+            const std::int32_t* tv = tri_v.data() + 3 * cand[b].tri;
+            if (tv[f] == fid || tv[(f + 1) % 3] == fid) keep[a] = false;
+          }
+        }
+      }
+    }
+    // new slots (history from the old slots of the same feature)
+    std::int64_t* key = wkey.data() + kMaxWallContacts * i;
+    double* shr = wshear.data() + 3 * kMaxWallContacts * i;
+    std::int64_t okey[kMaxWallContacts];
+    double osh[3 * kMaxWallContacts];
+    const int oc = wcount[i];
+    if constexpr (Friction) {
+      std::memcpy(okey, key, sizeof(okey));
+      std::memcpy(osh, shr, sizeof(osh));
+    }
+    int cnt = 0;
+    const std::size_t mi = static_cast<std::size_t>(st.material[i]);
+    for (int a = 0; a < nc && cnt < kMaxWallContacts; ++a) {
+      if (!keep[a]) continue;
+      const Cand& c = cand[a];
+      const double d = std::sqrt(c.d2);
+      const double delta = ri - d;
+      if (!(d > 0.0)) continue;                       // centre on the plane: no defined normal
+      const Vec3 nn = (-1.0 / d) * (p - c.cp.point);  // particle -> wall
+      const std::int32_t tri = c.tri;
+      const std::int32_t* tv = tri_v.data() + 3 * tri;
+      const double* vv = vvel.data();
+      const Vec3 vw = c.cp.u * Vec3{vv[3 * tv[0]], vv[3 * tv[0] + 1], vv[3 * tv[0] + 2]} +
+                      c.cp.v * Vec3{vv[3 * tv[1]], vv[3 * tv[1] + 1], vv[3 * tv[1] + 2]} +
+                      c.cp.w * Vec3{vv[3 * tv[2]], vv[3 * tv[2] + 1], vv[3 * tv[2] + 2]};
+      Vec3 vrel = Vec3{st.vx[i], st.vy[i], st.vz[i]} - vw;
+      Vec3 wrel{0, 0, 0};
+      Vec3 sh{0, 0, 0};
+      if constexpr (Friction) {
+        const Vec3 w{st.wx[i], st.wy[i], st.wz[i]};
+        vrel = vrel + ri * phys::cross(w, nn);
+        wrel = w;
+        for (int o = 0; o < oc; ++o)
+          if (okey[o] == c.key) sh = Vec3{osh[3 * o], osh[3 * o + 1], osh[3 * o + 2]};
+      }
+      const auto r = phys::hertz_mindlin<Friction>(pc[mi * nmat + tri_mat[tri]], nn, delta, ri,
+                                                   st.mass[i], vrel, wrel, sh, s.dt);
+      fx += r.force.x, fy += r.force.y, fz += r.force.z;
+      if constexpr (Friction) {
+        qx += ri * r.torque.x + r.roll.x;
+        qy += ri * r.torque.y + r.roll.y;
+        qz += ri * r.torque.z + r.roll.z;
+        shr[3 * cnt] = sh.x, shr[3 * cnt + 1] = sh.y, shr[3 * cnt + 2] = sh.z;
+      }
+      key[cnt] = c.key;
+      const std::size_t slot = kMaxWallContacts * i + cnt;
+      wf[3 * slot] = r.force.x, wf[3 * slot + 1] = r.force.y, wf[3 * slot + 2] = r.force.z;
+      wp[3 * slot] = c.cp.point.x, wp[3 * slot + 1] = c.cp.point.y, wp[3 * slot + 2] = c.cp.point.z;
+      wb[3 * slot] = c.cp.u, wb[3 * slot + 1] = c.cp.v, wb[3 * slot + 2] = c.cp.w;
+      wtri[slot] = tri;
+      mo = std::max(mo, delta);
+      if (tri_wall[tri] < 0) fmo = std::max(fmo, delta);
+      ++cnt;
+    }
+    wcount[i] = static_cast<std::uint8_t>(cnt);
+  }
+
+  template <bool Friction>
+  void gather_and_kick() {
+    const std::int64_t sn = static_cast<std::int64_t>(n());
+    const double h = 0.5 * s.dt;
+    const double g[3] = {s.gravity[0], s.gravity[1], s.gravity[2]};
+    const bool walls_on = !tri_v.empty();
+    double mo = max_ov, fmo = 0.0;
+#pragma omp parallel for num_threads(threads) schedule(static) reduction(max : mo, fmo)
+    for (std::int64_t i = 0; i < sn; ++i) {
+      double fx = acc[3 * i], fy = acc[3 * i + 1], fz = acc[3 * i + 2];
+      double qx = 0, qy = 0, qz = 0;
+      if constexpr (Friction) qx = acct[3 * i], qy = acct[3 * i + 1], qz = acct[3 * i + 2];
+      const double ri = st.radius[i];
+      for (std::int64_t k = trow[i]; k < trow[i + 1]; ++k) {
+        const std::int64_t p = tpair[k];
+        fx -= pf[3 * p], fy -= pf[3 * p + 1], fz -= pf[3 * p + 2];
+        if constexpr (Friction) {
+          qx += ri * pt[3 * p], qy += ri * pt[3 * p + 1], qz += ri * pt[3 * p + 2];
+          if (rolling) qx -= pr[3 * p], qy -= pr[3 * p + 1], qz -= pr[3 * p + 2];
+        }
+      }
+      if (walls_on)
+        wall_contacts<Friction>(static_cast<std::size_t>(i), fx, fy, fz, qx, qy, qz, mo, fmo);
+      const double m = st.mass[i];
+      fx += m * g[0], fy += m * g[1], fz += m * g[2];
+      st.fx[i] = fx, st.fy[i] = fy, st.fz[i] = fz;
+      phys::kick(st.vx[i], st.vy[i], st.vz[i], fx, fy, fz, h / m);
+      if constexpr (Friction) {
+        tx[i] = qx, ty[i] = qy, tz[i] = qz;
+        phys::kick(st.wx[i], st.wy[i], st.wz[i], qx, qy, qz, h / st.inertia[i]);
+      }
+    }
+    max_ov = mo;
+    flex_max_ov = std::max(flex_max_ov, fmo);
+  }
+
+  // Half kick + drift; returns the largest displacement since the last build.
+  template <bool Friction>
+  double kick_drift() {
+    const std::int64_t sn = static_cast<std::int64_t>(n());
+    const double dt = s.dt, h = 0.5 * s.dt;
+    double m2 = 0.0;
+    const bool have_build = bx.size() == n();
+#pragma omp parallel for num_threads(threads) schedule(static) reduction(max : m2)
+    for (std::int64_t i = 0; i < sn; ++i) {
+      const double hm = h / st.mass[i];
+      phys::kick(st.vx[i], st.vy[i], st.vz[i], st.fx[i], st.fy[i], st.fz[i], hm);
+      st.px[i] += dt * st.vx[i];
+      st.py[i] += dt * st.vy[i];
+      st.pz[i] += dt * st.vz[i];
+      if constexpr (Friction) {
+        phys::kick(st.wx[i], st.wy[i], st.wz[i], tx[i], ty[i], tz[i], h / st.inertia[i]);
+      }
+      phys::rotate_quaternion(st.qw[i], st.qx[i], st.qy[i], st.qz[i], st.wx[i], st.wy[i], st.wz[i],
+                              dt);
+      if (have_build) {
+        const double dx = st.px[i] - bx[i], dy = st.py[i] - by[i], dz = st.pz[i] - bz[i];
+        m2 = std::max(m2, dx * dx + dy * dy + dz * dz);
+      }
+    }
+    return have_build ? std::sqrt(m2) : 1e300;
+  }
+
+  void wall_reduce(bool last, ForceMode mode, std::int64_t substeps) {
+    for (auto& w : walls) w.force = {0, 0, 0}, w.torque = {0, 0, 0};
+    std::vector<double> nodef;
+    if (has_flex) nodef.assign(flex.mesh.vertices.size(), 0.0);
+    const std::size_t np = n();
+    for (std::size_t i = 0; i < np; ++i)
+      for (int c = 0; c < wcount[i]; ++c) {
+        const std::size_t slot = kMaxWallContacts * i + c;
+        const std::int32_t tri = wtri[slot];
+        const std::int32_t w = tri_wall[tri];
+        // force ON the wall = - force on the particle
+        const Vec3 f{-wf[3 * slot], -wf[3 * slot + 1], -wf[3 * slot + 2]};
+        if (w >= 0) {
+          const Vec3 x{wp[3 * slot], wp[3 * slot + 1], wp[3 * slot + 2]};
+          const Vec3 q = phys::cross(x, f);
+          auto& W = walls[w];
+          W.force[0] += f.x, W.force[1] += f.y, W.force[2] += f.z;
+          W.torque[0] += q.x, W.torque[1] += q.y, W.torque[2] += q.z;
+        } else {
+          for (int e = 0; e < 3; ++e) {
+            const std::int64_t node = tri_v[3 * tri + e] - flex.vbase;
+            const double b = wb[3 * slot + e];
+            nodef[3 * node] += b * f.x, nodef[3 * node + 1] += b * f.y,
+                nodef[3 * node + 2] += b * f.z;
+          }
+        }
+      }
+    if (has_flex) {
+      if (mode == ForceMode::average) {
+        const double inv = 1.0 / static_cast<double>(substeps);
+        for (std::size_t k = 0; k < nodef.size(); ++k) flex_force[k] += inv * nodef[k];
+      } else if (last) {
+        flex_force = nodef;
+      }
+    }
+  }
+
+  template <bool Friction>
+  void step(bool last, ForceMode mode, std::int64_t substeps) {
+    const double t0 = omp_get_wtime();
+    const double disp = kick_drift<Friction>();
+    t += s.dt;
+    flex_tau += s.dt;
+    double wdisp = 0.0;
+    if (walls_moving) {
+      update_walls(t, flex_tau);
+      wdisp = wall_displacement();
+    }
+    const double t1 = omp_get_wtime();
+    if (need_rebuild || 2.0 * disp > skin || disp + wdisp > skin) rebuild();
+    const double t2 = omp_get_wtime();
+    pair_forces<Friction>();
+    gather_and_kick<Friction>();
+    if (!tri_v.empty()) wall_reduce(last, mode, substeps);
+    ++steps;
+    const double t3 = omp_get_wtime();
+    timing.integration += t1 - t0;
+    timing.detection += t2 - t1;
+    timing.forces += t3 - t2;
+  }
+
+  GpuHostView gpu_view() {
+    GpuHostView v;
+    v.n = n();
+    v.px = st.px.data(), v.py = st.py.data(), v.pz = st.pz.data();
+    v.vx = st.vx.data(), v.vy = st.vy.data(), v.vz = st.vz.data();
+    v.wx = st.wx.data(), v.wy = st.wy.data(), v.wz = st.wz.data();
+    v.qw = st.qw.data(), v.qx = st.qx.data(), v.qy = st.qy.data(), v.qz = st.qz.data();
+    v.fx = st.fx.data(), v.fy = st.fy.data(), v.fz = st.fz.data();
+    v.tx = tx.data(), v.ty = ty.data(), v.tz = tz.data();
+    v.radius = st.radius.data(), v.mass = st.mass.data(), v.inertia = st.inertia.data();
+    v.material = st.material.data();
+    v.npairs = nbr.size();
+    v.row = row.data(), v.trow = trow.data(), v.tpair = tpair.data(), v.nbr = nbr.data();
+    v.shear = shear.data();
+    v.bx = bx.data(), v.by = by.data(), v.bz = bz.data();
+    v.pc = pc.data();
+    v.nmat = nmat;
+    v.dt = s.dt;
+    for (int k = 0; k < 3; ++k) v.gravity[k] = s.gravity[k];
+    v.friction = friction, v.rolling = rolling;
+    return v;
+  }
+
+  // CUDA backend: the same step on the device; the neighbour list is built here (host) when
+  // the device reports that some particle moved more than half the skin.
+  void advance_gpu(std::int64_t substeps) {
+    if (!tri_v.empty() || has_flex)
+      bad("settings.backend = 'cuda' does not support walls or the flexible mesh yet; use "
+          "backend = 'cpu' for scenes with walls");
+    const double t0 = omp_get_wtime();
+    if (need_rebuild || row.size() != n() + 1 || bx.size() != n()) rebuild();
+    cuda_upload_state(gpu, gpu_view());
+    cuda_upload_lists(gpu, gpu_view());
+    std::int64_t left = substeps;
+    double tdet = 0.0;
+    while (left > 0) {
+      const std::int64_t done = cuda_run_steps(gpu, left, 0.5 * skin);
+      t += s.dt * static_cast<double>(done);
+      steps += done;
+      left -= done;
+      if (left > 0) {  // drift of the next step done, forces wait for the new list
+        const double r0 = omp_get_wtime();
+        cuda_download_state(gpu, gpu_view());
+        rebuild();
+        cuda_upload_lists(gpu, gpu_view());
+        tdet += omp_get_wtime() - r0;
+        cuda_finish_step(gpu);
+        t += s.dt;
+        ++steps;
+        --left;
+      }
+    }
+    cuda_download_state(gpu, gpu_view());
+    max_ov = cuda_max_overlap(gpu);
+    timing.detection += tdet;
+    timing.forces += omp_get_wtime() - t0 - tdet;  // device steps are not split further
+  }
+
+  void refresh_particle_derived() {
+    rmax = 0.0;
+    for (double r : st.radius) rmax = std::max(rmax, r);
+    skin = s.skin > 0.0 ? s.skin : 0.2 * rmax;
+  }
+};
+
+// =========================================================================================
+DemSystem::DemSystem(DemSettings settings) : impl_(std::make_unique<Impl>()) {
+  validate(settings);
+  impl_->s = std::move(settings);
+  impl_->threads = impl_->s.threads > 0 ? impl_->s.threads : omp_get_max_threads();
+  impl_->setup_pairs();
+  if (impl_->s.backend == "cuda") {
+    if (!cuda_available())
+      throw std::runtime_error(
+          "DemSystem: settings.backend = 'cuda' but this build has no CUDA backend or no CUDA "
+          "device is present; use backend = 'cpu'");
+    impl_->gpu = cuda_backend_create();
+  }
+}
+DemSystem::~DemSystem() = default;
+DemSystem::DemSystem(DemSystem&&) noexcept = default;
+DemSystem& DemSystem::operator=(DemSystem&&) noexcept = default;
+
+const DemSettings& DemSystem::settings() const {
+  return impl_->s;
+}
+
+std::size_t DemSystem::add_particles(std::span<const ParticleInit> particles) {
+  auto& I = *impl_;
+  auto& st = I.st;
+  const std::size_t first = st.size();
+  for (std::size_t k = 0; k < particles.size(); ++k) {
+    const auto& p = particles[k];
+    const std::string where = "add_particles: particle " + std::to_string(k);
+    if (!finite3(p.position) || !finite3(p.velocity) || !finite3(p.angular_velocity))
+      bad(where + " has a non-finite position, velocity or angular velocity");
+    if (!(p.radius > 0.0) || !std::isfinite(p.radius))
+      bad(where + ".radius = " + std::to_string(p.radius) + " must be > 0 m");
+    if (p.material < 0 || static_cast<std::size_t>(p.material) >= I.nmat)
+      bad(where + ".material = " + std::to_string(p.material) + " outside [0, " +
+          std::to_string(I.nmat) + ")");
+    if (!(I.s.materials[p.material].density > 0.0))
+      bad(where + ": material '" + I.s.materials[p.material].name +
+          "' has density 0 (particles need a density > 0)");
+  }
+  for (const auto& p : particles) {
+    st.px.push_back(p.position[0]), st.py.push_back(p.position[1]), st.pz.push_back(p.position[2]);
+    st.vx.push_back(p.velocity[0]), st.vy.push_back(p.velocity[1]), st.vz.push_back(p.velocity[2]);
+    st.wx.push_back(p.angular_velocity[0]), st.wy.push_back(p.angular_velocity[1]),
+        st.wz.push_back(p.angular_velocity[2]);
+    st.qw.push_back(1.0), st.qx.push_back(0.0), st.qy.push_back(0.0), st.qz.push_back(0.0);
+    const double m = I.s.materials[p.material].density * 4.0 / 3.0 * 3.14159265358979323846 *
+                     p.radius * p.radius * p.radius;
+    st.fx.push_back(m * I.s.gravity[0]), st.fy.push_back(m * I.s.gravity[1]),
+        st.fz.push_back(m * I.s.gravity[2]);
+    st.radius.push_back(p.radius), st.mass.push_back(m),
+        st.inertia.push_back(0.4 * m * p.radius * p.radius);
+    st.material.push_back(p.material);
+    st.shape.push_back(static_cast<std::uint8_t>(p.shape));
+    I.tx.push_back(0), I.ty.push_back(0), I.tz.push_back(0);
+  }
+  const std::size_t n = st.size();
+  I.acc.resize(3 * n), I.acct.resize(3 * n);
+  I.wkey.resize(kMaxWallContacts * n, -1);
+  I.wshear.resize(3 * kMaxWallContacts * n, 0.0);
+  I.wf.resize(3 * kMaxWallContacts * n), I.wp.resize(3 * kMaxWallContacts * n),
+      I.wb.resize(3 * kMaxWallContacts * n), I.wtri.resize(kMaxWallContacts * n);
+  I.wcount.resize(n, 0);
+  // keep the pair rows of the old particles (new ones have none yet)
+  if (!I.row.empty()) I.row.resize(n + 1, I.row.back());
+  I.bx.clear();
+  I.refresh_particle_derived();
+  I.need_rebuild = true;
+  return first;
+}
+
+void DemSystem::remove_particles(std::span<const std::uint8_t> keep) {
+  auto& I = *impl_;
+  const std::size_t n = I.n();
+  if (keep.size() != n)
+    bad("remove_particles: keep has " + std::to_string(keep.size()) + " entries, need " +
+        std::to_string(n));
+  std::vector<std::int32_t> map(n, -1);
+  std::int32_t m = 0;
+  for (std::size_t i = 0; i < n; ++i)
+    if (keep[i]) map[i] = m++;
+  auto compact = [&](auto& v, std::size_t stride) {
+    std::size_t o = 0;
+    for (std::size_t i = 0; i < n; ++i)
+      if (keep[i]) {
+        for (std::size_t d = 0; d < stride; ++d) v[stride * o + d] = v[stride * i + d];
+        ++o;
+      }
+    v.resize(stride * o);
+  };
+  // pair rows: renumber, drop pairs with a removed particle (order i < j is kept)
+  if (I.row.size() == n + 1) {
+    std::vector<std::int64_t> nrow(static_cast<std::size_t>(m) + 1, 0);
+    std::vector<std::int32_t> nnbr;
+    std::vector<double> nsh;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!keep[i]) continue;
+      for (std::int64_t p = I.row[i]; p < I.row[i + 1]; ++p) {
+        if (map[I.nbr[p]] < 0) continue;
+        nnbr.push_back(map[I.nbr[p]]);
+        if (!I.shear.empty())
+          for (int d = 0; d < 3; ++d) nsh.push_back(I.shear[3 * p + d]);
+      }
+      nrow[map[i] + 1] = static_cast<std::int64_t>(nnbr.size());
+    }
+    I.row.swap(nrow), I.nbr.swap(nnbr), I.shear.swap(nsh);
+  }
+  auto& st = I.st;
+  for (auto* v : {&st.px,     &st.py,   &st.pz,      &st.vx, &st.vy, &st.vz, &st.wx, &st.wy,
+                  &st.wz,     &st.qw,   &st.qx,      &st.qy, &st.qz, &st.fx, &st.fy, &st.fz,
+                  &st.radius, &st.mass, &st.inertia, &I.tx,  &I.ty,  &I.tz})
+    compact(*v, 1);
+  compact(st.material, 1);
+  compact(st.shape, 1);
+  compact(I.acc, 3), compact(I.acct, 3);
+  compact(I.wkey, kMaxWallContacts), compact(I.wshear, 3 * kMaxWallContacts);
+  compact(I.wf, 3 * kMaxWallContacts), compact(I.wp, 3 * kMaxWallContacts),
+      compact(I.wb, 3 * kMaxWallContacts), compact(I.wtri, kMaxWallContacts);
+  compact(I.wcount, 1);
+  I.bx.clear();
+  I.refresh_particle_derived();
+  I.need_rebuild = true;
+}
+
+const ParticleState& DemSystem::particles() const {
+  return impl_->st;
+}
+std::size_t DemSystem::particle_count() const {
+  return impl_->n();
+}
+
+std::int32_t DemSystem::add_wall(WallMesh wall) {
+  auto& I = *impl_;
+  const std::string where = "add_wall('" + wall.name + "')";
+  if (wall.vertices.size() % 3 != 0) bad(where + ": vertices size is not a multiple of 3");
+  if (wall.triangles.size() % 3 != 0) bad(where + ": triangles size is not a multiple of 3");
+  for (double x : wall.vertices)
+    if (!std::isfinite(x)) bad(where + ": non-finite vertex coordinate");
+  const auto nv = static_cast<std::int32_t>(wall.vertices.size() / 3);
+  for (auto t : wall.triangles)
+    if (t < 0 || t >= nv)
+      bad(where + ": triangle vertex index " + std::to_string(t) + " outside [0, " +
+          std::to_string(nv) + ")");
+  if (wall.material < 0 || static_cast<std::size_t>(wall.material) >= I.nmat)
+    bad(where + ": material " + std::to_string(wall.material) + " outside [0, " +
+        std::to_string(I.nmat) + ")");
+  const auto& m = wall.motion;
+  if (!(m.end_time >= m.start_time)) bad(where + ": motion.end_time < motion.start_time");
+  if (m.kind == WallMotion::Kind::rotation || m.kind == WallMotion::Kind::sinusoid) {
+    const double a =
+        std::sqrt(m.axis[0] * m.axis[0] + m.axis[1] * m.axis[1] + m.axis[2] * m.axis[2]);
+    if (!(a > 0.0)) bad(where + ": motion.axis must be non-zero");
+    if (m.kind == WallMotion::Kind::sinusoid)
+      for (double& c : wall.motion.axis) c /= a;
+  }
+  Impl::Wall w;
+  w.mesh = std::move(wall);
+  I.walls.push_back(std::move(w));
+  I.build_wall_store();
+  I.update_walls(I.t, I.flex_tau);
+  I.vbuild = I.vpos;
+  return static_cast<std::int32_t>(I.walls.size() - 1);
+}
+
+std::size_t DemSystem::wall_count() const {
+  return impl_->walls.size();
+}
+
+#define check_wall(I, wall)                                                                   \
+  if ((wall) < 0 || static_cast<std::size_t>(wall) >= (I).walls.size())                       \
+  throw std::out_of_range("DemSystem: wall index " + std::to_string(wall) + " outside [0, " + \
+                          std::to_string((I).walls.size()) + ")")
+
+std::array<double, 3> DemSystem::wall_force(std::int32_t wall) const {
+  check_wall(*impl_, wall);
+  return impl_->walls[wall].force;
+}
+std::array<double, 3> DemSystem::wall_torque(std::int32_t wall) const {
+  check_wall(*impl_, wall);
+  return impl_->walls[wall].torque;
+}
+std::vector<double> DemSystem::wall_vertices(std::int32_t wall) const {
+  check_wall(*impl_, wall);
+  const auto& I = *impl_;
+  const auto& w = I.walls[wall];
+  return {I.vpos.begin() + 3 * w.vbase, I.vpos.begin() + 3 * w.vbase + w.mesh.vertices.size()};
+}
+
+void DemSystem::set_flexible_mesh(const InterfaceMesh& mesh, std::int32_t material) {
+  auto& I = *impl_;
+  const auto nv = static_cast<std::int32_t>(mesh.node_count());
+  if (mesh.reference_positions.size() % 3 != 0 || mesh.triangles.size() % 3 != 0)
+    bad("set_flexible_mesh: array sizes are not multiples of 3");
+  for (auto t : mesh.triangles)
+    if (t < 0 || t >= nv)
+      bad("set_flexible_mesh: node index " + std::to_string(t) + " outside [0, " +
+          std::to_string(nv) + ")");
+  if (material < 0 || static_cast<std::size_t>(material) >= I.nmat)
+    bad("set_flexible_mesh: material " + std::to_string(material) + " outside [0, " +
+        std::to_string(I.nmat) + ")");
+  I.flex = {};
+  I.flex.mesh.name = "flexible";
+  I.flex.mesh.vertices = mesh.reference_positions;
+  I.flex.mesh.triangles = mesh.triangles;
+  I.flex.mesh.material = material;
+  I.flex.flexible = true;
+  I.has_flex = true;
+  I.flex_x = mesh.reference_positions;
+  I.flex_v.assign(I.flex_x.size(), 0.0);
+  I.flex_a.assign(I.flex_x.size(), 0.0);
+  I.flex_force.assign(I.flex_x.size(), 0.0);
+  I.flex_tau = 0.0;
+  I.build_wall_store();
+  I.update_walls(I.t, 0.0);
+  I.vbuild = I.vpos;
+}
+
+bool DemSystem::has_flexible_mesh() const {
+  return impl_->has_flex;
+}
+
+void DemSystem::set_flexible_kinematics(std::span<const double> positions,
+                                        std::span<const double> velocities,
+                                        std::span<const double> accelerations) {
+  auto& I = *impl_;
+  if (!I.has_flex) bad("set_flexible_kinematics: no flexible mesh set");
+  const std::size_t n3 = I.flex_x.size();
+  if (positions.size() != n3 || velocities.size() != n3 || accelerations.size() != n3)
+    bad("set_flexible_kinematics: arrays must have 3 * node_count = " + std::to_string(n3) +
+        " entries");
+  for (std::size_t k = 0; k < n3; ++k)
+    if (!std::isfinite(positions[k]) || !std::isfinite(velocities[k]) ||
+        !std::isfinite(accelerations[k]))
+      bad("set_flexible_kinematics: non-finite value at entry " + std::to_string(k));
+  I.flex_x.assign(positions.begin(), positions.end());
+  I.flex_v.assign(velocities.begin(), velocities.end());
+  I.flex_a.assign(accelerations.begin(), accelerations.end());
+  I.flex_tau = 0.0;
+  I.update_walls(I.t, 0.0);
+}
+
+void DemSystem::flexible_forces(std::span<double> forces) const {
+  const auto& I = *impl_;
+  if (!I.has_flex) bad("flexible_forces: no flexible mesh set");
+  if (forces.size() != I.flex_force.size())
+    bad("flexible_forces: output must have 3 * node_count = " +
+        std::to_string(I.flex_force.size()) + " entries");
+  std::copy(I.flex_force.begin(), I.flex_force.end(), forces.begin());
+}
+
+std::vector<double> DemSystem::flexible_positions() const {
+  const auto& I = *impl_;
+  if (!I.has_flex) return {};
+  return {I.vpos.begin() + 3 * I.flex.vbase, I.vpos.begin() + 3 * I.flex.vbase + I.flex_x.size()};
+}
+
+double DemSystem::flexible_max_overlap() const {
+  return impl_->flex_max_ov;
+}
+
+void DemSystem::advance(std::int64_t substeps, ForceMode mode) {
+  auto& I = *impl_;
+  if (substeps < 0) bad("advance: substeps = " + std::to_string(substeps) + " must be >= 0");
+  if (substeps == 0) return;
+  if (I.gpu) {
+    I.advance_gpu(substeps);
+    return;
+  }
+  if (I.has_flex) {
+    std::fill(I.flex_force.begin(), I.flex_force.end(), 0.0);
+    I.flex_max_ov = 0.0;
+  }
+  for (std::int64_t k = 0; k < substeps; ++k) {
+    const bool last = k + 1 == substeps;
+    if (I.friction)
+      I.step<true>(last, mode, substeps);
+    else
+      I.step<false>(last, mode, substeps);
+  }
+}
+
+double DemSystem::time() const {
+  return impl_->t;
+}
+std::int64_t DemSystem::step_count() const {
+  return impl_->steps;
+}
+
+double DemSystem::rayleigh_time_step() const {
+  const auto& I = *impl_;
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < I.n(); ++i) {
+    const auto& m = I.s.materials[I.st.material[i]];
+    const double g = m.youngs_modulus / (2.0 * (1.0 + m.poisson_ratio));
+    best = std::min(best, phys::rayleigh_time_step(I.st.radius[i], m.density, g, m.poisson_ratio));
+  }
+  return best;
+}
+
+double DemSystem::kinetic_energy() const {
+  const auto& st = impl_->st;
+  double e = 0.0;
+  for (std::size_t i = 0; i < st.size(); ++i)
+    e += 0.5 * st.mass[i] * (st.vx[i] * st.vx[i] + st.vy[i] * st.vy[i] + st.vz[i] * st.vz[i]) +
+         0.5 * st.inertia[i] * (st.wx[i] * st.wx[i] + st.wy[i] * st.wy[i] + st.wz[i] * st.wz[i]);
+  return e;
+}
+
+double DemSystem::max_overlap() const {
+  return impl_->max_ov;
+}
+
+DemSystem::Timings DemSystem::timings() const {
+  return impl_->timing;
+}
+
+// Internal diagnostics for the benchmark and tests (declared in dem_system.hpp).
+std::int64_t DemSystem::neighbour_rebuilds() const {
+  return impl_->rebuilds;
+}
+std::size_t DemSystem::neighbour_pairs() const {
+  return impl_->nbr.size();
+}
+
+// ---------------------------------------------------------------------------------------
+namespace {
+template <class T>
+std::vector<std::int64_t> to64(const std::vector<T>& v) {
+  return {v.begin(), v.end()};
+}
+template <class T>
+std::vector<T> from64(const std::vector<std::int64_t>& v) {
+  std::vector<T> o(v.size());
+  for (std::size_t k = 0; k < v.size(); ++k) o[k] = static_cast<T>(v[k]);
+  return o;
+}
+}  // namespace
+
+void DemSystem::save(io::H5File& f, const std::string& group) const {
+  const auto& I = *impl_;
+  const auto& st = I.st;
+  f.create_group(group);
+  const std::string g = group + "/";
+  f.set_attribute(group, "time", I.t);
+  f.set_attribute(group, "steps", static_cast<std::int64_t>(I.steps));
+  f.set_attribute(group, "flex_tau", I.flex_tau);
+  f.set_attribute(group, "max_overlap", I.max_ov);
+  f.set_attribute(group, "flex_max_overlap", I.flex_max_ov);
+  f.set_attribute(group, "format", std::string("demfem-dem-state-1"));
+  const std::pair<const char*, const std::vector<double>*> dv[] = {{"px", &st.px},
+                                                                   {"py", &st.py},
+                                                                   {"pz", &st.pz},
+                                                                   {"vx", &st.vx},
+                                                                   {"vy", &st.vy},
+                                                                   {"vz", &st.vz},
+                                                                   {"wx", &st.wx},
+                                                                   {"wy", &st.wy},
+                                                                   {"wz", &st.wz},
+                                                                   {"qw", &st.qw},
+                                                                   {"qx", &st.qx},
+                                                                   {"qy", &st.qy},
+                                                                   {"qz", &st.qz},
+                                                                   {"fx", &st.fx},
+                                                                   {"fy", &st.fy},
+                                                                   {"fz", &st.fz},
+                                                                   {"radius", &st.radius},
+                                                                   {"mass", &st.mass},
+                                                                   {"inertia", &st.inertia},
+                                                                   {"tx", &I.tx},
+                                                                   {"ty", &I.ty},
+                                                                   {"tz", &I.tz},
+                                                                   {"shear", &I.shear},
+                                                                   {"bx", &I.bx},
+                                                                   {"by", &I.by},
+                                                                   {"bz", &I.bz},
+                                                                   {"wshear", &I.wshear},
+                                                                   {"vpos", &I.vpos},
+                                                                   {"vbuild", &I.vbuild},
+                                                                   {"flex_x", &I.flex_x},
+                                                                   {"flex_v", &I.flex_v},
+                                                                   {"flex_a", &I.flex_a},
+                                                                   {"flex_force", &I.flex_force}};
+  for (const auto& [name, v] : dv) f.write(g + name, std::span<const double>(*v));
+  f.write(g + "material", std::span<const std::int64_t>(to64(st.material)));
+  f.write(g + "shape", std::span<const std::uint8_t>(st.shape));
+  f.write(g + "row", std::span<const std::int64_t>(I.row));
+  f.write(g + "nbr", std::span<const std::int64_t>(to64(I.nbr)));
+  f.write(g + "wkey", std::span<const std::int64_t>(I.wkey));
+  f.write(g + "wcount", std::span<const std::uint8_t>(I.wcount));
+}
+
+void DemSystem::restore(const io::H5File& f, const std::string& group) {
+  auto& I = *impl_;
+  auto& st = I.st;
+  const std::string g = group + "/";
+  if (!f.exists(group)) bad("restore: group '" + group + "' not found in " + f.path().string());
+  const std::size_t nwalls = I.walls.size();
+  I.t = f.attribute_double(group, "time");
+  I.steps = f.attribute_int64(group, "steps");
+  I.flex_tau = f.attribute_double(group, "flex_tau");
+  I.max_ov = f.attribute_double(group, "max_overlap");
+  I.flex_max_ov = f.attribute_double(group, "flex_max_overlap");
+  const std::pair<const char*, std::vector<double>*> dv[] = {{"px", &st.px},
+                                                             {"py", &st.py},
+                                                             {"pz", &st.pz},
+                                                             {"vx", &st.vx},
+                                                             {"vy", &st.vy},
+                                                             {"vz", &st.vz},
+                                                             {"wx", &st.wx},
+                                                             {"wy", &st.wy},
+                                                             {"wz", &st.wz},
+                                                             {"qw", &st.qw},
+                                                             {"qx", &st.qx},
+                                                             {"qy", &st.qy},
+                                                             {"qz", &st.qz},
+                                                             {"fx", &st.fx},
+                                                             {"fy", &st.fy},
+                                                             {"fz", &st.fz},
+                                                             {"radius", &st.radius},
+                                                             {"mass", &st.mass},
+                                                             {"inertia", &st.inertia},
+                                                             {"tx", &I.tx},
+                                                             {"ty", &I.ty},
+                                                             {"tz", &I.tz},
+                                                             {"shear", &I.shear},
+                                                             {"bx", &I.bx},
+                                                             {"by", &I.by},
+                                                             {"bz", &I.bz},
+                                                             {"wshear", &I.wshear},
+                                                             {"vpos", &I.vpos},
+                                                             {"vbuild", &I.vbuild},
+                                                             {"flex_x", &I.flex_x},
+                                                             {"flex_v", &I.flex_v},
+                                                             {"flex_a", &I.flex_a},
+                                                             {"flex_force", &I.flex_force}};
+  for (const auto& [name, v] : dv) *v = f.read_doubles(g + name);
+  st.material = from64<std::int32_t>(f.read_int64(g + "material"));
+  st.shape = f.read_uint8(g + "shape");
+  I.row = f.read_int64(g + "row");
+  I.nbr = from64<std::int32_t>(f.read_int64(g + "nbr"));
+  I.wkey = f.read_int64(g + "wkey");
+  I.wcount = f.read_uint8(g + "wcount");
+  const std::size_t n = st.px.size();
+  if (I.vpos.size() != (I.vbuild.size()) || (nwalls > 0 && I.vpos.size() < 3))
+    bad("restore: wall vertex data in '" + group + "' does not match the walls of this system");
+  for (std::size_t i = 0; i < n; ++i)
+    if (st.material[i] < 0 || static_cast<std::size_t>(st.material[i]) >= I.nmat)
+      bad("restore: particle material index out of range in '" + group + "'");
+  I.acc.assign(3 * n, 0.0), I.acct.assign(3 * n, 0.0);
+  I.wf.assign(3 * kMaxWallContacts * n, 0.0), I.wp.assign(3 * kMaxWallContacts * n, 0.0),
+      I.wb.assign(3 * kMaxWallContacts * n, 0.0), I.wtri.assign(kMaxWallContacts * n, 0);
+  I.refresh_particle_derived();
+  // The neighbour list is rebuilt from the restored positions; the restored rows carry the
+  // springs. Forces of the pairs do not depend on which non-touching pairs the list holds,
+  // so the continuation is bitwise identical to an uninterrupted run.
+  if (I.wcount.size() != n || I.wkey.size() != kMaxWallContacts * n ||
+      I.wshear.size() != 3 * kMaxWallContacts * n || I.row.size() != n + 1)
+    bad("restore: inconsistent array sizes in '" + group + "' of " + f.path().string());
+  I.need_rebuild = true;
+}
+
+}  // namespace demfem::dem

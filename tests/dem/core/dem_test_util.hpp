@@ -1,0 +1,55 @@
+#pragma once
+// Small builders shared by the dem core tests.
+
+#include <array>
+#include <cmath>
+#include <vector>
+
+#include "demfem/dem/dem_system.hpp"
+
+namespace demfem::dem::test {
+
+/// One particle material (index 0) and one wall material (index 1), all pairs alike.
+inline DemSettings two_material_settings(double e_mod, double nu, double rho, double e, double mu,
+                                         double dt, double rolling = 0.0) {
+  DemSettings s;
+  s.dt = dt;
+  s.gravity = {0, 0, 0};
+  s.materials = {{"grain", e_mod, nu, rho}, {"steel", e_mod, nu, 0.0}};
+  s.pairs.assign(4, MaterialPair{mu, e, rolling});
+  s.threads = 1;
+  return s;
+}
+
+/// A square plane z = 0 (outward normal +z) of n x n cells, two triangles each, centred on
+/// the origin, side L, optionally rotated about the y axis by `tilt` (rad).
+inline WallMesh plane_mesh(double side, int n, double tilt = 0.0, std::int32_t material = 1) {
+  WallMesh w;
+  w.name = "plane";
+  w.material = material;
+  const double c = std::cos(tilt), s = std::sin(tilt);
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i) {
+      const double x = -side / 2 + side * i / n, y = -side / 2 + side * j / n;
+      w.vertices.insert(w.vertices.end(), {c * x, y, -s * x});
+    }
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const int a = j * (n + 1) + i, b = a + 1, d = a + n + 1, e = d + 1;
+      w.triangles.insert(w.triangles.end(), {a, b, e, a, e, d});
+    }
+  return w;
+}
+
+inline ParticleInit sphere(std::array<double, 3> x, double r, std::array<double, 3> v = {},
+                           std::array<double, 3> w = {}) {
+  ParticleInit p;
+  p.position = x;
+  p.velocity = v;
+  p.angular_velocity = w;
+  p.radius = r;
+  p.material = 0;
+  return p;
+}
+
+}  // namespace demfem::dem::test
