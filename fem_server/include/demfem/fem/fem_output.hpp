@@ -1,0 +1,103 @@
+#pragma once
+// FEM results on disk: HDF5 field files with an XDMF index that ParaView opens, and a CSV of
+// scalar series. Written so that a crash at any moment leaves valid files for every output
+// step so far:
+//   <dir>/<name>_mesh.h5        the mesh, once: /nodes (n x 3), /topology/<type> (k x npe,
+//                               0-based node indices, Abaqus = VTK node order),
+//                               /elements/<type> (k, index of each cell in Mesh::elements),
+//                               /node_labels, /element_labels
+//   <dir>/<name>_NNNNNN.h5      one file per output step: attribute "time" on "/", node fields
+//                               /displacement, /velocity, /acceleration, /reaction_force
+//                               (n x 3) and cell fields per element type /<type>/von_mises (k),
+//                               /<type>/strain (k x 6: exx, eyy, ezz, gxy, gyz, gzx,
+//                               engineering shear), /<type>/max_principal_strain (k)
+//   <dir>/<name>.xdmf           Xdmf 3 temporal collection referencing the above; one grid per
+//                               element type when the mesh is mixed
+//   <dir>/<name>_series.csv     time, max_displacement (m, largest nodal |u|), max_von_mises
+//                               (Pa), max_principal_strain (largest over all elements, the
+//                               thesis' "maximal strain of all sleeper elements", fig. 6.8),
+//                               reaction_x/y/z (N, sum of the reaction forces)
+// Each step file is written under a temporary name and renamed when complete; the XDMF is
+// rewritten atomically after it, so it only ever names complete files.
+
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "demfem/fem/fem_problem.hpp"
+#include "demfem/fem/fem_scene.hpp"
+#include "demfem/fem/fem_solver.hpp"
+
+namespace demfem::io {
+class CsvWriter;
+}
+
+namespace demfem::fem {
+
+/// @brief The fields of one output step (sizes: 3 per node, or per element as in
+/// ElementResults); empty vectors are not written.
+struct FemFields {
+  double time = 0.0;
+  std::vector<double> displacement;
+  std::vector<double> velocity;
+  std::vector<double> acceleration;
+  std::vector<double> reaction_force;
+  ElementResults elements;
+};
+
+/// @brief The solver's current fields.
+FemFields gather_fields(const FemSolver& solver);
+
+/// @brief Scalar summary of a step (the CSV row).
+struct FemScalars {
+  double time = 0.0;
+  double max_displacement = 0.0;
+  double max_von_mises = 0.0;
+  double max_principal_strain = 0.0;
+  std::array<double, 3> reaction{0.0, 0.0, 0.0};
+};
+FemScalars summarize(const FemFields& fields);
+
+/// @brief Writer of the files above.
+class FemOutput {
+ public:
+  /// Creates `dir` if needed and writes the mesh file and an empty index (replacing an
+  /// earlier run's files of the same name).
+  FemOutput(std::filesystem::path dir, std::string name, const Mesh& mesh,
+            FemOutputSettings settings = {});
+  ~FemOutput();
+  FemOutput(const FemOutput&) = delete;
+  FemOutput& operator=(const FemOutput&) = delete;
+
+  /// Writes one output step (the fields in settings.fields) and the CSV row.
+  void write(const FemFields& fields);
+  void write(const FemSolver& solver) { write(gather_fields(solver)); }
+
+  std::size_t steps() const { return times_.size(); }
+  std::filesystem::path xdmf_path() const;
+  std::filesystem::path csv_path() const;
+  std::filesystem::path mesh_path() const;
+  std::filesystem::path step_path(std::size_t step) const;  ///< 1-based
+
+ private:
+  void write_xdmf() const;
+  bool wants(const std::string& field) const;
+  std::vector<std::string> present_fields(const FemFields& fields) const;
+
+  std::filesystem::path dir_;
+  std::string name_;
+  FemOutputSettings settings_;
+  std::size_t node_count_ = 0;
+  struct TypeGroup {
+    ElementType type;
+    std::vector<std::int64_t> elements;  // indices into Mesh::elements
+  };
+  std::vector<TypeGroup> groups_;
+  std::vector<double> times_;
+  std::vector<std::vector<std::string>> written_;  // fields present in each step file
+  std::unique_ptr<io::CsvWriter> csv_;
+};
+
+}  // namespace demfem::fem

@@ -1,0 +1,176 @@
+// FemOutput: HDF5 step files re-read exactly, every dataset the XDMF names exists with the
+// stated dimensions, the CSV series, and no partial file left behind.
+#include <catch2/catch.hpp>
+
+#include <unistd.h>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <string>
+
+#include "demfem/fem/fem_output.hpp"
+#include "demfem/fem/inp_reader.hpp"
+#include "demfem/io/h5_file.hpp"
+
+using namespace demfem;
+using namespace demfem::fem;
+
+namespace {
+
+struct TempDir {
+  std::filesystem::path path;
+  TempDir() {
+    path = std::filesystem::temp_directory_path() /
+           ("demfem_fem_output_" + std::to_string(::getpid()));
+    std::filesystem::remove_all(path);
+  }
+  ~TempDir() { std::filesystem::remove_all(path); }
+};
+
+std::string slurp(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+/// A mixed mesh: the unit hex (nodes 0..7) plus a shell quad on its top face and a tet.
+Mesh mixed_mesh() {
+  Mesh m = read_inp(std::filesystem::path(DEMFEM_SOURCE_DIR) / "cases/meshes/unit_hex.inp");
+  m.nodes.push_back({0.5, 0.5, 2.0});
+  Element quad;
+  quad.type = ElementType::quad4;
+  quad.nodes = {4, 5, 6, 7, 0, 0, 0, 0};
+  m.elements.push_back(quad);
+  Element tet;
+  tet.type = ElementType::tet4;
+  tet.nodes = {4, 5, 6, 8, 0, 0, 0, 0};
+  m.elements.push_back(tet);
+  m.node_labels.push_back(200);
+  m.element_labels.push_back(8);
+  m.element_labels.push_back(9);
+  return m;
+}
+
+FemFields fields_at(double t, std::size_t nodes, std::size_t elements) {
+  FemFields f;
+  f.time = t;
+  for (std::size_t i = 0; i < 3 * nodes; ++i) {
+    f.displacement.push_back(t * 1e-3 * static_cast<double>(i));
+    f.velocity.push_back(t + static_cast<double>(i));
+    f.acceleration.push_back(-t * static_cast<double>(i));
+    f.reaction_force.push_back(i % 3 == 2 ? 10.0 * t : 0.0);
+  }
+  for (std::size_t e = 0; e < elements; ++e) {
+    f.elements.von_mises.push_back(1e6 * t + static_cast<double>(e));
+    f.elements.max_principal_strain.push_back(1e-4 * t * static_cast<double>(e + 1));
+    for (int k = 0; k < 6; ++k) f.elements.strain.push_back(1e-5 * static_cast<double>(10 * e + k));
+  }
+  return f;
+}
+
+}  // namespace
+
+TEST_CASE("FemOutput: HDF5 + XDMF of a mixed mesh re-read, references valid, CSV series") {
+  TempDir tmp;
+  const Mesh mesh = mixed_mesh();
+  const std::size_t n = mesh.nodes.size();
+  const std::size_t ne = mesh.elements.size();
+  FemOutput out(tmp.path, "run", mesh);
+  CHECK(std::filesystem::exists(out.mesh_path()));
+  CHECK(slurp(out.xdmf_path()).find("CollectionType=\"Temporal\"") != std::string::npos);
+  for (int s = 0; s < 3; ++s) out.write(fields_at(0.1 * (s + 1), n, ne));
+  REQUIRE(out.steps() == 3);
+
+  // Re-read step 2 and compare exactly with what was written.
+  const FemFields f2 = fields_at(0.2, n, ne);
+  io::H5File h5(out.step_path(2), io::H5File::Mode::read);
+  CHECK(h5.attribute_double("/", "time") == 0.2);
+  std::vector<std::size_t> dims;
+  CHECK(h5.read_doubles("displacement", &dims) == f2.displacement);
+  CHECK(dims == std::vector<std::size_t>{n, 3});
+  CHECK(h5.read_doubles("reaction_force") == f2.reaction_force);
+  // Cell data is split by element type: the hex is element 0, the quad 1, the tet 2.
+  CHECK(h5.read_doubles("hex8/von_mises") == std::vector<double>{f2.elements.von_mises[0]});
+  CHECK(h5.read_doubles("quad4/von_mises") == std::vector<double>{f2.elements.von_mises[1]});
+  CHECK(h5.read_doubles("tet4/von_mises") == std::vector<double>{f2.elements.von_mises[2]});
+  CHECK(h5.read_doubles("tet4/strain") ==
+        std::vector<double>(f2.elements.strain.begin() + 12, f2.elements.strain.begin() + 18));
+  io::H5File mh5(out.mesh_path(), io::H5File::Mode::read);
+  CHECK(mh5.read_int64("topology/tet4") == std::vector<std::int64_t>{4, 5, 6, 8});
+  CHECK(mh5.read_int64("elements/quad4") == std::vector<std::int64_t>{1});
+  CHECK(mh5.read_int64("node_labels").back() == 200);
+
+  // Every "file.h5:/dataset" in the XDMF exists, with the dimensions the XDMF states.
+  const std::string xdmf = slurp(out.xdmf_path());
+  CHECK(xdmf.find("<Xdmf Version=\"3.0\"") != std::string::npos);
+  for (const char* topo : {"Hexahedron", "Tetrahedron", "Quadrilateral"}) {
+    CHECK(xdmf.find(std::string("TopologyType=\"") + topo + "\"") != std::string::npos);
+  }
+  const std::regex item(R"re(<DataItem Dimensions="([0-9 ]+)"[^>]*>([^:<]+):([^<]+)</DataItem>)re");
+  int references = 0;
+  for (auto it = std::sregex_iterator(xdmf.begin(), xdmf.end(), item); it != std::sregex_iterator();
+       ++it) {
+    const std::string file = (*it)[2];
+    const std::string dataset = (*it)[3];
+    std::vector<std::size_t> want;
+    std::istringstream ds((*it)[1].str());
+    for (std::size_t d; ds >> d;) want.push_back(d);
+    INFO(file << ":" << dataset);
+    REQUIRE(std::filesystem::exists(tmp.path / file));
+    io::H5File f(tmp.path / file, io::H5File::Mode::read);
+    REQUIRE(f.exists(dataset));
+    std::vector<std::size_t> got;
+    if (dataset.find("topology") != std::string::npos) {
+      f.read_int64(dataset, &got);
+    } else {
+      f.read_doubles(dataset, &got);
+    }
+    CHECK(got == want);
+    ++references;
+  }
+  // 3 steps x 3 element types x (topology + geometry + 4 node + 3 cell fields).
+  CHECK(references == 3 * 3 * 9);
+  CHECK(xdmf.find("<Time Value=\"0.20000000000000001\"/>") != std::string::npos);
+
+  // No temporary file remains.
+  for (const auto& e : std::filesystem::directory_iterator(tmp.path)) {
+    CHECK(e.path().extension() != ".part");
+  }
+
+  // CSV: header + one row per step; row 3 holds max |u|, max von Mises, max strain and the
+  // summed reaction (10 t per node in z).
+  const std::string csv = slurp(out.csv_path());
+  CHECK(csv.rfind("time,max_displacement,max_von_mises,max_principal_strain,reaction_x,", 0) == 0);
+  CHECK(std::count(csv.begin(), csv.end(), '\n') == 4);
+  const FemScalars s3 = summarize(fields_at(0.3, n, ne));
+  const double i = static_cast<double>(3 * n - 3);
+  const double umax = 0.3e-3 * std::sqrt(i * i + (i + 1) * (i + 1) + (i + 2) * (i + 2));
+  CHECK(s3.max_displacement == Approx(umax).epsilon(1e-14));
+  CHECK(s3.max_von_mises == Approx(0.3e6 + 2.0));
+  CHECK(s3.max_principal_strain == Approx(0.3e-4 * 3.0));
+  CHECK(s3.reaction[2] == Approx(3.0 * static_cast<double>(n)));
+}
+
+TEST_CASE("FemOutput: selected fields only, and wrong sizes are refused") {
+  TempDir tmp;
+  const Mesh mesh =
+      read_inp(std::filesystem::path(DEMFEM_SOURCE_DIR) / "cases/meshes/unit_hex.inp");
+  FemOutputSettings settings;
+  settings.fields = {"displacement"};
+  settings.csv = false;
+  FemOutput out(tmp.path, "only_u", mesh, settings);
+  out.write(fields_at(1.0, 8, 1));
+  io::H5File h5(out.step_path(1), io::H5File::Mode::read);
+  CHECK(h5.exists("displacement"));
+  CHECK_FALSE(h5.exists("velocity"));
+  CHECK_FALSE(h5.exists("hex8/von_mises"));
+  const std::string xdmf = slurp(out.xdmf_path());
+  CHECK(xdmf.find("Name=\"velocity\"") == std::string::npos);
+  CHECK(xdmf.find("Name=\"displacement\"") != std::string::npos);
+  CHECK_FALSE(std::filesystem::exists(out.csv_path()));
+  FemFields bad = fields_at(2.0, 7, 1);
+  CHECK_THROWS_WITH(out.write(bad), Catch::Contains("expected 3 per node"));
+  CHECK(out.steps() == 1);
+}
