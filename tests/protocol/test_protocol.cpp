@@ -121,11 +121,34 @@ std::vector<std::string> session_names(const proto::CouplerSession& s) {
   return {s.segment_name(), s.segment_name() + "-bulk"};
 }
 
+// "demfem" segments in /dev/shm owned by this test process. Segments of other programs
+// (other test executables may run in parallel) are not counted.
+std::vector<std::string> own_leftovers() {
+  std::vector<std::string> found;
+  for (const auto& entry : std::filesystem::directory_iterator("/dev/shm")) {
+    const std::string file = entry.path().filename().string();
+    if (file.find("demfem") == std::string::npos) continue;
+    try {
+      shm::MappedSegment seg = shm::MappedSegment::open("/" + file);
+      if (seg.size() < sizeof(shm::FixedHeader)) continue;
+      const auto* fixed = static_cast<const shm::FixedHeader*>(seg.data());
+      const auto* bulk = static_cast<const shm::BulkHeader*>(seg.data());
+      const pid_t owner = fixed->magic == shm::kSegmentMagic ? fixed->owner_pid.load()
+                          : bulk->magic == shm::kBulkMagic   ? bulk->owner_pid
+                                                             : 0;
+      if (owner == ::getpid()) found.push_back(file);
+    } catch (const proto::ProtocolError&) {
+    }
+  }
+  return found;
+}
+
 void require_removed(const std::vector<std::string>& names) {
   for (const auto& n : names) {
     INFO("segment " << n);
     CHECK_FALSE(shm_exists(n));
   }
+  CHECK(own_leftovers().empty());
 }
 
 proto::StepCommand step_cmd(std::int64_t step, std::uint32_t buffer) {
@@ -458,6 +481,7 @@ TEST_CASE("segments: mode 0600, unique names, removed on exit() and on SIGTERM",
     struct stat st {};
     REQUIRE(::stat(("/dev/shm" + a.segment_name()).c_str(), &st) == 0);
     CHECK((st.st_mode & 0777) == 0600);
+    CHECK(own_leftovers().size() == 2);  // the leftover check sees live segments
   }
   {
     Child c = spawn({"coupler-exit"}, true);
@@ -476,6 +500,7 @@ TEST_CASE("segments: mode 0600, unique names, removed on exit() and on SIGTERM",
     CHECK(WIFSIGNALED(status));
     CHECK_FALSE(shm_exists(name));
   }
+  CHECK(own_leftovers().empty());
 }
 
 TEST_CASE("a solver given a missing segment exits with a clear error", "[protocol][process]") {
