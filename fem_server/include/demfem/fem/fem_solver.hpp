@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "demfem/fem/fem_problem.hpp"
+#include "demfem/fem/sparse_solver.hpp"
 #include "demfem/interface/interface_mesh.hpp"
 
 namespace demfem::io {
@@ -27,12 +28,18 @@ struct ElementResults {
 class FemSolver {
  public:
   explicit FemSolver(FemProblem problem);
+  /// As above with a chosen sparse factorisation (benchmarks, comparisons).
+  FemSolver(FemProblem problem, SolverBackend backend);
   ~FemSolver();
   FemSolver(FemSolver&&) noexcept;
   FemSolver& operator=(FemSolver&&) noexcept;
 
   const FemProblem& problem() const;
+  /// All DOFs (3 per node, 6 per shell node), fixed ones included.
   std::size_t dof_count() const;
+  /// DOFs left after eliminating the constrained ones (the size of the solved system).
+  std::size_t free_dof_count() const;
+  SolverBackend solver_backend() const;
 
   /// The coupled surface (see interface_mesh.hpp); fixed for the solver's life.
   const InterfaceMesh& interface_mesh() const;
@@ -58,6 +65,9 @@ class FemSolver {
   /// Reaction forces at constrained DOFs, 3 per mesh node (zero where free), N.
   std::vector<double> reaction_forces() const;
   ElementResults element_results() const;
+  /// Kinetic energy v^T M v / 2 and strain energy u^T K u / 2 of the current state, J.
+  double kinetic_energy() const;
+  double strain_energy() const;
 
   /// Complete state for a bitwise-identical continuation (u, v, a, time, step, forces).
   void save(io::H5File& file, const std::string& group) const;

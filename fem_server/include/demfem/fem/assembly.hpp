@@ -1,0 +1,67 @@
+#pragma once
+// Assembly of the FEM system from a FemProblem: DOF numbering, global stiffness and mass,
+// load vectors, constraint reduction and the coupled interface surface. FemSolver is built
+// on these; tests (eigenfrequencies) and benchmarks use them directly.
+
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Dense>
+
+#include "demfem/fem/fem_problem.hpp"
+#include "demfem/fem/sparse_solver.hpp"
+#include "demfem/interface/interface_mesh.hpp"
+
+namespace demfem::fem {
+
+/// @brief DOF numbering: 3 DOF per node, 6 for nodes of shell elements (u, then theta).
+/// Constraints are applied by elimination: `reduced` maps a global DOF to its row in the
+/// reduced (free) system, or -1 where fixed.
+struct DofMap {
+  std::vector<std::int32_t> node_offset;  ///< first global DOF of each node
+  std::vector<std::uint8_t> node_dofs;    ///< 3 or 6
+  std::int32_t total = 0;
+  std::vector<std::int32_t> reduced;  ///< global -> reduced index, -1 = fixed
+  std::vector<std::int32_t> free;     ///< reduced -> global
+};
+
+/// @brief Checks indices, materials, sections, loads; throws std::invalid_argument naming the
+/// offending item and the accepted range.
+void validate_problem(const FemProblem& problem);
+
+DofMap make_dof_map(const FemProblem& problem);
+
+/// @brief Global (unreduced) stiffness. Element matrices are computed in parallel and
+/// summed in element order, so the result is bitwise independent of the thread count.
+SparseMatrix assemble_stiffness(const FemProblem& problem, const DofMap& dofs);
+/// @brief Global mass, consistent or lumped as problem.mass says.
+SparseMatrix assemble_mass(const FemProblem& problem, const DofMap& dofs);
+/// @brief Rows and columns of the free DOFs only.
+SparseMatrix reduce_matrix(const SparseMatrix& full, const DofMap& dofs);
+
+/// @brief Consistent nodal forces (global DOFs) of a pressure load at amplitude 1.
+Eigen::VectorXd pressure_load_vector(const FemProblem& problem, const DofMap& dofs,
+                                     const PressureLoad& load);
+/// @brief Nodal forces of a nodal load at amplitude 1.
+Eigen::VectorXd nodal_load_vector(const FemProblem& problem, const DofMap& dofs,
+                                  const NodalLoad& load);
+/// @brief Self weight M g (exact consistent body force: rows of M sum to the integral of N).
+Eigen::VectorXd gravity_load_vector(const FemProblem& problem, const DofMap& dofs,
+                                    const SparseMatrix& mass);
+
+/// @brief Unit nodal directors of shell nodes (average of the adjacent element normals),
+/// zero for nodes of no shell element; and the mean thickness of their elements.
+void shell_nodal_directors(const FemProblem& problem, std::vector<Eigen::Vector3d>& directors,
+                           std::vector<double>& thickness);
+
+/// @brief The coupled surface and how its nodes follow the mesh: interface node i is
+/// mesh node `mesh_node[i]` offset by `offset[i]` (zero for volume meshes, +-t/2 director
+/// for the top / bottom copies of shell nodes).
+struct InterfaceMap {
+  InterfaceMesh mesh;
+  std::vector<std::int32_t> mesh_node;
+  std::vector<Eigen::Vector3d> offset;
+};
+InterfaceMap build_interface(const FemProblem& problem);
+
+}  // namespace demfem::fem

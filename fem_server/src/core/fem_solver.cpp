@@ -1,0 +1,416 @@
+// Linear-elastic FEM solver: static solve and Bossak-Newmark time stepping (see
+// fem_solver.hpp). Constraints are eliminated: all vectors of the state are over the free
+// DOFs only; fixed DOFs are zero.
+#include "demfem/fem/fem_solver.hpp"
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "demfem/fem/assembly.hpp"
+#include "demfem/io/h5_file.hpp"
+#include "elements.hpp"
+
+namespace demfem::fem {
+
+using Eigen::VectorXd;
+
+struct FemSolver::Impl {
+  FemProblem problem;
+  SolverBackend backend;
+  DofMap dofs;
+  SparseMatrix k_full, m_full;  // all DOFs (reactions)
+  SparseMatrix k, m;            // free DOFs
+  InterfaceMap iface;
+
+  struct TimedLoad {
+    VectorXd full, reduced;
+    TimeFunction amplitude;
+  };
+  VectorXd f_const_full, f_const;  // loads without amplitude, gravity
+  std::vector<TimedLoad> timed;
+  std::vector<double> iface_forces;
+
+  VectorXd u, v, a;  // free DOFs
+  double time = 0.0;
+  std::int64_t step = 0;
+  bool accel_ready = false;  // a = M^-1 (F - C v - K u) computed for the current state
+
+  SparseSpdSolver dynamic_solver, static_solver, mass_solver;
+  double dt_factorised = 0.0;  // 0 = no effective matrix factorised
+  VectorXd rhs, ut, vt, work, a_new;
+
+  Impl(FemProblem p, SolverBackend b)
+      : problem(std::move(p)),
+        backend(b),
+        dynamic_solver(b),
+        static_solver(b),
+        mass_solver(b) {}
+
+  VectorXd reduce(const VectorXd& full) const {
+    VectorXd r(static_cast<Eigen::Index>(dofs.free.size()));
+    for (std::size_t i = 0; i < dofs.free.size(); ++i)
+      r(static_cast<Eigen::Index>(i)) = full(dofs.free[i]);
+    return r;
+  }
+  VectorXd expand(const VectorXd& red) const {
+    VectorXd f = VectorXd::Zero(dofs.total);
+    for (std::size_t i = 0; i < dofs.free.size(); ++i)
+      f(dofs.free[i]) = red(static_cast<Eigen::Index>(i));
+    return f;
+  }
+
+  double amplitude(const TimedLoad& l, double t) const {
+    const double s = l.amplitude(t);
+    if (!std::isfinite(s))
+      throw std::runtime_error("FEM: a load amplitude returned a non-finite value at t = " +
+                               std::to_string(t));
+    return s;
+  }
+
+  /// Interface forces (and the moments of the shell offsets) added into a vector indexed by
+  /// `map` (global -> target index, -1 = skip) or by global DOF when map is null.
+  void add_interface_forces(VectorXd& out, const std::vector<std::int32_t>* map) const {
+    for (std::size_t i = 0; i < iface.mesh_node.size(); ++i) {
+      const auto n = static_cast<std::size_t>(iface.mesh_node[i]);
+      const Eigen::Vector3d f(iface_forces[3 * i], iface_forces[3 * i + 1],
+                              iface_forces[3 * i + 2]);
+      const auto off = dofs.node_offset[n];
+      auto add = [&](std::int32_t g, double val) {
+        const std::int32_t r = map ? (*map)[static_cast<std::size_t>(g)] : g;
+        if (r >= 0) out(r) += val;
+      };
+      for (int c = 0; c < 3; ++c) add(off + c, f(c));
+      if (dofs.node_dofs[n] == 6) {
+        // Force on an offset surface point = force + moment (offset x force) on the
+        // mid-surface node (thesis eq. 3.9 sums the forces; the moment keeps the resultant
+        // of the top/bottom contact forces statically equivalent).
+        const Eigen::Vector3d mom = iface.offset[i].cross(f);
+        for (int c = 0; c < 3; ++c) add(off + 3 + c, mom(c));
+      }
+    }
+  }
+
+  /// External load at time t over the free DOFs, written into `out` (no allocation).
+  void load_reduced(double t, VectorXd& out) const {
+    out = f_const;
+    for (const auto& l : timed) out.noalias() += amplitude(l, t) * l.reduced;
+    add_interface_forces(out, &dofs.reduced);
+  }
+  VectorXd load_full(double t) const {
+    VectorXd out = f_const_full;
+    for (const auto& l : timed) out += amplitude(l, t) * l.full;
+    add_interface_forces(out, nullptr);
+    return out;
+  }
+
+  double cm() const { return problem.damping.mass_factor; }
+  double ck() const { return problem.damping.stiffness_factor; }
+
+  void init_acceleration() {
+    // M a0 = F(t0) - C v0 - K u0.
+    if (!mass_solver.factorized()) mass_solver.factorize(m, "mass matrix");
+    load_reduced(time, rhs);
+    work = cm() * v;
+    rhs.noalias() -= m * work;
+    work = u + ck() * v;
+    rhs.noalias() -= k * work;
+    mass_solver.solve(rhs, a);
+    accel_ready = true;
+  }
+
+  void factorize_dynamic(double dt) {
+    const auto& b = problem.bossak;
+    // (1 - alpha) M + gamma dt C + beta dt^2 K, with C = cm M + ck K.
+    const double cmass = (1.0 - b.alpha) + b.gamma * dt * cm();
+    const double cstiff = b.beta * dt * dt + b.gamma * dt * ck();
+    SparseMatrix eff = cmass * m + cstiff * k;
+    dynamic_solver.factorize(eff, "effective dynamic matrix (dt = " + std::to_string(dt) + ")");
+    dt_factorised = dt;
+  }
+
+  void advance(double dt) {
+    if (!(dt > 0.0) || !std::isfinite(dt))
+      throw std::invalid_argument("FemSolver::advance: dt = " + std::to_string(dt) +
+                                  " must be finite and > 0");
+    if (!accel_ready) init_acceleration();
+    if (dt != dt_factorised) factorize_dynamic(dt);
+    const auto& b = problem.bossak;
+    // Newmark predictors (thesis eq. 2.85, 2.86 without the a_{n+1} terms).
+    ut = u + dt * v + (dt * dt * (0.5 - b.beta)) * a;
+    vt = v + (dt * (1.0 - b.gamma)) * a;
+    // Bossak equilibrium at t_{n+1} (eq. 2.87 with K u_{n+1}), solved for a_{n+1}:
+    // A a_{n+1} = F_{n+1} - M (alpha a_n + cm vt) - K (ut + ck vt).
+    const double t1 = time + dt;
+    load_reduced(t1, rhs);
+    work = b.alpha * a + cm() * vt;
+    rhs.noalias() -= m * work;
+    work = ut + ck() * vt;
+    rhs.noalias() -= k * work;
+    dynamic_solver.solve(rhs, a_new);
+    u = ut + (b.beta * dt * dt) * a_new;
+    v = vt + (b.gamma * dt) * a_new;
+    a.swap(a_new);
+    time = t1;
+    ++step;
+  }
+
+  /// Translation (c < 3) or rotation (c >= 3) DOF c of mesh node n from a free-DOF vector.
+  double node_value(const VectorXd& x, std::size_t n, int c) const {
+    if (c >= dofs.node_dofs[n]) return 0.0;
+    const auto r = dofs.reduced[static_cast<std::size_t>(dofs.node_offset[n] + c)];
+    return r >= 0 ? x(r) : 0.0;
+  }
+  std::vector<double> nodal(const VectorXd& x) const {
+    const std::size_t nn = problem.mesh.nodes.size();
+    std::vector<double> out(3 * nn);
+    for (std::size_t n = 0; n < nn; ++n)
+      for (int c = 0; c < 3; ++c) out[3 * n + static_cast<std::size_t>(c)] = node_value(x, n, c);
+    return out;
+  }
+};
+
+FemSolver::FemSolver(FemProblem problem) : FemSolver(std::move(problem), SolverBackend::automatic) {}
+
+FemSolver::FemSolver(FemProblem problem, SolverBackend backend) {
+  validate_problem(problem);
+  impl_ = std::make_unique<Impl>(std::move(problem), backend);
+  Impl& s = *impl_;
+  const FemProblem& p = s.problem;
+  s.dofs = make_dof_map(p);
+  if (s.dofs.free.empty()) throw std::invalid_argument("FEM problem: every DOF is constrained");
+  s.k_full = assemble_stiffness(p, s.dofs);
+  s.m_full = assemble_mass(p, s.dofs);
+  s.k = reduce_matrix(s.k_full, s.dofs);
+  s.m = reduce_matrix(s.m_full, s.dofs);
+  s.f_const_full = gravity_load_vector(p, s.dofs, s.m_full);
+  auto add_load = [&](VectorXd f, const TimeFunction& amp) {
+    if (!amp) {
+      s.f_const_full += f;
+    } else {
+      Impl::TimedLoad l;
+      l.reduced = s.reduce(f);
+      l.full = std::move(f);
+      l.amplitude = amp;
+      s.timed.push_back(std::move(l));
+    }
+  };
+  for (const auto& pl : p.pressures) add_load(pressure_load_vector(p, s.dofs, pl), pl.amplitude);
+  for (const auto& nl : p.nodal_loads) add_load(nodal_load_vector(p, s.dofs, nl), nl.amplitude);
+  s.f_const = s.reduce(s.f_const_full);
+  s.iface = build_interface(p);
+  s.iface_forces.assign(3 * s.iface.mesh_node.size(), 0.0);
+  const auto nf = static_cast<Eigen::Index>(s.dofs.free.size());
+  for (VectorXd* x : {&s.u, &s.v, &s.a, &s.rhs, &s.ut, &s.vt, &s.work, &s.a_new})
+    x->setZero(nf);
+}
+
+FemSolver::~FemSolver() = default;
+FemSolver::FemSolver(FemSolver&&) noexcept = default;
+FemSolver& FemSolver::operator=(FemSolver&&) noexcept = default;
+
+const FemProblem& FemSolver::problem() const { return impl_->problem; }
+std::size_t FemSolver::dof_count() const { return static_cast<std::size_t>(impl_->dofs.total); }
+std::size_t FemSolver::free_dof_count() const { return impl_->dofs.free.size(); }
+SolverBackend FemSolver::solver_backend() const { return impl_->dynamic_solver.backend(); }
+const InterfaceMesh& FemSolver::interface_mesh() const { return impl_->iface.mesh; }
+double FemSolver::time() const { return impl_->time; }
+std::int64_t FemSolver::step_count() const { return impl_->step; }
+
+void FemSolver::set_interface_forces(std::span<const double> forces) {
+  Impl& s = *impl_;
+  if (forces.size() != s.iface_forces.size())
+    throw std::invalid_argument("FemSolver::set_interface_forces: got " +
+                                std::to_string(forces.size()) + " values, expected " +
+                                std::to_string(s.iface_forces.size()) +
+                                " (3 per interface node)");
+  for (std::size_t i = 0; i < forces.size(); ++i)
+    if (!std::isfinite(forces[i]))
+      throw std::invalid_argument("FemSolver::set_interface_forces: non-finite force at entry " +
+                                  std::to_string(i));
+  std::copy(forces.begin(), forces.end(), s.iface_forces.begin());
+  // The initial acceleration depends on the load; recompute it before the first step.
+  if (s.step == 0) s.accel_ready = false;
+}
+
+void FemSolver::solve_static() {
+  Impl& s = *impl_;
+  if (!s.static_solver.factorized()) s.static_solver.factorize(s.k, "stiffness matrix");
+  s.load_reduced(s.time, s.rhs);
+  s.static_solver.solve(s.rhs, s.u);
+  s.v.setZero();
+  s.a.setZero();
+  s.accel_ready = false;
+}
+
+void FemSolver::advance(double dt) { impl_->advance(dt); }
+
+void FemSolver::interface_kinematics(std::span<double> positions, std::span<double> velocities,
+                                     std::span<double> accelerations) const {
+  const Impl& s = *impl_;
+  const std::size_t n = s.iface.mesh_node.size();
+  if (positions.size() != 3 * n || velocities.size() != 3 * n || accelerations.size() != 3 * n)
+    throw std::invalid_argument("FemSolver::interface_kinematics: spans must hold " +
+                                std::to_string(3 * n) + " values (3 per interface node)");
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto node = static_cast<std::size_t>(s.iface.mesh_node[i]);
+    Eigen::Vector3d x, vel, acc, th, om, al;
+    for (int c = 0; c < 3; ++c) {
+      x(c) = s.node_value(s.u, node, c);
+      vel(c) = s.node_value(s.v, node, c);
+      acc(c) = s.node_value(s.a, node, c);
+      th(c) = s.node_value(s.u, node, c + 3);
+      om(c) = s.node_value(s.v, node, c + 3);
+      al(c) = s.node_value(s.a, node, c + 3);
+    }
+    // Offset surface point of a shell: x = x_mid + u + theta x offset (small rotations).
+    const Eigen::Vector3d& r = s.iface.offset[i];
+    x += th.cross(r);
+    vel += om.cross(r);
+    acc += al.cross(r);
+    for (int c = 0; c < 3; ++c) {
+      positions[3 * i + static_cast<std::size_t>(c)] =
+          s.iface.mesh.reference_positions[3 * i + static_cast<std::size_t>(c)] + x(c);
+      velocities[3 * i + static_cast<std::size_t>(c)] = vel(c);
+      accelerations[3 * i + static_cast<std::size_t>(c)] = acc(c);
+    }
+  }
+}
+
+std::vector<double> FemSolver::displacements() const { return impl_->nodal(impl_->u); }
+std::vector<double> FemSolver::velocities() const { return impl_->nodal(impl_->v); }
+std::vector<double> FemSolver::accelerations() const { return impl_->nodal(impl_->a); }
+
+std::vector<double> FemSolver::reaction_forces() const {
+  const Impl& s = *impl_;
+  // R = K u + M a + C v - F at the fixed DOFs (what the supports exert on the structure).
+  const VectorXd uf = s.expand(s.u), vf = s.expand(s.v), af = s.expand(s.a);
+  VectorXd r = s.k_full * (uf + s.ck() * vf) + s.m_full * (af + s.cm() * vf) - s.load_full(s.time);
+  const std::size_t nn = s.problem.mesh.nodes.size();
+  std::vector<double> out(3 * nn, 0.0);
+  for (std::size_t n = 0; n < nn; ++n)
+    for (int c = 0; c < 3; ++c) {
+      const auto g = s.dofs.node_offset[n] + c;
+      if (s.dofs.reduced[static_cast<std::size_t>(g)] < 0) out[3 * n + static_cast<std::size_t>(c)] = r(g);
+    }
+  return out;
+}
+
+ElementResults FemSolver::element_results() const {
+  const Impl& s = *impl_;
+  const FemProblem& p = s.problem;
+  const VectorXd uf = s.expand(s.u);
+  std::vector<Eigen::Vector3d> directors;
+  std::vector<double> thick;
+  shell_nodal_directors(p, directors, thick);
+  const std::size_t ne = p.mesh.elements.size();
+  ElementResults r;
+  r.strain.resize(6 * ne);
+  r.von_mises.resize(ne);
+  r.max_principal_strain.resize(ne);
+  for (std::size_t e = 0; e < ne; ++e) {
+    const Element& el = p.mesh.elements[e];
+    const Material& mat = p.materials[static_cast<std::size_t>(
+        p.sections[static_cast<std::size_t>(el.section)].material)];
+    const int nn = nodes_per_element(el.type);
+    const int per = el.type == ElementType::quad4 ? 6 : 3;
+    double ue[24] = {};
+    std::array<detail::Vec3, 8> x;
+    for (int a = 0; a < nn; ++a) {
+      const auto n = static_cast<std::size_t>(el.nodes[a]);
+      const auto& pn = p.mesh.nodes[n];
+      x[a] = detail::Vec3(pn[0], pn[1], pn[2]);
+      for (int c = 0; c < per; ++c) ue[per * a + c] = uf(s.dofs.node_offset[n] + c);
+    }
+    detail::Voigt eps, sig;
+    if (el.type == ElementType::hex8) {
+      eps = detail::hex8_centroid_strain(x, ue);
+      sig = detail::elasticity_matrix(mat.youngs_modulus, mat.poisson_ratio) * eps;
+    } else if (el.type == ElementType::tet4) {
+      eps = detail::tet4_strain({x[0], x[1], x[2], x[3]}, ue);
+      sig = detail::elasticity_matrix(mat.youngs_modulus, mat.poisson_ratio) * eps;
+    } else {
+      // Shells: the more stressed of the two outer fibres (zeta = +-1) at the centre; the
+      // mid-surface of a bent plate is nearly unstressed and says little.
+      detail::ShellGeometry g;
+      for (int a = 0; a < 4; ++a) {
+        g.x[a] = x[a];
+        g.director[a] = directors[static_cast<std::size_t>(el.nodes[a])];
+      }
+      g.thickness = p.sections[static_cast<std::size_t>(el.section)].thickness;
+      detail::Voigt e2, s2;
+      detail::mitc4_strain_stress(g, mat.youngs_modulus, mat.poisson_ratio, 1.0, ue, eps, sig);
+      detail::mitc4_strain_stress(g, mat.youngs_modulus, mat.poisson_ratio, -1.0, ue, e2, s2);
+      if (detail::von_mises(s2) > detail::von_mises(sig)) {
+        eps = e2;
+        sig = s2;
+      }
+    }
+    for (int c = 0; c < 6; ++c) r.strain[6 * e + static_cast<std::size_t>(c)] = eps(c);
+    r.von_mises[e] = detail::von_mises(sig);
+    r.max_principal_strain[e] = detail::max_principal_strain(eps);
+  }
+  return r;
+}
+
+double FemSolver::kinetic_energy() const {
+  const Impl& s = *impl_;
+  return 0.5 * s.v.dot(s.m * s.v);
+}
+double FemSolver::strain_energy() const {
+  const Impl& s = *impl_;
+  return 0.5 * s.u.dot(s.k * s.u);
+}
+
+void FemSolver::save(io::H5File& file, const std::string& group) const {
+  const Impl& s = *impl_;
+  file.create_group(group);
+  auto span_of = [](const VectorXd& x) {
+    return std::span<const double>(x.data(), static_cast<std::size_t>(x.size()));
+  };
+  file.write(group + "/u", span_of(s.u));
+  file.write(group + "/v", span_of(s.v));
+  file.write(group + "/a", span_of(s.a));
+  file.write(group + "/interface_forces", std::span<const double>(s.iface_forces));
+  file.set_attribute(group, "time", s.time);
+  file.set_attribute(group, "step", s.step);
+  file.set_attribute(group, "acceleration_ready", static_cast<std::int64_t>(s.accel_ready));
+  file.set_attribute(group, "dt_factorised", s.dt_factorised);
+  file.set_attribute(group, "dof_count", static_cast<std::int64_t>(s.dofs.total));
+  file.set_attribute(group, "free_dof_count", static_cast<std::int64_t>(s.dofs.free.size()));
+}
+
+void FemSolver::restore(const io::H5File& file, const std::string& group) {
+  Impl& s = *impl_;
+  const auto where = file.path().string() + ":" + group;
+  if (file.attribute_int64(group, "dof_count") != s.dofs.total ||
+      file.attribute_int64(group, "free_dof_count") !=
+          static_cast<std::int64_t>(s.dofs.free.size()))
+    throw std::runtime_error("FemSolver::restore: " + where +
+                             " was saved from a model with a different DOF count");
+  auto read = [&](const std::string& name, VectorXd& x) {
+    const auto d = file.read_doubles(group + "/" + name);
+    if (d.size() != static_cast<std::size_t>(x.size()))
+      throw std::runtime_error("FemSolver::restore: " + where + "/" + name + " has " +
+                               std::to_string(d.size()) + " values, expected " +
+                               std::to_string(x.size()));
+    x = Eigen::Map<const VectorXd>(d.data(), x.size());
+  };
+  read("u", s.u);
+  read("v", s.v);
+  read("a", s.a);
+  const auto f = file.read_doubles(group + "/interface_forces");
+  if (f.size() != s.iface_forces.size())
+    throw std::runtime_error("FemSolver::restore: " + where +
+                             "/interface_forces does not match the interface size");
+  s.iface_forces = f;
+  s.time = file.attribute_double(group, "time");
+  s.step = file.attribute_int64(group, "step");
+  s.accel_ready = file.attribute_int64(group, "acceleration_ready") != 0;
+  // The factorisation is rebuilt for the saved dt on the next step (deterministic, so the
+  // continuation is bitwise identical).
+  const double dt = file.attribute_double(group, "dt_factorised");
+  if (dt > 0 && dt != s.dt_factorised) s.factorize_dynamic(dt);
+}
+
+}  // namespace demfem::fem
