@@ -27,8 +27,8 @@ struct WallSpec {
   std::string name;
   std::filesystem::path stl;  ///< stl: resolved path
   double weld_tolerance = -1.0;
-  std::array<double, 3> lo{}, hi{};  ///< box
-  bool open_top = false;             ///< box
+  std::array<double, 3> lo{}, hi{};                ///< box
+  bool open_top = false;                           ///< box
   std::array<double, 3> point{}, normal{0, 0, 1};  ///< plane
   double size = 0.0;                               ///< plane
   std::int32_t material = 0;
@@ -57,12 +57,12 @@ struct DemScene {
   std::vector<WallSpec> walls;
   std::vector<LatticeSpec> lattices;
   std::vector<InsertSpec> inserts;
-  double settle_time = 0.0;           ///< s of settling after insertion (before remove_above)
-  std::optional<double> remove_above; ///< m
-  std::vector<SensorSpec> sensors;    ///< wall_force: wall = index into walls
+  double settle_time = 0.0;               ///< s of settling after insertion (before remove_above)
+  std::optional<double> remove_above;     ///< m
+  std::vector<SensorSpec> sensors;        ///< wall_force: wall = index into walls
   std::optional<double> output_interval;  ///< [dem.output] interval (else the run's)
   bool output_particles = true;
-  std::int32_t interface_material = -1;   ///< -1: not given
+  std::int32_t interface_material = -1;  ///< -1: not given
   std::string interface_material_where;
 };
 

@@ -29,11 +29,11 @@ class InsertionError : public std::runtime_error {
 
 /// @brief Random insertion request: exactly one of count and mass is > 0.
 struct RandomInsertion {
-  Box region;                      ///< particles lie wholly inside it
+  Box region;  ///< particles lie wholly inside it
   SizeDistribution sizes;
-  std::int64_t count = 0;          ///< number of particles, or 0
-  double mass = 0.0;               ///< kg: insert until the total reaches it, or 0
-  double density = 0.0;            ///< kg/m^3 of the particle material
+  std::int64_t count = 0;  ///< number of particles, or 0
+  double mass = 0.0;       ///< kg: insert until the total reaches it, or 0
+  double density = 0.0;    ///< kg/m^3 of the particle material
   std::int32_t material = 0;
   std::array<double, 3> velocity{};
   std::uint64_t seed = 1;

@@ -53,10 +53,10 @@ struct ReposeOptions {
 
 /// @brief Result of angle_of_repose().
 struct ReposeResult {
-  double angle_deg = 0.0;    ///< atan(-slope) of the fitted flank, degrees
-  double slope = 0.0;        ///< dz/dr of the fitted line
-  double heap_radius = 0.0;  ///< R, m
-  double heap_height = 0.0;  ///< top of the surface above base, m
+  double angle_deg = 0.0;            ///< atan(-slope) of the fitted flank, degrees
+  double slope = 0.0;                ///< dz/dr of the fitted line
+  double heap_radius = 0.0;          ///< R, m
+  double heap_height = 0.0;          ///< top of the surface above base, m
   std::vector<double> bin_r, bin_z;  ///< surface profile: bin centre, surface height (m)
   int fitted_bins = 0;
 };
@@ -73,8 +73,8 @@ ReposeResult angle_of_repose(const ParticleState& particles, const ReposeOptions
 struct SensorSpec {
   enum class Kind { mass_flow, wall_force, kinetic_energy, repose };
   Kind kind = Kind::kinetic_energy;
-  std::string name;         ///< CSV file: sensor_<name>.csv
-  double interval = 0.0;    ///< sampling interval, s (> 0)
+  std::string name;       ///< CSV file: sensor_<name>.csv
+  double interval = 0.0;  ///< sampling interval, s (> 0)
   // mass_flow
   std::array<double, 3> point{};
   std::array<double, 3> direction{0, 0, -1};

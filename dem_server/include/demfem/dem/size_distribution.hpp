@@ -31,10 +31,10 @@ class Rng {
 struct SizeDistribution {
   enum class Kind { constant, uniform, normal, gradation };
   Kind kind = Kind::constant;
-  double d_min = 0.0;  ///< constant: the diameter; uniform/normal: lower bound
-  double d_max = 0.0;  ///< uniform/normal: upper bound
-  double mean = 0.0;   ///< normal: mean of the untruncated normal
-  double stddev = 0.0; ///< normal: standard deviation of the untruncated normal
+  double d_min = 0.0;   ///< constant: the diameter; uniform/normal: lower bound
+  double d_max = 0.0;   ///< uniform/normal: upper bound
+  double mean = 0.0;    ///< normal: mean of the untruncated normal
+  double stddev = 0.0;  ///< normal: standard deviation of the untruncated normal
   /// gradation: sieve sizes d_0 < d_1 < ... < d_k (m) and the mass fraction of each of the k
   /// classes [d_i, d_{i+1}) (sum 1). Within a class diameters are uniform by number.
   std::vector<double> sieves;

@@ -1,0 +1,495 @@
+#include "demfem/dem/dem_scene.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <ostream>
+#include <sstream>
+
+#include "demfem/dem/dem_output.hpp"
+#include "demfem/dem/stl_reader.hpp"
+#include "demfem/io/h5_file.hpp"
+
+namespace demfem::dem {
+
+using scene::Range;
+using scene::SceneError;
+using scene::Table;
+
+namespace {
+
+std::int32_t material_index(const Table& t, std::string_view key,
+                            const std::vector<Material>& materials) {
+  const std::string name = t.string(key);
+  for (std::size_t i = 0; i < materials.size(); ++i)
+    if (materials[i].name == name) return static_cast<std::int32_t>(i);
+  std::string list;
+  for (const auto& m : materials) list += (list.empty() ? "\"" : ", \"") + m.name + "\"";
+  t.fail(key, "names material \"" + name +
+                  "\", which [[dem.materials]] does not define (defined: " + list + ")");
+}
+
+WallMotion read_motion(const Table& m) {
+  WallMotion w;
+  const std::string kind =
+      m.choice("kind", "fixed", {"fixed", "translation", "rotation", "sinusoid"});
+  w.start_time = m.number("start_time", 0.0, Range::non_negative());
+  w.end_time = m.number("end_time", 1e300, Range::positive());
+  if (w.end_time <= w.start_time) m.fail("end_time", "must be greater than start_time");
+  auto unit = [&](std::string_view key) {
+    auto a = m.vec3(key);
+    const double l = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+    if (!(l > 0)) m.fail(key, "must not be the zero vector");
+    return std::array<double, 3>{a[0] / l, a[1] / l, a[2] / l};
+  };
+  if (kind == "fixed") {
+    w.kind = WallMotion::Kind::fixed;
+  } else if (kind == "translation") {
+    w.kind = WallMotion::Kind::translation;
+    w.velocity = m.vec3("velocity");
+  } else if (kind == "rotation") {
+    w.kind = WallMotion::Kind::rotation;
+    w.axis_point = m.vec3("axis_point");
+    w.axis = unit("axis");
+    w.angular_velocity = m.number("angular_velocity");
+  } else {
+    w.kind = WallMotion::Kind::sinusoid;
+    w.axis = unit("direction");
+    w.amplitude = m.number("amplitude", Range::non_negative());
+    w.frequency = m.number("frequency", Range::positive());
+    w.phase = m.number("phase", 0.0);
+  }
+  m.finish();
+  return w;
+}
+
+SizeDistribution read_distribution(const Table& d) {
+  const std::string kind = d.choice("kind", {"constant", "uniform", "normal", "gradation"});
+  SizeDistribution s;
+  try {
+    if (kind == "constant") {
+      s = SizeDistribution::constant(d.number("diameter", Range::positive()));
+    } else if (kind == "uniform") {
+      const double lo = d.number("d_min", Range::positive());
+      const double hi = d.number("d_max", Range::positive());
+      if (hi < lo) d.fail("d_max", "must be >= d_min");
+      s = SizeDistribution::uniform(lo, hi);
+    } else if (kind == "normal") {
+      const double mean = d.number("mean", Range::positive());
+      const double sd = d.number("stddev", Range::positive());
+      const double lo = d.number("d_min", Range::positive());
+      const double hi = d.number("d_max", Range::positive());
+      if (hi < lo) d.fail("d_max", "must be >= d_min");
+      s = SizeDistribution::normal(mean, sd, lo, hi);
+    } else {
+      auto sieves = d.numbers("sieves", 0, Range::positive());
+      auto fractions = d.numbers("mass_fractions", 0, Range::closed(0, 1));
+      if (fractions.size() + 1 != sieves.size()) {
+        d.fail("mass_fractions",
+               "needs one entry per sieve class: " + std::to_string(sieves.size() - 1) + " for " +
+                   std::to_string(sieves.size()) + " sieve sizes, found " +
+                   std::to_string(fractions.size()));
+      }
+      s = SizeDistribution::gradation(std::move(sieves), std::move(fractions));
+    }
+  } catch (const std::invalid_argument& e) {
+    d.fail("kind", e.what());
+  }
+  d.finish();
+  return s;
+}
+
+std::array<double, 3> checked_hi(const Table& t, const std::array<double, 3>& lo) {
+  auto hi = t.vec3("hi");
+  for (int k = 0; k < 3; ++k)
+    if (!(hi[k] > lo[k])) t.fail("hi", "must be greater than 'lo' in every component");
+  return hi;
+}
+
+}  // namespace
+
+DemScene read_dem_scene(const Table& dem) {
+  DemScene s;
+  s.file = dem.file();
+  auto& st = s.settings;
+  st.backend = dem.choice("backend", "cpu", {"cpu", "cuda"});
+  st.threads = static_cast<int>(dem.integer("threads", 0, 0, 4096));
+  st.dt = dem.number("dt", Range::positive());
+  s.dt_where = dem.where("dt");
+  st.gravity = dem.vec3("gravity", std::array<double, 3>{0.0, 0.0, -9.81});
+  st.skin = dem.number("skin", 0.0, Range::non_negative());
+  s.settle_time = dem.number("settle_time", 0.0, Range::non_negative());
+  if (dem.has("remove_above")) s.remove_above = dem.number("remove_above");
+
+  // Materials.
+  const auto mats = dem.tables("materials");
+  if (mats.empty()) dem.fail("materials", "at least one [[dem.materials]] is required");
+  for (const auto& m : mats) {
+    Material mat;
+    mat.name = m.string("name");
+    if (mat.name.empty()) m.fail("name", "must not be empty");
+    for (const auto& other : st.materials)
+      if (other.name == mat.name) m.fail("name", "\"" + mat.name + "\" is defined twice");
+    mat.youngs_modulus = m.number("youngs_modulus", Range::positive());
+    mat.poisson_ratio = m.number("poisson_ratio", Range{0.0, 0.5, false, true});
+    mat.density = m.number("density", 0.0, Range::non_negative());
+    m.finish();
+    st.materials.push_back(mat);
+  }
+  const std::size_t n = st.materials.size();
+  st.pairs.assign(n * n, MaterialPair{});
+  std::vector<std::uint8_t> given(n * n, 0);
+  for (const auto& p : dem.tables("pairs")) {
+    const auto a = material_index(p, "a", st.materials);
+    const auto b = material_index(p, "b", st.materials);
+    if (given[std::size_t(a) * n + std::size_t(b)]) {
+      p.fail("b", "the pair (" + st.materials[a].name + ", " + st.materials[b].name +
+                      ") is defined twice");
+    }
+    MaterialPair mp;
+    mp.friction = p.number("friction", Range::non_negative());
+    mp.restitution = p.number("restitution", Range::open_closed(0.0, 1.0));
+    mp.rolling_friction = p.number("rolling_friction", 0.0, Range::non_negative());
+    p.finish();
+    st.pairs[std::size_t(a) * n + std::size_t(b)] = mp;
+    st.pairs[std::size_t(b) * n + std::size_t(a)] = mp;
+    given[std::size_t(a) * n + std::size_t(b)] = given[std::size_t(b) * n + std::size_t(a)] = 1;
+  }
+
+  // Walls.
+  const auto walls = dem.tables("walls");
+  for (std::size_t i = 0; i < walls.size(); ++i) {
+    const Table& w = walls[i];
+    WallSpec ws;
+    ws.where = w.where("material");
+    ws.name = w.string("name", "wall" + std::to_string(i));
+    for (const auto& other : s.walls)
+      if (other.name == ws.name) w.fail("name", "wall \"" + ws.name + "\" is defined twice");
+    ws.material = material_index(w, "material", st.materials);
+    const int shapes = int(w.has("stl")) + int(w.has("box")) + int(w.has("plane"));
+    if (shapes != 1) {
+      w.fail("stl", "a wall needs exactly one of 'stl', 'box' and 'plane' (found " +
+                        std::to_string(shapes) + ")");
+    }
+    if (w.has("stl")) {
+      ws.kind = WallSpec::Kind::stl;
+      ws.stl = w.path("stl");
+      ws.where = w.where("stl");
+      ws.weld_tolerance = w.number("weld_tolerance", -1.0, Range::non_negative());
+    } else if (auto b = w.table("box")) {
+      ws.kind = WallSpec::Kind::box;
+      ws.lo = b->vec3("lo");
+      ws.hi = checked_hi(*b, ws.lo);
+      ws.open_top = b->boolean("open_top", false);
+      b->finish();
+    } else if (auto pl = w.table("plane")) {
+      ws.kind = WallSpec::Kind::plane;
+      ws.point = pl->vec3("point");
+      ws.normal = pl->vec3("normal");
+      if (ws.normal == std::array<double, 3>{0, 0, 0}) pl->fail("normal", "must not be zero");
+      ws.size = pl->number("size", Range::positive());
+      pl->finish();
+    }
+    if (auto m = w.table("motion")) ws.motion = read_motion(*m);
+    w.finish();
+    s.walls.push_back(std::move(ws));
+  }
+
+  std::vector<std::uint8_t> particle_material(n, 0);
+  auto particle_density = [&](const Table& t, std::int32_t m) {
+    if (!(st.materials[m].density > 0)) {
+      t.fail("material", "material \"" + st.materials[m].name +
+                             "\" is used for particles but has no density > 0");
+    }
+    particle_material[std::size_t(m)] = 1;
+    return st.materials[m].density;
+  };
+
+  // Lattice fills.
+  for (const auto& l : dem.tables("lattice")) {
+    LatticeSpec ls;
+    ls.where = l.where("lo");
+    auto& q = ls.request;
+    q.material = material_index(l, "material", st.materials);
+    particle_density(l, q.material);
+    q.region.lo = l.vec3("lo");
+    q.region.hi = checked_hi(l, q.region.lo);
+    q.diameter = l.number("diameter", Range::positive());
+    q.spacing = l.number("spacing", 0.0, Range::non_negative());
+    if (q.spacing > 0 && q.spacing < q.diameter) l.fail("spacing", "must be >= diameter (or 0)");
+    q.velocity = l.vec3("velocity", std::array<double, 3>{0, 0, 0});
+    q.max_count = l.integer("max_count", 0, 0, INT64_MAX);
+    l.finish();
+    s.lattices.push_back(ls);
+  }
+
+  // Random insertions.
+  for (const auto& r : dem.tables("insert")) {
+    InsertSpec is;
+    is.where = r.where("lo");
+    auto& q = is.request;
+    q.material = material_index(r, "material", st.materials);
+    q.density = particle_density(r, q.material);
+    q.region.lo = r.vec3("lo");
+    q.region.hi = checked_hi(r, q.region.lo);
+    q.sizes = read_distribution(r.required_table("distribution"));
+    const bool has_count = r.has("count"), has_mass = r.has("mass");
+    if (has_count == has_mass) r.fail("count", "give exactly one of 'count' and 'mass'");
+    if (has_count) q.count = r.integer("count", 1, INT64_MAX);
+    if (has_mass) q.mass = r.number("mass", Range::positive());
+    q.velocity = r.vec3("velocity", std::array<double, 3>{0, 0, 0});
+    q.max_attempts = r.integer("max_attempts", 2000, 1, INT64_MAX);
+    if (r.has("seed")) {
+      q.seed = static_cast<std::uint64_t>(r.integer("seed", 0, INT64_MAX));
+      is.has_seed = true;
+    }
+    r.finish();
+    s.inserts.push_back(is);
+  }
+
+  // Every pair that involves a particle material must be given: a silent default friction
+  // would change results without anyone noticing.
+  if (dem.has("interface_material")) {
+    s.interface_material = material_index(dem, "interface_material", st.materials);
+    s.interface_material_where = dem.where("interface_material");
+  }
+  for (std::size_t a = 0; a < n; ++a) {
+    if (!particle_material[a]) continue;
+    for (std::size_t b = 0; b < n; ++b) {
+      bool touches = particle_material[b] || std::int32_t(b) == s.interface_material;
+      for (const auto& w : s.walls) touches = touches || std::size_t(w.material) == b;
+      if (touches && !given[a * n + b]) {
+        dem.fail("pairs", "no [[dem.pairs]] entry for materials \"" + st.materials[a].name +
+                              "\" and \"" + st.materials[b].name +
+                              "\", which come into contact (particles and walls)");
+      }
+    }
+  }
+
+  // Sensors.
+  for (const auto& t : dem.tables("sensors")) {
+    SensorSpec ss;
+    ss.name = t.string("name");
+    if (ss.name.empty() || ss.name.find_first_of("/\\ ") != std::string::npos) {
+      t.fail("name", "must be a non-empty name without spaces or slashes (it names a file)");
+    }
+    for (const auto& other : s.sensors)
+      if (other.name == ss.name) t.fail("name", "sensor \"" + ss.name + "\" is defined twice");
+    const std::string kind =
+        t.choice("kind", {"mass_flow", "wall_force", "kinetic_energy", "repose"});
+    ss.interval = t.number("interval", Range::positive());
+    if (kind == "mass_flow") {
+      ss.kind = SensorSpec::Kind::mass_flow;
+      ss.point = t.vec3("point");
+      ss.direction = t.vec3("direction", std::array<double, 3>{0, 0, -1});
+      if (ss.direction == std::array<double, 3>{0, 0, 0}) t.fail("direction", "must not be zero");
+      ss.radius = t.number("radius", 0.0, Range::non_negative());
+    } else if (kind == "wall_force") {
+      ss.kind = SensorSpec::Kind::wall_force;
+      const std::string wall = t.string("wall");
+      auto it = std::find_if(s.walls.begin(), s.walls.end(),
+                             [&](const WallSpec& w) { return w.name == wall; });
+      if (it == s.walls.end()) t.fail("wall", "names wall \"" + wall + "\", which is not defined");
+      ss.wall = static_cast<std::int32_t>(it - s.walls.begin());
+    } else if (kind == "kinetic_energy") {
+      ss.kind = SensorSpec::Kind::kinetic_energy;
+    } else {
+      ss.kind = SensorSpec::Kind::repose;
+      auto c = t.numbers("centre", 2);
+      ss.repose.centre = {c[0], c[1]};
+      ss.repose.planar = t.choice("profile", "radial", {"radial", "planar"}) == "planar";
+      ss.repose.base = t.number("base", 0.0);
+      ss.repose.bin_width = t.number("bin_width", 0.0, Range::non_negative());
+      if (t.has("flank")) {
+        auto f = t.numbers("flank", 2, Range::closed(0.0, 1.0));
+        if (!(f[1] > f[0])) t.fail("flank", "must be [lo, hi] with lo < hi");
+        ss.repose.flank_lo = f[0];
+        ss.repose.flank_hi = f[1];
+      }
+    }
+    t.finish();
+    s.sensors.push_back(ss);
+  }
+
+  if (auto o = dem.table("output")) {
+    if (o->has("interval")) s.output_interval = o->number("interval", Range::non_negative());
+    s.output_particles = o->boolean("particles", true);
+    o->finish();
+  }
+  dem.finish();
+  return s;
+}
+
+DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, std::uint64_t seed,
+               double run_output_interval, std::ostream* log)
+    : scene_(scene) {
+  system_ = std::make_unique<DemSystem>(scene_.settings);
+  for (auto& w : scene_.walls) {
+    WallMesh mesh;
+    switch (w.kind) {
+      case WallSpec::Kind::stl:
+        try {
+          mesh = read_stl(w.stl, w.weld_tolerance);
+        } catch (const StlError& e) {
+          throw SceneError(w.where + ": " + e.what());
+        }
+        break;
+      case WallSpec::Kind::box:
+        mesh = make_box_mesh(w.lo, w.hi, w.open_top);
+        break;
+      case WallSpec::Kind::plane:
+        mesh = make_plane_mesh(w.point, w.normal, w.size);
+        break;
+    }
+    mesh.name = w.name;
+    mesh.material = w.material;
+    mesh.motion = w.motion;
+    // The pressure sensors need the area of their wall.
+    const double area = mesh_area(mesh.vertices, mesh.triangles);
+    const auto index = system_->add_wall(std::move(mesh));
+    for (auto& s : scene_.sensors)
+      if (s.kind == SensorSpec::Kind::wall_force && s.wall == index) s.area = area;
+  }
+  for (const auto& l : scene_.lattices) {
+    try {
+      add(lattice_fill(l.request));
+    } catch (const InsertionError& e) {
+      throw SceneError(l.where + ": " + e.what());
+    }
+  }
+  for (std::size_t i = 0; i < scene_.inserts.size(); ++i) {
+    RandomInsertion q = scene_.inserts[i].request;
+    if (!scene_.inserts[i].has_seed) q.seed = seed + i;
+    try {
+      add(insert_random(q, &system_->particles()));
+    } catch (const InsertionError& e) {
+      throw SceneError(scene_.inserts[i].where + ": " + e.what());
+    }
+  }
+  if (system_->particle_count() > 0) {
+    const double tr = system_->rayleigh_time_step();
+    const double dt = scene_.settings.dt;
+    if (log) {
+      *log << "dem: " << system_->particle_count() << " particles, " << system_->wall_count()
+           << " walls; Rayleigh time step " << tr << " s, dt = " << dt << " s (" << dt / tr
+           << " of it)\n";
+    }
+    if (dt > tr) {
+      std::ostringstream m;
+      m << scene_.dt_where << ": dt = " << dt << " s exceeds the Rayleigh time step " << tr
+        << " s (thesis eq. 2.27) of the smallest particle; the integration would be unstable. "
+        << "Use dt <= " << kRayleighWarnFraction * tr << " s";
+      throw SceneError(m.str());
+    }
+    if (dt > kRayleighWarnFraction * tr && log) {
+      *log << "dem: warning: " << scene_.dt_where << ": dt is " << dt / tr
+           << " of the Rayleigh time step, above the safe fraction " << kRayleighWarnFraction
+           << "; collisions faster than ~0.1 m/s need a smaller dt\n";
+    }
+  }
+  if (scene_.settle_time > 0) {
+    const auto steps =
+        static_cast<std::int64_t>(std::ceil(scene_.settle_time / scene_.settings.dt));
+    system_->advance(steps);
+    if (log) *log << "dem: settled for " << steps << " steps (" << system_->time() << " s)\n";
+  }
+  if (scene_.remove_above) {
+    const auto keep = keep_at_or_below(system_->particles(), *scene_.remove_above);
+    std::size_t removed = 0;
+    std::vector<std::int64_t> kept_ids;
+    for (std::size_t i = 0; i < keep.size(); ++i) {
+      if (keep[i])
+        kept_ids.push_back(ids_[i]);
+      else
+        ++removed;
+    }
+    if (removed > 0) {
+      system_->remove_particles(keep);
+      ids_ = std::move(kept_ids);
+    }
+    if (log)
+      *log << "dem: removed " << removed << " particles above z = " << *scene_.remove_above
+           << " m\n";
+  }
+  const std::filesystem::path dir = output_dir;
+  sensors_ = std::make_unique<SensorSet>(scene_.sensors, dir, *system_);
+  output_interval_ = scene_.output_interval.value_or(run_output_interval);
+  if (!dir.empty() && scene_.output_particles) output_ = std::make_unique<ParticleOutput>(dir);
+  next_output_ = system_->time();
+  after_advance();  // the initial state: first sensor samples and snapshot
+}
+
+DemRun::~DemRun() = default;
+
+void DemRun::add(std::span<const ParticleInit> particles) {
+  system_->add_particles(particles);
+  for (std::size_t i = 0; i < particles.size(); ++i) ids_.push_back(next_id_++);
+}
+
+void DemRun::write_snapshot() {
+  if (output_) output_->write(system_->particles(), ids_, system_->time());
+}
+
+void DemRun::after_advance() {
+  const double t = system_->time();
+  const double eps = 0.1 * scene_.settings.dt;
+  sensors_->sample(*system_, ids_);
+  if (output_ && output_interval_ > 0 && t + eps >= next_output_) {
+    write_snapshot();
+    while (next_output_ <= t + eps) next_output_ += output_interval_;
+  } else if (output_ && output_interval_ == 0 && output_->count() == 0) {
+    write_snapshot();  // interval 0: the initial and the final state only
+  }
+}
+
+void DemRun::advance(std::int64_t substeps, ForceMode mode) {
+  system_->advance(substeps, mode);
+  after_advance();
+}
+
+void DemRun::run_to(double end_time, const std::function<void(double)>& progress) {
+  const double dt = scene_.settings.dt;
+  while (system_->time() + 0.5 * dt < end_time) {
+    double target = std::min(end_time, sensors_->next_time());
+    if (output_ && output_interval_ > 0) target = std::min(target, next_output_);
+    auto steps = static_cast<std::int64_t>(std::llround((target - system_->time()) / dt));
+    steps = std::max<std::int64_t>(steps, 1);
+    system_->advance(steps);
+    after_advance();
+    if (progress) progress(system_->time());
+  }
+  if (output_ && output_interval_ == 0) write_snapshot();
+}
+
+void DemRun::save(io::H5File& file, const std::string& group) const {
+  system_->save(file, group);
+  const std::string g = group + "_tools";
+  file.create_group(g);
+  file.write(g + "/ids", std::span<const std::int64_t>(ids_));
+  const auto rows = sensors_->rows();
+  std::vector<std::int64_t> r(rows.begin(), rows.end());
+  r.push_back(0);  // never empty
+  file.write(g + "/sensor_rows", std::span<const std::int64_t>(r));
+  file.set_attribute(g, "next_id", next_id_);
+  file.set_attribute(g, "snapshots", static_cast<std::int64_t>(output_ ? output_->count() : 0));
+  file.set_attribute(g, "next_output", next_output_);
+}
+
+void DemRun::restore(const io::H5File& file, const std::string& group) {
+  system_->restore(file, group);
+  const std::string g = group + "_tools";
+  ids_ = file.read_int64(g + "/ids");
+  if (ids_.size() != system_->particle_count()) {
+    throw std::runtime_error(file.path().string() + ": " + g + "/ids has " +
+                             std::to_string(ids_.size()) + " entries for " +
+                             std::to_string(system_->particle_count()) + " particles");
+  }
+  next_id_ = file.attribute_int64(g, "next_id");
+  auto r = file.read_int64(g + "/sensor_rows");
+  r.pop_back();
+  sensors_->resume(std::vector<std::size_t>(r.begin(), r.end()), system_->time());
+  if (output_) output_->resume(static_cast<std::size_t>(file.attribute_int64(g, "snapshots")));
+  next_output_ = file.attribute_double(g, "next_output");
+}
+
+}  // namespace demfem::dem

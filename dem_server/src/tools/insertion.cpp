@@ -1,0 +1,214 @@
+#include "demfem/dem/insertion.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <sstream>
+
+namespace demfem::dem {
+
+std::string Box::describe() const {
+  std::ostringstream s;
+  s << "box [" << lo[0] << ", " << hi[0] << "] x [" << lo[1] << ", " << hi[1] << "] x [" << lo[2]
+    << ", " << hi[2] << "] m";
+  return s.str();
+}
+
+double sphere_mass(double diameter, double density) {
+  return density * std::numbers::pi / 6.0 * diameter * diameter * diameter;
+}
+
+namespace {
+
+/// Dense uniform grid of sphere indices over the region (padded by the largest radius).
+class SphereGrid {
+ public:
+  SphereGrid(const Box& box, double cell) : lo_(box.lo), cell_(cell) {
+    for (int k = 0; k < 3; ++k) {
+      n_[k] = std::max<std::int64_t>(1, std::int64_t(std::ceil((box.hi[k] - box.lo[k]) / cell)));
+    }
+    cells_.resize(std::size_t(n_[0] * n_[1] * n_[2]));
+  }
+  void add(double x, double y, double z, double r) {
+    const auto id = static_cast<std::int32_t>(r_.size());
+    x_.push_back(x);
+    y_.push_back(y);
+    z_.push_back(z);
+    r_.push_back(r);
+    cells_[index(coord(x, 0), coord(y, 1), coord(z, 2))].push_back(id);
+  }
+  /// True when a sphere (x, y, z, r) overlaps a stored one; stored radii are <= cell / 2 and
+  /// r <= cell / 2, so the 27 neighbouring cells hold every candidate.
+  bool overlaps(double x, double y, double z, double r) const {
+    const std::int64_t cx = coord(x, 0), cy = coord(y, 1), cz = coord(z, 2);
+    for (std::int64_t i = std::max<std::int64_t>(0, cx - 1); i <= std::min(n_[0] - 1, cx + 1); ++i)
+      for (std::int64_t j = std::max<std::int64_t>(0, cy - 1); j <= std::min(n_[1] - 1, cy + 1);
+           ++j)
+        for (std::int64_t k = std::max<std::int64_t>(0, cz - 1); k <= std::min(n_[2] - 1, cz + 1);
+             ++k)
+          for (std::int32_t s : cells_[index(i, j, k)]) {
+            const double dx = x - x_[s], dy = y - y_[s], dz = z - z_[s], rr = r + r_[s];
+            if (dx * dx + dy * dy + dz * dz < rr * rr) return true;
+          }
+    return false;
+  }
+
+ private:
+  std::int64_t coord(double v, int k) const {
+    return std::clamp<std::int64_t>(std::int64_t(std::floor((v - lo_[k]) / cell_)), 0, n_[k] - 1);
+  }
+  std::size_t index(std::int64_t i, std::int64_t j, std::int64_t k) const {
+    return std::size_t((i * n_[1] + j) * n_[2] + k);
+  }
+  std::array<double, 3> lo_;
+  double cell_;
+  std::array<std::int64_t, 3> n_{};
+  std::vector<std::vector<std::int32_t>> cells_;
+  std::vector<double> x_, y_, z_, r_;
+};
+
+}  // namespace
+
+std::vector<ParticleInit> insert_random(const RandomInsertion& q, const ParticleState* existing) {
+  q.sizes.validate();
+  const bool by_count = q.count > 0;
+  if (by_count == (q.mass > 0)) {
+    throw InsertionError("random insertion needs exactly one of a count and a mass");
+  }
+  if (!(q.density > 0)) throw InsertionError("random insertion needs a density > 0");
+  const double d_max = q.sizes.largest();
+  std::ostringstream asked;
+  if (by_count) {
+    asked << q.count << " particles";
+  } else {
+    asked << q.mass << " kg";
+  }
+  asked << " (" << q.sizes.describe() << ") in " << q.region.describe();
+  for (int k = 0; k < 3; ++k) {
+    if (!(q.region.hi[k] - q.region.lo[k] >= d_max)) {
+      throw InsertionError("cannot insert " + asked.str() + ": the region is narrower than the " +
+                           "largest diameter " + std::to_string(d_max) + " m");
+    }
+  }
+  // Up-front check of the solid fraction asked for, so an impossible request fails at once
+  // with a reason instead of after millions of attempts.
+  const double mean_volume = std::numbers::pi / 6.0 * q.sizes.mean_cube();
+  const double solid = by_count ? double(q.count) * mean_volume : q.mass / q.density;
+  const double fraction = solid / q.region.volume();
+  if (fraction > kMaxRandomPackingFraction) {
+    std::ostringstream s;
+    s << "cannot insert " << asked.str() << ": it needs a solid fraction of about " << fraction
+      << " of the region, more than the " << kMaxRandomPackingFraction
+      << " that random non-overlapping insertion reaches; enlarge the region, or insert in "
+         "stages with settling in between";
+    throw InsertionError(s.str());
+  }
+
+  // Grid cell = largest diameter present, so neighbours lie in the 27 surrounding cells.
+  double cell = d_max;
+  Box padded = q.region;
+  std::vector<std::size_t> nearby;
+  if (existing) {
+    for (std::size_t i = 0; i < existing->size(); ++i) {
+      const double r = existing->radius[i];
+      const double x = existing->px[i], y = existing->py[i], z = existing->pz[i];
+      if (x + r < q.region.lo[0] || x - r > q.region.hi[0] || y + r < q.region.lo[1] ||
+          y - r > q.region.hi[1] || z + r < q.region.lo[2] || z - r > q.region.hi[2])
+        continue;
+      nearby.push_back(i);
+      cell = std::max(cell, 2.0 * r);
+    }
+  }
+  for (int k = 0; k < 3; ++k) {
+    padded.lo[k] -= cell;
+    padded.hi[k] += cell;
+  }
+  SphereGrid grid(padded, cell);
+  for (std::size_t i : nearby) {
+    grid.add(existing->px[i], existing->py[i], existing->pz[i], existing->radius[i]);
+  }
+
+  Rng rng(q.seed);
+  std::vector<ParticleInit> out;
+  double placed_mass = 0.0;
+  auto done = [&] {
+    return by_count ? std::int64_t(out.size()) >= q.count : placed_mass >= q.mass;
+  };
+  while (!done()) {
+    const double d = q.sizes.sample(rng);
+    const double r = 0.5 * d;
+    bool ok = false;
+    for (std::int64_t a = 0; a < q.max_attempts && !ok; ++a) {
+      const double x = rng.uniform(q.region.lo[0] + r, q.region.hi[0] - r);
+      const double y = rng.uniform(q.region.lo[1] + r, q.region.hi[1] - r);
+      const double z = rng.uniform(q.region.lo[2] + r, q.region.hi[2] - r);
+      if (grid.overlaps(x, y, z, r)) continue;
+      grid.add(x, y, z, r);
+      ParticleInit p;
+      p.position = {x, y, z};
+      p.velocity = q.velocity;
+      p.radius = r;
+      p.material = q.material;
+      out.push_back(p);
+      placed_mass += sphere_mass(d, q.density);
+      ok = true;
+    }
+    if (!ok) {
+      std::ostringstream s;
+      s << "cannot insert " << asked.str() << ": placed only " << out.size() << " particles ("
+        << placed_mass << " kg, solid fraction " << placed_mass / q.density / q.region.volume()
+        << ") before particle " << out.size() + 1 << " found no free place in " << q.max_attempts
+        << " attempts; enlarge the region or insert in stages";
+      throw InsertionError(s.str());
+    }
+  }
+  return out;
+}
+
+std::vector<ParticleInit> lattice_fill(const LatticeFill& q) {
+  if (!(q.diameter > 0)) throw InsertionError("lattice fill needs a diameter > 0");
+  const double a = q.spacing > 0 ? q.spacing : 1.001 * q.diameter;
+  if (a < q.diameter) {
+    throw InsertionError("lattice spacing " + std::to_string(a) + " m is below the diameter " +
+                         std::to_string(q.diameter) + " m: the spheres would overlap");
+  }
+  const double r = 0.5 * q.diameter;
+  std::array<std::int64_t, 3> n{};
+  for (int k = 0; k < 3; ++k) {
+    const double free = q.region.hi[k] - q.region.lo[k] - q.diameter;
+    n[k] = free < 0 ? 0 : std::int64_t(std::floor(free / a + 1e-9)) + 1;
+  }
+  if (n[0] * n[1] * n[2] == 0) {
+    throw InsertionError("lattice fill of " + q.region.describe() + " with diameter " +
+                         std::to_string(q.diameter) + " m: not one sphere fits");
+  }
+  std::vector<ParticleInit> out;
+  for (std::int64_t k = 0; k < n[2]; ++k)
+    for (std::int64_t j = 0; j < n[1]; ++j)
+      for (std::int64_t i = 0; i < n[0]; ++i) {
+        if (q.max_count > 0 && std::int64_t(out.size()) >= q.max_count) return out;
+        ParticleInit p;
+        p.position = {q.region.lo[0] + r + double(i) * a, q.region.lo[1] + r + double(j) * a,
+                      q.region.lo[2] + r + double(k) * a};
+        p.velocity = q.velocity;
+        p.radius = r;
+        p.material = q.material;
+        out.push_back(p);
+      }
+  return out;
+}
+
+std::vector<std::uint8_t> keep_at_or_below(const ParticleState& particles, double height) {
+  std::vector<std::uint8_t> keep(particles.size());
+  for (std::size_t i = 0; i < keep.size(); ++i) keep[i] = particles.pz[i] <= height ? 1 : 0;
+  return keep;
+}
+
+std::size_t remove_above(DemSystem& system, double height) {
+  const auto keep = keep_at_or_below(system.particles(), height);
+  const auto removed = static_cast<std::size_t>(std::count(keep.begin(), keep.end(), 0));
+  if (removed > 0) system.remove_particles(keep);
+  return removed;
+}
+
+}  // namespace demfem::dem
