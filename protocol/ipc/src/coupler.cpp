@@ -125,7 +125,7 @@ struct CouplerSession::Impl {
   }
 
   void send(Role role, shm::Message& msg) {
-    msg.role = static_cast<std::uint32_t>(role);
+    msg.role = static_cast<std::uint16_t>(role);
     msg.time = time;
     shm::push(channel(role).to_solver, msg, waiter(role));
   }
@@ -152,7 +152,7 @@ struct CouplerSession::Impl {
     config.triangle_count = buffers.triangle_count();
     if (!buffers.empty())
       shm::copy_text(config.bulk_segment, shm::kNameLength, bulk_name, "bulk name");
-    shm::Message msg{};
+    shm::Message msg;  // payload left unset: only payload_size bytes travel
     msg.kind = MessageKind::config;
     msg.set(config);
     send(role, msg);
@@ -162,7 +162,7 @@ struct CouplerSession::Impl {
   void send_mesh(Role role, bool initialize_buffers) {
     shm::MeshPayload payload{};
     payload.initialize_buffers = initialize_buffers ? 1 : 0;
-    shm::Message msg{};
+    shm::Message msg;  // payload left unset: only payload_size bytes travel
     msg.kind = MessageKind::mesh;
     msg.set(payload);
     send(role, msg);
@@ -248,7 +248,7 @@ void CouplerSession::wait_hello(Role role, std::optional<pid_t> pid) {
                         " solver, got " + message_kind_name(msg.kind));
   const auto hello = msg.get<shm::HelloPayload>();
   if (hello.version != kProtocolVersion) {
-    shm::Message err{};
+    shm::Message err;  // payload left unset: only payload_size bytes travel
     err.kind = MessageKind::error;
     shm::TextPayload text{};
     const VersionMismatch mismatch(role, kProtocolVersion, hello.version);
@@ -335,7 +335,7 @@ void CouplerSession::send_step(Role role, const StepCommand& cmd) {
   impl_->require_hello(role, "send_step");
   if (cmd.buffer >= InterfaceBuffers::kBufferCount)
     throw ProtocolError("step buffer " + std::to_string(cmd.buffer) + " out of range [0, 1]");
-  shm::Message msg{};
+  shm::Message msg;  // payload left unset: only payload_size bytes travel
   msg.kind = MessageKind::step;
   msg.set(cmd);
   impl_->time = cmd.time;
@@ -354,7 +354,7 @@ void send_file_message(CouplerSession::Impl& s, Role role, MessageKind kind,
   shm::FilePayload payload{};
   payload.step = step;
   shm::copy_text(payload.path, shm::kPathLength, file.string(), "checkpoint path");
-  shm::Message msg{};
+  shm::Message msg;  // payload left unset: only payload_size bytes travel
   msg.kind = kind;
   msg.set(payload);
   s.send(role, msg);
@@ -381,7 +381,7 @@ bool CouplerSession::shutdown(Role role) {
   const std::size_t r = index(role);
   if (!s.hello[r]) return false;
   try {
-    shm::Message msg{};
+    shm::Message msg;  // payload left unset: only payload_size bytes travel
     msg.kind = MessageKind::shutdown;
     s.send(role, msg);
     const auto deadline = std::chrono::steady_clock::now() + s.options.peer_timeout;

@@ -246,10 +246,15 @@ std::string PeerWatch::check() {
 
 bool try_push(Ring& ring, Message& msg) {
   const std::uint32_t head = ring.head.load(std::memory_order_relaxed);
-  const std::uint32_t tail = ring.tail.load(std::memory_order_acquire);
-  if (head - tail >= kRingCapacity) return false;
+  if (head - ring.cached_tail >= kRingCapacity) {
+    ring.cached_tail = ring.tail.load(std::memory_order_acquire);
+    if (head - ring.cached_tail >= kRingCapacity) return false;
+  }
   msg.sequence = ++ring.pushed;
-  std::memcpy(static_cast<void*>(&ring.slots[head % kRingCapacity]), &msg, sizeof(Message));
+  const std::size_t used = std::min<std::size_t>(msg.payload_size, kPayloadSize);
+  msg.payload_size = static_cast<std::uint16_t>(used);
+  std::memcpy(static_cast<void*>(&ring.slots[head % kRingCapacity]), &msg,
+              Message::kHeaderSize + used);
   ring.head.store(head + 1, std::memory_order_release);
   std::atomic_thread_fence(std::memory_order_seq_cst);
   if (ring.consumer_waiting.load(std::memory_order_relaxed) != 0) futex_wake(ring.head);
@@ -260,7 +265,11 @@ bool try_pop(Ring& ring, Message& out) {
   const std::uint32_t tail = ring.tail.load(std::memory_order_relaxed);
   const std::uint32_t head = ring.head.load(std::memory_order_acquire);
   if (head == tail) return false;
-  std::memcpy(static_cast<void*>(&out), &ring.slots[tail % kRingCapacity], sizeof(Message));
+  const Message& slot = ring.slots[tail % kRingCapacity];
+  std::memcpy(static_cast<void*>(&out), &slot, Message::kHeaderSize);
+  out.payload_size =
+      static_cast<std::uint16_t>(std::min<std::size_t>(out.payload_size, kPayloadSize));
+  std::memcpy(out.payload, slot.payload, out.payload_size);
   const std::uint64_t expected = ring.popped + 1;
   ring.popped = expected;
   ring.tail.store(tail + 1, std::memory_order_release);
@@ -305,6 +314,7 @@ void reset(Ring& ring) {
   ring.consumer_waiting.store(0, std::memory_order_relaxed);
   ring.producer_waiting.store(0, std::memory_order_relaxed);
   ring.pushed = 0;
+  ring.cached_tail = 0;
   ring.popped = 0;
   std::atomic_thread_fence(std::memory_order_seq_cst);
 }

@@ -108,7 +108,7 @@ class Server {
   }
 
   void send(shm::Message& msg) {
-    msg.role = static_cast<std::uint32_t>(options_.role);
+    msg.role = static_cast<std::uint16_t>(options_.role);
     msg.time = time_;
     shm::push(channel().to_coupler, msg, waiter());
   }
@@ -116,13 +116,13 @@ class Server {
   void send_error(const std::string& text) {
     if (!attached_) return;
     try {
-      shm::Message msg{};
+      shm::Message msg;  // payload left unset: only payload_size bytes travel
       msg.kind = MessageKind::error;
       shm::TextPayload payload{};
       shm::copy_text_truncated(payload.text, shm::kTextLength, text);
       msg.set(payload);
       // A full ring means the coupler is not listening; do not wait for it.
-      msg.role = static_cast<std::uint32_t>(options_.role);
+      msg.role = static_cast<std::uint16_t>(options_.role);
       msg.time = time_;
       shm::try_push(channel().to_coupler, msg);
     } catch (...) {
@@ -270,7 +270,7 @@ class Server {
       hello.triangle_count = mesh_ ? mesh_->triangle_count() : 0;
       shm::copy_text_truncated(hello.name, shm::kNameLength,
                                call_backend("name", [&] { return backend_.name(); }));
-      shm::Message msg{};
+      shm::Message msg;  // payload left unset: only payload_size bytes travel
       msg.kind = MessageKind::hello;
       msg.set(hello);
       send(msg);
@@ -278,7 +278,7 @@ class Server {
     for (;;) {
       shm::Message msg = shm::pop(channel().to_solver, waiter());
       time_ = msg.time;
-      shm::Message reply{};
+      shm::Message reply;  // payload left unset: only payload_size bytes travel
       switch (msg.kind) {
         case MessageKind::config:
           attach_bulk(msg.get<shm::ConfigPayload>());
