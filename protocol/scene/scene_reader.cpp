@@ -1,10 +1,11 @@
 #include "demfem/scene/scene_reader.hpp"
 
+#include <toml++/toml.h>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <fstream>
 #include <sstream>
-#include <toml++/toml.h>
 
 namespace demfem::scene {
 
@@ -18,14 +19,150 @@ std::string format_number(double v) {
 
 std::string type_name(const toml::node& n) {
   switch (n.type()) {
-    case toml::node_type::table: return "a table";
-    case toml::node_type::array: return "an array";
-    case toml::node_type::string: return "a string";
-    case toml::node_type::integer: return "an integer";
-    case toml::node_type::floating_point: return "a number";
-    case toml::node_type::boolean: return "a boolean";
-    default: return "a date/time";
+    case toml::node_type::table:
+      return "a table";
+    case toml::node_type::array:
+      return "an array";
+    case toml::node_type::string:
+      return "a string";
+    case toml::node_type::integer:
+      return "an integer";
+    case toml::node_type::floating_point:
+      return "a number";
+    case toml::node_type::boolean:
+      return "a boolean";
+    default:
+      return "a date/time";
   }
+}
+
+// toml++ 3.3 (Debian 12) reaches __builtin_unreachable() in its Unicode whitespace test for
+// most code points in U+00A1..U+0499, U+2CDE..U+30D7 and U+FB36..U+FF2F (found by fuzzing,
+// tests/fuzz/corpus/scene/toml_unicode_unreachable.toml): undefined behaviour in the shipped
+// library. Mirror its table to know which code points would reach that point.
+bool toml_whitespace_test_is_undefined(char32_t c) {
+  if (c < 0xA0 || c > 0xFEFF) return false;
+  if (c == 0xA0 || c == 0x3000 || c == 0xFEFF) return false;
+  const auto child = (static_cast<std::uint64_t>(c) - 0xA0ull) / 0x3FAull;
+  if ((1ull << child) & 0x7FFFFFFFFFFFF75Eull) return false;
+  return child != 0x05 && child != 0x07;
+}
+
+// Decodes one UTF-8 sequence at text[i]; returns its length (1 for invalid bytes, which
+// toml++ reports itself).
+std::size_t decode_utf8(std::string_view text, std::size_t i, char32_t& cp) {
+  const auto b = static_cast<unsigned char>(text[i]);
+  std::size_t len = b < 0x80           ? 1
+                    : (b >> 5) == 0x6  ? 2
+                    : (b >> 4) == 0xE  ? 3
+                    : (b >> 3) == 0x1E ? 4
+                                       : 1;
+  if (i + len > text.size()) len = 1;
+  cp = len == 1 ? b : len == 2 ? (b & 0x1F) : len == 3 ? (b & 0x0F) : (b & 0x07);
+  for (std::size_t k = 1; k < len; ++k)
+    cp = (cp << 6) | (static_cast<unsigned char>(text[i + k]) & 0x3F);
+  return len;
+}
+
+// Makes a scene text safe for toml++: comments are blanked past their first non-ASCII
+// character (their content never matters), non-ASCII outside strings and comments is an
+// error (TOML keys are ASCII), and code points that would reach the defect above are
+// refused inside strings with a message naming the line.
+std::string sanitise_for_toml(std::string_view text, const std::string& name) {
+  std::string out(text);
+  enum class State { normal, comment, basic, literal, ml_basic, ml_literal } state = State::normal;
+  std::size_t line = 1;
+  std::size_t line_start = 0;
+  auto starts = [&](std::size_t i, std::string_view s) { return text.substr(i, s.size()) == s; };
+  for (std::size_t i = 0; i < text.size();) {
+    const char ch = text[i];
+    if (ch == '\n') {
+      ++line;
+      line_start = i + 1;
+      if (state == State::comment || state == State::basic || state == State::literal) {
+        state = State::normal;
+      }
+      ++i;
+      continue;
+    }
+    if (static_cast<unsigned char>(ch) >= 0x80) {
+      char32_t cp = 0;
+      const std::size_t len = decode_utf8(text, i, cp);
+      const std::size_t col = i - line_start + 1;
+      if (state == State::comment) {
+        for (std::size_t k = i; k < i + len; ++k) out[k] = ' ';
+      } else if (state == State::normal) {
+        if (!(cp == 0xFEFF && i == 0)) {
+          throw SceneError(name + ":" + std::to_string(line) + ":" + std::to_string(col) +
+                           ": non-ASCII character outside a string or comment");
+        }
+      } else if (toml_whitespace_test_is_undefined(cp)) {
+        char hex[16];
+        std::snprintf(hex, sizeof hex, "U+%04X", static_cast<unsigned>(cp));
+        throw SceneError(name + ":" + std::to_string(line) + ":" + std::to_string(col) +
+                         ": character " + hex +
+                         " in a string is not supported (use ASCII in scene strings)");
+      }
+      i += len;
+      continue;
+    }
+    switch (state) {
+      case State::normal:
+        if (ch == '#')
+          state = State::comment;
+        else if (starts(i, "\"\"\"")) {
+          state = State::ml_basic;
+          i += 3;
+          continue;
+        } else if (starts(i, "'''")) {
+          state = State::ml_literal;
+          i += 3;
+          continue;
+        } else if (ch == '"')
+          state = State::basic;
+        else if (ch == '\'')
+          state = State::literal;
+        break;
+      case State::basic:
+        if (ch == '\\') {  // skip the escaped character when it is plain ASCII on this line
+          i += (i + 1 < text.size() && text[i + 1] != '\n' &&
+                static_cast<unsigned char>(text[i + 1]) < 0x80)
+                   ? 2
+                   : 1;
+          continue;
+        }
+        if (ch == '"') state = State::normal;
+        break;
+      case State::ml_basic:
+        if (ch == '\\') {  // skip the escaped character when it is plain ASCII on this line
+          i += (i + 1 < text.size() && text[i + 1] != '\n' &&
+                static_cast<unsigned char>(text[i + 1]) < 0x80)
+                   ? 2
+                   : 1;
+          continue;
+        }
+        if (starts(i, "\"\"\"")) {
+          state = State::normal;
+          i += 3;
+          continue;
+        }
+        break;
+      case State::literal:
+        if (ch == '\'') state = State::normal;
+        break;
+      case State::ml_literal:
+        if (starts(i, "'''")) {
+          state = State::normal;
+          i += 3;
+          continue;
+        }
+        break;
+      case State::comment:
+        break;
+    }
+    ++i;
+  }
+  return out;
 }
 
 }  // namespace
@@ -70,7 +207,9 @@ void Table::fail(std::string_view key, const std::string& message) const {
   throw SceneError(where(key) + ": " + message);
 }
 
-bool Table::has(std::string_view key) const { return table_->contains(key); }
+bool Table::has(std::string_view key) const {
+  return table_->contains(key);
+}
 
 const toml::node* Table::get(std::string_view key) const {
   const toml::node* n = table_->get(key);
@@ -154,7 +293,8 @@ std::string Table::choice(std::string_view key,
     if (c == s) return s;
   }
   std::string list;
-  for (auto c : choices) list += (list.empty() ? "" : ", ") + std::string("\"") + std::string(c) + "\"";
+  for (auto c : choices)
+    list += (list.empty() ? "" : ", ") + std::string("\"") + std::string(c) + "\"";
   fail(key, "is \"" + s + "\", accepted: " + list);
 }
 
@@ -284,7 +424,8 @@ Document Document::parse(std::string_view text, const std::string& name) {
   Document d;
   d.file_ = name;
   try {
-    d.tree_ = std::make_shared<toml::table>(toml::parse(text, name));
+    const std::string safe = sanitise_for_toml(text, name);
+    d.tree_ = std::make_shared<toml::table>(toml::parse(safe, name));
   } catch (const toml::parse_error& e) {
     std::ostringstream s;
     s << name << ":" << e.source().begin.line << ":" << e.source().begin.column

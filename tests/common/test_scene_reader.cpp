@@ -2,10 +2,10 @@
 
 #include "demfem/scene/scene_reader.hpp"
 
+using Catch::Matchers::Contains;
 using demfem::scene::Document;
 using demfem::scene::Range;
 using demfem::scene::SceneError;
-using Catch::Matchers::Contains;
 
 TEST_CASE("scene reader reads typed values and rejects unknown keys", "[scene]") {
   auto doc = Document::parse(R"(
@@ -57,4 +57,19 @@ TEST_CASE("run settings: defaults, ranges and unknown sections", "[scene]") {
   CHECK_THROWS_WITH(demfem::scene::read_run_settings(bad), Contains("'demm'"));
   auto neg = Document::parse("[run]\nend_time = -1\n", "s.toml");
   CHECK_THROWS_WITH(demfem::scene::read_run_settings(neg), Contains("'run.end_time'"));
+}
+
+TEST_CASE("scene reader guards toml++ against code points it mishandles", "[scene]") {
+  // Comments may hold any text (e.g. Greek letters for symbols).
+  auto ok =
+      Document::parse("# time step \xce\x94t (s)\n[run]\nend_time = 1 # \xce\x94t\n", "u.toml");
+  CHECK(ok.root().required_table("run").number("end_time") == 1.0);
+  // U+FEFC in a key position: invalid TOML, refused with line and column.
+  CHECK_THROWS_WITH(Document::parse("ru\xef\xbb\xbc)#[ru", "k.toml"), Contains("k.toml:1:3"));
+  // U+00E9 inside a string would reach undefined behaviour in toml++ 3.3: refused.
+  CHECK_THROWS_WITH(Document::parse("[run]\nname = \"caf\xc3\xa9\"\n", "s.toml"),
+                    Contains("s.toml:2:") && Contains("U+00E9"));
+  // Characters outside those ranges pass through strings unchanged.
+  auto cjk = Document::parse("[run]\nname = \"\xe6\xa2\x81\"\n", "c.toml");
+  CHECK(cjk.root().required_table("run").string("name") == "\xe6\xa2\x81");
 }
