@@ -519,3 +519,39 @@ TEST_CASE("a solver given a missing segment exits with a clear error", "[protoco
   std::filesystem::remove(err_file);
   CHECK(err.find("/demfem-does-not-exist") != std::string::npos);
 }
+
+TEST_CASE("wait_hello without a pid gives up after hello_timeout", "[protocol]") {
+  std::vector<std::string> names;
+  {
+    proto::CouplerOptions options;
+    options.hello_timeout = 200ms;
+    proto::CouplerSession session(options);
+    names = session_names(session);
+    const auto t0 = Clock::now();
+    CHECK_THROWS_AS(session.wait_hello(proto::Role::fem, std::nullopt), proto::PeerDied);
+    const auto elapsed = Clock::now() - t0;
+    CHECK(elapsed >= 200ms);
+    CHECK(elapsed < 1s);
+    CHECK_THROWS_AS(session.wait_step_done(proto::Role::fem), proto::ProtocolError);  // no hang
+  }
+  require_removed(names);
+}
+
+TEST_CASE("solvers leave promptly when the coupler session ends without Shutdown",
+          "[protocol][process]") {
+  std::vector<std::string> names;
+  Child dem;
+  {
+    proto::CouplerSession session;
+    names = session_names(session);
+    dem = spawn({"serve", session.segment_name(), "dem"});
+    session.wait_hello(proto::Role::dem, dem.pid);
+    session.exchange_mesh();
+  }
+  const auto t0 = Clock::now();
+  const int status = wait_exit(dem, 5s);
+  CHECK(exit_code(status) == proto::kExitCouplerDied);
+  CHECK(Clock::now() - t0 < 1s);  // the detached flag, not the 2 s heartbeat timeout
+  if (status == -1) kill_and_reap(dem);
+  require_removed(names);
+}

@@ -210,6 +210,8 @@ CouplerSession::CouplerSession(CouplerOptions options) : impl_(std::make_unique<
 CouplerSession::~CouplerSession() {
   Impl& s = *impl_;
   s.heartbeat.reset();
+  // Solvers still attached see the coupler leave at their next check, not after a timeout.
+  s.seg->coupler.detached.store(1, std::memory_order_release);
   if (!s.bulk_name.empty()) shm::MappedSegment::remove(s.bulk_name);
   unregister_cleanup(s.bulk_cleanup_slot);
   shm::MappedSegment::remove(s.name);
@@ -234,9 +236,13 @@ void CouplerSession::wait_hello(Role role, std::optional<pid_t> pid) {
   s.watches[r] = shm::PeerWatch(&s.seg->solvers[r], s.known_pid[r], s.options.peer_timeout);
   const auto deadline = std::chrono::steady_clock::now() + s.options.hello_timeout;
   shm::Waiter w = s.waiter(role);
-  w.check = [&s, role, deadline] {
+  const bool watchable = s.known_pid[r] > 0;
+  w.check = [&s, role, r, deadline, watchable] {
     s.check_peer(role);
-    if (std::chrono::steady_clock::now() > deadline)
+    // A solver that can be watched (known pid, or attached with a heartbeat) may take as
+    // long as it needs to set up; only an unwatchable wait is bounded by hello_timeout.
+    const bool attached = s.seg->solvers[r].pid.load(std::memory_order_acquire) != 0;
+    if (!watchable && !attached && std::chrono::steady_clock::now() > deadline)
       throw PeerDied(role,
                      "no Hello within " + std::to_string(s.options.hello_timeout.count()) + " ms");
   };
@@ -343,6 +349,7 @@ void CouplerSession::send_step(Role role, const StepCommand& cmd) {
 }
 
 StepResult CouplerSession::wait_step_done(Role role) {
+  impl_->require_hello(role, "wait_step_done");
   shm::Message msg = impl_->receive_kind(role, MessageKind::step_done);
   return msg.get<shm::StepDonePayload>().result;
 }
@@ -370,6 +377,7 @@ void CouplerSession::restore(Role role, const std::filesystem::path& file, std::
 }
 
 void CouplerSession::wait_done(Role role) {
+  impl_->require_hello(role, "wait_done");
   shm::Message msg = impl_->receive(role);
   if (msg.kind != MessageKind::checkpoint_done && msg.kind != MessageKind::restore_done)
     throw ProtocolError(std::string("expected checkpoint_done or restore_done from the ") +

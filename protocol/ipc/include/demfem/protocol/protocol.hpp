@@ -220,7 +220,8 @@ class VersionMismatch : public ProtocolError {
 struct CouplerOptions {
   /// A solver whose pid is gone or whose heartbeat has not advanced for this long is dead.
   std::chrono::milliseconds peer_timeout{2000};
-  /// How long wait_hello() waits for a solver that is not known to be dead.
+  /// How long wait_hello() waits for a solver it cannot watch (no pid given and not yet
+  /// attached). A solver with a known pid or a heartbeat may take as long as it lives.
   std::chrono::milliseconds hello_timeout{60000};
   WaitPolicy wait{};
   /// On SIGTERM/SIGINT/SIGHUP with the default action, remove the segments before dying
