@@ -106,7 +106,10 @@ class InterfaceBuffers {
   /// @brief Copy of the reference mesh published by the FEM.
   InterfaceMesh reference_mesh() const;
 
-  /// Internal: set by the library when the bulk segment is mapped.
+  /// @brief Points the views at memory: reference positions (3n), triangles (3m) and
+  /// `arrays` laid out [buffer 0..1][positions, velocities, accelerations, forces,
+  /// dem_positions][3n]. The library binds the bulk segment; an in-process link may bind
+  /// its own vectors. The memory must outlive the views.
   void bind(std::size_t nodes, std::size_t triangles, double* reference_positions,
             std::int32_t* triangle_indices, double* arrays);
 
