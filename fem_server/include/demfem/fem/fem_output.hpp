@@ -22,6 +22,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <iosfwd>
 #include <memory>
 #include <string>
 #include <vector>
@@ -76,6 +77,8 @@ class FemOutput {
   void write(const FemSolver& solver) { write(gather_fields(solver)); }
 
   std::size_t steps() const { return times_.size(); }
+  /// Time of the last step written (0 before any).
+  double last_time() const { return times_.empty() ? 0.0 : times_.back(); }
   std::filesystem::path xdmf_path() const;
   std::filesystem::path csv_path() const;
   std::filesystem::path mesh_path() const;
@@ -99,5 +102,24 @@ class FemOutput {
   std::vector<std::vector<std::string>> written_;  // fields present in each step file
   std::unique_ptr<io::CsvWriter> csv_;
 };
+
+/// @brief What a standalone run did.
+struct FemRunSummary {
+  std::int64_t steps = 0;         ///< dynamic steps taken (0 for a static analysis)
+  double end_time = 0.0;          ///< solver time at the end, s
+  std::size_t outputs = 0;        ///< output steps written
+  double max_displacement = 0.0;  ///< largest nodal |u| at the end, m
+  double wall_seconds = 0.0;
+};
+
+/// @brief Runs a scene's FEM alone (no coupling): one static solve, or ceil(end_time / dt)
+/// Bossak steps of scene.dt, writing FemOutput files "<name>..." into `dir` at t = 0, every
+/// `output_interval` (scene.output.interval when > 0, else this argument; 0 = only the
+/// start and end states) and at the end. Progress lines (simulated time, rate, ETA) go to
+/// `progress` every two seconds when it is not null. Throws scene::SceneError when a dynamic
+/// run has no dt.
+FemRunSummary run_fem_standalone(const FemScene& scene, double end_time, double output_interval,
+                                 const std::filesystem::path& dir, const std::string& name,
+                                 std::ostream* progress);
 
 }  // namespace demfem::fem

@@ -1,0 +1,95 @@
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ostream>
+
+#include "demfem/fem/fem_output.hpp"
+
+namespace demfem::fem {
+
+namespace {
+
+double max_norm3(const std::vector<double>& v) {
+  double m = 0.0;
+  for (std::size_t i = 0; i + 2 < v.size(); i += 3) {
+    m = std::max(m, std::sqrt(v[i] * v[i] + v[i + 1] * v[i + 1] + v[i + 2] * v[i + 2]));
+  }
+  return m;
+}
+
+}  // namespace
+
+FemRunSummary run_fem_standalone(const FemScene& scene, double end_time, double output_interval,
+                                 const std::filesystem::path& dir, const std::string& name,
+                                 std::ostream* progress) {
+  using clock = std::chrono::steady_clock;
+  const auto start = clock::now();
+  FemRunSummary summary;
+  if (scene.analysis == Analysis::dynamic && !(scene.dt > 0.0)) {
+    throw scene::SceneError(scene.dt_location +
+                            ": is required (> 0 s) for a dynamic FEM run without a coupler");
+  }
+  FemSolver solver(scene.problem);
+  std::unique_ptr<FemOutput> out;
+  if (scene.output.enabled) {
+    out = std::make_unique<FemOutput>(dir, name, scene.problem.mesh, scene.output);
+  }
+  auto write = [&] {
+    if (out) {
+      out->write(solver);
+      ++summary.outputs;
+    }
+  };
+
+  if (scene.analysis == Analysis::static_analysis) {
+    solver.solve_static();
+    write();
+  } else {
+    const double dt = scene.dt;
+    const double interval = scene.output.interval > 0.0 ? scene.output.interval : output_interval;
+    // The step count that reaches end_time; the 1e-9 keeps an end_time that is a multiple of
+    // dt (up to round-off) from taking one step too many.
+    const auto steps = static_cast<std::int64_t>(std::ceil(end_time / dt - 1e-9));
+    write();  // initial state
+    double next_output = interval > 0.0 ? interval : INFINITY;
+    auto last_report = clock::now();
+    bool written_last = true;
+    for (std::int64_t s = 0; s < steps; ++s) {
+      solver.advance(dt);
+      written_last = false;
+      if (solver.time() >= next_output - 1e-9 * dt) {
+        write();
+        written_last = true;
+        while (next_output <= solver.time() + 1e-9 * dt) next_output += interval;
+      }
+      if (progress && clock::now() - last_report > std::chrono::seconds(2)) {
+        last_report = clock::now();
+        const double wall = std::chrono::duration<double>(last_report - start).count();
+        const double rate = static_cast<double>(s + 1) / wall;
+        char line[200];
+        std::snprintf(line, sizeof line,
+                      "fem: t = %.6g s of %.6g s (%.1f%%), %.1f steps/s, ETA %.0f s\n",
+                      solver.time(), end_time, 100.0 * solver.time() / end_time, rate,
+                      static_cast<double>(steps - s - 1) / rate);
+        *progress << line << std::flush;
+      }
+    }
+    if (!written_last) write();
+    summary.steps = steps;
+  }
+  summary.end_time = solver.time();
+  summary.max_displacement = max_norm3(solver.displacements());
+  summary.wall_seconds = std::chrono::duration<double>(clock::now() - start).count();
+  if (progress) {
+    char line[240];
+    std::snprintf(line, sizeof line,
+                  "fem: done, %s, t = %.6g s, %lld steps, max |u| = %.6g m, %zu outputs, %.2f s\n",
+                  scene.analysis == Analysis::dynamic ? "dynamic" : "static", summary.end_time,
+                  static_cast<long long>(summary.steps), summary.max_displacement, summary.outputs,
+                  summary.wall_seconds);
+    *progress << line << std::flush;
+  }
+  return summary;
+}
+
+}  // namespace demfem::fem
