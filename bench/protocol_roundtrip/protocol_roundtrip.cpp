@@ -25,11 +25,19 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
-proto::WaitPolicy policy(bool spin) {
+enum class Mode { spin, block, standard };
+const char* mode_name(Mode m) {
+  return m == Mode::spin ? "spin" : m == Mode::block ? "block" : "default";
+}
+
+// spin: busy-wait until the message comes; block: futex at once; default: the library's
+// default policy (spin 20 us yielding the CPU every few us, then block).
+proto::WaitPolicy policy(Mode mode) {
   proto::WaitPolicy p;
-  if (spin) {
+  if (mode == Mode::spin) {
     p.block = false;
-  } else {
+    p.yield = false;  // pure busy-wait: the lowest latency, one core per waiting process
+  } else if (mode == Mode::block) {
     p.block = true;
     p.spin = std::chrono::microseconds(0);
   }
@@ -70,7 +78,7 @@ int serve_mode(int argc, char** argv) {
   BenchBackend backend;
   proto::ServeOptions options;
   options.role = proto::Role::fem;
-  bool spin = false;
+  Mode mode = Mode::standard;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--serve" && i + 1 < argc)
@@ -78,11 +86,13 @@ int serve_mode(int argc, char** argv) {
     else if (a == "--nodes" && i + 1 < argc)
       backend.nodes = std::stoul(argv[++i]);
     else if (a == "--spin")
-      spin = true;
+      mode = Mode::spin;
+    else if (a == "--block")
+      mode = Mode::block;
     else if (a == "--touch")
       backend.touch = true;
   }
-  options.wait = policy(spin);
+  options.wait = policy(mode);
   return proto::serve(backend, options);
 }
 
@@ -92,13 +102,14 @@ struct Stats {
   double mean_us;
 };
 
-Stats measure(std::size_t nodes, bool spin, bool touch, int iterations) {
+Stats measure(std::size_t nodes, Mode mode, bool touch, int iterations) {
   proto::CouplerOptions options;
-  options.wait = policy(spin);
+  options.wait = policy(mode);
   proto::CouplerSession session(options);
   std::vector<std::string> args = {"/proc/self/exe", "--serve", session.segment_name(), "--nodes",
                                    std::to_string(nodes)};
-  if (spin) args.emplace_back("--spin");
+  if (mode == Mode::spin) args.emplace_back("--spin");
+  if (mode == Mode::block) args.emplace_back("--block");
   if (touch) args.emplace_back("--touch");
   const pid_t pid = ::fork();
   if (pid < 0) throw std::runtime_error("fork failed");
@@ -156,13 +167,13 @@ int main(int argc, char** argv) {
     report.set_info("protocol_version", static_cast<long long>(proto::kProtocolVersion));
     report.set_info("iterations", static_cast<long long>(iterations));
     for (std::size_t nodes : {std::size_t{0}, std::size_t{1000}, std::size_t{100000}}) {
-      for (bool spin : {true, false}) {
+      for (Mode mode : {Mode::spin, Mode::block, Mode::standard}) {
         for (bool touch : {false, true}) {
-          if (touch && nodes == 0) continue;
+          if (touch && (nodes == 0 || mode == Mode::standard)) continue;
           // Writing 3n forces for 10^5 nodes is ~2.4 MB per step: fewer samples suffice.
           const int n = touch && nodes >= 100000 ? std::max(100, iterations / 20) : iterations;
-          const Stats s = measure(nodes, spin, touch, n);
-          report.add_row({static_cast<long long>(nodes), std::string(spin ? "spin" : "block"),
+          const Stats s = measure(nodes, mode, touch, n);
+          report.add_row({static_cast<long long>(nodes), std::string(mode_name(mode)),
                           std::string(touch ? "write 3n forces" : "none"), s.median_us, s.p99_us,
                           s.mean_us, static_cast<long long>(n)});
         }

@@ -10,6 +10,7 @@
 #include <thread>
 
 #include <linux/futex.h>
+#include <sched.h>
 #include <signal.h>
 #include <sys/random.h>
 #include <sys/syscall.h>
@@ -70,6 +71,10 @@ void wait_until(std::atomic<std::uint32_t>& word, std::atomic<std::uint32_t>& wa
       if (ready()) return;
       cpu_relax();
     }
+    // Give the CPU to a runnable thread queued here. The peer we wait for is often that
+    // thread: the kernel tends to wake a futex sleeper on the waker's CPU, and without the
+    // yield every hand-off would cost a whole spin period.
+    if (waiter.policy.yield) sched_yield();
     const auto now = clock::now();
     if (waiter.policy.block && now - start >= waiter.policy.spin) break;
     if (now >= next_check) {

@@ -150,6 +150,9 @@ struct WaitPolicy {
   /// Block after spinning; false = spin until the message comes (benchmarks only: it
   /// occupies a core; liveness is still checked every few milliseconds).
   bool block = true;
+  /// While spinning, yield the CPU every few microseconds, so that a runnable peer (or a
+  /// solver thread) queued on this CPU runs instead of waiting for the spin to end.
+  bool yield = true;
 };
 
 struct ServeOptions {
