@@ -205,8 +205,8 @@ void validate_problem(const FemProblem& p) {
   auto check_nodes = [&](const std::vector<std::int32_t>& nodes, const std::string& what) {
     for (auto n : nodes)
       if (n < 0 || n >= nn)
-        bad(what + ": node index " + std::to_string(n) + " out of range [0, " +
-            std::to_string(nn) + ")");
+        bad(what + ": node index " + std::to_string(n) + " out of range [0, " + std::to_string(nn) +
+            ")");
   };
   for (std::size_t i = 0; i < p.constraints.size(); ++i)
     check_nodes(p.constraints[i].nodes, "constraint " + std::to_string(i));
@@ -441,8 +441,7 @@ InterfaceMap build_interface(const FemProblem& p) {
     v = static_cast<std::int32_t>(out.mesh_node.size());
     out.mesh_node.push_back(k.first);
     const auto n = static_cast<std::size_t>(k.first);
-    const Vec3 off = k.second == 0 ? Vec3::Zero()
-                                   : Vec3(k.second * 0.5 * thick[n] * directors[n]);
+    const Vec3 off = k.second == 0 ? Vec3::Zero() : Vec3(k.second * 0.5 * thick[n] * directors[n]);
     out.offset.push_back(off);
     const Vec3 x = node_pos(m, k.first) + off;
     for (int c = 0; c < 3; ++c) out.mesh.reference_positions.push_back(x(c));

@@ -189,8 +189,7 @@ void tet4_mass(const std::array<Vec3, 4>& x, double rho, bool lumped, Eigen::Mat
 
 Voigt tet4_strain(const std::array<Vec3, 4>& x, const double* ue) {
   double v = 0;
-  return strain_matrix<4>(tet_gradients(x, v)) *
-         Eigen::Map<const Eigen::Matrix<double, 12, 1>>(ue);
+  return strain_matrix<4>(tet_gradients(x, v)) * Eigen::Map<const Eigen::Matrix<double, 12, 1>>(ue);
 }
 
 // ---- MITC4 shell -------------------------------------------------------------------------
@@ -203,8 +202,8 @@ struct ShellPoint {
   Eigen::Matrix<double, 6, 24> cov;  ///< covariant strain rows (rr, ss, zz, rs, sz, zr)
 };
 
-void quad_shape(double r, double s, Eigen::Matrix<double, 4, 1>& n,
-                Eigen::Matrix<double, 4, 1>& dr, Eigen::Matrix<double, 4, 1>& ds) {
+void quad_shape(double r, double s, Eigen::Matrix<double, 4, 1>& n, Eigen::Matrix<double, 4, 1>& dr,
+                Eigen::Matrix<double, 4, 1>& ds) {
   for (int i = 0; i < 4; ++i) {
     const double a = 1 + r * kQuadNat[i][0], b = 1 + s * kQuadNat[i][1];
     n(i) = 0.25 * a * b;
@@ -258,8 +257,8 @@ Mat3 lamina_frame(const Vec3& gr, const Vec3& gs) {
 
 /// Cartesian strain rows (lamina frame) at (r, s, zeta), transverse shear by MITC4 tying:
 /// e_rz from points A (0, 1), C (0, -1); e_sz from (1, 0), (-1, 0) (Dvorkin & Bathe 1984).
-Eigen::Matrix<double, 6, 24> shell_strain_rows(const ShellGeometry& g, double r, double s,
-                                               double z, Mat3& frame, double& detj) {
+Eigen::Matrix<double, 6, 24> shell_strain_rows(const ShellGeometry& g, double r, double s, double z,
+                                               Mat3& frame, double& detj) {
   ShellPoint p = shell_point(g, r, s, z);
   const ShellPoint pa = shell_point(g, 0, 1, z), pc = shell_point(g, 0, -1, z);
   const ShellPoint pb = shell_point(g, 1, 0, z), pd = shell_point(g, -1, 0, z);
@@ -356,8 +355,8 @@ void mitc4_mass(const ShellGeometry& g, double rho, bool lumped, Eigen::MatrixXd
     }
 }
 
-void mitc4_strain_stress(const ShellGeometry& g, double e, double nu, double zeta,
-                         const double* ue, Voigt& strain, Voigt& stress) {
+void mitc4_strain_stress(const ShellGeometry& g, double e, double nu, double zeta, const double* ue,
+                         Voigt& strain, Voigt& stress) {
   Mat3 frame;
   double detj = 0;
   const auto b = shell_strain_rows(g, 0, 0, zeta, frame, detj);

@@ -41,11 +41,7 @@ struct FemSolver::Impl {
   VectorXd rhs, ut, vt, work, a_new;
 
   Impl(FemProblem p, SolverBackend b)
-      : problem(std::move(p)),
-        backend(b),
-        dynamic_solver(b),
-        static_solver(b),
-        mass_solver(b) {}
+      : problem(std::move(p)), backend(b), dynamic_solver(b), static_solver(b), mass_solver(b) {}
 
   VectorXd reduce(const VectorXd& full) const {
     VectorXd r(static_cast<Eigen::Index>(dofs.free.size()));
@@ -170,7 +166,8 @@ struct FemSolver::Impl {
   }
 };
 
-FemSolver::FemSolver(FemProblem problem) : FemSolver(std::move(problem), SolverBackend::automatic) {}
+FemSolver::FemSolver(FemProblem problem)
+    : FemSolver(std::move(problem), SolverBackend::automatic) {}
 
 FemSolver::FemSolver(FemProblem problem, SolverBackend backend) {
   validate_problem(problem);
@@ -201,29 +198,41 @@ FemSolver::FemSolver(FemProblem problem, SolverBackend backend) {
   s.iface = build_interface(p);
   s.iface_forces.assign(3 * s.iface.mesh_node.size(), 0.0);
   const auto nf = static_cast<Eigen::Index>(s.dofs.free.size());
-  for (VectorXd* x : {&s.u, &s.v, &s.a, &s.rhs, &s.ut, &s.vt, &s.work, &s.a_new})
-    x->setZero(nf);
+  for (VectorXd* x : {&s.u, &s.v, &s.a, &s.rhs, &s.ut, &s.vt, &s.work, &s.a_new}) x->setZero(nf);
 }
 
 FemSolver::~FemSolver() = default;
 FemSolver::FemSolver(FemSolver&&) noexcept = default;
 FemSolver& FemSolver::operator=(FemSolver&&) noexcept = default;
 
-const FemProblem& FemSolver::problem() const { return impl_->problem; }
-std::size_t FemSolver::dof_count() const { return static_cast<std::size_t>(impl_->dofs.total); }
-std::size_t FemSolver::free_dof_count() const { return impl_->dofs.free.size(); }
-SolverBackend FemSolver::solver_backend() const { return impl_->dynamic_solver.backend(); }
-const InterfaceMesh& FemSolver::interface_mesh() const { return impl_->iface.mesh; }
-double FemSolver::time() const { return impl_->time; }
-std::int64_t FemSolver::step_count() const { return impl_->step; }
+const FemProblem& FemSolver::problem() const {
+  return impl_->problem;
+}
+std::size_t FemSolver::dof_count() const {
+  return static_cast<std::size_t>(impl_->dofs.total);
+}
+std::size_t FemSolver::free_dof_count() const {
+  return impl_->dofs.free.size();
+}
+SolverBackend FemSolver::solver_backend() const {
+  return impl_->dynamic_solver.backend();
+}
+const InterfaceMesh& FemSolver::interface_mesh() const {
+  return impl_->iface.mesh;
+}
+double FemSolver::time() const {
+  return impl_->time;
+}
+std::int64_t FemSolver::step_count() const {
+  return impl_->step;
+}
 
 void FemSolver::set_interface_forces(std::span<const double> forces) {
   Impl& s = *impl_;
   if (forces.size() != s.iface_forces.size())
     throw std::invalid_argument("FemSolver::set_interface_forces: got " +
                                 std::to_string(forces.size()) + " values, expected " +
-                                std::to_string(s.iface_forces.size()) +
-                                " (3 per interface node)");
+                                std::to_string(s.iface_forces.size()) + " (3 per interface node)");
   for (std::size_t i = 0; i < forces.size(); ++i)
     if (!std::isfinite(forces[i]))
       throw std::invalid_argument("FemSolver::set_interface_forces: non-finite force at entry " +
@@ -243,7 +252,9 @@ void FemSolver::solve_static() {
   s.accel_ready = false;
 }
 
-void FemSolver::advance(double dt) { impl_->advance(dt); }
+void FemSolver::advance(double dt) {
+  impl_->advance(dt);
+}
 
 void FemSolver::interface_kinematics(std::span<double> positions, std::span<double> velocities,
                                      std::span<double> accelerations) const {
@@ -277,9 +288,15 @@ void FemSolver::interface_kinematics(std::span<double> positions, std::span<doub
   }
 }
 
-std::vector<double> FemSolver::displacements() const { return impl_->nodal(impl_->u); }
-std::vector<double> FemSolver::velocities() const { return impl_->nodal(impl_->v); }
-std::vector<double> FemSolver::accelerations() const { return impl_->nodal(impl_->a); }
+std::vector<double> FemSolver::displacements() const {
+  return impl_->nodal(impl_->u);
+}
+std::vector<double> FemSolver::velocities() const {
+  return impl_->nodal(impl_->v);
+}
+std::vector<double> FemSolver::accelerations() const {
+  return impl_->nodal(impl_->a);
+}
 
 std::vector<double> FemSolver::reaction_forces() const {
   const Impl& s = *impl_;
@@ -291,7 +308,8 @@ std::vector<double> FemSolver::reaction_forces() const {
   for (std::size_t n = 0; n < nn; ++n)
     for (int c = 0; c < 3; ++c) {
       const auto g = s.dofs.node_offset[n] + c;
-      if (s.dofs.reduced[static_cast<std::size_t>(g)] < 0) out[3 * n + static_cast<std::size_t>(c)] = r(g);
+      if (s.dofs.reduced[static_cast<std::size_t>(g)] < 0)
+        out[3 * n + static_cast<std::size_t>(c)] = r(g);
     }
   return out;
 }

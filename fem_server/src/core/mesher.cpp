@@ -58,8 +58,7 @@ void add_box_surfaces(Mesh& mesh) {
         bool all = true;
         for (int a = 0; a < face_node_count(el.type); ++a)
           all = all && on[static_cast<std::size_t>(el.nodes[local[a]])][f];
-        if (all)
-          mesh.surfaces[names[f]].push_back(Face{static_cast<std::int32_t>(e), face});
+        if (all) mesh.surfaces[names[f]].push_back(Face{static_cast<std::int32_t>(e), face});
       }
     }
   }
@@ -89,9 +88,9 @@ Mesh box_mesh_hex(std::array<double, 3> lo, std::array<double, 3> hi, std::array
       for (int i = 0; i < n[0]; ++i) {
         Element e;
         e.type = ElementType::hex8;
-        e.nodes = {id(i, j, k),         id(i + 1, j, k),         id(i + 1, j + 1, k),
-                   id(i, j + 1, k),     id(i, j, k + 1),         id(i + 1, j, k + 1),
-                   id(i + 1, j + 1, k + 1), id(i, j + 1, k + 1)};
+        e.nodes = {
+            id(i, j, k),     id(i + 1, j, k),     id(i + 1, j + 1, k),     id(i, j + 1, k),
+            id(i, j, k + 1), id(i + 1, j, k + 1), id(i + 1, j + 1, k + 1), id(i, j + 1, k + 1)};
         mesh.elements.push_back(e);
       }
   add_box_surfaces(mesh);
@@ -106,8 +105,7 @@ Mesh box_mesh_tet(std::array<double, 3> lo, std::array<double, 3> hi, std::array
   auto id = [&](int i, int j, int k) { return i + (n[0] + 1) * (j + (n[1] + 1) * k); };
   // Kuhn split: the six paths from corner (0,0,0) to (1,1,1) along the cube edges, one per
   // permutation of the axes; every cell is split the same way, so faces match.
-  static const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2},
-                                  {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  static const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
   for (int k = 0; k < n[2]; ++k)
     for (int j = 0; j < n[1]; ++j)
       for (int i = 0; i < n[0]; ++i)

@@ -18,6 +18,8 @@ namespace {
 /// time step does not allocate.
 class CholmodLlt : public Eigen::CholmodSupernodalLLT<SparseMatrix> {
  public:
+  // Failures are reported by our own exception (naming the matrix), not on stderr.
+  CholmodLlt() { cholmod().print = 0; }
   ~CholmodLlt() { release(); }
   void release() {
     if (x_) cholmod_free_dense(&x_, &cholmod());
@@ -126,7 +128,11 @@ void SparseSpdSolver::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   x = s.ldlt.solve(b);
 }
 
-bool SparseSpdSolver::factorized() const { return impl_->done; }
-SolverBackend SparseSpdSolver::backend() const { return impl_->backend; }
+bool SparseSpdSolver::factorized() const {
+  return impl_->done;
+}
+SolverBackend SparseSpdSolver::backend() const {
+  return impl_->backend;
+}
 
 }  // namespace demfem::fem

@@ -16,8 +16,7 @@
 
 namespace demfem::fem::test {
 
-inline FemProblem make_problem(Mesh mesh, double e, double nu, double rho,
-                               double thickness = 0.0) {
+inline FemProblem make_problem(Mesh mesh, double e, double nu, double rho, double thickness = 0.0) {
   FemProblem p;
   p.mesh = std::move(mesh);
   p.materials.push_back(Material{"steel", e, nu, rho});

@@ -15,9 +15,10 @@ using namespace demfem::fem;
 namespace {
 
 double beam_deflection(double h) {
-  const int nx = static_cast<int>(std::lround(1.0 / h)), ny = static_cast<int>(std::lround(0.1 / h));
-  auto p = test::make_problem(box_mesh_hex({0, 0, 0}, {1.0, 0.1, 0.1}, {nx, ny, ny}), 210e9, 0.3,
-                              7850);
+  const int nx = static_cast<int>(std::lround(1.0 / h)),
+            ny = static_cast<int>(std::lround(0.1 / h));
+  auto p =
+      test::make_problem(box_mesh_hex({0, 0, 0}, {1.0, 0.1, 0.1}, {nx, ny, ny}), 210e9, 0.3, 7850);
   test::clamp(p, "xmin");
   test::clamp(p, "xmax");
   PressureLoad q;
@@ -45,9 +46,10 @@ TEST_CASE("fixed-fixed beam: hex8 incompatible modes converge and do not lock", 
   // Richardson extrapolation from the three meshes (observed order p).
   const double p = std::log((w50 - w25) / (w25 - w12)) / std::log(2.0);
   const double w_inf = w12 + (w12 - w25) / (std::pow(2.0, p) - 1.0);
-  std::printf("beam: w50 = %.6e, w25 = %.6e, w12.5 = %.6e m, order %.3f, Richardson %.6e m "
-              "(%.2f s)\n",
-              w50, w25, w12, p, w_inf, secs);
+  std::printf(
+      "beam: w50 = %.6e, w25 = %.6e, w12.5 = %.6e m, order %.3f, Richardson %.6e m "
+      "(%.2f s)\n",
+      w50, w25, w12, p, w_inf, secs);
   // Monotone convergence from below (stiffer coarse meshes). The observed order is below
   // the smooth-solution 2 because of the stress singularities along the clamped edges.
   CHECK(w50 < w25);

@@ -44,9 +44,10 @@ TEST_CASE("shell cantilever strip matches plate-strip theory", "[fem][shell]") {
   const double w_sym = tip_deflection(strip(true));
   const double w_free = tip_deflection(strip(false));
   const double w_beam = w_plate / (1 - kNu * kNu);  // E I = (1 - nu^2) D b
-  std::printf("shell strip: plate-strip %.6e, symmetric edges %.6e (%.3f %%), free edges %.6e, "
-              "beam %.6e m\n",
-              w_plate, w_sym, 100 * (w_sym / w_plate - 1), w_free, w_beam);
+  std::printf(
+      "shell strip: plate-strip %.6e, symmetric edges %.6e (%.3f %%), free edges %.6e, "
+      "beam %.6e m\n",
+      w_plate, w_sym, 100 * (w_sym / w_plate - 1), w_free, w_beam);
   // Task tolerance: within 2 % of plate-strip theory at 10 mm elements.
   CHECK(std::abs(w_sym / w_plate - 1) < 0.02);
   // With free long edges the strip may curl anticlastically (beam-like, E I) except near the
@@ -55,13 +56,14 @@ TEST_CASE("shell cantilever strip matches plate-strip theory", "[fem][shell]") {
   CHECK(w_free > w_sym);
 }
 
-TEST_CASE("shell interface: offset surfaces, force and moment onto the mid-surface", "[fem][shell]") {
+TEST_CASE("shell interface: offset surfaces, force and moment onto the mid-surface",
+          "[fem][shell]") {
   auto p = test::make_problem(plate_mesh_quad({0, 0, 0}, kL, kB, {34, 10}), kE, kNu, 7850, kT);
   test::clamp(p, "xmin");
   FemSolver s(p);
   const auto& im = s.interface_mesh();
   const std::size_t mid_nodes = p.mesh.nodes.size();
-  REQUIRE(im.node_count() == 2 * mid_nodes);                 // top and bottom copy per node
+  REQUIRE(im.node_count() == 2 * mid_nodes);                       // top and bottom copy per node
   REQUIRE(im.triangle_count() == 2 * 2 * p.mesh.elements.size());  // 2 surfaces, quads split
   // Every copy sits at z = +-t/2 and every triangle's normal points away from the plate.
   for (std::size_t i = 0; i < im.node_count(); ++i)
@@ -83,11 +85,13 @@ TEST_CASE("shell interface: offset surfaces, force and moment onto the mid-surfa
   const auto& tip = p.mesh.node_sets.at("xmax");
   int n_top = 0;
   for (std::size_t i = 0; i < im.node_count(); ++i)
-    if (std::abs(im.reference_positions[3 * i] - kL) < 1e-12 && im.reference_positions[3 * i + 2] > 0)
+    if (std::abs(im.reference_positions[3 * i] - kL) < 1e-12 &&
+        im.reference_positions[3 * i + 2] > 0)
       ++n_top;
   REQUIRE(n_top == static_cast<int>(tip.size()));
   for (std::size_t i = 0; i < im.node_count(); ++i)
-    if (std::abs(im.reference_positions[3 * i] - kL) < 1e-12 && im.reference_positions[3 * i + 2] > 0)
+    if (std::abs(im.reference_positions[3 * i] - kL) < 1e-12 &&
+        im.reference_positions[3 * i + 2] > 0)
       f[3 * i] = f_total / n_top;
   s.set_interface_forces(f);
   s.solve_static();

@@ -19,8 +19,8 @@ namespace demfem::fem {
 
 /// @brief Element results for output (per element, at its centroid).
 struct ElementResults {
-  std::vector<double> strain;      ///< 6 per element: exx, eyy, ezz, gxy, gyz, gzx (engineering)
-  std::vector<double> von_mises;   ///< Pa, one per element
+  std::vector<double> strain;     ///< 6 per element: exx, eyy, ezz, gxy, gyz, gzx (engineering)
+  std::vector<double> von_mises;  ///< Pa, one per element
   std::vector<double> max_principal_strain;  ///< one per element
 };
 
