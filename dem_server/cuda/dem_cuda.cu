@@ -13,9 +13,10 @@
 #include <stdexcept>
 #include <string>
 
-#include "dem_cuda_backend.hpp"
+#include "core/dem_cuda_backend.hpp"
 #include "demfem/dem/physics/contact.hpp"
 #include "demfem/dem/physics/integrator.hpp"
+#include "demfem/dem/physics/pair.hpp"
 
 namespace demfem::dem {
 
@@ -77,20 +78,23 @@ __global__ void k_pairs(Dev d, std::size_t n, std::size_t nmat, double dt, bool 
   const std::size_t i = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x;
   if (i >= n) return;
   double ax = 0, ay = 0, az = 0, qx = 0, qy = 0, qz = 0, mo = 0;
-  const double xi = d.px[i], yi = d.py[i], zi = d.pz[i], ri = d.radius[i];
+  const double ri = d.radius[i];
   const std::size_t mrow = static_cast<std::size_t>(d.material[i]) * nmat;
+  const phys::ParticleView view{d.px, d.py, d.pz, d.vx,     d.vy,  d.vz,
+                                d.wx, d.wy, d.wz, d.radius, d.mass};
   for (std::int64_t p = d.row[i]; p < d.row[i + 1]; ++p) {
     const std::int32_t j = d.nbr[p];
-    const double dx = d.px[j] - xi, dy = d.py[j] - yi, dz = d.pz[j] - zi;
-    const double rj = d.radius[j];
-    const double rs = ri + rj;
-    const double d2 = dx * dx + dy * dy + dz * dz;
     double* f = d.pf + 3 * p;
-    if (d2 >= rs * rs) {
+    phys::Vec3 sh{0, 0, 0};
+    if (Friction) sh = phys::Vec3{d.shear[3 * p], d.shear[3 * p + 1], d.shear[3 * p + 2]};
+    phys::ContactResult r;
+    double delta = 0.0;
+    if (!phys::sphere_sphere<Friction>(view, static_cast<int>(i), j, d.pc[mrow + d.material[j]], dt,
+                                       sh, r, delta)) {
       f[0] = f[1] = f[2] = 0.0;
       if (Friction) {
-        double* sh = d.shear + 3 * p;
-        sh[0] = sh[1] = sh[2] = 0.0;
+        double* shp = d.shear + 3 * p;
+        shp[0] = shp[1] = shp[2] = 0.0;
         double* tq = d.pt + 3 * p;
         tq[0] = tq[1] = tq[2] = 0.0;
         double* rq = d.pr + 3 * p;
@@ -98,25 +102,7 @@ __global__ void k_pairs(Dev d, std::size_t n, std::size_t nmat, double dt, bool 
       }
       continue;
     }
-    const double dist = sqrt(d2);
-    const double inv = 1.0 / dist;
-    const phys::Vec3 nn{dx * inv, dy * inv, dz * inv};
-    const double delta = rs - dist;
     mo = fmax(mo, delta);
-    const double reff = ri * rj / rs;
-    const double meff = d.mass[i] * d.mass[j] / (d.mass[i] + d.mass[j]);
-    phys::Vec3 vrel{d.vx[i] - d.vx[j], d.vy[i] - d.vy[j], d.vz[i] - d.vz[j]};
-    phys::Vec3 wrel{0, 0, 0};
-    phys::Vec3 sh{0, 0, 0};
-    if (Friction) {
-      const phys::Vec3 wsum{ri * d.wx[i] + rj * d.wx[j], ri * d.wy[i] + rj * d.wy[j],
-                            ri * d.wz[i] + rj * d.wz[j]};
-      vrel = vrel + phys::cross(wsum, nn);
-      wrel = phys::Vec3{d.wx[i] - d.wx[j], d.wy[i] - d.wy[j], d.wz[i] - d.wz[j]};
-      sh = phys::Vec3{d.shear[3 * p], d.shear[3 * p + 1], d.shear[3 * p + 2]};
-    }
-    const phys::ContactResult r = phys::hertz_mindlin<Friction>(
-        d.pc[mrow + d.material[j]], nn, delta, reff, meff, vrel, wrel, sh, dt);
     f[0] = r.force.x, f[1] = r.force.y, f[2] = r.force.z;
     ax += r.force.x, ay += r.force.y, az += r.force.z;
     if (Friction) {

@@ -30,6 +30,7 @@
 #include "demfem/dem/physics/contact.hpp"
 #include "demfem/dem/physics/geometry.hpp"
 #include "demfem/dem/physics/integrator.hpp"
+#include "demfem/dem/physics/pair.hpp"
 #include "demfem/io/h5_file.hpp"
 
 namespace demfem::dem {
@@ -179,6 +180,9 @@ struct DemSystem::Impl {
   }
 
   std::size_t n() const { return st.px.size(); }
+  // Threads for the particle loops: small systems run on one thread, where the fork/join
+  // of a parallel region costs more than the work (results do not depend on it).
+  int nt() const { return n() >= 2048 ? threads : 1; }
 
   // ---------------------------------------------------------------------------------------
   // Wall topology: unique edge ids over the whole store so that a contact at an edge or a
@@ -209,17 +213,17 @@ struct DemSystem::Impl {
     vvel.assign(vpos.size(), 0.0);
     vbuild = vpos;
     // unique undirected edges
-    const std::size_t nt = tri_v.size() / 3;
+    const std::size_t ntri = tri_v.size() / 3;
     std::vector<std::pair<std::pair<std::int32_t, std::int32_t>, std::int64_t>> edges;
-    edges.reserve(3 * nt);
-    for (std::size_t k = 0; k < nt; ++k)
+    edges.reserve(3 * ntri);
+    for (std::size_t k = 0; k < ntri; ++k)
       for (int e = 0; e < 3; ++e) {
         std::int32_t a = tri_v[3 * k + e], b = tri_v[3 * k + (e + 1) % 3];
         if (a > b) std::swap(a, b);
         edges.push_back({{a, b}, static_cast<std::int64_t>(3 * k + e)});
       }
     std::sort(edges.begin(), edges.end());
-    tri_e.assign(3 * nt, 0);
+    tri_e.assign(3 * ntri, 0);
     std::int32_t id = -1;
     for (std::size_t k = 0; k < edges.size(); ++k) {
       if (k == 0 || edges[k].first != edges[k - 1].first) ++id;
@@ -369,7 +373,7 @@ struct DemSystem::Impl {
           }
     };
     const std::int64_t sn = static_cast<std::int64_t>(np);
-#pragma omp parallel for num_threads(threads) schedule(static)
+#pragma omp parallel for num_threads(nt()) schedule(static)
     for (std::int64_t i = 0; i < sn; ++i) {
       std::int64_t c = 0;
       scan(static_cast<std::size_t>(i), [&](std::int32_t) { ++c; });
@@ -377,7 +381,7 @@ struct DemSystem::Impl {
     }
     for (std::size_t i = 0; i < np; ++i) nrow[i + 1] += nrow[i];
     std::vector<std::int32_t> nnbr(static_cast<std::size_t>(nrow[np]));
-#pragma omp parallel for num_threads(threads) schedule(static)
+#pragma omp parallel for num_threads(nt()) schedule(static)
     for (std::int64_t i = 0; i < sn; ++i) {
       std::int64_t k = nrow[i];
       scan(static_cast<std::size_t>(i), [&](std::int32_t j) { nnbr[k++] = j; });
@@ -389,7 +393,7 @@ struct DemSystem::Impl {
     if (friction) {
       nshear.assign(3 * npair, 0.0);
       if (row.size() == np + 1) {
-#pragma omp parallel for num_threads(threads) schedule(static)
+#pragma omp parallel for num_threads(nt()) schedule(static)
         for (std::int64_t i = 0; i < sn; ++i) {
           std::int64_t a = row[i], b = nrow[i];
           while (a < row[i + 1] && b < nrow[i + 1]) {
@@ -436,12 +440,12 @@ struct DemSystem::Impl {
     // triangles: binned into the particle cells their AABB (grown by rmax + skin) touches
     prow.assign(np + 1, 0);
     ptri.clear();
-    const std::size_t nt = tri_v.size() / 3;
-    if (nt > 0 && np > 0) {
+    const std::size_t ntri = tri_v.size() / 3;
+    if (ntri > 0 && np > 0) {
       const double grow = rmax + skin;
       std::vector<std::int64_t> tcount(ncell + 1, 0);
-      std::vector<std::array<std::int64_t, 6>> box(nt);
-      for (std::size_t k = 0; k < nt; ++k) {
+      std::vector<std::array<std::int64_t, 6>> box(ntri);
+      for (std::size_t k = 0; k < ntri; ++k) {
         double tl[3] = {1e300, 1e300, 1e300}, th[3] = {-1e300, -1e300, -1e300};
         for (int e = 0; e < 3; ++e)
           for (int d = 0; d < 3; ++d) {
@@ -467,7 +471,7 @@ struct DemSystem::Impl {
       std::vector<std::int32_t> tbin(static_cast<std::size_t>(tcount[ncell]));
       {
         std::vector<std::int64_t> fill(tcount.begin(), tcount.end() - 1);
-        for (std::size_t k = 0; k < nt; ++k) {
+        for (std::size_t k = 0; k < ntri; ++k) {
           if (box[k][0] < 0) continue;
           for (std::int64_t z = box[k][2]; z <= box[k][5]; ++z)
             for (std::int64_t y = box[k][1]; y <= box[k][4]; ++y)
@@ -486,7 +490,7 @@ struct DemSystem::Impl {
         const double cut = R[i] + skin;
         return phys::norm2(p - cp.point) < cut * cut;
       };
-#pragma omp parallel for num_threads(threads) schedule(static)
+#pragma omp parallel for num_threads(nt()) schedule(static)
       for (std::int64_t i = 0; i < sn; ++i) {
         const std::int32_t c = cell[i];
         std::int64_t cnt = 0;
@@ -496,7 +500,7 @@ struct DemSystem::Impl {
       }
       for (std::size_t i = 0; i < np; ++i) prow[i + 1] += prow[i];
       ptri.resize(static_cast<std::size_t>(prow[np]));
-#pragma omp parallel for num_threads(threads) schedule(static)
+#pragma omp parallel for num_threads(nt()) schedule(static)
       for (std::int64_t i = 0; i < sn; ++i) {
         const std::int32_t c = cell[i];
         std::int64_t o = prow[i];
@@ -526,23 +530,26 @@ struct DemSystem::Impl {
     const std::int32_t* mat = st.material.data();
     const double dt = s.dt;
     const bool roll = rolling;
+    const phys::ParticleView view{px, py, pz, vx, vy, vz, wx, wy, wz, rad, mass};
     double mo = 0.0;
-#pragma omp parallel for num_threads(threads) schedule(static) reduction(max : mo)
+#pragma omp parallel for num_threads(nt()) schedule(static) reduction(max : mo)
     for (std::int64_t i = 0; i < sn; ++i) {
       double ax = 0, ay = 0, az = 0, qx = 0, qy = 0, qz = 0;
-      const double xi = px[i], yi = py[i], zi = pz[i], ri = rad[i];
+      const double ri = rad[i];
       const std::size_t mrow = static_cast<std::size_t>(mat[i]) * nmat;
       for (std::int64_t p = row[i]; p < row[i + 1]; ++p) {
         const std::int32_t j = nbr[p];
-        const double dx = px[j] - xi, dy = py[j] - yi, dz = pz[j] - zi;
-        const double rs = ri + rad[j];
-        const double d2 = dx * dx + dy * dy + dz * dz;
         double* f = pf.data() + 3 * p;
-        if (d2 >= rs * rs) {
+        Vec3 sh{0, 0, 0};
+        if constexpr (Friction) sh = Vec3{shear[3 * p], shear[3 * p + 1], shear[3 * p + 2]};
+        phys::ContactResult r;
+        double delta = 0.0;
+        if (!phys::sphere_sphere<Friction>(view, static_cast<int>(i), j, pc[mrow + mat[j]], dt, sh,
+                                           r, delta)) {
           f[0] = f[1] = f[2] = 0.0;
           if constexpr (Friction) {
-            double* sh = shear.data() + 3 * p;
-            sh[0] = sh[1] = sh[2] = 0.0;
+            double* shp = shear.data() + 3 * p;
+            shp[0] = shp[1] = shp[2] = 0.0;
             double* tq = pt.data() + 3 * p;
             tq[0] = tq[1] = tq[2] = 0.0;
             if (roll) {
@@ -552,26 +559,7 @@ struct DemSystem::Impl {
           }
           continue;
         }
-        const double d = std::sqrt(d2);
-        const double inv = 1.0 / d;
-        const Vec3 nn{dx * inv, dy * inv, dz * inv};
-        const double delta = rs - d;
         mo = std::max(mo, delta);
-        const double rj = rad[j];
-        const double reff = ri * rj / rs;
-        const double meff = mass[i] * mass[j] / (mass[i] + mass[j]);
-        Vec3 vrel{vx[i] - vx[j], vy[i] - vy[j], vz[i] - vz[j]};
-        Vec3 wrel{0, 0, 0};
-        Vec3 sh{0, 0, 0};
-        if constexpr (Friction) {
-          const Vec3 wsum{ri * wx[i] + rj * wx[j], ri * wy[i] + rj * wy[j],
-                          ri * wz[i] + rj * wz[j]};
-          vrel = vrel + phys::cross(wsum, nn);
-          wrel = Vec3{wx[i] - wx[j], wy[i] - wy[j], wz[i] - wz[j]};
-          sh = Vec3{shear[3 * p], shear[3 * p + 1], shear[3 * p + 2]};
-        }
-        const auto r = phys::hertz_mindlin<Friction>(pc[mrow + mat[j]], nn, delta, reff, meff, vrel,
-                                                     wrel, sh, dt);
         f[0] = r.force.x, f[1] = r.force.y, f[2] = r.force.z;
         ax += r.force.x, ay += r.force.y, az += r.force.z;
         if constexpr (Friction) {
@@ -603,6 +591,7 @@ struct DemSystem::Impl {
       std::int64_t key;
       double d2;
     };
+    if (prow[i] == prow[i + 1] && wcount[i] == 0) return;  // no wall nearby
     Cand cand[16];
     int nc = 0;
     const Vec3 p{st.px[i], st.py[i], st.pz[i]};
@@ -669,28 +658,26 @@ struct DemSystem::Impl {
     for (int a = 0; a < nc && cnt < kMaxWallContacts; ++a) {
       if (!keep[a]) continue;
       const Cand& c = cand[a];
-      const double d = std::sqrt(c.d2);
-      const double delta = ri - d;
-      if (!(d > 0.0)) continue;                       // centre on the plane: no defined normal
-      const Vec3 nn = (-1.0 / d) * (p - c.cp.point);  // particle -> wall
       const std::int32_t tri = c.tri;
       const std::int32_t* tv = tri_v.data() + 3 * tri;
       const double* vv = vvel.data();
+      // wall velocity at the contact point: barycentric interpolation of the vertex
+      // velocities (exact for rigid motion and for the linear flexible-triangle field)
       const Vec3 vw = c.cp.u * Vec3{vv[3 * tv[0]], vv[3 * tv[0] + 1], vv[3 * tv[0] + 2]} +
                       c.cp.v * Vec3{vv[3 * tv[1]], vv[3 * tv[1] + 1], vv[3 * tv[1] + 2]} +
                       c.cp.w * Vec3{vv[3 * tv[2]], vv[3 * tv[2] + 1], vv[3 * tv[2] + 2]};
-      Vec3 vrel = Vec3{st.vx[i], st.vy[i], st.vz[i]} - vw;
-      Vec3 wrel{0, 0, 0};
       Vec3 sh{0, 0, 0};
-      if constexpr (Friction) {
-        const Vec3 w{st.wx[i], st.wy[i], st.wz[i]};
-        vrel = vrel + ri * phys::cross(w, nn);
-        wrel = w;
+      if constexpr (Friction)
         for (int o = 0; o < oc; ++o)
           if (okey[o] == c.key) sh = Vec3{osh[3 * o], osh[3 * o + 1], osh[3 * o + 2]};
-      }
-      const auto r = phys::hertz_mindlin<Friction>(pc[mi * nmat + tri_mat[tri]], nn, delta, ri,
-                                                   st.mass[i], vrel, wrel, sh, s.dt);
+      phys::ContactResult r;
+      double delta = 0.0;
+      const phys::ParticleView view{st.px.data(), st.py.data(),     st.pz.data(),  st.vx.data(),
+                                    st.vy.data(), st.vz.data(),     st.wx.data(),  st.wy.data(),
+                                    st.wz.data(), st.radius.data(), st.mass.data()};
+      if (!phys::sphere_wall<Friction>(view, static_cast<int>(i), c.cp.point, vw,
+                                       pc[mi * nmat + tri_mat[tri]], s.dt, sh, r, delta))
+        continue;
       fx += r.force.x, fy += r.force.y, fz += r.force.z;
       if constexpr (Friction) {
         qx += ri * r.torque.x + r.roll.x;
@@ -718,7 +705,7 @@ struct DemSystem::Impl {
     const double g[3] = {s.gravity[0], s.gravity[1], s.gravity[2]};
     const bool walls_on = !tri_v.empty();
     double mo = max_ov, fmo = 0.0;
-#pragma omp parallel for num_threads(threads) schedule(static) reduction(max : mo, fmo)
+#pragma omp parallel for num_threads(nt()) schedule(static) reduction(max : mo, fmo)
     for (std::int64_t i = 0; i < sn; ++i) {
       double fx = acc[3 * i], fy = acc[3 * i + 1], fz = acc[3 * i + 2];
       double qx = 0, qy = 0, qz = 0;
@@ -754,7 +741,7 @@ struct DemSystem::Impl {
     const double dt = s.dt, h = 0.5 * s.dt;
     double m2 = 0.0;
     const bool have_build = bx.size() == n();
-#pragma omp parallel for num_threads(threads) schedule(static) reduction(max : m2)
+#pragma omp parallel for num_threads(nt()) schedule(static) reduction(max : m2)
     for (std::int64_t i = 0; i < sn; ++i) {
       const double hm = h / st.mass[i];
       phys::kick(st.vx[i], st.vy[i], st.vz[i], st.fx[i], st.fy[i], st.fz[i], hm);
@@ -1222,6 +1209,13 @@ std::int64_t DemSystem::neighbour_rebuilds() const {
 }
 std::size_t DemSystem::neighbour_pairs() const {
   return impl_->nbr.size();
+}
+std::size_t DemSystem::contact_count() const {
+  const auto& pf = impl_->pf;
+  std::size_t c = 0;
+  for (std::size_t p = 0; p + 2 < pf.size(); p += 3)
+    if (pf[p] != 0.0 || pf[p + 1] != 0.0 || pf[p + 2] != 0.0) ++c;
+  return c;
 }
 
 // ---------------------------------------------------------------------------------------

@@ -25,6 +25,8 @@ class ParticleOutput {
   void write(const ParticleState& particles, std::span<const std::int64_t> ids, double time);
   /// Snapshots written (or kept) so far.
   std::size_t count() const { return entries_.size(); }
+  /// Time of the last snapshot (-infinity before the first).
+  double last_time() const { return entries_.empty() ? -1e300 : entries_.back().time; }
   /// After a restore: keeps the first `keep` snapshots (re-reading their times from the
   /// files), forgets later ones, rewrites the index.
   void resume(std::size_t keep);

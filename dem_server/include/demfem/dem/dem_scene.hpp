@@ -79,15 +79,20 @@ class DemRun {
   /// Builds the system: walls, lattice fills, random insertions (seed: the entry's seed, or
   /// `seed` + entry index), settle_time of settling, remove_above. Prints the Rayleigh time
   /// step to `log` (may be nullptr) and warns when dt > 0.2 of it; throws SceneError (naming
-  /// dem.dt) when dt exceeds it. `output_dir` empty = no files.
+  /// dem.dt) when dt exceeds it. `output_dir` empty = no files. With `defer_output` no file
+  /// is touched until the first advance() (then created afresh, with the initial state) or
+  /// restore() (then the checkpoint's series are continued): a restarted server must not
+  /// truncate the series it is about to resume.
   DemRun(const DemScene& scene, const std::filesystem::path& output_dir, std::uint64_t seed,
-         double run_output_interval, std::ostream* log);
+         double run_output_interval, std::ostream* log, bool defer_output = false);
   ~DemRun();
 
   DemSystem& system() { return *system_; }
   const DemSystem& system() const { return *system_; }
   std::span<const std::int64_t> ids() const { return ids_; }
-  const SensorSet& sensors() const { return *sensors_; }
+  /// The sensors (created by the constructor, or by the first advance()/restore() when
+  /// deferred).
+  const SensorSet& sensors() const;
   const DemScene& scene() const { return scene_; }
 
   /// advance(substeps) of the system, then the sensors and output that are due.
@@ -97,6 +102,8 @@ class DemRun {
   void run_to(double end_time, const std::function<void(double)>& progress = {});
   /// Writes a particle snapshot now (no-op without output).
   void write_snapshot();
+  /// The end state: a snapshot unless the last one is of the current time.
+  void finish();
   /// Sensor samples and snapshot due at the current time.
   void after_advance();
 
@@ -116,6 +123,10 @@ class DemRun {
   double next_output_ = 0.0;
 
   void add(std::span<const ParticleInit> particles);
+  void start_output(bool resume);
+
+  std::filesystem::path output_dir_;
+  double run_output_interval_ = 0.0;
 };
 
 }  // namespace demfem::dem

@@ -163,6 +163,8 @@ class DemSystem {
   /// Number of neighbour-list rebuilds so far and pairs in the current list.
   std::int64_t neighbour_rebuilds() const;
   std::size_t neighbour_pairs() const;
+  /// Number of particle-particle pairs in contact in the last step.
+  std::size_t contact_count() const;
 
   /// Complete state, contact history included, for a bitwise-identical continuation.
   void save(io::H5File& file, const std::string& group) const;

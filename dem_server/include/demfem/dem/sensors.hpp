@@ -46,6 +46,8 @@ struct ReposeOptions {
   bool planar = false;     ///< false: radial distance from the axis; true: |x - centre.x| (a
                            ///< heap between two walls of constant y)
   double base = 0.0;       ///< floor height, m
+  double top = 1e300;      ///< particles whose centre is above this height are ignored (the
+                           ///< contents of a funnel above the heap), m
   double bin_width = 0.0;  ///< m; 0 = 2 mean particle diameters
   double flank_lo = 0.2;   ///< fit over bins whose centre lies in [flank_lo, flank_hi] * R,
   double flank_hi = 0.8;   ///< R = heap radius
@@ -92,9 +94,11 @@ struct SensorSpec {
 /// sample time; a rate uses the time actually elapsed since its previous sample).
 class SensorSet {
  public:
-  /// Creates <dir>/sensor_<name>.csv for each sensor (no files when `dir` is empty).
+  /// Creates <dir>/sensor_<name>.csv for each sensor (no files when `dir` is empty). With
+  /// `create_files` false the series are only opened by resume() (a restarted process that
+  /// continues the files of a checkpoint).
   SensorSet(std::vector<SensorSpec> specs, const std::filesystem::path& dir,
-            const DemSystem& system);
+            const DemSystem& system, bool create_files = true);
   ~SensorSet();
   SensorSet(SensorSet&&) noexcept;
   SensorSet& operator=(SensorSet&&) noexcept;

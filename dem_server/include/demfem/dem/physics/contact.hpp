@@ -25,6 +25,7 @@ struct PairConstants {
   double beta;      ///< ln e / sqrt(ln² e + π²) (≤ 0)
   double friction;  ///< μ
   double rolling;   ///< μ_r (0 = off)
+  double t_over_n;  ///< sqrt(S_t / S_n) = sqrt(4 G* / E*): γ_t = γ_n sqrt(S_t / S_n)
 };
 
 /// E*, G*, β of a pair from the two materials and the restitution coefficient e ∈ (0, 1].
@@ -44,6 +45,7 @@ inline PairConstants pair_constants(double e1, double nu1, double e2, double nu2
   }
   c.friction = friction;
   c.rolling = rolling;
+  c.t_over_n = std::sqrt(4.0 * c.g_star / c.e_star);
   return c;
 }
 
@@ -73,7 +75,7 @@ DEMFEM_HD ContactResult hertz_mindlin(const PairConstants& c, Vec3 n, double del
   const double damp = -2.0 * 0.91287092917527685576 * c.beta;  // 2 sqrt(5/6) |β|
   const double vn = dot(vrel, n);  // > 0: approaching (i moves towards j)
   // Force on i along n: elastic repulsion pushes i away from j (-n), damping opposes vn.
-  const double gamma_n = damp * std::sqrt(sn * m_eff);
+  const double gamma_n = damp == 0.0 ? 0.0 : damp * std::sqrt(sn * m_eff);
   const double fn = kn * delta + gamma_n * vn;  // magnitude pushing i along -n
   out.fn = fn;
   out.force = (-fn) * n;
@@ -81,14 +83,16 @@ DEMFEM_HD ContactResult hertz_mindlin(const PairConstants& c, Vec3 n, double del
   out.roll = Vec3{0, 0, 0};
   if constexpr (Friction) {
     const Vec3 vt = vrel - vn * n;
-    // Rotate the stored spring into the current tangent plane, keeping its length.
-    const double s2_old = norm2(shear);
-    Vec3 s = shear - dot(shear, n) * n;
+    // Rotate the stored spring into the current tangent plane: project, then restore its
+    // length to second order in the small rotation angle per step (θ² ≈ (s·n)²/|s|²), which
+    // avoids a square root: relative length error O(θ⁴).
+    const double sn_dot = dot(shear, n);
+    Vec3 s = shear - sn_dot * n;
     const double s2_new = norm2(s);
-    if (s2_new > 0.0 && s2_old > 0.0) s = std::sqrt(s2_old / s2_new) * s;
+    if (s2_new > 0.0) s = (1.0 + 0.5 * sn_dot * sn_dot / s2_new) * s;
     s = s + dt * vt;
     const double st = 8.0 * c.g_star * sqrt_rd;
-    const double gamma_t = damp * std::sqrt(st * m_eff);
+    const double gamma_t = gamma_n * c.t_over_n;
     Vec3 ft = (-st) * s - gamma_t * vt;
     const double ft2 = norm2(ft);
     const double fmax = c.friction * (fn > 0.0 ? fn : -fn);

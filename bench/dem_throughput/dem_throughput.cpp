@@ -1,0 +1,200 @@
+// DEM throughput: particle-steps per second of a settled bed (Hertz–Mindlin with history,
+// dt = 1e-5 s) from 10^3 to 10^6 spheres, on the CPU with 1 and 2 threads and, where
+// available, on the GPU; the share of time in contact detection, force computation and
+// integration. Includes the target case of the issue: 20,000 spheres of radius 2 mm,
+// E = 100 MPa, nu = 0.3, e = 0.4, mu = 0.5.
+//
+// The bed: spheres on a hexagonal close-packed lattice (spacing = largest diameter) in a box
+// of triangle-mesh walls (floor + 4 sides), settled under gravity for a fixed time, saved,
+// and restored into one system per backend so that every backend runs the same state.
+
+#include <unistd.h>
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <random>
+
+#include "bench_report.hpp"
+#include "demfem/dem/dem_system.hpp"
+#include "demfem/io/h5_file.hpp"
+
+using namespace demfem::dem;
+
+namespace {
+
+struct BedSpec {
+  std::size_t n;
+  double rmin, rmax;
+  std::string label;
+};
+
+DemSettings settings(int threads, const std::string& backend) {
+  DemSettings s;
+  s.dt = 1e-5;
+  s.gravity = {0, 0, -9.81};
+  s.materials = {{"grain", 1e8, 0.3, 2500.0}, {"wall", 1e8, 0.3, 0.0}};
+  s.pairs.assign(4, MaterialPair{0.5, 0.4, 0.0});
+  s.threads = threads;
+  s.backend = backend;
+  return s;
+}
+
+WallMesh quad(std::array<double, 3> a, std::array<double, 3> b, std::array<double, 3> c,
+              std::array<double, 3> d, const std::string& name) {
+  WallMesh w;
+  w.name = name;
+  w.material = 1;
+  for (const auto& p : {a, b, c, d}) w.vertices.insert(w.vertices.end(), p.begin(), p.end());
+  w.triangles = {0, 1, 2, 0, 2, 3};
+  return w;
+}
+
+struct Bed {
+  std::vector<ParticleInit> particles;
+  std::vector<WallMesh> walls;
+};
+
+Bed make_bed(const BedSpec& b) {
+  Bed bed;
+  const double a = 2.0 * b.rmax * (1.0 + 1e-9);  // lattice spacing: touching largest spheres
+  // footprint about twice the height
+  const auto side = static_cast<std::size_t>(std::ceil(std::cbrt(4.0 * b.n)));
+  const std::size_t nx = side, ny = side;
+  const double dy = a * std::sqrt(3.0) / 2.0, dz = a * std::sqrt(2.0 / 3.0);
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(b.rmin, b.rmax);
+  for (std::size_t k = 0; bed.particles.size() < b.n; ++k)
+    for (std::size_t j = 0; j < ny && bed.particles.size() < b.n; ++j)
+      for (std::size_t i = 0; i < nx && bed.particles.size() < b.n; ++i) {
+        ParticleInit p;
+        const double ox = (j % 2) * 0.5 * a + (k % 2) * 0.5 * a;
+        const double oy = (k % 2) * dy / 3.0;
+        p.position = {b.rmax + i * a + ox, b.rmax + j * dy + oy, b.rmax + k * dz};
+        p.radius = b.rmin == b.rmax ? b.rmin : u(rng);
+        p.material = 0;
+        bed.particles.push_back(p);
+      }
+  const double lx = nx * a + a, ly = ny * dy + a, h = (b.n / (nx * ny) + 2) * dz + a;
+  bed.walls.push_back(quad({0, 0, 0}, {lx, 0, 0}, {lx, ly, 0}, {0, ly, 0}, "floor"));
+  bed.walls.push_back(quad({0, 0, 0}, {0, ly, 0}, {0, ly, h}, {0, 0, h}, "x0"));
+  bed.walls.push_back(quad({lx, 0, 0}, {lx, 0, h}, {lx, ly, h}, {lx, ly, 0}, "x1"));
+  bed.walls.push_back(quad({0, 0, 0}, {0, 0, h}, {lx, 0, h}, {lx, 0, 0}, "y0"));
+  bed.walls.push_back(quad({0, ly, 0}, {lx, ly, 0}, {lx, ly, h}, {0, ly, h}, "y1"));
+  return bed;
+}
+
+struct Result {
+  double rate = 0, cpu_rate = 0, det = 0, force = 0, integ = 0, contacts = 0;
+  bool ok = false;
+  std::string note;
+};
+
+Result measure(const Bed& bed, const std::filesystem::path& state, int threads,
+               const std::string& backend, std::int64_t steps) {
+  Result r;
+  try {
+    DemSystem sys(settings(threads, backend));
+    for (const auto& w : bed.walls) sys.add_wall(w);
+    sys.add_particles(bed.particles);
+    {
+      demfem::io::H5File f(state, demfem::io::H5File::Mode::read);
+      sys.restore(f, "/bed");
+    }
+    sys.advance(10);  // warm-up: neighbour list, caches
+    const auto t0 = sys.timings();
+    const auto c0 = std::chrono::steady_clock::now();
+    const std::clock_t k0 = std::clock();
+    sys.advance(steps);
+    const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count();
+    const double cpu = static_cast<double>(std::clock() - k0) / CLOCKS_PER_SEC;
+    const auto t1 = sys.timings();
+    const double tot =
+        (t1.detection - t0.detection) + (t1.forces - t0.forces) + (t1.integration - t0.integration);
+    r.rate = static_cast<double>(sys.particle_count()) * static_cast<double>(steps) / el;
+    // per CPU-second of all threads: on a shared machine the single-thread value estimates
+    // the rate of an otherwise idle core
+    r.cpu_rate = static_cast<double>(sys.particle_count()) * static_cast<double>(steps) / cpu;
+    r.det = (t1.detection - t0.detection) / tot;
+    r.force = (t1.forces - t0.forces) / tot;
+    r.integ = (t1.integration - t0.integration) / tot;
+    r.contacts =
+        2.0 * static_cast<double>(sys.contact_count()) / static_cast<double>(sys.particle_count());
+    r.ok = true;
+  } catch (const std::exception& e) {
+    r.note = e.what();
+  }
+  return r;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"DEM throughput (particle-steps per second) of a settled bed"};
+  std::size_t max_particles = 1000000;
+  double settle_time = 0.02;
+  std::string json;
+  bool gpu = true;
+  std::size_t only = 0;
+  std::vector<int> threads = {1, 2};
+  app.add_option("--max-particles", max_particles, "largest bed to run")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--settle-time", settle_time, "settling time before measuring, s")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--json", json, "write the results as JSON");
+  app.add_option("--only", only, "run only the bed with this many particles");
+  app.add_option("--threads", threads, "CPU thread counts to run (default 1 2)");
+  app.add_flag("!--no-gpu", gpu, "skip the GPU even when one is present");
+  CLI11_PARSE(app, argc, argv);
+
+  const std::vector<BedSpec> specs = {
+      {1000, 0.0015, 0.0025, "d 3-5 mm"},     {10000, 0.0015, 0.0025, "d 3-5 mm"},
+      {20000, 0.002, 0.002, "target r 2 mm"}, {100000, 0.0015, 0.0025, "d 3-5 mm"},
+      {200000, 0.0015, 0.0025, "d 3-5 mm"},   {1000000, 0.0015, 0.0025, "d 3-5 mm"}};
+  demfem::bench::Report rep(
+      "dem_throughput", {"particles", "bed", "backend", "threads", "contacts/particle",
+                         "particle-steps/s", "per cpu-s", "detection", "forces", "integration"});
+  rep.set_info("dt", 1e-5);
+  rep.set_info("model",
+               std::string("Hertz-Mindlin with history, E 100 MPa, nu 0.3, e 0.4, mu 0.5"));
+  rep.set_info("settle_time_s", settle_time);
+  rep.set_info("machine", demfem::bench::machine_description());
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("demfem_dem_throughput_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const bool have_gpu = gpu && cuda_available();
+  for (const auto& spec : specs) {
+    if (spec.n > max_particles || (only != 0 && spec.n != only)) continue;
+    const Bed bed = make_bed(spec);
+    const auto state = dir / ("bed_" + std::to_string(spec.n) + ".h5");
+    {
+      DemSystem sys(settings(2, "cpu"));
+      for (const auto& w : bed.walls) sys.add_wall(w);
+      sys.add_particles(bed.particles);
+      sys.advance(static_cast<std::int64_t>(settle_time / 1e-5 + 0.5));
+      demfem::io::H5File f(state, demfem::io::H5File::Mode::create);
+      sys.save(f, "/bed");
+    }
+    const std::int64_t steps = std::clamp<std::int64_t>(
+        static_cast<std::int64_t>(4e6 / static_cast<double>(spec.n)), 20, 2000);
+    std::vector<std::pair<std::string, int>> runs;
+    for (int t : threads) runs.push_back({"cpu", t});
+    if (have_gpu) runs.push_back({"cuda", 0});
+    for (const auto& [backend, th] : runs) {
+      const Result r = measure(bed, state, th, backend, backend == "cuda" ? 20 * steps : steps);
+      if (!r.ok) {
+        std::fprintf(stderr, "%zu particles, %s: %s\n", spec.n, backend.c_str(), r.note.c_str());
+        continue;
+      }
+      rep.add_row({static_cast<long long>(spec.n), spec.label, backend, static_cast<long long>(th),
+                   r.contacts, r.rate, r.cpu_rate, r.det, r.force, r.integ});
+    }
+    std::filesystem::remove(state);
+  }
+  std::filesystem::remove_all(dir);
+  rep.print();
+  rep.write_json(json);
+  return 0;
+}

@@ -1,0 +1,74 @@
+#pragma once
+// Sphere–sphere and sphere–wall contact kinematics (overlap, normal, effective radius and
+// mass, relative velocity at the contact point, eq. 2.8, 2.9, 2.11, 2.23), feeding the
+// contact law of contact.hpp. Called by both backends over their SoA arrays.
+
+#include "demfem/dem/physics/contact.hpp"
+
+namespace demfem::dem::phys {
+
+/// Read-only view of the particle arrays (host or device pointers).
+struct ParticleView {
+  const double *px, *py, *pz, *vx, *vy, *vz, *wx, *wy, *wz, *radius, *mass;
+};
+
+/// Contact of spheres i and j (i's row in the pair list). Returns false when they do not
+/// overlap. On contact: `out` holds the force on i (j gets the opposite), n × F_t (torque on
+/// i = r_i n × F_t, on j = r_j n × F_t) and the rolling torque on i; `shear` is updated;
+/// `delta` is the overlap.
+template <bool Friction>
+DEMFEM_HD bool sphere_sphere(const ParticleView& p, int i, int j, const PairConstants& c, double dt,
+                             Vec3& shear, ContactResult& out, double& delta) {
+  const double dx = p.px[j] - p.px[i], dy = p.py[j] - p.py[i], dz = p.pz[j] - p.pz[i];
+  const double ri = p.radius[i], rj = p.radius[j];
+  const double rs = ri + rj;
+  const double d2 = dx * dx + dy * dy + dz * dz;
+  if (d2 >= rs * rs) return false;
+  const double d = std::sqrt(d2);
+  const double inv = 1.0 / d;
+  const Vec3 n{dx * inv, dy * inv, dz * inv};
+  delta = rs - d;  // eq. 2.9
+  // R* and m* (eq. 2.8, 2.11) with one division
+  const double mi = p.mass[i], mj = p.mass[j];
+  const double inv_rm = 1.0 / (rs * (mi + mj));
+  const double reff = ri * rj * (mi + mj) * inv_rm;
+  const double meff = mi * mj * rs * inv_rm;
+  Vec3 vrel{p.vx[i] - p.vx[j], p.vy[i] - p.vy[j], p.vz[i] - p.vz[j]};
+  Vec3 wrel{0, 0, 0};
+  if constexpr (Friction) {
+    // v_ij = v_i - v_j + ω_i × (r_i n) - ω_j × (-r_j n)   (eq. 2.23)
+    const Vec3 wsum{ri * p.wx[i] + rj * p.wx[j], ri * p.wy[i] + rj * p.wy[j],
+                    ri * p.wz[i] + rj * p.wz[j]};
+    vrel = vrel + cross(wsum, n);
+    wrel = Vec3{p.wx[i] - p.wx[j], p.wy[i] - p.wy[j], p.wz[i] - p.wz[j]};
+  }
+  out = hertz_mindlin<Friction>(c, n, delta, reff, meff, vrel, wrel, shear, dt);
+  return true;
+}
+
+/// Contact of sphere i with a wall point `cp` (closest point of a triangle) moving with
+/// velocity `vw`. Returns false without overlap or with the centre on the wall. Torque on
+/// the particle: r_i n × F_t + roll.
+template <bool Friction>
+DEMFEM_HD bool sphere_wall(const ParticleView& p, int i, Vec3 cp, Vec3 vw, const PairConstants& c,
+                           double dt, Vec3& shear, ContactResult& out, double& delta) {
+  const Vec3 x{p.px[i], p.py[i], p.pz[i]};
+  const double ri = p.radius[i];
+  const double d2 = norm2(x - cp);
+  if (d2 >= ri * ri || !(d2 > 0.0)) return false;
+  const double d = std::sqrt(d2);
+  delta = ri - d;
+  const Vec3 n = (-1.0 / d) * (x - cp);  // particle -> wall
+  Vec3 vrel = Vec3{p.vx[i], p.vy[i], p.vz[i]} - vw;
+  Vec3 wrel{0, 0, 0};
+  if constexpr (Friction) {
+    const Vec3 w{p.wx[i], p.wy[i], p.wz[i]};
+    vrel = vrel + ri * cross(w, n);
+    wrel = w;
+  }
+  // wall: infinite radius and mass, R* = r_i, m* = m_i
+  out = hertz_mindlin<Friction>(c, n, delta, ri, p.mass[i], vrel, wrel, shear, dt);
+  return true;
+}
+
+}  // namespace demfem::dem::phys

@@ -1,0 +1,171 @@
+// Determinism, save/restore, neighbour-list reuse, bad input, CPU vs CUDA.
+
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <random>
+
+#include "dem_test_util.hpp"
+#include "demfem/dem/dem_system.hpp"
+#include "demfem/io/h5_file.hpp"
+
+using namespace demfem::dem;
+using namespace demfem::dem::test;
+
+namespace {
+// A lattice of jittered spheres (radii 1.5-2.5 mm) falling onto a 4 x 4-cell floor with
+// friction and rolling resistance, or without walls (for the CUDA comparison) in a
+// converging velocity field so that many contacts form.
+DemSystem make_scene(int threads, bool walls, const std::string& backend = "cpu", int side = 8) {
+  auto s = two_material_settings(1e8, 0.3, 2500.0, 0.4, 0.5, 1e-5, 0.02);
+  s.gravity = {0, 0, walls ? -9.81 : 0.0};
+  s.threads = threads;
+  s.backend = backend;
+  DemSystem sys(s);
+  if (walls) sys.add_wall(plane_mesh(0.0052 * side + 0.04, 4));
+  std::mt19937_64 rng(42);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<ParticleInit> p;
+  const double x0 = -0.0026 * side;
+  for (int k = 0; k < 8; ++k)
+    for (int j = 0; j < side; ++j)
+      for (int i = 0; i < side; ++i) {
+        const double x = x0 + 0.0052 * i + 2e-4 * u(rng), y = x0 + 0.0052 * j + 2e-4 * u(rng);
+        const double z = 0.0027 + 0.0052 * k;
+        const std::array<double, 3> v =
+            walls ? std::array<double, 3>{0.1 * u(rng), 0.1 * u(rng), -0.5 + 0.3 * u(rng)}
+                  : std::array<double, 3>{-4 * x, -4 * y, -4 * (z - 0.02)};
+        p.push_back(sphere({x, y, z}, 0.002 + 0.0005 * u(rng), v, {10 * u(rng), 0, 0}));
+      }
+  sys.add_particles(p);
+  return sys;
+}
+
+bool same_state(const ParticleState& a, const ParticleState& b) {
+  auto eq = [](const std::vector<double>& x, const std::vector<double>& y) {
+    return x.size() == y.size() && std::memcmp(x.data(), y.data(), x.size() * sizeof(double)) == 0;
+  };
+  return eq(a.px, b.px) && eq(a.py, b.py) && eq(a.pz, b.pz) && eq(a.vx, b.vx) && eq(a.vy, b.vy) &&
+         eq(a.vz, b.vz) && eq(a.wx, b.wx) && eq(a.wy, b.wy) && eq(a.wz, b.wz) && eq(a.qw, b.qw) &&
+         eq(a.qx, b.qx) && eq(a.fx, b.fx) && eq(a.fz, b.fz);
+}
+}  // namespace
+
+TEST_CASE("Runs are bitwise reproducible, also across thread counts", "[dem][determinism]") {
+  // Reference: a run with one thread. Tolerance: none (bitwise). 2048 particles, so that
+  // the particle loops run on two threads (systems below 2048 particles use one).
+  DemSystem a = make_scene(1, true, "cpu", 16), b = make_scene(1, true, "cpu", 16),
+            c = make_scene(2, true, "cpu", 16);
+  a.advance(200);
+  b.advance(200);
+  c.advance(200);
+  CHECK(a.max_overlap() > 0.0);
+  CHECK(a.neighbour_rebuilds() >= 2);
+  CHECK(same_state(a.particles(), b.particles()));
+  CHECK(same_state(a.particles(), c.particles()));
+  CHECK(std::memcmp(a.wall_force(0).data(), c.wall_force(0).data(), 3 * sizeof(double)) == 0);
+}
+
+TEST_CASE("Save/restore mid-run continues bitwise identically", "[dem][restart]") {
+  // Reference: an uninterrupted run of 600 steps. Tolerance: none (bitwise).
+  const auto dir = std::filesystem::temp_directory_path() / "demfem_test_dem_core_restart";
+  std::filesystem::create_directories(dir);
+  const auto file = dir / "state.h5";
+  DemSystem ref = make_scene(2, true);
+  ref.advance(600);
+
+  DemSystem first = make_scene(2, true);
+  first.advance(300);
+  {
+    demfem::io::H5File h5(file, demfem::io::H5File::Mode::create);
+    first.save(h5, "/dem");
+  }
+  DemSystem second = make_scene(2, true);  // same walls and settings, state replaced
+  {
+    demfem::io::H5File h5(file, demfem::io::H5File::Mode::read);
+    second.restore(h5, "/dem");
+  }
+  CHECK(second.step_count() == 300);
+  second.advance(300);
+  first.advance(300);
+  CHECK(same_state(ref.particles(), first.particles()));
+  CHECK(same_state(ref.particles(), second.particles()));
+  CHECK(ref.time() == second.time());
+  CHECK(std::memcmp(ref.wall_force(0).data(), second.wall_force(0).data(), 3 * sizeof(double)) ==
+        0);
+  // removal keeps the history of the others and still runs
+  std::vector<std::uint8_t> keep(second.particle_count(), 1);
+  keep[3] = keep[100] = 0;
+  second.remove_particles(keep);
+  CHECK(second.particle_count() == ref.particle_count() - 2);
+  second.advance(10);
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("Neighbour list is reused until particles moved half the skin", "[dem][detection]") {
+  // A still bed without gravity: one build, no rebuild; then moving particles rebuild.
+  auto s = two_material_settings(1e8, 0.3, 2500.0, 0.4, 0.5, 1e-5);
+  DemSystem sys(s);
+  std::vector<ParticleInit> p;
+  for (int i = 0; i < 10; ++i) p.push_back(sphere({0.005 * i, 0, 0}, 0.002));
+  sys.add_particles(p);
+  sys.advance(100);
+  CHECK(sys.neighbour_rebuilds() == 1);
+  CHECK(sys.neighbour_pairs() == 0);  // spheres 1 mm apart, skin 0.4 mm
+  std::vector<ParticleInit> q = {sphere({0.0, 0.01, 0}, 0.002, {0, 1.0, 0})};
+  sys.add_particles(q);
+  sys.advance(100);  // moves 1 mm: skin / 2 = 0.2 mm is used up about every 20 steps
+  CHECK(sys.neighbour_rebuilds() >= 5);
+  CHECK(sys.rayleigh_time_step() == Approx(3.14159265358979 * 0.002 / (0.1631 * 0.3 + 0.8766) *
+                                           std::sqrt(2500.0 / (1e8 / 2.6))));  // eq. 2.27
+}
+
+TEST_CASE("Bad input is rejected with a message naming the key", "[dem][input]") {
+  auto s = two_material_settings(1e8, 0.3, 2500.0, 0.4, 0.5, 1e-5);
+  s.dt = -1;
+  CHECK_THROWS_WITH(DemSystem(s), Catch::Contains("settings.dt"));
+  s = two_material_settings(1e8, 0.3, 2500.0, 1.5, 0.5, 1e-5);
+  CHECK_THROWS_WITH(DemSystem(s), Catch::Contains("restitution") && Catch::Contains("(0, 1]"));
+  s = two_material_settings(1e8, 0.6, 2500.0, 0.4, 0.5, 1e-5);
+  CHECK_THROWS_WITH(DemSystem(s), Catch::Contains("poisson_ratio"));
+  s = two_material_settings(1e8, 0.3, 2500.0, 0.4, 0.5, 1e-5);
+  s.pairs.pop_back();
+  CHECK_THROWS_WITH(DemSystem(s), Catch::Contains("settings.pairs"));
+  DemSystem sys(two_material_settings(1e8, 0.3, 2500.0, 0.4, 0.5, 1e-5));
+  std::vector<ParticleInit> p = {sphere({0, 0, 0}, -1.0)};
+  CHECK_THROWS_WITH(sys.add_particles(p), Catch::Contains("radius"));
+  p = {sphere({std::nan(""), 0, 0}, 0.001)};
+  CHECK_THROWS_WITH(sys.add_particles(p), Catch::Contains("non-finite"));
+  CHECK_THROWS_WITH(sys.advance(-1), Catch::Contains("substeps"));
+  WallMesh w = plane_mesh(0.01, 1);
+  w.triangles[0] = 99;
+  CHECK_THROWS_WITH(sys.add_wall(w), Catch::Contains("vertex index 99"));
+  if (!cuda_available()) {
+    auto sc = two_material_settings(1e8, 0.3, 2500.0, 0.4, 0.5, 1e-5);
+    sc.backend = "cuda";
+    CHECK_THROWS_WITH(DemSystem(sc), Catch::Contains("cuda"));
+  }
+}
+
+TEST_CASE("CPU and CUDA backends agree over 1000 steps", "[dem][gpu]") {
+  // Reference: the CPU backend. Tolerance: 1e-9 of the particle radius in position after
+  // 1000 steps of a colliding cloud (round-off growth: the device contracts a*b+c into FMAs).
+  if (!cuda_available()) {
+    WARN("CPU-vs-CUDA comparison skipped: no CUDA device (or built without CUDA)");
+    return;
+  }
+  DemSystem cpu = make_scene(2, false), gpu = make_scene(2, false, "cuda");
+  cpu.advance(1000);
+  gpu.advance(1000);
+  const auto& a = cpu.particles();
+  const auto& b = gpu.particles();
+  REQUIRE(a.size() == b.size());
+  double worst = 0.0;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    worst = std::max({worst, std::abs(a.px[i] - b.px[i]), std::abs(a.py[i] - b.py[i]),
+                      std::abs(a.pz[i] - b.pz[i])});
+  CHECK(cpu.max_overlap() > 0.0);
+  CHECK(worst < 1e-9 * 0.002);
+  CHECK(gpu.kinetic_energy() == Approx(cpu.kinetic_energy()).epsilon(1e-9));
+}
