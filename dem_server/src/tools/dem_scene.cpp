@@ -299,6 +299,8 @@ DemScene read_dem_scene(const Table& dem) {
       ss.repose.centre = {c[0], c[1]};
       ss.repose.planar = t.choice("profile", "radial", {"radial", "planar"}) == "planar";
       ss.repose.base = t.number("base", 0.0);
+      ss.repose.top = t.number("top", 1e300);
+      if (ss.repose.top <= ss.repose.base) t.fail("top", "must be above 'base'");
       ss.repose.bin_width = t.number("bin_width", 0.0, Range::non_negative());
       if (t.has("flank")) {
         auto f = t.numbers("flank", 2, Range::closed(0.0, 1.0));
@@ -321,8 +323,8 @@ DemScene read_dem_scene(const Table& dem) {
 }
 
 DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, std::uint64_t seed,
-               double run_output_interval, std::ostream* log)
-    : scene_(scene) {
+               double run_output_interval, std::ostream* log, bool defer_output)
+    : scene_(scene), output_dir_(output_dir), run_output_interval_(run_output_interval) {
   system_ = std::make_unique<DemSystem>(scene_.settings);
   for (auto& w : scene_.walls) {
     WallMesh mesh;
@@ -411,15 +413,25 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
       *log << "dem: removed " << removed << " particles above z = " << *scene_.remove_above
            << " m\n";
   }
-  const std::filesystem::path dir = output_dir;
-  sensors_ = std::make_unique<SensorSet>(scene_.sensors, dir, *system_);
-  output_interval_ = scene_.output_interval.value_or(run_output_interval);
-  if (!dir.empty() && scene_.output_particles) output_ = std::make_unique<ParticleOutput>(dir);
-  next_output_ = system_->time();
-  after_advance();  // the initial state: first sensor samples and snapshot
+  output_interval_ = scene_.output_interval.value_or(run_output_interval_);
+  if (!defer_output) start_output(false);
 }
 
 DemRun::~DemRun() = default;
+
+void DemRun::start_output(bool resume) {
+  sensors_ = std::make_unique<SensorSet>(scene_.sensors, output_dir_, *system_, !resume);
+  if (!output_dir_.empty() && scene_.output_particles) {
+    output_ = std::make_unique<ParticleOutput>(output_dir_);
+  }
+  next_output_ = system_->time();
+  if (!resume) after_advance();  // the initial state: first sensor samples and snapshot
+}
+
+const SensorSet& DemRun::sensors() const {
+  if (!sensors_) throw std::logic_error("DemRun: sensors are created by the first advance()");
+  return *sensors_;
+}
 
 void DemRun::add(std::span<const ParticleInit> particles) {
   system_->add_particles(particles);
@@ -430,7 +442,15 @@ void DemRun::write_snapshot() {
   if (output_) output_->write(system_->particles(), ids_, system_->time());
 }
 
+void DemRun::finish() {
+  if (output_ && output_->last_time() != system_->time()) write_snapshot();
+}
+
 void DemRun::after_advance() {
+  if (!sensors_) {
+    start_output(false);  // samples the current state itself
+    return;
+  }
   const double t = system_->time();
   const double eps = 0.1 * scene_.settings.dt;
   sensors_->sample(*system_, ids_);
@@ -443,11 +463,13 @@ void DemRun::after_advance() {
 }
 
 void DemRun::advance(std::int64_t substeps, ForceMode mode) {
+  if (!sensors_) start_output(false);
   system_->advance(substeps, mode);
   after_advance();
 }
 
 void DemRun::run_to(double end_time, const std::function<void(double)>& progress) {
+  if (!sensors_) start_output(false);
   const double dt = scene_.settings.dt;
   while (system_->time() + 0.5 * dt < end_time) {
     double target = std::min(end_time, sensors_->next_time());
@@ -458,7 +480,7 @@ void DemRun::run_to(double end_time, const std::function<void(double)>& progress
     after_advance();
     if (progress) progress(system_->time());
   }
-  if (output_ && output_interval_ == 0) write_snapshot();
+  finish();
 }
 
 void DemRun::save(io::H5File& file, const std::string& group) const {
@@ -466,7 +488,9 @@ void DemRun::save(io::H5File& file, const std::string& group) const {
   const std::string g = group + "_tools";
   file.create_group(g);
   file.write(g + "/ids", std::span<const std::int64_t>(ids_));
-  const auto rows = sensors_->rows();
+  // Before the first advance() (deferred output) no row has been written yet.
+  const auto rows =
+      sensors_ ? sensors_->rows() : std::vector<std::size_t>(scene_.sensors.size(), 0);
   std::vector<std::int64_t> r(rows.begin(), rows.end());
   r.push_back(0);  // never empty
   file.write(g + "/sensor_rows", std::span<const std::int64_t>(r));
@@ -485,8 +509,13 @@ void DemRun::restore(const io::H5File& file, const std::string& group) {
                              std::to_string(system_->particle_count()) + " particles");
   }
   next_id_ = file.attribute_int64(g, "next_id");
+  if (!sensors_) start_output(true);
   auto r = file.read_int64(g + "/sensor_rows");
   r.pop_back();
+  if (r.size() != scene_.sensors.size()) {
+    throw std::runtime_error(file.path().string() + ": " + g + " has " + std::to_string(r.size()) +
+                             " sensor series, the scene " + std::to_string(scene_.sensors.size()));
+  }
   sensors_->resume(std::vector<std::size_t>(r.begin(), r.end()), system_->time());
   if (output_) output_->resume(static_cast<std::size_t>(file.attribute_int64(g, "snapshots")));
   next_output_ = file.attribute_double(g, "next_output");

@@ -44,14 +44,20 @@ double MassFlowCounter::update(const ParticleState& p, std::span<const std::int6
 }
 
 ReposeResult angle_of_repose(const ParticleState& p, const ReposeOptions& o) {
-  if (p.size() == 0) throw std::runtime_error("angle of repose: there are no particles");
+  std::size_t counted = 0;
   double mean_d = 0.0;
-  for (double r : p.radius) mean_d += 2.0 * r;
-  mean_d /= double(p.size());
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    if (p.pz[i] > o.top) continue;
+    mean_d += 2.0 * p.radius[i];
+    ++counted;
+  }
+  if (counted == 0) throw std::runtime_error("angle of repose: there are no particles below 'top'");
+  mean_d /= double(counted);
   const double w = o.bin_width > 0 ? o.bin_width : 2.0 * mean_d;
   double r_max = 0.0;
   std::vector<double> dist(p.size());
   for (std::size_t i = 0; i < p.size(); ++i) {
+    if (p.pz[i] > o.top) continue;
     const double dx = p.px[i] - o.centre[0], dy = p.py[i] - o.centre[1];
     dist[i] = o.planar ? std::abs(dx) : std::sqrt(dx * dx + dy * dy);
     r_max = std::max(r_max, dist[i]);
@@ -59,6 +65,7 @@ ReposeResult angle_of_repose(const ParticleState& p, const ReposeOptions& o) {
   const auto nbins = std::size_t(r_max / w) + 1;
   std::vector<double> top(nbins, -std::numeric_limits<double>::infinity());
   for (std::size_t i = 0; i < p.size(); ++i) {
+    if (p.pz[i] > o.top) continue;
     const auto b = std::size_t(dist[i] / w);
     top[b] = std::max(top[b], p.pz[i] + p.radius[i]);
   }
@@ -125,7 +132,7 @@ std::vector<std::string> columns_of(SensorSpec::Kind k) {
 }  // namespace
 
 SensorSet::SensorSet(std::vector<SensorSpec> specs, const std::filesystem::path& dir,
-                     const DemSystem& system) {
+                     const DemSystem& system, bool create_files) {
   for (auto& s : specs) {
     if (!(s.interval > 0))
       throw std::invalid_argument("sensor '" + s.name + "': interval must be > 0");
@@ -144,7 +151,9 @@ SensorSet::SensorSet(std::vector<SensorSpec> specs, const std::filesystem::path&
     }
     if (!dir.empty()) {
       e->csv_path = dir / ("sensor_" + e->spec.name + ".csv");
-      e->csv = std::make_unique<io::CsvWriter>(e->csv_path, columns_of(e->spec.kind));
+      if (create_files) {
+        e->csv = std::make_unique<io::CsvWriter>(e->csv_path, columns_of(e->spec.kind));
+      }
     }
     entries_.push_back(std::move(e));
   }
@@ -176,7 +185,7 @@ std::vector<std::size_t> SensorSet::rows() const {
 void SensorSet::resume(const std::vector<std::size_t>& rows, double time) {
   for (std::size_t i = 0; i < entries_.size(); ++i) {
     auto& e = *entries_[i];
-    if (e.csv) {
+    if (!e.csv_path.empty()) {
       e.csv.reset();
       e.csv = std::make_unique<io::CsvWriter>(io::CsvWriter::resume(e.csv_path, rows.at(i)));
     }
