@@ -88,7 +88,9 @@ NodePredicate NodePredicate::parse(std::string_view expression, double tolerance
   NodePredicate p;
   p.tolerance_ = tolerance;
   Tokenizer tk{expression};
-  const std::string quoted = "'" + std::string(expression) + "'";
+  // Built with append: GCC 12 warns falsely (-Wrestrict) on "literal" + std::string here.
+  std::string quoted(1, '\'');
+  quoted.append(expression).push_back('\'');
   while (true) {
     const std::string a = tk.next();
     const std::string op = tk.next();

@@ -89,7 +89,8 @@ TEST_CASE("hex8 .inp: nodes, labels, sets, GENERATE, surfaces, material, section
   const std::array<std::array<double, 3>, 6> normals{
       {{0, 0, -1}, {0, 0, 1}, {0, -1, 0}, {1, 0, 0}, {0, 1, 0}, {-1, 0, 0}}};
   for (int s = 0; s < 6; ++s) {
-    const auto& surf = mesh.surfaces.at("S" + std::to_string(s + 1) + "SURF");
+    const std::string name = std::string("S") + char('1' + s) + "SURF";
+    const auto& surf = mesh.surfaces.at(name);
     REQUIRE(surf.size() == 1);
     CHECK(surf[0].face == s);
     CHECK(labels_of(mesh, face_nodes(mesh, surf[0])) == face_labels[static_cast<std::size_t>(s)]);
