@@ -1,0 +1,31 @@
+#pragma once
+// The solvers of a scene built in this process, through the same SolverBackend adapters the
+// servers use (for the in-process link, and to check a whole scene before any process is
+// started).
+
+#include <filesystem>
+#include <memory>
+
+#include "demfem/coupling/coupling_settings.hpp"
+#include "demfem/protocol/protocol.hpp"
+#include "demfem/scene/scene_reader.hpp"
+
+namespace demfem::coupling {
+
+/// @brief Reads [dem] and [fem] with the solvers' own readers, so that a bad key anywhere in
+/// the scene is reported (file, line, key) before any process starts. Throws SceneError.
+void check_solver_sections(const scene::Document& scene);
+
+/// @brief The DEM engine of the scene's [dem] behind its DemBackend adapter, set up as
+/// dem_server sets it up (nullptr without [dem]). Output goes to `output_dir`; the end
+/// state is written when the object is destroyed.
+std::unique_ptr<protocol::SolverBackend> make_local_dem(const scene::Document& scene,
+                                                        const CouplingSettings& settings,
+                                                        const std::filesystem::path& output_dir);
+/// @brief The FEM engine of the scene's [fem] behind its FemBackend adapter, as fem_server
+/// sets it up (nullptr without [fem]).
+std::unique_ptr<protocol::SolverBackend> make_local_fem(const scene::Document& scene,
+                                                        const CouplingSettings& settings,
+                                                        const std::filesystem::path& output_dir);
+
+}  // namespace demfem::coupling

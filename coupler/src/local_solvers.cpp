@@ -1,0 +1,115 @@
+#include "demfem/coupling/local_solvers.hpp"
+
+#include <iostream>
+
+#include "demfem/coupling/solver_link.hpp"
+
+#include "demfem/dem/dem_backend.hpp"
+#include "demfem/dem/dem_scene.hpp"
+#include "demfem/fem/fem_backend.hpp"
+#include "demfem/fem/fem_output.hpp"
+#include "demfem/fem/fem_scene.hpp"
+
+namespace demfem::coupling {
+
+namespace {
+
+// Forwards every call to the adapter; owns the engine objects the adapter refers to. Built
+// exactly as the servers build them (dem_server.cpp, fem_server.cpp) so that the in-process
+// run and the three-process run compute the same thing.
+class LocalDem final : public protocol::SolverBackend {
+ public:
+  LocalDem(const dem::DemScene& scene, const scene::RunSettings& run,
+           const std::filesystem::path& out)
+      : run_(scene, out, run.seed, run.output_interval, nullptr, true), backend_(run_) {}
+  ~LocalDem() override {
+    try {
+      if (run_.system().step_count() > 0) run_.write_snapshot();  // the end state
+    } catch (const std::exception& e) {
+      std::cerr << "dem: " << e.what() << "\n";
+    }
+  }
+  std::string name() const override { return backend_.name() + " in process"; }
+  std::optional<InterfaceMesh> published_mesh() override { return backend_.published_mesh(); }
+  void on_mesh(const InterfaceMesh& m) override { backend_.on_mesh(m); }
+  StepResult step(const StepCommand& c, InterfaceBuffers& b) override {
+    return backend_.step(c, b);
+  }
+  void write_checkpoint(const std::filesystem::path& f, std::int64_t s) override {
+    backend_.write_checkpoint(f, s);
+  }
+  void restore_checkpoint(const std::filesystem::path& f, std::int64_t s) override {
+    backend_.restore_checkpoint(f, s);
+  }
+
+ private:
+  dem::DemRun run_;
+  dem::DemBackend backend_;
+};
+
+class LocalFem final : public protocol::SolverBackend {
+ public:
+  LocalFem(fem::FemScene scene, const scene::RunSettings& run, const std::filesystem::path& out)
+      : solver_(std::move(scene.problem)) {
+    if (scene.output.enabled) {
+      output_ = std::make_unique<fem::FemOutput>(out, "fem", solver_.problem().mesh, scene.output);
+      output_->write(solver_);  // reference state
+    }
+    const double interval =
+        scene.output.interval > 0.0 ? scene.output.interval : run.output_interval;
+    backend_ = std::make_unique<fem::FemBackend>(solver_, output_.get(), interval);
+  }
+  ~LocalFem() override {
+    try {
+      if (output_ && solver_.step_count() > 0 &&
+          (output_->steps() == 0 || output_->last_time() != solver_.time())) {
+        output_->write(solver_);  // the end state
+      }
+    } catch (const std::exception& e) {
+      std::cerr << "fem: " << e.what() << "\n";
+    }
+  }
+  std::string name() const override { return backend_->name() + " in process"; }
+  std::optional<InterfaceMesh> published_mesh() override { return backend_->published_mesh(); }
+  void on_mesh(const InterfaceMesh& m) override { backend_->on_mesh(m); }
+  StepResult step(const StepCommand& c, InterfaceBuffers& b) override {
+    return backend_->step(c, b);
+  }
+  void write_checkpoint(const std::filesystem::path& f, std::int64_t s) override {
+    backend_->write_checkpoint(f, s);
+  }
+  void restore_checkpoint(const std::filesystem::path& f, std::int64_t s) override {
+    backend_->restore_checkpoint(f, s);
+  }
+
+ private:
+  fem::FemSolver solver_;
+  std::unique_ptr<fem::FemOutput> output_;
+  std::unique_ptr<fem::FemBackend> backend_;
+};
+
+}  // namespace
+
+void check_solver_sections(const scene::Document& scene) {
+  const scene::Table root = scene.root();
+  if (auto dem = root.table("dem")) (void)dem::read_dem_scene(*dem);
+  if (auto fem = root.table("fem")) (void)fem::read_fem_scene(*fem);
+}
+
+std::unique_ptr<protocol::SolverBackend> make_local_dem(const scene::Document& scene,
+                                                        const CouplingSettings& settings,
+                                                        const std::filesystem::path& out) {
+  const auto dem = scene.root().table("dem");
+  if (!dem) return nullptr;
+  return std::make_unique<LocalDem>(dem::read_dem_scene(*dem), settings.run, out);
+}
+
+std::unique_ptr<protocol::SolverBackend> make_local_fem(const scene::Document& scene,
+                                                        const CouplingSettings& settings,
+                                                        const std::filesystem::path& out) {
+  const auto fem = scene.root().table("fem");
+  if (!fem) return nullptr;
+  return std::make_unique<LocalFem>(fem::read_fem_scene(*fem), settings.run, out);
+}
+
+}  // namespace demfem::coupling

@@ -1,0 +1,304 @@
+// System tests: the run launcher with real solver processes and real shared memory.
+// Each run happens in its own temporary folder (the scene's run.output_dir is relative to
+// the current directory), with the executables of this build (DEMFEM_BINARY_DIR/bin).
+#include <catch2/catch.hpp>
+
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "demfem/io/h5_file.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+const fs::path kBin = fs::path(DEMFEM_BINARY_DIR) / "bin";
+const fs::path kCases = fs::path(DEMFEM_SOURCE_DIR) / "cases";
+
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    static int counter = 0;
+    path = fs::temp_directory_path() /
+           ("demfem-system-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
+    fs::create_directories(path);
+  }
+  ~TempDir() { fs::remove_all(path); }
+};
+
+std::string read_text(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+struct Result {
+  int status = -1;  // exit code, or 128 + signal
+  std::string out, err;
+};
+
+// Starts demfem_run in `dir` (own process group when `group`), stdout/stderr to files.
+pid_t spawn_run(const fs::path& dir, const std::vector<std::string>& args, bool group) {
+  std::vector<std::string> argv_s = {(kBin / "demfem_run").string(), "--bin-dir", kBin.string()};
+  argv_s.insert(argv_s.end(), args.begin(), args.end());
+  std::vector<char*> argv;
+  for (auto& a : argv_s) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  const std::string out = (dir / "stdout.txt").string(), err = (dir / "stderr.txt").string();
+  posix_spawn_file_actions_addopen(&fa, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_addopen(&fa, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawnattr_t attr;
+  posix_spawnattr_init(&attr);
+  if (group) {
+    posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETPGROUP);
+    posix_spawnattr_setpgroup(&attr, 0);
+  }
+  const fs::path old = fs::current_path();
+  fs::current_path(dir);  // the child inherits it
+  pid_t pid = -1;
+  const int rc = posix_spawn(&pid, argv[0], &fa, &attr, argv.data(), environ);
+  fs::current_path(old);
+  posix_spawn_file_actions_destroy(&fa);
+  posix_spawnattr_destroy(&attr);
+  REQUIRE(rc == 0);
+  return pid;
+}
+
+Result wait_run(const fs::path& dir, pid_t pid) {
+  int st = 0;
+  REQUIRE(waitpid(pid, &st, 0) == pid);
+  Result r;
+  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
+  r.out = read_text(dir / "stdout.txt");
+  r.err = read_text(dir / "stderr.txt");
+  return r;
+}
+
+Result run(const fs::path& dir, const std::vector<std::string>& args) {
+  return wait_run(dir, spawn_run(dir, args, false));
+}
+
+std::vector<std::vector<std::string>> read_csv(const fs::path& p) {
+  std::vector<std::vector<std::string>> rows;
+  std::ifstream in(p);
+  std::string line;
+  while (std::getline(in, line)) {
+    std::vector<std::string> row;
+    std::stringstream s(line);
+    std::string cell;
+    while (std::getline(s, cell, ',')) row.push_back(cell);
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+bool pid_gone(pid_t pid) {
+  return kill(pid, 0) != 0 && errno == ESRCH;
+}
+
+std::vector<pid_t> started_pids(const std::string& out) {
+  std::vector<pid_t> pids;
+  std::regex re("started (dem|fem)_server \\(pid ([0-9]+)\\)");
+  for (auto it = std::sregex_iterator(out.begin(), out.end(), re); it != std::sregex_iterator();
+       ++it)
+    pids.push_back(std::stoi((*it)[2]));
+  return pids;
+}
+
+std::string segment_of(const std::string& out) {
+  std::smatch m;
+  if (std::regex_search(out, m, std::regex("segment /(demfem-[0-9a-f]+)"))) return m[1];
+  return "";
+}
+
+// Waits until the run has written `rows` CSV data rows (it is in its loop).
+void wait_for_rows(const fs::path& csv, std::size_t rows) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (std::chrono::steady_clock::now() < end) {
+    if (fs::exists(csv) && read_csv(csv).size() > rows) return;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  FAIL("the run wrote no coupling rows within 60 s");
+}
+
+// A copy of a case with some `key = value` lines replaced (first match of each key).
+fs::path variant(const fs::path& dir, const std::string& name, const std::string& case_file,
+                 const std::vector<std::pair<std::string, std::string>>& lines) {
+  std::string text = read_text(kCases / case_file);
+  for (const auto& [from, to] : lines) {
+    const auto at = text.find(from);
+    REQUIRE(at != std::string::npos);
+    text.replace(at, from.size(), to);
+  }
+  const fs::path p = dir / name;
+  std::ofstream(p) << text;
+  return p;
+}
+
+}  // namespace
+
+TEST_CASE("CI beam: three processes equal the in-process run bitwise") {
+  TempDir a, b;
+  const std::string scene = (kCases / "beam_dynamic_ci.toml").string();
+  const Result remote = run(a.path, {scene, "--quiet"});
+  INFO(remote.out << remote.err);
+  REQUIRE(remote.status == 0);
+  const Result local = run(b.path, {scene, "--quiet", "--in-process"});
+  INFO(local.out << local.err);
+  REQUIRE(local.status == 0);
+  const auto ra = read_csv(a.path / "out/beam_dynamic_ci/coupling.csv");
+  const auto rb = read_csv(b.path / "out/beam_dynamic_ci/coupling.csv");
+  REQUIRE(ra.size() == 51);  // header + 50 coupling steps
+  REQUIRE(ra.size() == rb.size());
+  // Every column but the wall times, as written (17 significant digits).
+  for (std::size_t i = 0; i < ra.size(); ++i) {
+    REQUIRE(ra[i].size() == rb[i].size());
+    for (std::size_t k = 0; k < ra[i].size(); ++k) {
+      if (ra[0][k].rfind("wall_", 0) == 0) continue;
+      INFO("row " << i << " column " << ra[0][k]);
+      CHECK(ra[i][k] == rb[i][k]);
+    }
+  }
+  // The final interface state, bit for bit.
+  demfem::io::H5File ha(a.path / "out/beam_dynamic_ci/coupling.h5", demfem::io::H5File::Mode::read);
+  demfem::io::H5File hb(b.path / "out/beam_dynamic_ci/coupling.h5", demfem::io::H5File::Mode::read);
+  for (const char* name : {"interface/positions", "interface/forces", "interface/dem_positions"}) {
+    INFO(name);
+    CHECK(ha.read_doubles(name) == hb.read_doubles(name));
+  }
+  // The beam moved and the load arrived: the comparison is not of two empty runs.
+  CHECK(std::stod(ra.back()[9]) > 1e-7);   // fem_max_displacement, m
+  CHECK(std::stod(ra.back()[10]) < -400);  // force_sum_z, N (51 kg: -500 N at rest)
+}
+
+TEST_CASE("CI beam, one-way static: coupled deflection within 0.1 % of the pure-FEM pressure run") {
+  TempDir d;
+  const Result r = run(d.path, {(kCases / "beam_fixed_ci.toml").string(), "--quiet"});
+  INFO(r.out << r.err);
+  REQUIRE(r.status == 0);
+  CHECK_THAT(r.out, Catch::Contains("beam check"));
+  const auto rows = read_csv(d.path / "out/beam_fixed_ci/beam_check.csv");
+  REQUIRE(rows.size() == 2);
+  const double coupled = std::stod(rows[1][1]), fem = std::stod(rows[1][2]);
+  const double load = std::stod(rows[1][4]), mg = std::stod(rows[1][5]);
+  // The acceptance bound of the issue (the thesis reached 0.38 %, table 4.2).
+  CHECK(std::abs(coupled - fem) / std::abs(fem) < 1e-3);
+  // All the spheres' weight reaches the beam once they rest (same bound).
+  CHECK(std::abs(load - mg) / mg < 1e-3);
+  CHECK(coupled < 0.0);
+}
+
+TEST_CASE("a scene with only a DEM starts only dem_server") {
+  TempDir d;
+  // The beam case's particles on a rigid floor, without [fem] and [coupling].
+  std::string text = read_text(kCases / "beam_fixed_ci.toml");
+  const auto c0 = text.find("[coupling]"), c1 = text.find("[dem]");
+  text.erase(c0, c1 - c0);
+  text.replace(text.find("interface_material = \"steel\""), 28,
+               "[[dem.walls]]\nname = \"floor\"\nmaterial = \"steel\"\n"
+               "plane = { point = [0.5, 0.05, 0.1], normal = [0.0, 0.0, 1.0], size = 2.0 }\n");
+  // [[dem.walls]] must come after the [dem] keys: move it to the end.
+  const auto w0 = text.find("[[dem.walls]]");
+  const auto w1 = text.find("[[dem.materials]]");
+  const std::string walls = text.substr(w0, w1 - w0);
+  text.erase(w0, w1 - w0);
+  text += "\n" + walls;
+  std::ofstream(d.path / "dem_only.toml") << text;
+  const Result r = run(d.path, {(d.path / "dem_only.toml").string(), "--quiet"});
+  INFO(r.out << r.err);
+  REQUIRE(r.status == 0);
+  CHECK_THAT(r.out, Catch::Contains("started dem_server"));
+  CHECK_THAT(r.out, !Catch::Contains("fem_server"));
+  CHECK(started_pids(r.out).size() == 1);
+  CHECK(fs::exists(d.path / "out/beam_fixed_ci/coupling.csv"));
+}
+
+TEST_CASE("a bad scene gives exit status 2 and names file, line and key") {
+  TempDir d;
+  const auto bad = variant(
+      d.path, "bad.toml", "beam_fixed_ci.toml",
+      {{"scheme = \"one_way_static\"", "scheme = \"one_way_static\"\nforce_averagin = true"}});
+  Result r = run(d.path, {bad.string()});
+  CHECK(r.status == 2);
+  CHECK_THAT(r.err, Catch::Contains("bad.toml:11") && Catch::Contains("coupling.force_averagin"));
+  CHECK(started_pids(r.out).empty());
+  // A bad key in a solver's section is found before any process starts as well.
+  const auto bad_dem = variant(d.path, "bad_dem.toml", "beam_fixed_ci.toml",
+                               {{"restitution = 0.1 ", "restitution = 1.5 "}});
+  r = run(d.path, {bad_dem.string()});
+  CHECK(r.status == 2);
+  CHECK_THAT(r.err, Catch::Contains("bad_dem.toml:") && Catch::Contains("restitution"));
+  CHECK(started_pids(r.out).empty());
+  // Inconsistent time steps: n_D = 1e-4 / 3e-6 is not an integer.
+  const auto bad_dt =
+      variant(d.path, "bad_dt.toml", "beam_dynamic_ci.toml", {{"dt = 2e-6 ", "dt = 3e-6 "}});
+  r = run(d.path, {bad_dt.string()});
+  CHECK(r.status == 2);
+  CHECK_THAT(r.err, Catch::Contains("fem.dt") && Catch::Contains("dem.dt"));
+  // A missing file.
+  r = run(d.path, {(d.path / "missing.toml").string()});
+  CHECK(r.status == 2);
+  CHECK_THAT(r.err, Catch::Contains("missing.toml"));
+}
+
+TEST_CASE("an overlap beyond the bound stops the run with status 3 and keeps the output") {
+  TempDir d;
+  const auto scene = variant(d.path, "blowup.toml", "beam_dynamic_ci.toml",
+                             {{"max_overlap = 1.2e-3", "max_overlap = 1e-7"}});
+  const Result r = run(d.path, {scene.string(), "--quiet"});
+  CHECK(r.status == 3);
+  CHECK_THAT(r.err, Catch::Contains("blow-up at coupling step") &&
+                        Catch::Contains("coupling.blowup.max_overlap"));
+  const auto rows = read_csv(d.path / "out/beam_dynamic_ci/coupling.csv");
+  CHECK(rows.size() >= 2);
+  CHECK(fs::exists(d.path / "out/beam_dynamic_ci/coupling.h5"));
+  for (pid_t p : started_pids(r.out)) CHECK(pid_gone(p));
+}
+
+TEST_CASE("SIGTERM or SIGINT stops all three processes and leaves no shared memory") {
+  for (const bool group_sigint : {false, true}) {
+    DYNAMIC_SECTION(
+        (group_sigint ? "SIGINT to the process group (Ctrl-C)" : "SIGTERM to the launcher")) {
+      TempDir d;
+      const auto scene = variant(d.path, "long.toml", "beam_dynamic_ci.toml",
+                                 {{"end_time = 0.005 ", "end_time = 100.0 "}});
+      const pid_t pid = spawn_run(d.path, {scene.string(), "--quiet"}, true);
+      wait_for_rows(d.path / "out/beam_dynamic_ci/coupling.csv", 2);
+      const std::string out_before = read_text(d.path / "stdout.txt");
+      const auto pids = started_pids(out_before);
+      const std::string segment = segment_of(out_before);
+      REQUIRE(pids.size() == 2);
+      REQUIRE(!segment.empty());
+      REQUIRE(fs::exists(fs::path("/dev/shm") / segment));
+      if (group_sigint) {
+        kill(-pid, SIGINT);
+      } else {
+        kill(pid, SIGTERM);
+      }
+      const Result r = wait_run(d.path, pid);
+      INFO(r.out << r.err);
+      CHECK(r.status == (group_sigint ? 128 + SIGINT : 128 + SIGTERM));
+      for (pid_t p : pids) CHECK(pid_gone(p));
+      CHECK(!fs::exists(fs::path("/dev/shm") / segment));
+      CHECK(!fs::exists(fs::path("/dev/shm") / (segment + "-bulk")));
+      // The series written so far stays readable.
+      CHECK(read_csv(d.path / "out/beam_dynamic_ci/coupling.csv").size() >= 3);
+    }
+  }
+}
