@@ -8,7 +8,7 @@ axis (the particle side). Used by cases/heap_repose.toml.
 import math
 import sys
 
-B, A, Z0, ANGLE, Z_TOP = 0.0125, 0.06, 0.035, 60.0, 0.33
+B, A, Z0, ANGLE, Z_TOP = 0.02, 0.06, 0.035, 60.0, 0.33
 Z1 = Z0 + (A - B) * math.tan(math.radians(ANGLE))
 
 
