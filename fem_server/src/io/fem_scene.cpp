@@ -29,6 +29,11 @@ std::array<int, 3> cell_counts(const Table& t, std::string_view key, std::size_t
     if (v[i] != std::floor(v[i])) t.fail(key, "entries must be whole numbers of cells");
     out[i] = static_cast<int>(v[i]);
   }
+  // A guard against a typo that would ask for more memory than a workstation has.
+  const double total = static_cast<double>(out[0]) * out[1] * out[2];
+  if (total > 2e7)
+    t.fail(key, "asks for " + std::to_string(static_cast<long long>(total)) +
+                    " cells; at most 2e7 are accepted");
   return out;
 }
 

@@ -167,6 +167,10 @@ density = 1000
 mesh = { box = { lo = [0, 0, 0], hi = [1, 1, 1], cells = [0, 1, 1] } }
 )"),
              Catch::Contains("'fem.mesh.box.cells'") && Catch::Contains("[1, 1e+06]"));
+  CHECK_THAT(error_of(R"([fem]
+mesh = { box = { lo = [0, 0, 0], hi = [1, 1, 1], cells = [1000, 1000, 1000] } }
+)"),
+             Catch::Contains("'fem.mesh.box.cells'") && Catch::Contains("at most 2e7"));
   CHECK_THAT(error_of(kBox + "[fem.output]\nfields = [\"stress\"]\n"),
              Catch::Contains("'fem.output.fields'") && Catch::Contains("not an output field"));
 }
