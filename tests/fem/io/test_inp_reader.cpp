@@ -4,8 +4,12 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <cctype>
 #include <filesystem>
+#include <fstream>
+#include <random>
 #include <set>
+#include <sstream>
 #include <string>
 
 #include "demfem/fem/inp_reader.hpp"
@@ -204,4 +208,59 @@ TEST_CASE("malformed .inp input names the file and line") {
   // A missing file names the file.
   CHECK_THROWS_WITH(read_inp("/nonexistent/beam.inp"),
                     Catch::Contains("/nonexistent/beam.inp: cannot open mesh file"));
+}
+
+TEST_CASE("mutated .inp files parse or fail with a file:line message, never otherwise") {
+  // 600 deterministic mutations of a valid file (delete, duplicate or replace a character,
+  // drop a line); each must either parse or throw InpError naming "beam.inp:<line>:".
+  std::ifstream in(mesh_file("beam_hex.inp"));
+  std::stringstream buf;
+  buf << in.rdbuf();
+  const std::string original = buf.str();
+  std::mt19937_64 rng(12345);
+  const std::string alphabet = "0123456789,.-eE*xn \n";
+  int failures = 0;
+  int parsed = 0;
+  for (int trial = 0; trial < 600; ++trial) {
+    std::string text = original;
+    const int edits = 1 + static_cast<int>(rng() % 3);
+    for (int e = 0; e < edits; ++e) {
+      const std::size_t pos = rng() % text.size();
+      switch (rng() % 4) {
+        case 0:
+          text.erase(pos, 1);
+          break;
+        case 1:
+          text.insert(pos, 1, text[pos]);
+          break;
+        case 2:
+          text[pos] = alphabet[rng() % alphabet.size()];
+          break;
+        case 3: {
+          const auto a = text.rfind('\n', pos);
+          const auto b = text.find('\n', pos);
+          if (a != std::string::npos && b != std::string::npos) text.erase(a, b - a);
+          break;
+        }
+      }
+    }
+    try {
+      parse_inp(text, "beam.inp");
+      ++parsed;
+    } catch (const InpError& err) {
+      const std::string what = err.what();
+      const bool located = what.rfind("beam.inp:", 0) == 0 && what.size() > 9 &&
+                           std::isdigit(static_cast<unsigned char>(what[9]));
+      if (!located) {
+        ++failures;
+        UNSCOPED_INFO("unlocated message: " << what);
+      }
+    } catch (const std::exception& err) {
+      ++failures;
+      UNSCOPED_INFO("other exception: " << err.what());
+    }
+  }
+  CHECK(failures == 0);
+  CHECK(parsed > 0);  // some mutations (in coordinates) leave a valid file
+  CHECK(parsed < 600);
 }
