@@ -113,6 +113,7 @@ DemScene read_dem_scene(const Table& dem) {
   s.file = dem.file();
   auto& st = s.settings;
   st.backend = dem.choice("backend", "cpu", {"cpu", "cuda"});
+  s.backend_where = dem.where("backend");
   st.threads = static_cast<int>(dem.integer("threads", 0, 0, 4096));
   st.dt = dem.number("dt", Range::positive());
   s.dt_where = dem.where("dt");
@@ -325,7 +326,13 @@ DemScene read_dem_scene(const Table& dem) {
 DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, std::uint64_t seed,
                double run_output_interval, std::ostream* log, bool defer_output)
     : scene_(scene), output_dir_(output_dir), run_output_interval_(run_output_interval) {
-  system_ = std::make_unique<DemSystem>(scene_.settings);
+  try {
+    system_ = std::make_unique<DemSystem>(scene_.settings);
+  } catch (const std::exception& e) {
+    // The reader checked every value; what the engine can still refuse is the backend (CUDA
+    // absent, or a feature it lacks).
+    throw SceneError(scene_.backend_where + ": " + e.what());
+  }
   for (auto& w : scene_.walls) {
     WallMesh mesh;
     switch (w.kind) {

@@ -225,6 +225,16 @@ TEST_CASE("DemRun builds walls from STL, inserts, and checks dt against Rayleigh
     DemRun run(read_dem_scene(d.root().required_table("dem")), "", 1, 0.0, &log);
     CHECK_THAT(log.str(), Catch::Contains("warning") && Catch::Contains("key 'dem.dt'"));
   }
+  SECTION("an unavailable CUDA backend names dem.backend") {
+    if (!cuda_available()) {
+      std::ofstream(dir / "scene.toml")
+          << replace(text, "threads = 1", "threads = 1\nbackend = \"cuda\"");
+      Document d = Document::load(dir / "scene.toml");
+      const DemScene s = read_dem_scene(d.root().required_table("dem"));
+      CHECK_THROWS_WITH(DemRun(s, "", 1, 0.0, nullptr),
+                        Catch::Contains("key 'dem.backend'") && Catch::Contains("cuda"));
+    }
+  }
   SECTION("a bad STL names the scene key and the STL problem") {
     std::ofstream(dir / "floor.stl") << "solid x\nfacet normal 0 0 1\n";
     std::ofstream(dir / "scene.toml") << text;

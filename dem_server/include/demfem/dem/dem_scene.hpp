@@ -53,7 +53,8 @@ struct LatticeSpec {
 struct DemScene {
   std::string file;
   DemSettings settings;
-  std::string dt_where;  ///< file:line: key 'dem.dt', for the Rayleigh check
+  std::string dt_where;       ///< file:line: key 'dem.dt', for the Rayleigh check
+  std::string backend_where;  ///< file:line: key 'dem.backend', for an unavailable backend
   std::vector<WallSpec> walls;
   std::vector<LatticeSpec> lattices;
   std::vector<InsertSpec> inserts;
