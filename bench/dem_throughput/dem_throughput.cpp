@@ -138,12 +138,15 @@ int main(int argc, char** argv) {
   std::string json;
   bool gpu = true;
   std::size_t only = 0;
+  int settle_threads = 2;
   std::vector<int> threads = {1, 2};
   app.add_option("--max-particles", max_particles, "largest bed to run")
       ->check(CLI::PositiveNumber);
   app.add_option("--settle-time", settle_time, "settling time before measuring, s")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--json", json, "write the results as JSON");
+  app.add_option("--settle-threads", settle_threads, "CPU threads for settling the bed")
+      ->check(CLI::PositiveNumber);
   app.add_option("--only", only, "run only the bed with this many particles");
   app.add_option("--threads", threads, "CPU thread counts to run (default 1 2)");
   app.add_flag("!--no-gpu", gpu, "skip the GPU even when one is present");
@@ -170,7 +173,7 @@ int main(int argc, char** argv) {
     const Bed bed = make_bed(spec);
     const auto state = dir / ("bed_" + std::to_string(spec.n) + ".h5");
     {
-      DemSystem sys(settings(2, "cpu"));
+      DemSystem sys(settings(settle_threads, "cpu"));
       for (const auto& w : bed.walls) sys.add_wall(w);
       sys.add_particles(bed.particles);
       sys.advance(static_cast<std::int64_t>(settle_time / 1e-5 + 0.5));

@@ -1349,6 +1349,7 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   // The neighbour list is rebuilt from the restored positions; the restored rows carry the
   // springs. Forces of the pairs do not depend on which non-touching pairs the list holds,
   // so the continuation is bitwise identical to an uninterrupted run.
+  if (I.row.empty()) I.row.assign(n + 1, 0);  // saved before the first step: no pairs yet
   if (I.wcount.size() != n || I.wkey.size() != kMaxWallContacts * n ||
       I.wshear.size() != 3 * kMaxWallContacts * n || I.row.size() != n + 1)
     bad("restore: inconsistent array sizes in '" + group + "' of " + f.path().string());
