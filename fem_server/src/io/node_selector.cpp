@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <map>
+#include <tuple>
 
 namespace demfem::fem {
 
@@ -213,20 +214,50 @@ std::vector<std::int32_t> face_nodes(const Mesh& mesh, const Face& face) {
 }
 
 std::vector<Face> exterior_faces(const Mesh& mesh) {
-  // A volume face is exterior when no other element has a face with the same node set.
-  std::map<std::array<std::int32_t, 4>, int> count;
-  auto key = [&](const Face& f) {
-    auto nodes = face_nodes(mesh, f);
-    std::sort(nodes.begin(), nodes.end());
-    std::array<std::int32_t, 4> k{-1, -1, -1, -1};
-    std::copy(nodes.begin(), nodes.end(), k.begin());
-    return k;
+  // A volume face is exterior when no other element has a face with the same node set:
+  // sort (sorted node list, face) pairs and keep the keys that occur once.
+  struct Keyed {
+    std::array<std::int32_t, 4> key;
+    Face face;
   };
+  std::vector<Keyed> keyed;
   for (std::size_t e = 0; e < mesh.elements.size(); ++e) {
-    const ElementType t = mesh.elements[e].type;
-    if (t == ElementType::quad4) continue;
-    for (int f = 0; f < face_count(t); ++f) ++count[key({static_cast<std::int32_t>(e), f})];
+    const Element& el = mesh.elements[e];
+    if (el.type == ElementType::quad4) continue;
+    for (int f = 0; f < face_count(el.type); ++f) {
+      const auto local = face_local_nodes(el.type, f);
+      std::array<std::int32_t, 4> k{-1, -1, -1, -1};
+      const int count = face_node_count(el.type);
+      for (int i = 0; i < count; ++i) {
+        k[static_cast<std::size_t>(i)] =
+            el.nodes[static_cast<std::size_t>(local[static_cast<std::size_t>(i)])];
+      }
+      // Insertion sort of 3-4 entries (std::sort here draws false -Warray-bounds from GCC 12).
+      for (int i = 1; i < count; ++i) {
+        for (int m = i;
+             m > 0 && k[static_cast<std::size_t>(m - 1)] > k[static_cast<std::size_t>(m)]; --m) {
+          std::swap(k[static_cast<std::size_t>(m - 1)], k[static_cast<std::size_t>(m)]);
+        }
+      }
+      keyed.push_back({k, {static_cast<std::int32_t>(e), f}});
+    }
   }
+  std::sort(keyed.begin(), keyed.end(), [](const Keyed& a, const Keyed& b) {
+    return a.key != b.key
+               ? a.key < b.key
+               : std::tie(a.face.element, a.face.face) < std::tie(b.face.element, b.face.face);
+  });
+  std::vector<char> exterior(mesh.elements.size() * 6, 0);
+  for (std::size_t i = 0; i < keyed.size();) {
+    std::size_t j = i + 1;
+    while (j < keyed.size() && keyed[j].key == keyed[i].key) ++j;
+    if (j == i + 1) {
+      exterior[static_cast<std::size_t>(keyed[i].face.element) * 6 +
+               static_cast<std::size_t>(keyed[i].face.face)] = 1;
+    }
+    i = j;
+  }
+  // In element and face order, so the result does not depend on the sort.
   std::vector<Face> out;
   for (std::size_t e = 0; e < mesh.elements.size(); ++e) {
     const ElementType t = mesh.elements[e].type;
@@ -235,8 +266,8 @@ std::vector<Face> exterior_faces(const Mesh& mesh) {
       continue;
     }
     for (int f = 0; f < face_count(t); ++f) {
-      const Face face{static_cast<std::int32_t>(e), f};
-      if (count[key(face)] == 1) out.push_back(face);
+      if (exterior[e * 6 + static_cast<std::size_t>(f)])
+        out.push_back({static_cast<std::int32_t>(e), f});
     }
   }
   return out;
