@@ -176,15 +176,17 @@ WallMesh weld(const std::string& file, const RawTriangles& raw, double tol) {
   const double cell = tol > 0 ? tol : 1.0;
   struct KeyHash {
     std::size_t operator()(const std::array<std::int64_t, 3>& k) const {
-      return std::size_t(k[0] * 73856093) ^ std::size_t(k[1] * 19349663) ^
-             std::size_t(k[2] * 83492791);
+      // Unsigned arithmetic: wraps instead of overflowing for tiny tolerances.
+      return std::size_t(std::uint64_t(k[0]) * 73856093u) ^
+             std::size_t(std::uint64_t(k[1]) * 19349663u) ^
+             std::size_t(std::uint64_t(k[2]) * 83492791u);
     }
   };
   std::unordered_map<std::array<std::int64_t, 3>, std::vector<std::int32_t>, KeyHash> grid;
   auto key_of = [&](const Vec3& p) {
-    return std::array<std::int64_t, 3>{std::int64_t(std::floor(p[0] / cell)),
-                                       std::int64_t(std::floor(p[1] / cell)),
-                                       std::int64_t(std::floor(p[2] / cell))};
+    // Clamped so that absurd coordinates or tolerances cannot overflow the conversion.
+    auto k = [&](double x) { return std::int64_t(std::clamp(std::floor(x / cell), -4e18, 4e18)); };
+    return std::array<std::int64_t, 3>{k(p[0]), k(p[1]), k(p[2])};
   };
   auto find_or_add = [&](const Vec3& p) -> std::int32_t {
     const auto k = key_of(p);
