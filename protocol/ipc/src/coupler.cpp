@@ -118,8 +118,7 @@ struct CouplerSession::Impl {
   shm::Waiter waiter(Role role) {
     shm::Waiter w;
     w.policy = options.wait;
-    w.slice = std::clamp(options.peer_timeout / 10, std::chrono::milliseconds(5),
-                         std::chrono::milliseconds(100));
+    w.slice = shm::check_slice(options.peer_timeout);
     w.check = [this, role] { check_peer(role); };
     return w;
   }
@@ -179,6 +178,7 @@ struct CouplerSession::Impl {
 CouplerSession::CouplerSession(CouplerOptions options) : impl_(std::make_unique<Impl>()) {
   Impl& s = *impl_;
   s.options = options;
+  shm::check_slice(options.peer_timeout);  // validates it before anything is created
   install_cleanup(options.unlink_on_signal);
   remove_stale_segments();
   // A collision of 64-bit random ids is practically impossible; create_only would refuse it.
@@ -233,7 +233,8 @@ void CouplerSession::wait_hello(Role role, std::optional<pid_t> pid) {
   s.expected[r] = true;
   s.seg->expected[r].store(1);
   s.known_pid[r] = pid.value_or(0);
-  s.watches[r] = shm::PeerWatch(&s.seg->solvers[r], s.known_pid[r], s.options.peer_timeout);
+  s.watches[r] =
+      shm::PeerWatch(&s.seg->solvers[r], s.known_pid[r], shm::stale_after(s.options.peer_timeout));
   const auto deadline = std::chrono::steady_clock::now() + s.options.hello_timeout;
   shm::Waiter w = s.waiter(role);
   const bool watchable = s.known_pid[r] > 0;
@@ -275,7 +276,8 @@ void CouplerSession::wait_hello(Role role, std::optional<pid_t> pid) {
   s.hello[r] = true;
   // From now on watch the pid the solver announced as well.
   if (s.known_pid[r] == 0) s.known_pid[r] = hello.pid;
-  s.watches[r] = shm::PeerWatch(&s.seg->solvers[r], s.known_pid[r], s.options.peer_timeout);
+  s.watches[r] =
+      shm::PeerWatch(&s.seg->solvers[r], s.known_pid[r], shm::stale_after(s.options.peer_timeout));
 }
 
 const PeerInfo& CouplerSession::peer(Role role) const {

@@ -219,6 +219,19 @@ bool process_alive(pid_t pid) {
   return state != 'Z' && state != 'X';
 }
 
+std::chrono::milliseconds check_slice(std::chrono::milliseconds peer_timeout) {
+  if (peer_timeout < kMinPeerTimeout)
+    throw ProtocolError("peer_timeout " + std::to_string(peer_timeout.count()) +
+                        " ms is too short; accepted: at least " +
+                        std::to_string(kMinPeerTimeout.count()) + " ms");
+  return std::clamp(peer_timeout / 10, std::chrono::milliseconds(5),
+                    std::chrono::milliseconds(100));
+}
+
+std::chrono::milliseconds stale_after(std::chrono::milliseconds peer_timeout) {
+  return peer_timeout - check_slice(peer_timeout);
+}
+
 PeerWatch::PeerWatch(const ProcessSlot* slot, pid_t known_pid, std::chrono::milliseconds timeout)
     : slot_(slot), known_pid_(known_pid), timeout_(timeout) {}
 

@@ -101,8 +101,7 @@ class Server {
   shm::Waiter waiter() {
     shm::Waiter w;
     w.policy = options_.wait;
-    w.slice = std::clamp(options_.peer_timeout / 10, std::chrono::milliseconds(5),
-                         std::chrono::milliseconds(100));
+    w.slice = shm::check_slice(options_.peer_timeout);
     w.check = [this] { check(); };
     return w;
   }
@@ -167,7 +166,8 @@ class Server {
                           std::to_string(fixed->layout_size) + ", expected " +
                           std::to_string(sizeof(shm::Segment)));
     seg_ = static_cast<shm::Segment*>(segment_.data());
-    coupler_watch_ = shm::PeerWatch(&seg_->coupler, fixed->owner_pid.load(), options_.peer_timeout);
+    coupler_watch_ = shm::PeerWatch(&seg_->coupler, fixed->owner_pid.load(),
+                                    shm::stale_after(options_.peer_timeout));
     if (const std::string why = coupler_watch_.check(); !why.empty()) throw CouplerGone{why};
     shm::ProcessSlot& slot = seg_->solvers[r()];
     std::int32_t expected = 0;

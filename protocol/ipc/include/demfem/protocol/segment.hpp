@@ -122,6 +122,16 @@ struct ProcessSlot {
   std::atomic<std::uint64_t> heartbeat;  ///< advanced by the process every kHeartbeatPeriod
 };
 inline constexpr std::chrono::milliseconds kHeartbeatPeriod{50};
+/// @brief Smallest accepted peer_timeout: several heartbeat periods, so that a busy machine
+/// does not make a live peer look dead.
+inline constexpr std::chrono::milliseconds kMinPeerTimeout{200};
+
+/// @brief How often a waiting process checks its peer: peer_timeout / 10 in [5, 100] ms.
+/// Throws ProtocolError if peer_timeout is below kMinPeerTimeout.
+std::chrono::milliseconds check_slice(std::chrono::milliseconds peer_timeout);
+/// @brief Heartbeat age after which a peer is dead: peer_timeout minus one check slice, so
+/// that a stale peer is reported within peer_timeout.
+std::chrono::milliseconds stale_after(std::chrono::milliseconds peer_timeout);
 
 struct Channel {
   Ring to_solver;
@@ -207,7 +217,8 @@ bool process_alive(pid_t pid);
 class PeerWatch {
  public:
   PeerWatch() = default;
-  PeerWatch(const ProcessSlot* slot, pid_t known_pid, std::chrono::milliseconds timeout);
+  /// `stale` is the heartbeat age after which the peer counts as dead (see stale_after()).
+  PeerWatch(const ProcessSlot* slot, pid_t known_pid, std::chrono::milliseconds stale);
   std::string check();
 
  private:
