@@ -31,6 +31,7 @@
 #include "demfem/dem/physics/geometry.hpp"
 #include "demfem/dem/physics/integrator.hpp"
 #include "demfem/dem/physics/pair.hpp"
+#include "demfem/dem/physics/wall_contact.hpp"
 #include "demfem/io/h5_file.hpp"
 
 namespace demfem::dem {
@@ -39,8 +40,7 @@ using phys::Vec3;
 
 namespace {
 
-constexpr int kMaxWallContacts = 8;  // per particle; a sphere rarely touches more features
-constexpr std::int64_t kFeatureShift = 60;
+constexpr int kMaxWallContacts = phys::kMaxWallContacts;
 
 [[noreturn]] void bad(const std::string& what) {
   throw std::invalid_argument("DemSystem: " + what);
@@ -581,121 +581,10 @@ struct DemSystem::Impl {
     max_ov = mo;
   }
 
-  // Wall contacts of particle i; adds force and torque; keeps the per-particle slots.
-  template <bool Friction>
-  void wall_contacts(std::size_t i, double& fx, double& fy, double& fz, double& qx, double& qy,
-                     double& qz, double& mo, double& fmo) {
-    struct Cand {
-      phys::ClosestPoint cp;
-      std::int32_t tri;
-      std::int64_t key;
-      double d2;
-    };
-    if (prow[i] == prow[i + 1] && wcount[i] == 0) return;  // no wall nearby
-    Cand cand[16];
-    int nc = 0;
-    const Vec3 p{st.px[i], st.py[i], st.pz[i]};
-    const double ri = st.radius[i];
-    const double* v = vpos.data();
-    for (std::int64_t k = prow[i]; k < prow[i + 1]; ++k) {
-      const std::int32_t tri = ptri[k];
-      const std::int32_t* tv = tri_v.data() + 3 * tri;
-      const auto cp =
-          phys::closest_point_triangle(p, Vec3{v[3 * tv[0]], v[3 * tv[0] + 1], v[3 * tv[0] + 2]},
-                                       Vec3{v[3 * tv[1]], v[3 * tv[1] + 1], v[3 * tv[1] + 2]},
-                                       Vec3{v[3 * tv[2]], v[3 * tv[2] + 1], v[3 * tv[2] + 2]});
-      const double d2 = phys::norm2(p - cp.point);
-      if (d2 >= ri * ri || nc == 16) continue;
-      std::int64_t key;
-      if (cp.feature == phys::kFace)
-        key = tri;
-      else if (cp.feature <= phys::kEdgeCA)
-        key = (std::int64_t{1} << kFeatureShift) | tri_e[3 * tri + cp.feature - 1];
-      else
-        key = (std::int64_t{2} << kFeatureShift) | tv[cp.feature - phys::kVertexA];
-      cand[nc++] = {cp, tri, key, d2};
-    }
-    // Count each contact once: an edge contact is dropped when a triangle with that edge
-    // already touches with its face (or the edge was counted); a vertex contact when a
-    // triangle with that vertex touches with its face or an edge with that vertex touches.
-    bool keep[16];
-    for (int a = 0; a < nc; ++a) {
-      keep[a] = true;
-      const std::int64_t type = cand[a].key >> kFeatureShift;
-      if (type == 0) continue;
-      const std::int64_t fid = cand[a].key & ((std::int64_t{1} << kFeatureShift) - 1);
-      for (int b = 0; b < nc && keep[a]; ++b) {
-        if (b == a) continue;
-        const std::int64_t tb = cand[b].key >> kFeatureShift;
-        if (cand[b].key == cand[a].key && b < a) keep[a] = false;
-        if (type == 1 && tb == 0) {
-          for (int e = 0; e < 3; ++e)
-            if (tri_e[3 * cand[b].tri + e] == fid) keep[a] = false;
-        } else if (type == 2 && tb < 2) {
-          if (tb == 0) {
-            for (int e = 0; e < 3; ++e)
-              if (tri_v[3 * cand[b].tri + e] == fid) keep[a] = false;
-          } else {
-            const int f = cand[b].cp.feature - 1;
-            const std::int32_t* tv = tri_v.data() + 3 * cand[b].tri;
-            if (tv[f] == fid || tv[(f + 1) % 3] == fid) keep[a] = false;
-          }
-        }
-      }
-    }
-    // new slots (history from the old slots of the same feature)
-    std::int64_t* key = wkey.data() + kMaxWallContacts * i;
-    double* shr = wshear.data() + 3 * kMaxWallContacts * i;
-    std::int64_t okey[kMaxWallContacts];
-    double osh[3 * kMaxWallContacts];
-    const int oc = wcount[i];
-    if constexpr (Friction) {
-      std::memcpy(okey, key, sizeof(okey));
-      std::memcpy(osh, shr, sizeof(osh));
-    }
-    int cnt = 0;
-    const std::size_t mi = static_cast<std::size_t>(st.material[i]);
-    for (int a = 0; a < nc && cnt < kMaxWallContacts; ++a) {
-      if (!keep[a]) continue;
-      const Cand& c = cand[a];
-      const std::int32_t tri = c.tri;
-      const std::int32_t* tv = tri_v.data() + 3 * tri;
-      const double* vv = vvel.data();
-      // wall velocity at the contact point: barycentric interpolation of the vertex
-      // velocities (exact for rigid motion and for the linear flexible-triangle field)
-      const Vec3 vw = c.cp.u * Vec3{vv[3 * tv[0]], vv[3 * tv[0] + 1], vv[3 * tv[0] + 2]} +
-                      c.cp.v * Vec3{vv[3 * tv[1]], vv[3 * tv[1] + 1], vv[3 * tv[1] + 2]} +
-                      c.cp.w * Vec3{vv[3 * tv[2]], vv[3 * tv[2] + 1], vv[3 * tv[2] + 2]};
-      Vec3 sh{0, 0, 0};
-      if constexpr (Friction)
-        for (int o = 0; o < oc; ++o)
-          if (okey[o] == c.key) sh = Vec3{osh[3 * o], osh[3 * o + 1], osh[3 * o + 2]};
-      phys::ContactResult r;
-      double delta = 0.0;
-      const phys::ParticleView view{st.px.data(), st.py.data(),     st.pz.data(),  st.vx.data(),
-                                    st.vy.data(), st.vz.data(),     st.wx.data(),  st.wy.data(),
-                                    st.wz.data(), st.radius.data(), st.mass.data()};
-      if (!phys::sphere_wall<Friction>(view, static_cast<int>(i), c.cp.point, vw,
-                                       pc[mi * nmat + tri_mat[tri]], s.dt, sh, r, delta))
-        continue;
-      fx += r.force.x, fy += r.force.y, fz += r.force.z;
-      if constexpr (Friction) {
-        qx += ri * r.torque.x + r.roll.x;
-        qy += ri * r.torque.y + r.roll.y;
-        qz += ri * r.torque.z + r.roll.z;
-        shr[3 * cnt] = sh.x, shr[3 * cnt + 1] = sh.y, shr[3 * cnt + 2] = sh.z;
-      }
-      key[cnt] = c.key;
-      const std::size_t slot = kMaxWallContacts * i + cnt;
-      wf[3 * slot] = r.force.x, wf[3 * slot + 1] = r.force.y, wf[3 * slot + 2] = r.force.z;
-      wp[3 * slot] = c.cp.point.x, wp[3 * slot + 1] = c.cp.point.y, wp[3 * slot + 2] = c.cp.point.z;
-      wb[3 * slot] = c.cp.u, wb[3 * slot + 1] = c.cp.v, wb[3 * slot + 2] = c.cp.w;
-      wtri[slot] = tri;
-      mo = std::max(mo, delta);
-      if (tri_wall[tri] < 0) fmo = std::max(fmo, delta);
-      ++cnt;
-    }
-    wcount[i] = static_cast<std::uint8_t>(cnt);
+  phys::WallView wall_view() {
+    return {vpos.data(),     vvel.data(), tri_v.data(), tri_e.data(), tri_mat.data(),
+            tri_wall.data(), prow.data(), ptri.data(),  wkey.data(),  wshear.data(),
+            wf.data(),       wp.data(),   wb.data(),    wtri.data(),  wcount.data()};
   }
 
   template <bool Friction>
@@ -704,6 +593,10 @@ struct DemSystem::Impl {
     const double h = 0.5 * s.dt;
     const double g[3] = {s.gravity[0], s.gravity[1], s.gravity[2]};
     const bool walls_on = !tri_v.empty();
+    const phys::WallView wv = wall_view();
+    const phys::ParticleView view{st.px.data(), st.py.data(),     st.pz.data(),  st.vx.data(),
+                                  st.vy.data(), st.vz.data(),     st.wx.data(),  st.wy.data(),
+                                  st.wz.data(), st.radius.data(), st.mass.data()};
     double mo = max_ov, fmo = 0.0;
 #pragma omp parallel for num_threads(nt()) schedule(static) reduction(max : mo, fmo)
     for (std::int64_t i = 0; i < sn; ++i) {
@@ -719,8 +612,13 @@ struct DemSystem::Impl {
           if (rolling) qx -= pr[3 * p], qy -= pr[3 * p + 1], qz -= pr[3 * p + 2];
         }
       }
-      if (walls_on)
-        wall_contacts<Friction>(static_cast<std::size_t>(i), fx, fy, fz, qx, qy, qz, mo, fmo);
+      if (walls_on) {
+        Vec3 f{fx, fy, fz}, q{qx, qy, qz};
+        phys::wall_contacts<Friction>(view, wv, i, pc.data() + st.material[i] * nmat, s.dt, f, q,
+                                      mo, fmo);
+        fx = f.x, fy = f.y, fz = f.z;
+        qx = q.x, qy = q.y, qz = q.z;
+      }
       const double m = st.mass[i];
       fx += m * g[0], fy += m * g[1], fz += m * g[2];
       st.fx[i] = fx, st.fy[i] = fy, st.fz[i] = fz;

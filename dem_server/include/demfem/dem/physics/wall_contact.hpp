@@ -1,0 +1,149 @@
+#pragma once
+// Contacts of one sphere with the triangles of all walls (rigid and flexible), shared by
+// both backends. Each contact is counted once across neighbouring triangles:
+//   * a face contact always counts;
+//   * an edge contact counts unless a triangle having that edge touches with its face, and
+//     once per edge id;
+//   * a vertex contact counts unless a triangle with that vertex touches with its face or an
+//     edge with that vertex touches, and once per vertex id.
+// The tangential history is kept in up to kMaxWallContacts slots per particle keyed by
+// (feature type, feature id); a new contact takes the spring of the slot with its key.
+
+#include <cstdint>
+
+#include "demfem/dem/physics/geometry.hpp"
+#include "demfem/dem/physics/pair.hpp"
+
+namespace demfem::dem::phys {
+
+constexpr int kMaxWallContacts = 8;     // slots per particle; a sphere rarely touches more
+constexpr int kMaxWallCandidates = 16;  // touching triangles examined per particle
+constexpr int kFeatureShift = 60;       // key = type << 60 | id (0 face, 1 edge, 2 vertex)
+
+/// Triangle store and per-particle slots (host or device pointers).
+struct WallView {
+  const double* vpos;            ///< 3 per vertex, current positions
+  const double* vvel;            ///< 3 per vertex, current velocities
+  const std::int32_t* tri_v;     ///< 3 vertex ids per triangle
+  const std::int32_t* tri_e;     ///< 3 unique edge ids per triangle (ab, bc, ca)
+  const std::int32_t* tri_mat;   ///< wall material per triangle
+  const std::int32_t* tri_wall;  ///< wall index per triangle, -1 = flexible mesh
+  const std::int64_t* prow;      ///< candidate triangles of particle i: ptri[prow[i]..prow[i+1])
+  const std::int32_t* ptri;
+  std::int64_t* wkey;    ///< kMaxWallContacts per particle
+  double* wshear;        ///< 3 per slot
+  double* wf;            ///< 3 per slot: force on the particle
+  double* wp;            ///< 3 per slot: contact point
+  double* wb;            ///< 3 per slot: barycentric weights of the contact point
+  std::int32_t* wtri;    ///< triangle per slot
+  std::uint8_t* wcount;  ///< used slots per particle
+};
+
+/// Adds the wall contact forces and torques of particle i to f and q; fills its slots;
+/// raises mo (largest overlap) and fmo (largest overlap with the flexible mesh).
+template <bool Friction>
+DEMFEM_HD void wall_contacts(const ParticleView& p, const WallView& w, std::int64_t i,
+                             const PairConstants* pc_row, double dt, Vec3& f, Vec3& q, double& mo,
+                             double& fmo) {
+  if (w.prow[i] == w.prow[i + 1] && w.wcount[i] == 0) return;  // no wall nearby
+  ClosestPoint cp[kMaxWallCandidates];
+  std::int32_t ctri[kMaxWallCandidates];
+  std::int64_t ckey[kMaxWallCandidates];
+  int nc = 0;
+  const Vec3 x{p.px[i], p.py[i], p.pz[i]};
+  const double ri = p.radius[i];
+  const double* v = w.vpos;
+  for (std::int64_t k = w.prow[i]; k < w.prow[i + 1]; ++k) {
+    const std::int32_t tri = w.ptri[k];
+    const std::int32_t* tv = w.tri_v + 3 * tri;
+    const ClosestPoint c =
+        closest_point_triangle(x, Vec3{v[3 * tv[0]], v[3 * tv[0] + 1], v[3 * tv[0] + 2]},
+                               Vec3{v[3 * tv[1]], v[3 * tv[1] + 1], v[3 * tv[1] + 2]},
+                               Vec3{v[3 * tv[2]], v[3 * tv[2] + 1], v[3 * tv[2] + 2]});
+    if (norm2(x - c.point) >= ri * ri || nc == kMaxWallCandidates) continue;
+    std::int64_t key;
+    if (c.feature == kFace)
+      key = tri;
+    else if (c.feature <= kEdgeCA)
+      key = (std::int64_t{1} << kFeatureShift) | w.tri_e[3 * tri + c.feature - 1];
+    else
+      key = (std::int64_t{2} << kFeatureShift) | tv[c.feature - kVertexA];
+    cp[nc] = c;
+    ctri[nc] = tri;
+    ckey[nc] = key;
+    ++nc;
+  }
+  bool keep[kMaxWallCandidates];
+  for (int a = 0; a < nc; ++a) {
+    keep[a] = true;
+    const std::int64_t type = ckey[a] >> kFeatureShift;
+    if (type == 0) continue;
+    const std::int64_t fid = ckey[a] & ((std::int64_t{1} << kFeatureShift) - 1);
+    for (int b = 0; b < nc && keep[a]; ++b) {
+      if (b == a) continue;
+      const std::int64_t tb = ckey[b] >> kFeatureShift;
+      if (ckey[b] == ckey[a] && b < a) keep[a] = false;
+      if (type == 1 && tb == 0) {
+        for (int e = 0; e < 3; ++e)
+          if (w.tri_e[3 * ctri[b] + e] == fid) keep[a] = false;
+      } else if (type == 2 && tb == 0) {
+        for (int e = 0; e < 3; ++e)
+          if (w.tri_v[3 * ctri[b] + e] == fid) keep[a] = false;
+      } else if (type == 2 && tb == 1) {
+        const int fe = cp[b].feature - 1;
+        const std::int32_t* tv = w.tri_v + 3 * ctri[b];
+        if (tv[fe] == fid || tv[(fe + 1) % 3] == fid) keep[a] = false;
+      }
+    }
+  }
+  std::int64_t* key = w.wkey + kMaxWallContacts * i;
+  double* shr = w.wshear + 3 * kMaxWallContacts * i;
+  std::int64_t okey[kMaxWallContacts];
+  double osh[3 * kMaxWallContacts];
+  const int oc = w.wcount[i];
+  if constexpr (Friction) {
+    for (int o = 0; o < oc; ++o) {
+      okey[o] = key[o];
+      osh[3 * o] = shr[3 * o], osh[3 * o + 1] = shr[3 * o + 1], osh[3 * o + 2] = shr[3 * o + 2];
+    }
+  }
+  int cnt = 0;
+  for (int a = 0; a < nc && cnt < kMaxWallContacts; ++a) {
+    if (!keep[a]) continue;
+    const std::int32_t tri = ctri[a];
+    const std::int32_t* tv = w.tri_v + 3 * tri;
+    const double* vv = w.vvel;
+    // wall velocity at the contact point: barycentric interpolation of the vertex velocities
+    // (exact for rigid motion and for the linear velocity field of a flexible triangle)
+    const Vec3 vw = cp[a].u * Vec3{vv[3 * tv[0]], vv[3 * tv[0] + 1], vv[3 * tv[0] + 2]} +
+                    cp[a].v * Vec3{vv[3 * tv[1]], vv[3 * tv[1] + 1], vv[3 * tv[1] + 2]} +
+                    cp[a].w * Vec3{vv[3 * tv[2]], vv[3 * tv[2] + 1], vv[3 * tv[2] + 2]};
+    Vec3 sh{0, 0, 0};
+    if constexpr (Friction)
+      for (int o = 0; o < oc; ++o)
+        if (okey[o] == ckey[a]) sh = Vec3{osh[3 * o], osh[3 * o + 1], osh[3 * o + 2]};
+    ContactResult r;
+    double delta = 0.0;
+    if (!sphere_wall<Friction>(p, static_cast<int>(i), cp[a].point, vw, pc_row[w.tri_mat[tri]], dt,
+                               sh, r, delta))
+      continue;
+    f = f + r.force;
+    if constexpr (Friction) {
+      q = q + ri * r.torque + r.roll;
+      shr[3 * cnt] = sh.x, shr[3 * cnt + 1] = sh.y, shr[3 * cnt + 2] = sh.z;
+    }
+    key[cnt] = ckey[a];
+    const std::int64_t slot = kMaxWallContacts * i + cnt;
+    w.wf[3 * slot] = r.force.x, w.wf[3 * slot + 1] = r.force.y, w.wf[3 * slot + 2] = r.force.z;
+    w.wp[3 * slot] = cp[a].point.x, w.wp[3 * slot + 1] = cp[a].point.y,
+             w.wp[3 * slot + 2] = cp[a].point.z;
+    w.wb[3 * slot] = cp[a].u, w.wb[3 * slot + 1] = cp[a].v, w.wb[3 * slot + 2] = cp[a].w;
+    w.wtri[slot] = tri;
+    mo = mo > delta ? mo : delta;
+    if (w.tri_wall[tri] < 0) fmo = fmo > delta ? fmo : delta;
+    ++cnt;
+  }
+  w.wcount[i] = static_cast<std::uint8_t>(cnt);
+}
+
+}  // namespace demfem::dem::phys
