@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <ostream>
 #include <sstream>
@@ -240,6 +241,12 @@ DemScene read_dem_scene(const Table& dem) {
     if (has_mass) q.mass = r.number("mass", Range::positive());
     q.velocity = r.vec3("velocity", std::array<double, 3>{0, 0, 0});
     q.max_attempts = r.integer("max_attempts", 2000, 1, INT64_MAX);
+    is.every = r.number("every", 0.0, Range::non_negative());
+    if (is.every > 0) {
+      is.until = r.number("until", Range::non_negative());
+    } else if (r.has("until")) {
+      r.fail("until", "needs 'every' > 0 (a repeated insertion)");
+    }
     if (r.has("seed")) {
       q.seed = static_cast<std::uint64_t>(r.integer("seed", 0, INT64_MAX));
       is.has_seed = true;
@@ -366,15 +373,9 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
       throw SceneError(l.where + ": " + e.what());
     }
   }
-  for (std::size_t i = 0; i < scene_.inserts.size(); ++i) {
-    RandomInsertion q = scene_.inserts[i].request;
-    if (!scene_.inserts[i].has_seed) q.seed = seed + i;
-    try {
-      add(insert_random(q, &system_->particles()));
-    } catch (const InsertionError& e) {
-      throw SceneError(scene_.inserts[i].where + ": " + e.what());
-    }
-  }
+  seed_ = seed;
+  repeats_.assign(scene_.inserts.size(), 0);
+  pour();  // every insertion once at t = 0
   if (system_->particle_count() > 0) {
     const double tr = system_->rayleigh_time_step();
     const double dt = scene_.settings.dt;
@@ -426,6 +427,46 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
 
 DemRun::~DemRun() = default;
 
+double DemRun::next_pour_time() const {
+  double t = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < scene_.inserts.size(); ++i) {
+    const auto& in = scene_.inserts[i];
+    const double next = in.every > 0 ? double(repeats_[i]) * in.every : 0.0;
+    if (repeats_[i] == 0 || (in.every > 0 && next <= in.until + 1e-9 * in.every)) {
+      t = std::min(t, next);
+    }
+  }
+  return t;
+}
+
+void DemRun::pour() {
+  const double eps = 0.1 * scene_.settings.dt;
+  const double now = system_->time();
+  for (std::size_t i = 0; i < scene_.inserts.size(); ++i) {
+    const auto& in = scene_.inserts[i];
+    for (;;) {
+      const std::int64_t k = repeats_[i];
+      const double when = in.every > 0 ? double(k) * in.every : 0.0;
+      const bool due = k == 0 || (in.every > 0 && when <= in.until + 1e-9 * in.every);
+      if (!due || when > now + eps) break;
+      RandomInsertion q = in.request;
+      const std::uint64_t base = in.has_seed ? q.seed : seed_ + i;
+      // Repetition k draws from its own stream: 1000003 (prime) apart, so it never meets the
+      // stream of another entry's first insertion (entries are 1 apart).
+      q.seed = base + std::uint64_t(k) * 1000003u;
+      try {
+        add(insert_random(q, &system_->particles()));
+      } catch (const InsertionError& e) {
+        std::ostringstream m;
+        m << in.where << ": " << e.what();
+        if (in.every > 0) m << " (repetition " << k << " at t = " << now << " s)";
+        throw SceneError(m.str());
+      }
+      ++repeats_[i];
+    }
+  }
+}
+
 void DemRun::start_output(bool resume) {
   sensors_ = std::make_unique<SensorSet>(scene_.sensors, output_dir_, *system_, !resume);
   if (!output_dir_.empty() && scene_.output_particles) {
@@ -454,6 +495,7 @@ void DemRun::finish() {
 }
 
 void DemRun::after_advance() {
+  pour();
   if (!sensors_) {
     start_output(false);  // samples the current state itself
     return;
@@ -479,7 +521,7 @@ void DemRun::run_to(double end_time, const std::function<void(double)>& progress
   if (!sensors_) start_output(false);
   const double dt = scene_.settings.dt;
   while (system_->time() + 0.5 * dt < end_time) {
-    double target = std::min(end_time, sensors_->next_time());
+    double target = std::min({end_time, sensors_->next_time(), next_pour_time()});
     if (output_ && output_interval_ > 0) target = std::min(target, next_output_);
     auto steps = static_cast<std::int64_t>(std::llround((target - system_->time()) / dt));
     steps = std::max<std::int64_t>(steps, 1);
@@ -504,6 +546,9 @@ void DemRun::save(io::H5File& file, const std::string& group) const {
   file.set_attribute(g, "next_id", next_id_);
   file.set_attribute(g, "snapshots", static_cast<std::int64_t>(output_ ? output_->count() : 0));
   file.set_attribute(g, "next_output", next_output_);
+  std::vector<std::int64_t> reps = repeats_;
+  reps.push_back(0);  // never empty
+  file.write(g + "/insert_repeats", std::span<const std::int64_t>(reps));
 }
 
 void DemRun::restore(const io::H5File& file, const std::string& group) {
@@ -526,6 +571,14 @@ void DemRun::restore(const io::H5File& file, const std::string& group) {
   sensors_->resume(std::vector<std::size_t>(r.begin(), r.end()), system_->time());
   if (output_) output_->resume(static_cast<std::size_t>(file.attribute_int64(g, "snapshots")));
   next_output_ = file.attribute_double(g, "next_output");
+  auto reps = file.read_int64(g + "/insert_repeats");
+  reps.pop_back();
+  if (reps.size() != repeats_.size()) {
+    throw std::runtime_error(file.path().string() + ": " + g + " has " +
+                             std::to_string(reps.size()) + " insertion counters, the scene " +
+                             std::to_string(repeats_.size()));
+  }
+  repeats_ = reps;
 }
 
 }  // namespace demfem::dem

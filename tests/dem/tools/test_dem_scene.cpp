@@ -185,6 +185,25 @@ TEST_CASE("[dem] mistakes are errors naming file, line and key", "[scene]") {
                              "particles but has no density"));
 }
 
+TEST_CASE("a repeated insertion pours batches at its times", "[scene]") {
+  TempDir dir;
+  std::string text =
+      replace(kBase, "count = 200\nseed = 3", "count = 10\nseed = 3\nevery = 0.001\nuntil = 0.004");
+  const DemScene s = parse(text);
+  CHECK(s.inserts[0].every == 0.001);
+  DemRun run(s, "", 1, 0.0, nullptr);
+  CHECK(run.system().particle_count() == 10);
+  run.run_to(0.0025);
+  CHECK(run.system().particle_count() == 30);  // t = 0, 1, 2 ms
+  run.run_to(0.006);
+  CHECK(run.system().particle_count() == 50);  // and 3, 4 ms; none after 'until'
+  // Ids stay unique and increasing.
+  const auto ids = run.ids();
+  for (std::size_t i = 1; i < ids.size(); ++i) CHECK(ids[i] > ids[i - 1]);
+  CHECK_THAT(error_of(replace(kBase, "count = 200", "count = 200\nuntil = 1.0")),
+             Catch::Contains("key 'dem.insert[0].until': needs 'every'"));
+}
+
 TEST_CASE("DemRun builds walls from STL, inserts, and checks dt against Rayleigh", "[scene]") {
   TempDir dir;
   write_stl_binary(dir / "floor.stl", make_plane_mesh({0.02, 0.02, 0.0}, {0, 0, 1}, 0.2));

@@ -40,6 +40,8 @@ struct WallSpec {
 struct InsertSpec {
   RandomInsertion request;
   bool has_seed = false;  ///< false: seed = run seed + entry index
+  double every = 0.0;     ///< > 0: repeated every this many seconds (a pour), s
+  double until = 0.0;     ///< last time of a repetition, s
   std::string where;
 };
 
@@ -128,6 +130,12 @@ class DemRun {
 
   std::filesystem::path output_dir_;
   double run_output_interval_ = 0.0;
+  std::uint64_t seed_ = 1;
+  std::vector<std::int64_t> repeats_;  ///< insertions done per [[dem.insert]] entry
+
+  /// Repeated insertions due at the current time.
+  void pour();
+  double next_pour_time() const;
 };
 
 }  // namespace demfem::dem
