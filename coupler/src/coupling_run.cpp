@@ -1,13 +1,14 @@
 #include "demfem/coupling/coupling_run.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <cmath>
+#include <fstream>
 #include <optional>
 #include <sstream>
 
 #include "demfem/io/atomic_file.hpp"
-#include "demfem/io/csv_writer.hpp"
 #include "demfem/io/h5_file.hpp"
 
 namespace demfem::coupling {
@@ -79,6 +80,39 @@ void copy(std::span<const double> from, std::span<double> to) {
   std::copy(from.begin(), from.end(), to.begin());
 }
 
+// coupling.csv, one row per coupling step. Numbers are written with std::to_chars in their
+// shortest form that reads back as the same double (exact, like CsvWriter's %.17g, but about
+// five times faster: at one row per step, formatting was most of the coupler's own time).
+class SeriesFile {
+ public:
+  SeriesFile(const std::filesystem::path& path, const std::vector<std::string>& columns)
+      : path_(path), out_(path, std::ios::trunc) {
+    if (!out_) throw std::runtime_error("cannot write " + path.string());
+    for (std::size_t k = 0; k < columns.size(); ++k) out_ << (k ? "," : "") << columns[k];
+    out_ << '\n';
+  }
+  void row(std::span<const double> values) {
+    char text[40];
+    line_.clear();
+    for (std::size_t k = 0; k < values.size(); ++k) {
+      if (k) line_ += ',';
+      const auto r = std::to_chars(text, text + sizeof(text), values[k]);
+      line_.append(text, r.ptr);
+    }
+    line_ += '\n';
+    out_ << line_;
+  }
+  void flush() {
+    out_.flush();
+    if (!out_) throw std::runtime_error("cannot write " + path_.string());
+  }
+
+ private:
+  std::filesystem::path path_;
+  std::ofstream out_;
+  std::string line_;
+};
+
 }  // namespace
 
 BlowUp::BlowUp(std::int64_t step, double time, std::string quantity, double value, double bound,
@@ -112,7 +146,7 @@ CouplingRun::CouplingRun(SolverLink& link, const CouplingSettings& settings,
 RunSummary CouplingRun::run() {
   const CouplingSettings& s = settings_;
   std::filesystem::create_directories(output_dir_);
-  io::CsvWriter csv(output_dir_ / "coupling.csv", kColumns);
+  SeriesFile csv(output_dir_ / "coupling.csv", kColumns);
   std::vector<std::vector<double>> series(kColumns.size());
 
   RunSummary sum;
@@ -131,10 +165,17 @@ RunSummary CouplingRun::run() {
   double work_dem = 0.0, work_fem = 0.0;
   bool settled = false;
 
+  // Rows reach the disk at least every kFlushInterval of wall time (and at every end of the
+  // run, normal or not): a flush per step would cost a system call per step.
+  constexpr auto kFlushInterval = std::chrono::milliseconds(500);
+  auto last_flush = Clock::now();
   auto write_row = [&](const StepDiagnostics& d) {
     const auto r = row_of(d);
     csv.row(r);
-    csv.flush();
+    if (const auto now = Clock::now(); now - last_flush >= kFlushInterval) {
+      csv.flush();
+      last_flush = now;
+    }
     for (std::size_t k = 0; k < r.size(); ++k) series[k].push_back(r[k]);
   };
   auto write_h5 = [&]() {
@@ -184,6 +225,7 @@ RunSummary CouplingRun::run() {
   auto fail = [&](const StepDiagnostics& d, const std::string& quantity, double value, double bound,
                   const std::string& why) {
     write_row(d);
+    csv.flush();
     sum.last = d;
     std::ostringstream m;
     m << "blow-up at coupling step " << d.step << " (t = " << fmt(d.time) << " s): " << why;
@@ -358,6 +400,7 @@ RunSummary CouplingRun::run() {
     }
     throw;
   }
+  csv.flush();
   sum.wall_total = seconds(run_start, Clock::now());
   sum.settled = settled;
   sum.positions = pos;
