@@ -570,3 +570,29 @@ TEST_CASE("a peer_timeout below the minimum is refused with the accepted range",
   }
   CHECK(own_leftovers().empty());
 }
+
+TEST_CASE("reply_timeout catches a live solver that hangs inside step()", "[protocol][process]") {
+  std::vector<std::string> names;
+  {
+    proto::CouplerOptions options;
+    options.reply_timeout = 300ms;
+    proto::CouplerSession session(options);
+    names = session_names(session);
+    Child dem = spawn({"serve", session.segment_name(), "dem", "--step-sleep-ms", "20000"});
+    session.wait_hello(proto::Role::dem, dem.pid);
+    session.exchange_mesh();
+    session.send_step(proto::Role::dem, step_cmd(0, 0));
+    const auto t0 = Clock::now();
+    try {
+      session.wait_step_done(proto::Role::dem);
+      FAIL("no PeerDied");
+    } catch (const proto::PeerDied& e) {
+      CHECK(std::string(e.what()).find("reply_timeout") != std::string::npos);
+    }
+    const auto elapsed = Clock::now() - t0;
+    CHECK(elapsed >= 300ms);
+    CHECK(elapsed < 1500ms);
+    kill_and_reap(dem);
+  }
+  require_removed(names);
+}

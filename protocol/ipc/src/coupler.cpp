@@ -130,7 +130,18 @@ struct CouplerSession::Impl {
   }
 
   shm::Message receive(Role role) {
-    shm::Message msg = shm::pop(channel(role).to_coupler, waiter(role));
+    shm::Waiter w = waiter(role);
+    if (options.reply_timeout.count() > 0) {
+      const auto deadline = std::chrono::steady_clock::now() + options.reply_timeout;
+      w.check = [this, role, deadline] {
+        check_peer(role);
+        if (std::chrono::steady_clock::now() > deadline)
+          throw PeerDied(role, "no reply within reply_timeout (" +
+                                   std::to_string(options.reply_timeout.count()) +
+                                   " ms); the process is alive but not answering");
+      };
+    }
+    shm::Message msg = shm::pop(channel(role).to_coupler, w);
     if (msg.kind == MessageKind::error)
       throw SolverError(role, shm::read_text(msg.get<shm::TextPayload>().text, shm::kTextLength));
     return msg;

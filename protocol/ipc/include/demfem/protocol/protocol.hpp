@@ -229,6 +229,11 @@ struct CouplerOptions {
   /// How long wait_hello() waits for a solver it cannot watch (no pid given and not yet
   /// attached). A solver with a known pid or a heartbeat may take as long as it lives.
   std::chrono::milliseconds hello_timeout{60000};
+  /// Longest wait for any reply (StepDone, checkpoint_done, ...) of a live solver; zero (the
+  /// default) = no limit. The heartbeat proves a solver is alive, not that its step makes
+  /// progress: set this to catch a solver that hangs inside step(). On expiry the call
+  /// throws PeerDied and the solver is still running (kill it, then reset_peer()).
+  std::chrono::milliseconds reply_timeout{0};
   WaitPolicy wait{};
   /// On SIGTERM/SIGINT/SIGHUP with the default action, remove the segments before dying
   /// (handlers the program installed itself are kept and called instead).
