@@ -46,6 +46,10 @@ int main(int argc, char** argv) {
                  "run the FEM alone");
   app.add_option("--output-dir", output_dir, "Output folder (default: run.output_dir)");
   app.add_flag("--quiet", quiet, "No progress lines");
+  bool resume = false;
+  app.add_flag("--resume", resume,
+               "With --segment: continue the output series in the output folder instead of "
+               "replacing it (a restarted solver that the coupler then restores)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -79,11 +83,12 @@ int main(int argc, char** argv) {
       demfem::fem::FemSolver solver(std::move(fem.problem));
       std::unique_ptr<demfem::fem::FemOutput> output;
       if (fem.output.enabled) {
-        output = std::make_unique<demfem::fem::FemOutput>(out_dir, "fem", solver.problem().mesh,
-                                                          fem.output);
+        output = std::make_unique<demfem::fem::FemOutput>(
+            out_dir, "fem", solver.problem().mesh, fem.output,
+            resume ? demfem::fem::OutputMode::resume : demfem::fem::OutputMode::replace);
       }
       const double interval = fem.output.interval > 0.0 ? fem.output.interval : run.output_interval;
-      if (output) output->write(solver);  // reference state
+      if (output && !resume) output->write(solver);  // reference state
       demfem::fem::FemBackend backend(solver, output.get(), interval);
       demfem::protocol::ServeOptions options;
       options.segment = segment;

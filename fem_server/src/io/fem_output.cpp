@@ -72,7 +72,7 @@ FemScalars summarize(const FemFields& f) {
 }
 
 FemOutput::FemOutput(std::filesystem::path dir, std::string name, const Mesh& mesh,
-                     FemOutputSettings settings)
+                     FemOutputSettings settings, OutputMode mode)
     : dir_(std::move(dir)), name_(std::move(name)), settings_(std::move(settings)) {
   if (settings_.fields.empty()) {
     for (const char* k : kFemOutputFields) settings_.fields.emplace_back(k);
@@ -86,6 +86,34 @@ FemOutput::FemOutput(std::filesystem::path dir, std::string name, const Mesh& me
     }
     if (!g.elements.empty()) groups_.push_back(std::move(g));
   }
+  const std::vector<std::string> columns{
+      "time",       "max_displacement", "max_von_mises", "max_principal_strain",
+      "reaction_x", "reaction_y",       "reaction_z"};
+  if (mode == OutputMode::resume && std::filesystem::exists(mesh_path())) {
+    std::vector<std::size_t> dims;
+    io::H5File(mesh_path(), io::H5File::Mode::read).read_doubles("nodes", &dims);
+    if (dims.empty() || dims[0] != node_count_) {
+      throw std::runtime_error(mesh_path().string() + ": written for another mesh (" +
+                               std::to_string(dims.empty() ? 0 : dims[0]) + " nodes, this one " +
+                               std::to_string(node_count_) + "); cannot resume its output");
+    }
+    scan_existing();
+    if (settings_.csv) {
+      if (std::filesystem::exists(csv_path())) {
+        csv_ = std::make_unique<io::CsvWriter>(io::CsvWriter::resume(csv_path(), times_.size()));
+        csv_->flush();
+      } else {
+        csv_ = std::make_unique<io::CsvWriter>(csv_path(), columns);
+      }
+    }
+  } else {
+    write_mesh(mesh);
+    if (settings_.csv) csv_ = std::make_unique<io::CsvWriter>(csv_path(), columns);
+  }
+  write_xdmf();
+}
+
+void FemOutput::write_mesh(const Mesh& mesh) const {
   {
     io::H5File h5(io::partial_path(mesh_path()), io::H5File::Mode::create);
     std::vector<double> xyz;
@@ -110,13 +138,49 @@ FemOutput::FemOutput(std::filesystem::path dir, std::string name, const Mesh& me
     h5.close();
   }
   io::commit_partial(mesh_path());
-  if (settings_.csv) {
-    csv_ = std::make_unique<io::CsvWriter>(
-        csv_path(),
-        std::vector<std::string>{"time", "max_displacement", "max_von_mises",
-                                 "max_principal_strain", "reaction_x", "reaction_y", "reaction_z"});
+}
+
+void FemOutput::scan_existing() {
+  // Step files are committed in order, so the series is 1, 2, ... up to the first gap; a
+  // ".part" left by a crash is incomplete and removed.
+  times_.clear();
+  written_.clear();
+  for (std::size_t k = 1;; ++k) {
+    std::filesystem::remove(io::partial_path(step_path(k)));
+    if (!std::filesystem::exists(step_path(k))) break;
+    io::H5File h5(step_path(k), io::H5File::Mode::read);
+    times_.push_back(h5.attribute_double("/", "time"));
+    std::vector<std::string> present;
+    for (const char* f : kFemOutputFields) {
+      const std::string field = f;
+      const bool node_field = field == "displacement" || field == "velocity" ||
+                              field == "acceleration" || field == "reaction_force";
+      const std::string where = node_field || groups_.empty()
+                                    ? field
+                                    : std::string(type_key(groups_[0].type)) + "/" + field;
+      if (h5.exists(where)) present.push_back(field);
+    }
+    written_.push_back(std::move(present));
   }
+}
+
+void FemOutput::rollback(double time) {
+  std::size_t keep = 0;
+  while (keep < times_.size() && times_[keep] <= time + 1e-12 * std::max(1.0, std::abs(time))) {
+    ++keep;
+  }
+  if (keep == times_.size()) return;
+  // Index first, so that it never names a file that is being deleted.
+  const std::size_t had = times_.size();
+  times_.resize(keep);
+  written_.resize(keep);
   write_xdmf();
+  for (std::size_t k = keep + 1; k <= had; ++k) std::filesystem::remove(step_path(k));
+  if (csv_) {
+    csv_.reset();
+    csv_ = std::make_unique<io::CsvWriter>(io::CsvWriter::resume(csv_path(), keep));
+    csv_->flush();
+  }
 }
 
 FemOutput::~FemOutput() = default;

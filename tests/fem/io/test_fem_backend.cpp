@@ -53,7 +53,7 @@ std::vector<double> downward(std::size_t nodes, double fz) {
 
 }  // namespace
 
-TEST_CASE("FemBackend: static step = direct solve; kinematics written into the buffer") {
+TEST_CASE("FemBackend: static step = direct solve, kinematics written into the buffer") {
   FemSolver solver(plate_problem());
   FemBackend backend(solver);
   const auto mesh = backend.published_mesh();
@@ -86,7 +86,7 @@ TEST_CASE("FemBackend: static step = direct solve; kinematics written into the b
   CHECK(r.values[0] == umax);
 }
 
-TEST_CASE("FemBackend: checkpoint/restore continues bitwise identically; bad input refused") {
+TEST_CASE("FemBackend: checkpoint/restore continues bitwise identically, bad input refused") {
   const auto dir =
       std::filesystem::temp_directory_path() / ("demfem_fem_backend_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);

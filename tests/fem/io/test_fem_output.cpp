@@ -174,3 +174,39 @@ TEST_CASE("FemOutput: selected fields only, and wrong sizes are refused") {
   CHECK_THROWS_WITH(out.write(bad), Catch::Contains("expected 3 per node"));
   CHECK(out.steps() == 1);
 }
+
+TEST_CASE("FemOutput: rollback drops later steps, resume continues an existing series") {
+  TempDir tmp;
+  const Mesh mesh =
+      read_inp(std::filesystem::path(DEMFEM_SOURCE_DIR) / "cases/meshes/unit_hex.inp");
+  {
+    FemOutput out(tmp.path, "fem", mesh);
+    for (int s = 1; s <= 3; ++s) out.write(fields_at(0.1 * s, 8, 1));
+    out.rollback(0.2);  // a restore to t = 0.2: step 3 goes
+    CHECK(out.steps() == 2);
+    CHECK_FALSE(std::filesystem::exists(out.step_path(3)));
+    CHECK(slurp(out.xdmf_path()).find("fem_000003.h5") == std::string::npos);
+    const std::string csv = slurp(out.csv_path());
+    CHECK(std::count(csv.begin(), csv.end(), '\n') == 3);  // header + 2 rows
+    out.write(fields_at(0.3, 8, 1));                       // the continuation
+    CHECK(out.steps() == 3);
+  }
+  // A crash left a partial step 4; a restarted writer resumes after step 3.
+  std::ofstream(tmp.path / "fem_000004.h5.part") << "half";
+  FemOutput again(tmp.path, "fem", mesh, {}, OutputMode::resume);
+  CHECK(again.steps() == 3);
+  CHECK(again.last_time() == Approx(0.3));
+  CHECK_FALSE(std::filesystem::exists(tmp.path / "fem_000004.h5.part"));
+  again.write(fields_at(0.4, 8, 1));
+  CHECK(std::filesystem::exists(again.step_path(4)));
+  const std::string xdmf = slurp(again.xdmf_path());
+  CHECK(xdmf.find("fem_000001.h5:/displacement") != std::string::npos);
+  CHECK(xdmf.find("fem_000004.h5:/hex8/strain") != std::string::npos);
+  const std::string csv = slurp(again.csv_path());
+  CHECK(std::count(csv.begin(), csv.end(), '\n') == 5);  // header + 4 rows
+  // Resuming with another mesh is refused.
+  Mesh other = mesh;
+  other.nodes.push_back({2.0, 2.0, 2.0});
+  CHECK_THROWS_WITH(FemOutput(tmp.path, "fem", other, {}, OutputMode::resume),
+                    Catch::Contains("written for another mesh"));
+}

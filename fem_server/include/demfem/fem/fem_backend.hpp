@@ -104,7 +104,12 @@ class FemBackend final : public protocol::SolverBackend {
                                ", asked to restore step " + std::to_string(step));
     }
     solver_.restore(h5, "fem");
-    next_output_ = solver_.time() + interval_;
+    if (interval_ > 0.0) {
+      // The next multiple of the interval after the restored time, as in the original run.
+      next_output_ = interval_ * (std::floor(solver_.time() / interval_ + 1e-9) + 1.0);
+    }
+    // Output written after the checkpoint is rewritten by the continuation.
+    if (output_) output_->rollback(solver_.time());
   }
 
  private:

@@ -61,13 +61,18 @@ struct FemScalars {
 };
 FemScalars summarize(const FemFields& fields);
 
+/// @brief replace: start a new series (an earlier run's files of the same name are
+/// replaced); resume: continue the series found in the folder (a restarted solver).
+enum class OutputMode : std::uint8_t { replace, resume };
+
 /// @brief Writer of the files above.
 class FemOutput {
  public:
-  /// Creates `dir` if needed and writes the mesh file and an empty index (replacing an
-  /// earlier run's files of the same name).
+  /// Creates `dir` if needed. replace: writes the mesh file and an empty index. resume:
+  /// keeps the mesh file (it must have this mesh's node count) and the step files
+  /// 1, 2, ... that exist, and continues the CSV after their rows.
   FemOutput(std::filesystem::path dir, std::string name, const Mesh& mesh,
-            FemOutputSettings settings = {});
+            FemOutputSettings settings = {}, OutputMode mode = OutputMode::replace);
   ~FemOutput();
   FemOutput(const FemOutput&) = delete;
   FemOutput& operator=(const FemOutput&) = delete;
@@ -75,6 +80,10 @@ class FemOutput {
   /// Writes one output step (the fields in settings.fields) and the CSV row.
   void write(const FemFields& fields);
   void write(const FemSolver& solver) { write(gather_fields(solver)); }
+
+  /// Drops the output steps later than `time` (a rollback to a checkpoint): their files are
+  /// deleted, the index rewritten and the CSV cut back, so the continuation writes anew.
+  void rollback(double time);
 
   std::size_t steps() const { return times_.size(); }
   /// Time of the last step written (0 before any).
@@ -85,6 +94,8 @@ class FemOutput {
   std::filesystem::path step_path(std::size_t step) const;  ///< 1-based
 
  private:
+  void write_mesh(const Mesh& mesh) const;
+  void scan_existing();
   void write_xdmf() const;
   bool wants(const std::string& field) const;
   std::vector<std::string> present_fields(const FemFields& fields) const;
