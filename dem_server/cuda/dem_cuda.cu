@@ -1,9 +1,10 @@
 // CUDA backend of DemSystem: the same physics headers as the CPU backend
 // (physics/contact.hpp, physics/integrator.hpp) over device structure-of-arrays state.
-// One step is three kernels (kick+drift, pair forces per CSR row, gather+kick), captured once
-// into a CUDA graph and replayed without host synchronisation; the host reads one flag per
-// chunk of steps to learn whether the neighbour list must be rebuilt. Sums are in a fixed
-// order (per-pair slots gathered per particle), so results are deterministic; the only
+// Static rigid walls use the shared sphere-triangle contact set (physics/wall_contact.hpp)
+// inside the gather kernel. One step is three kernels (kick+drift, pair forces per CSR row,
+// gather+kick), captured once into a CUDA graph and replayed without host synchronisation; the host
+// reads one flag per chunk of steps to learn whether the neighbour list must be rebuilt. Sums are
+// in a fixed order (per-pair slots gathered per particle), so results are deterministic; the only
 // atomics are integer ones (flags, step counter, the bit pattern of the max overlap).
 
 #include <cuda_runtime.h>
@@ -45,6 +46,16 @@ struct Dev {
   std::int32_t* nbr;
   double *shear, *pf, *pt, *pr;
   phys::PairConstants* pc;
+  // walls
+  bool walls;
+  double *vpos, *vvel;
+  std::int32_t *tri_v, *tri_e, *tri_mat, *tri_wall;
+  std::int64_t* prow;
+  std::int32_t* ptri;
+  std::int64_t* wkey;
+  double *wshear, *wf, *wp, *wb;
+  std::int32_t* wtri;
+  std::uint8_t* wcount;
   int* stop;
   unsigned long long* steps_done;
   unsigned long long* max_ov;
@@ -124,8 +135,8 @@ __global__ void k_pairs(Dev d, std::size_t n, std::size_t nmat, double dt, bool 
 }
 
 template <bool Friction>
-__global__ void k_gather_kick(Dev d, std::size_t n, double dt, double gx, double gy, double gz,
-                              bool rolling, bool force) {
+__global__ void k_gather_kick(Dev d, std::size_t n, std::size_t nmat, double dt, double gx,
+                              double gy, double gz, bool rolling, bool force) {
   if (*d.stop && !force) return;
   const std::size_t i = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x;
   if (i == 0) atomicAdd(d.steps_done, 1ull);
@@ -142,6 +153,21 @@ __global__ void k_gather_kick(Dev d, std::size_t n, double dt, double gx, double
       if (rolling) qx -= d.pr[3 * p], qy -= d.pr[3 * p + 1], qz -= d.pr[3 * p + 2];
     }
   }
+  if (d.walls) {
+    const phys::ParticleView view{d.px, d.py, d.pz, d.vx,     d.vy,  d.vz,
+                                  d.wx, d.wy, d.wz, d.radius, d.mass};
+    const phys::WallView wv{d.vpos,     d.vvel, d.tri_v, d.tri_e, d.tri_mat,
+                            d.tri_wall, d.prow, d.ptri,  d.wkey,  d.wshear,
+                            d.wf,       d.wp,   d.wb,    d.wtri,  d.wcount};
+    phys::Vec3 f{fx, fy, fz}, q{qx, qy, qz};
+    double mo = 0.0, fmo = 0.0;
+    phys::wall_contacts<Friction>(view, wv, static_cast<std::int64_t>(i),
+                                  d.pc + static_cast<std::size_t>(d.material[i]) * nmat, dt, f, q,
+                                  mo, fmo);
+    fx = f.x, fy = f.y, fz = f.z;
+    qx = q.x, qy = q.y, qz = q.z;
+    if (mo > 0.0) atomicMax(d.max_ov, static_cast<unsigned long long>(__double_as_longlong(mo)));
+  }
   const double m = d.mass[i];
   fx += m * gx, fy += m * gy, fz += m * gz;
   d.fx[i] = fx, d.fy[i] = fy, d.fz[i] = fz;
@@ -157,7 +183,7 @@ __global__ void k_gather_kick(Dev d, std::size_t n, double dt, double gx, double
 
 struct CudaBackend {
   Dev d{};
-  std::size_t cap[40] = {};
+  std::size_t cap[64] = {};
   std::size_t n = 0, npairs = 0, nmat = 0;
   double dt = 0, g[3] = {0, 0, 0};
   bool friction = false, rolling = false;
@@ -198,6 +224,10 @@ void cuda_backend_destroy(CudaBackend* b) {
   cudaFree(b->d.material), cudaFree(b->d.row), cudaFree(b->d.trow), cudaFree(b->d.tpair);
   cudaFree(b->d.nbr), cudaFree(b->d.pc), cudaFree(b->d.stop), cudaFree(b->d.steps_done);
   cudaFree(b->d.max_ov);
+  cudaFree(b->d.vpos), cudaFree(b->d.vvel), cudaFree(b->d.tri_v), cudaFree(b->d.tri_e);
+  cudaFree(b->d.tri_mat), cudaFree(b->d.tri_wall), cudaFree(b->d.prow), cudaFree(b->d.ptri);
+  cudaFree(b->d.wkey), cudaFree(b->d.wshear), cudaFree(b->d.wf), cudaFree(b->d.wp);
+  cudaFree(b->d.wb), cudaFree(b->d.wtri), cudaFree(b->d.wcount);
   if (b->stream) cudaStreamDestroy(b->stream);
   delete b;
 }
@@ -231,6 +261,17 @@ void cuda_upload_state(CudaBackend* b, const GpuHostView& v) {
   up(d.inertia, c[21], v.inertia, n), up(d.material, c[22], v.material, n);
   ensure(d.acc, c[23], 3 * n), ensure(d.acct, c[24], 3 * n);
   up(d.pc, c[25], v.pc, v.nmat * v.nmat);
+  d.walls = v.ntris > 0;
+  if (d.walls) {
+    const std::size_t ns = static_cast<std::size_t>(phys::kMaxWallContacts) * n;
+    up(d.vpos, c[40], v.vpos, 3 * v.nverts), up(d.vvel, c[41], v.vvel, 3 * v.nverts);
+    up(d.tri_v, c[42], v.tri_v, 3 * v.ntris), up(d.tri_e, c[43], v.tri_e, 3 * v.ntris);
+    up(d.tri_mat, c[44], v.tri_mat, v.ntris), up(d.tri_wall, c[45], v.tri_wall, v.ntris);
+    up(d.wkey, c[46], v.wkey, ns), up(d.wshear, c[47], v.wshear, 3 * ns);
+    ensure(d.wf, c[48], 3 * ns), ensure(d.wp, c[49], 3 * ns), ensure(d.wb, c[50], 3 * ns);
+    ensure(d.wtri, c[51], ns);
+    up(d.wcount, c[52], v.wcount, n);
+  }
   check(cudaMemset(d.max_ov, 0, sizeof(unsigned long long)), "cudaMemset");
   if (b->graph) cudaGraphExecDestroy(b->graph), b->graph = nullptr;  // pointers may move
 }
@@ -244,6 +285,7 @@ void cuda_upload_lists(CudaBackend* b, const GpuHostView& v) {
   up(d.tpair, c[28], v.tpair, np), up(d.nbr, c[29], v.nbr, np);
   up(d.bx, c[30], v.bx, n), up(d.by, c[31], v.by, n), up(d.bz, c[32], v.bz, n);
   ensure(d.pf, c[33], 3 * np);
+  if (v.ntris > 0) up(d.prow, c[53], v.prow, n + 1), up(d.ptri, c[54], v.ptri, v.nptri);
   if (v.friction) {
     up(d.shear, c[34], v.shear, 3 * np);
     ensure(d.pt, c[35], 3 * np), ensure(d.pr, c[36], 3 * np);
@@ -262,6 +304,12 @@ void cuda_download_state(CudaBackend* b, const GpuHostView& v) {
   down(v.fx, d.fx, n), down(v.fy, d.fy, n), down(v.fz, d.fz, n);
   down(v.tx, d.tx, n), down(v.ty, d.ty, n), down(v.tz, d.tz, n);
   if (v.friction && v.shear && b->npairs == v.npairs) down(v.shear, d.shear, 3 * v.npairs);
+  if (v.ntris > 0) {
+    const std::size_t ns = static_cast<std::size_t>(phys::kMaxWallContacts) * n;
+    down(v.wkey, d.wkey, ns), down(v.wshear, d.wshear, 3 * ns), down(v.wf, d.wf, 3 * ns);
+    down(v.wp, d.wp, 3 * ns), down(v.wb, d.wb, 3 * ns), down(v.wtri, d.wtri, ns);
+    down(v.wcount, d.wcount, n);
+  }
 }
 
 namespace {
@@ -273,12 +321,12 @@ void enqueue_forces(CudaBackend* b, bool force) {
   if (grid == 0) return;
   if (b->friction) {
     k_pairs<true><<<grid, kBlock, 0, b->stream>>>(b->d, n, b->nmat, b->dt, b->rolling, force);
-    k_gather_kick<true><<<grid, kBlock, 0, b->stream>>>(b->d, n, b->dt, b->g[0], b->g[1], b->g[2],
-                                                        b->rolling, force);
+    k_gather_kick<true><<<grid, kBlock, 0, b->stream>>>(b->d, n, b->nmat, b->dt, b->g[0], b->g[1],
+                                                        b->g[2], b->rolling, force);
   } else {
     k_pairs<false><<<grid, kBlock, 0, b->stream>>>(b->d, n, b->nmat, b->dt, b->rolling, force);
-    k_gather_kick<false><<<grid, kBlock, 0, b->stream>>>(b->d, n, b->dt, b->g[0], b->g[1], b->g[2],
-                                                         b->rolling, force);
+    k_gather_kick<false><<<grid, kBlock, 0, b->stream>>>(b->d, n, b->nmat, b->dt, b->g[0], b->g[1],
+                                                         b->g[2], b->rolling, force);
   }
 }
 

@@ -8,6 +8,7 @@
 #include <cstdint>
 
 #include "demfem/dem/physics/contact.hpp"
+#include "demfem/dem/physics/wall_contact.hpp"
 
 namespace demfem::dem {
 
@@ -26,6 +27,16 @@ struct GpuHostView {
   const std::int32_t* nbr;
   double* shear;  // 3 per pair (may be null when frictionless)
   const double *bx, *by, *bz;
+  // static rigid walls (triangle store, candidate lists, per-particle contact slots)
+  std::size_t nverts = 0, ntris = 0, nptri = 0;
+  const double *vpos = nullptr, *vvel = nullptr;
+  const std::int32_t *tri_v = nullptr, *tri_e = nullptr, *tri_mat = nullptr, *tri_wall = nullptr;
+  const std::int64_t* prow = nullptr;
+  const std::int32_t* ptri = nullptr;
+  std::int64_t* wkey = nullptr;
+  double *wshear = nullptr, *wf = nullptr, *wp = nullptr, *wb = nullptr;
+  std::int32_t* wtri = nullptr;
+  std::uint8_t* wcount = nullptr;
   // parameters
   const phys::PairConstants* pc;
   std::size_t nmat = 0;

@@ -740,15 +740,23 @@ struct DemSystem::Impl {
     v.dt = s.dt;
     for (int k = 0; k < 3; ++k) v.gravity[k] = s.gravity[k];
     v.friction = friction, v.rolling = rolling;
+    if (!tri_v.empty()) {
+      v.nverts = vpos.size() / 3, v.ntris = tri_v.size() / 3, v.nptri = ptri.size();
+      v.vpos = vpos.data(), v.vvel = vvel.data();
+      v.tri_v = tri_v.data(), v.tri_e = tri_e.data(), v.tri_mat = tri_mat.data();
+      v.tri_wall = tri_wall.data(), v.prow = prow.data(), v.ptri = ptri.data();
+      v.wkey = wkey.data(), v.wshear = wshear.data(), v.wf = wf.data(), v.wp = wp.data();
+      v.wb = wb.data(), v.wtri = wtri.data(), v.wcount = wcount.data();
+    }
     return v;
   }
 
   // CUDA backend: the same step on the device; the neighbour list is built here (host) when
   // the device reports that some particle moved more than half the skin.
   void advance_gpu(std::int64_t substeps) {
-    if (!tri_v.empty() || has_flex)
-      bad("settings.backend = 'cuda' does not support walls or the flexible mesh yet; use "
-          "backend = 'cpu' for scenes with walls");
+    if (walls_moving || has_flex)
+      bad("settings.backend = 'cuda' supports static walls only (no prescribed motion, no "
+          "flexible mesh yet); use backend = 'cpu' for this scene");
     const double t0 = omp_get_wtime();
     if (need_rebuild || row.size() != n() + 1 || bx.size() != n()) rebuild();
     cuda_upload_state(gpu, gpu_view());
@@ -774,6 +782,7 @@ struct DemSystem::Impl {
     }
     cuda_download_state(gpu, gpu_view());
     max_ov = cuda_max_overlap(gpu);
+    if (!tri_v.empty()) wall_reduce(true, ForceMode::last_substep, 1);  // last step's slots
     timing.detection += tdet;
     timing.forces += omp_get_wtime() - t0 - tdet;  // device steps are not split further
   }
