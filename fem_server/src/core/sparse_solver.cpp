@@ -61,6 +61,7 @@ struct SparseSpdSolver::Impl {
   bool done = false;
   Eigen::Index rows = -1;
   Eigen::Index nnz = -1;
+  Eigen::VectorXd tmp;  // LDLT solve buffer (kept: no allocation per solve)
 };
 
 bool cholmod_available() {
@@ -125,7 +126,15 @@ void SparseSpdSolver::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
     return;
   }
 #endif
-  x = s.ldlt.solve(b);
+  // x = P^T L^-T D^-1 L^-1 P b, spelled out so that no step allocates (Eigen's solve()
+  // permutes in place through a temporary mask).
+  s.tmp.resize(b.size());
+  x.resize(b.size());
+  s.tmp.noalias() = s.ldlt.permutationP() * b;
+  s.ldlt.matrixL().solveInPlace(s.tmp);
+  s.tmp.array() /= s.ldlt.vectorD().array();
+  s.ldlt.matrixU().solveInPlace(s.tmp);
+  x.noalias() = s.ldlt.permutationPinv() * s.tmp;
 }
 
 bool SparseSpdSolver::factorized() const {

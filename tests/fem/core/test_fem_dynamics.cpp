@@ -99,9 +99,9 @@ TEST_CASE("Bossak-Newmark converges with second order in dt", "[fem][dynamics]")
     double u = 0;
     for (Eigen::Index j = 0; j < m.omega2.size(); ++j) {
       const double wj = std::sqrt(m.omega2(j)), fj = m.shapes.col(j).dot(f);
-      const double w2 = wj * wj, d = w2 - big_w * big_w;
+      const double w2 = wj * wj, den = w2 - big_w * big_w;
       u += m.shapes(tip_dof, j) * fj *
-           (1 / w2 - std::cos(big_w * t) / d + big_w * big_w / (w2 * d) * std::cos(wj * t));
+           (1 / w2 - std::cos(big_w * t) / den + big_w * big_w / (w2 * den) * std::cos(wj * t));
     }
     return u;
   };
