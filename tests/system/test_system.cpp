@@ -229,6 +229,26 @@ TEST_CASE("a scene with only a DEM starts only dem_server") {
   CHECK(fs::exists(d.path / "out/beam_fixed_ci/coupling.csv"));
 }
 
+TEST_CASE("a scene with only a FEM starts only fem_server") {
+  TempDir d;
+  // The beam with the spheres' weight as a pressure, without [dem] and [coupling].
+  std::string text = read_text(kCases / "beam_fixed_ci.toml");
+  text.erase(text.find("[coupling]"), text.find("[fem]") - text.find("[coupling]"));
+  text.erase(text.find("[dem]"));
+  text += "[[fem.pressures]]\nsurface = \"z >= 0.1\"\ntotal_force = 500.31\n";
+  std::ofstream(d.path / "fem_only.toml") << text;
+  const Result r = run(d.path, {(d.path / "fem_only.toml").string(), "--quiet"});
+  INFO(r.out << r.err);
+  REQUIRE(r.status == 0);
+  CHECK_THAT(r.out, Catch::Contains("started fem_server"));
+  CHECK_THAT(r.out, !Catch::Contains("dem_server"));
+  CHECK(started_pids(r.out).size() == 1);
+  // One static solve: the beam deflected.
+  const auto rows = read_csv(d.path / "out/beam_fixed_ci/coupling.csv");
+  REQUIRE(rows.size() == 2);
+  CHECK(std::stod(rows[1][9]) > 5e-7);
+}
+
 TEST_CASE("a bad scene gives exit status 2 and names file, line and key") {
   TempDir d;
   const auto bad = variant(
