@@ -202,10 +202,21 @@ RunSummary CouplingRun::run() {
     io::commit_partial(final_path);
   };
 
+  // A solver that fails or dies inside a step: name it, the step and the time.
+  auto solver_step = [&](Role role, const StepCommand& cmd) {
+    try {
+      link_.send_step(role, cmd);
+      return link_.wait_step_done(role);
+    } catch (const std::exception& e) {
+      std::ostringstream m;
+      m << "the " << (role == Role::dem ? "DEM" : "FEM") << " solver failed in coupling step "
+        << cmd.step << " (t = " << fmt(cmd.time) << " s): " << e.what();
+      throw SolverFailure(role, cmd.step, cmd.time, m.str());
+    }
+  };
   auto dem_step = [&](const StepCommand& cmd, StepDiagnostics& d) {
     const auto t0 = Clock::now();
-    link_.send_step(Role::dem, cmd);
-    const StepResult r = link_.wait_step_done(Role::dem);
+    const StepResult r = solver_step(Role::dem, cmd);
     d.wall_dem += seconds(t0, Clock::now());
     d.max_overlap = r.values[0];
     d.kinetic_energy = r.values[1];
@@ -217,8 +228,7 @@ RunSummary CouplingRun::run() {
   };
   auto fem_step = [&](const StepCommand& cmd, StepDiagnostics& d) {
     const auto t0 = Clock::now();
-    link_.send_step(Role::fem, cmd);
-    const StepResult r = link_.wait_step_done(Role::fem);
+    const StepResult r = solver_step(Role::fem, cmd);
     d.wall_fem += seconds(t0, Clock::now());
     d.fem_max_displacement = r.values[0];
   };

@@ -84,6 +84,7 @@ class FakeDem : public protocol::SolverBackend {
   void on_mesh(const InterfaceMesh& m) override { mesh_ = m.reference_positions; }
   StepResult step(const StepCommand& cmd, InterfaceBuffers& buf) override {
     log_.calls.push_back("dem " + std::to_string(cmd.step));
+    if (cmd.step == throw_step) throw std::runtime_error("dem: injected failure");
     commands.push_back(cmd);
     const auto b = cmd.buffer;
     if (cmd.flags & kStepSetKinematics) {
@@ -113,6 +114,7 @@ class FakeDem : public protocol::SolverBackend {
   std::vector<std::vector<double>> given_positions, given_velocities, given_accelerations;
   std::int64_t nan_step = -1;
   std::int64_t overlap_step = -1;
+  std::int64_t throw_step = -1;
 
  private:
   Log& log_;
@@ -298,4 +300,19 @@ TEST_CASE("the stop flag ends the run between steps") {
   });
   CHECK_THROWS_AS(r.run(), Interrupted);
   CHECK(fx.log.calls.size() == 4);
+}
+
+TEST_CASE("a solver failure names the solver, the step and the cause") {
+  Fixture fx(Scheme::just_in_time, 6);
+  fx.dem->throw_step = 2;
+  try {
+    fx.run();
+    FAIL("no failure");
+  } catch (const SolverFailure& e) {
+    CHECK(e.step() == 2);
+    CHECK(e.role() == protocol::Role::dem);
+    CHECK_THAT(e.what(), Catch::Contains("DEM solver failed in coupling step 2") &&
+                             Catch::Contains("injected failure"));
+  }
+  CHECK(fx.csv_rows() == 2);  // steps 0 and 1 are on disk
 }

@@ -39,6 +39,22 @@ class BlowUp : public std::runtime_error {
   double bound_;
 };
 
+/// @brief A solver failed or died during a coupling step; what() names the solver, the step
+/// and the time, and the cause (the protocol's PeerDied / SolverError text).
+class SolverFailure : public std::runtime_error {
+ public:
+  SolverFailure(protocol::Role role, std::int64_t step, double time, const std::string& text)
+      : std::runtime_error(text), role_(role), step_(step), time_(time) {}
+  protocol::Role role() const { return role_; }
+  std::int64_t step() const { return step_; }
+  double time() const { return time_; }
+
+ private:
+  protocol::Role role_;
+  std::int64_t step_;
+  double time_;
+};
+
 /// @brief The run was asked to stop (signal) between two steps.
 class Interrupted : public std::runtime_error {
  public:
