@@ -220,6 +220,9 @@ SolverBackend FemSolver::solver_backend() const {
 const InterfaceMesh& FemSolver::interface_mesh() const {
   return impl_->iface.mesh;
 }
+const std::vector<std::int32_t>& FemSolver::interface_mesh_nodes() const {
+  return impl_->iface.mesh_node;
+}
 double FemSolver::time() const {
   return impl_->time;
 }

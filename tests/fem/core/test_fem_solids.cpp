@@ -142,6 +142,7 @@ TEST_CASE("interface forces load the structure like the equivalent nodal loads",
     const auto n =
         test::node_at(p.mesh, im.reference_positions[3 * i], im.reference_positions[3 * i + 1],
                       im.reference_positions[3 * i + 2]);
+    CHECK(static_cast<std::size_t>(a.interface_mesh_nodes()[i]) == n);
     for (std::size_t c = 0; c < 3; ++c)
       CHECK(pos[3 * i + c] == im.reference_positions[3 * i + c] + ua[3 * n + c]);
   }

@@ -43,6 +43,8 @@ class FemSolver {
 
   /// The coupled surface (see interface_mesh.hpp); fixed for the solver's life.
   const InterfaceMesh& interface_mesh() const;
+  /// Mesh node of each interface node (shells: the mid-surface node of a top/bottom copy).
+  const std::vector<std::int32_t>& interface_mesh_nodes() const;
   /// Forces on the interface nodes (3 * interface node count, N); held until replaced.
   void set_interface_forces(std::span<const double> forces);
 
