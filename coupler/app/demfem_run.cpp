@@ -140,6 +140,20 @@ int run(const Options& opt) {
     progress.finish();
     std::fprintf(stderr, "demfem run: %s\n  output so far is in %s\n", e.what(), out_dir.c_str());
     code = kExitBlowUp;
+  } catch (const SolverFailure& e) {
+    progress.finish();
+    // The adapters refuse non-finite numbers themselves ("... is not finite (the DEM blew
+    // up ...)"): that is a blow-up found one step earlier, and exits as one.
+    const bool blow_up = std::string(e.what()).find("not finite") != std::string::npos;
+    if (SignalGuard::stop_flag().load()) {
+      std::fprintf(stderr, "demfem run: stopped by signal %d (%s)\n", SignalGuard::signal_number(),
+                   e.what());
+      code = 128 + SignalGuard::signal_number();
+    } else {
+      std::fprintf(stderr, "demfem run: %s%s\n  output so far is in %s\n",
+                   blow_up ? "blow-up: " : "", e.what(), out_dir.c_str());
+      code = blow_up ? kExitBlowUp : kExitFailed;
+    }
   } catch (const Interrupted& e) {
     progress.finish();
     std::fprintf(stderr, "demfem run: %s\n", e.what());
@@ -176,6 +190,12 @@ int run(const Options& opt) {
   if (summary) {
     std::printf("demfem run: done: %lld coupling steps, t = %.6g s; output in %s\n",
                 static_cast<long long>(summary->steps), summary->time, out_dir.c_str());
+    if (settings.scheme == Scheme::one_way_static) {
+      std::printf(
+          "demfem run: the DEM settled at t = %.6g s (kinetic energy %.3g J); its forces "
+          "(sum %.9g N along z) went into one static FEM solve\n",
+          summary->time, summary->last.kinetic_energy, summary->last.force_sum_z);
+    }
     print_timing(*summary, remote);
     try {
       write_timing(out_dir, *summary);
