@@ -1,0 +1,15 @@
+// libFuzzer harness for the Abaqus .inp reader: any bytes give a model or an InpError.
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include "demfem/fem/inp_reader.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  const std::string text(reinterpret_cast<const char*>(data), size);
+  try {
+    (void)demfem::fem::parse_inp(text, "fuzz.inp");
+  } catch (const demfem::fem::InpError&) {
+  }
+  return 0;
+}
