@@ -137,6 +137,7 @@ struct DemSystem::Impl {
   std::vector<double> flex_x, flex_v, flex_a;  // kinematics at the start of advance()
   double flex_tau = 0.0;                       // time since that start
   std::vector<double> flex_force;              // per node, as ForceMode asked
+  std::vector<double> node_buf;                // per node, forces of the current substep
   double flex_max_ov = 0.0;
   // global stores
   std::vector<double> vpos, vvel, vbuild;  // 3 per vertex
@@ -661,7 +662,7 @@ struct DemSystem::Impl {
 
   void wall_reduce(bool last, ForceMode mode, std::int64_t substeps) {
     for (auto& w : walls) w.force = {0, 0, 0}, w.torque = {0, 0, 0};
-    std::vector<double> nodef;
+    std::vector<double>& nodef = node_buf;  // member: no allocation per step
     if (has_flex) nodef.assign(flex.mesh.vertices.size(), 0.0);
     const std::size_t np = n();
     for (std::size_t i = 0; i < np; ++i)
