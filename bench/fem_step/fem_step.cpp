@@ -73,8 +73,8 @@ int main(int argc, char** argv) {
       for (int i = 0; i < steps; ++i) s.advance(2 * dt);
       const double per_step = seconds_since(t_step) / steps;
       report.add_row({backend_name(b), static_cast<long long>(n) * n * n,
-                      static_cast<long long>(s.free_dof_count()), assembly,
-                      fac_and_step - per_step, 1e3 * per_step, static_cast<long long>(steps)});
+                      static_cast<long long>(s.free_dof_count()), assembly, fac_and_step - per_step,
+                      1e3 * per_step, static_cast<long long>(steps)});
       std::cerr << "." << std::flush;
     }
   }
