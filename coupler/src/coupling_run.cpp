@@ -295,9 +295,18 @@ RunSummary CouplingRun::run() {
       fem_cmd.substeps = 1;
 
       switch (s.scheme) {
-        case Scheme::dem_only:
+        case Scheme::dem_only: {
+          // The DEM alone advances in slices; the last one is cut to end at run.end_time.
+          const double left = (s.run.end_time - t) / s.dem_dt;
+          const std::int64_t n = std::llround(left);
+          if (std::abs(left - static_cast<double>(n)) <= 1e-6 && n < dem_cmd.substeps) {
+            dem_cmd.substeps = std::max<std::int64_t>(1, n);
+            dem_cmd.dt = static_cast<double>(dem_cmd.substeps) * s.dem_dt;
+            d.time = t + dem_cmd.dt;
+          }
           dem_step(dem_cmd, d);
           break;
+        }
         case Scheme::fem_only:
           if (s.fem_static) fem_cmd.flags |= protocol::kStepStatic;
           fem_step(fem_cmd, d);

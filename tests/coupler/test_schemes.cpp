@@ -316,3 +316,29 @@ TEST_CASE("a solver failure names the solver, the step and the cause") {
   }
   CHECK(fx.csv_rows() == 2);  // steps 0 and 1 are on disk
 }
+
+TEST_CASE("DEM alone: slices of n substeps, the last one cut to end at run.end_time") {
+  Log log;
+  auto dem = std::make_unique<FakeDem>(log);
+  FakeDem* d = dem.get();
+  LocalLink link(std::move(dem), nullptr);
+  CouplingSettings s;
+  s.has_dem = true;
+  s.scheme = Scheme::dem_only;
+  s.dem_dt = 1e-5;
+  s.dem_substeps = 100;
+  s.coupling_dt = 1e-3;
+  s.run.end_time = 0.0125;
+  s.step_count = steps_to_reach(s.run.end_time, s.coupling_dt);
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("demfem-test-dem-only-" + std::to_string(::getpid()));
+  CouplingRun run(link, s, dir);
+  const auto sum = run.run();
+  std::filesystem::remove_all(dir);
+  REQUIRE(d->commands.size() == 13);
+  CHECK(d->commands[11].substeps == 100);
+  CHECK(d->commands.back().substeps == 50);
+  CHECK(d->commands.back().dt == Approx(5e-4).epsilon(1e-12));
+  CHECK(d->commands.back().flags == 0);
+  CHECK(sum.time == Approx(0.0125).epsilon(1e-12));
+}
