@@ -147,7 +147,6 @@ RunSummary CouplingRun::run() {
   const CouplingSettings& s = settings_;
   std::filesystem::create_directories(output_dir_);
   SeriesFile csv(output_dir_ / "coupling.csv", kColumns);
-  std::vector<std::vector<double>> series(kColumns.size());
 
   RunSummary sum;
   sum.mesh = link_.start();
@@ -176,7 +175,6 @@ RunSummary CouplingRun::run() {
       csv.flush();
       last_flush = now;
     }
-    for (std::size_t k = 0; k < r.size(); ++k) series[k].push_back(r[k]);
   };
   auto write_h5 = [&]() {
     const auto final_path = output_dir_ / "coupling.h5";
@@ -184,8 +182,8 @@ RunSummary CouplingRun::run() {
     h5.set_attribute("/", "scheme", std::string(scheme_name(s.scheme)));
     h5.set_attribute("/", "steps", sum.steps);
     h5.set_attribute("/", "time", sum.time);
-    h5.create_group("series");
-    for (std::size_t k = 0; k < kColumns.size(); ++k) h5.write("series/" + kColumns[k], series[k]);
+    // The time series stay in coupling.csv only: holding them in memory for the HDF5 file
+    // would grow without bound over a long run.
     if (n3 > 0) {
       h5.create_group("interface");
       h5.write("interface/reference_positions",
