@@ -92,8 +92,17 @@ class LocalFem final : public protocol::SolverBackend {
 
 void check_solver_sections(const scene::Document& scene) {
   const scene::Table root = scene.root();
-  if (auto dem = root.table("dem")) (void)dem::read_dem_scene(*dem);
-  if (auto fem = root.table("fem")) (void)fem::read_fem_scene(*fem);
+  const auto fem = root.table("fem");
+  if (auto dem = root.table("dem")) {
+    const dem::DemScene ds = dem::read_dem_scene(*dem);
+    // The DEM adapter needs it only when the mesh arrives; say so before anything starts.
+    if (fem && ds.interface_material < 0) {
+      throw scene::SceneError(
+          dem->where("interface_material") +
+          ": a coupled scene needs it: the [[dem.materials]] name of the structure's surface");
+    }
+  }
+  if (fem) (void)fem::read_fem_scene(*fem);
 }
 
 std::unique_ptr<protocol::SolverBackend> make_local_dem(const scene::Document& scene,

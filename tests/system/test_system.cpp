@@ -278,6 +278,14 @@ TEST_CASE("a bad scene gives exit status 2 and names file, line and key") {
   r = run(d.path, {bad_dt.string()});
   CHECK(r.status == 2);
   CHECK_THAT(r.err, Catch::Contains("fem.dt") && Catch::Contains("dem.dt"));
+  // A coupled scene whose DEM does not say which material the structure's surface is.
+  const auto no_material = variant(d.path, "no_material.toml", "beam_fixed_ci.toml",
+                                   {{"interface_material = \"steel\"", ""}});
+  r = run(d.path, {no_material.string()});
+  CHECK(r.status == 2);
+  CHECK_THAT(r.err,
+             Catch::Contains("no_material.toml:") && Catch::Contains("dem.interface_material"));
+  CHECK(started_pids(r.out).empty());
   // A missing file.
   r = run(d.path, {(d.path / "missing.toml").string()});
   CHECK(r.status == 2);
