@@ -43,6 +43,7 @@ struct Options {
   std::string output_dir;
   bool quiet = false;
   bool in_process = false;
+  int wait_spin_us = 0;
 };
 
 fs::path self_dir() {
@@ -106,7 +107,12 @@ int run(const Options& opt) {
   std::optional<RunSummary> summary;
   try {
     if (remote) {
-      session = std::make_unique<protocol::CouplerSession>();
+      // The coupler waits for StepDone while a solver computes. By default it blocks at once
+      // (futex): a spinning coupler would take CPU time from the solver it waits for on a
+      // machine with few cores, and the blocking round trip costs only a few microseconds.
+      protocol::CouplerOptions copt;
+      copt.wait.spin = std::chrono::microseconds(opt.wait_spin_us);
+      session = std::make_unique<protocol::CouplerSession>(copt);
       std::vector<std::string> args = {"--scene", opt.scene, "--segment", session->segment_name()};
       if (!opt.output_dir.empty()) {
         args.push_back("--output-dir");
@@ -233,6 +239,10 @@ int main(int argc, char** argv) {
   app.add_option("--output-dir", opt.output_dir,
                  "folder for the coupler's output (default: run.output_dir of the scene)");
   app.add_flag("--quiet", opt.quiet, "no progress display");
+  app.add_option("--wait-spin-us", opt.wait_spin_us,
+                 "microseconds the coupler spins before it blocks while waiting for a solver "
+                 "(default 0: block at once)")
+      ->check(CLI::Range(0, 100000));
   app.add_flag("--in-process", opt.in_process,
                "run the solvers in this process (no servers; same results on the CPU backend)");
   try {
