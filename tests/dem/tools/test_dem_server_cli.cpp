@@ -25,8 +25,14 @@ struct Result {
 
 Result run(const std::string& args, const TempDir& dir) {
   const auto out = dir / "stdout.txt", err = dir / "stderr.txt";
-  const std::string cmd =
-      "'" + kServer.string() + "' " + args + " >'" + out.string() + "' 2>'" + err.string() + "'";
+  // Appended piecewise: GCC 12 warns falsely (-Wrestrict) on "'" + std::string&&.
+  std::string cmd = "'";
+  cmd += kServer.string();
+  cmd += "' " + args + " >'";
+  cmd += out.string();
+  cmd += "' 2>'";
+  cmd += err.string();
+  cmd += "'";
   const int status = std::system(cmd.c_str());
   Result r;
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
