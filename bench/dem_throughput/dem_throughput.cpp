@@ -113,7 +113,7 @@ Bed make_bed(const BedSpec& b) {
 }
 
 struct Result {
-  double rate = 0, cpu_rate = 0, det = 0, force = 0, integ = 0, contacts = 0;
+  double rate = 0, cpu_rate = 0, det = 0, force = 0, integ = 0, contacts = 0, pairs = 0;
   bool ok = false;
   std::string note;
 };
@@ -146,6 +146,8 @@ Result measure(const Bed& bed, const std::filesystem::path& state, int threads,
     r.det = (t1.detection - t0.detection) / tot;
     r.force = (t1.forces - t0.forces) / tot;
     r.integ = (t1.integration - t0.integration) / tot;
+    r.pairs =
+        static_cast<double>(sys.neighbour_pairs()) / static_cast<double>(sys.particle_count());
     r.contacts =
         2.0 * static_cast<double>(sys.contact_count()) / static_cast<double>(sys.particle_count());
     r.ok = true;
@@ -183,8 +185,9 @@ int main(int argc, char** argv) {
       {20000, 0.002, 0.002, "target r 2 mm"}, {100000, 0.0015, 0.0025, "d 3-5 mm"},
       {200000, 0.0015, 0.0025, "d 3-5 mm"},   {1000000, 0.0015, 0.0025, "d 3-5 mm"}};
   demfem::bench::Report rep(
-      "dem_throughput", {"particles", "bed", "backend", "threads", "contacts/particle",
-                         "particle-steps/s", "per cpu-s", "detection", "forces", "integration"});
+      "dem_throughput",
+      {"particles", "bed", "backend", "threads", "contacts/particle", "list pairs/particle",
+       "particle-steps/s", "per cpu-s", "detection", "forces", "integration"});
   rep.set_info("dt", 1e-5);
   rep.set_info("model",
                std::string("Hertz-Mindlin with history, E 100 MPa, nu 0.3, e 0.4, mu 0.5"));
@@ -218,7 +221,7 @@ int main(int argc, char** argv) {
         continue;
       }
       rep.add_row({static_cast<long long>(spec.n), spec.label, backend, static_cast<long long>(th),
-                   r.contacts, r.rate, r.cpu_rate, r.det, r.force, r.integ});
+                   r.contacts, r.pairs, r.rate, r.cpu_rate, r.det, r.force, r.integ});
     }
     std::filesystem::remove(state);
   }

@@ -94,6 +94,92 @@ double dist_from_origin_pose(const WallMotion& m, double t, double& phase_out) {
 
 }  // namespace
 
+namespace {
+
+// ---------------------------------------------------------------------------------------
+// Pair forces over a range of the flat pair list, one pair per SIMD lane: the contact law
+// (physics/pair.hpp, contact.hpp) has no data-dependent branch, so the loop vectorises.
+// On x86-64 (GCC/Clang, not under nvcc) the loop is compiled twice, for the baseline
+// (SSE2) and for AVX2, and the loader picks the clone the CPU supports. AVX2 without FMA
+// contraction rounds every operation as the scalar code does (IEEE +, -, *, /, sqrt), so the
+// clones give bitwise identical results.
+struct PairKernelArgs {
+  phys::ParticleView view;
+  const std::int32_t* pi;  // i of each pair
+  const std::int32_t* pj;  // j of each pair
+  const std::int32_t* mat;
+  const phys::PairConstants* pc;  // table (nmat x nmat) or, when uniform, the one entry
+  std::size_t nmat;
+  double dt;
+  double* shear;  // 3 per pair
+  double* pf;     // 3 per pair
+  double* pt;     // 3 per pair (Friction)
+  double* pr;     // 3 per pair (Rolling)
+};
+
+template <bool Friction, bool Rolling, bool Uniform>
+[[gnu::always_inline]] inline double pair_loop(const PairKernelArgs& a, std::int64_t begin,
+                                               std::int64_t end) {
+  double mo = 0.0;
+  const phys::ParticleView view = a.view;
+  const std::int32_t* pi = a.pi;
+  const std::int32_t* pj = a.pj;
+  double* shear = a.shear;
+  double* pf = a.pf;
+  double* pt = a.pt;
+  double* pr = a.pr;
+  const double dt = a.dt;
+#pragma omp simd reduction(max : mo)
+  for (std::int64_t p = begin; p < end; ++p) {
+    const std::int32_t i = pi[p], j = pj[p];
+    const phys::PairConstants& c =
+        Uniform ? a.pc[0] : a.pc[static_cast<std::size_t>(a.mat[i]) * a.nmat + a.mat[j]];
+    Vec3 sh{0, 0, 0};
+    if constexpr (Friction) sh = Vec3{shear[3 * p], shear[3 * p + 1], shear[3 * p + 2]};
+    phys::ContactResult r;
+    double delta;
+    phys::sphere_sphere_select<Friction, Rolling>(view, i, j, c, dt, sh, r, delta);
+    mo = mo > delta ? mo : delta;
+    pf[3 * p] = r.force.x, pf[3 * p + 1] = r.force.y, pf[3 * p + 2] = r.force.z;
+    if constexpr (Friction) {
+      shear[3 * p] = sh.x, shear[3 * p + 1] = sh.y, shear[3 * p + 2] = sh.z;
+      pt[3 * p] = r.torque.x, pt[3 * p + 1] = r.torque.y, pt[3 * p + 2] = r.torque.z;
+      if constexpr (Rolling)
+        pr[3 * p] = r.roll.x, pr[3 * p + 1] = r.roll.y, pr[3 * p + 2] = r.roll.z;
+    }
+  }
+  return mo;
+}
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && \
+    !defined(DEMFEM_NO_MULTIVERSION)
+#define DEMFEM_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define DEMFEM_CLONES
+#endif
+
+#define DEMFEM_PAIR_KERNEL(F, R, U)                                                   \
+  DEMFEM_CLONES double pair_kernel_##F##R##U(const PairKernelArgs& a, std::int64_t b, \
+                                             std::int64_t e) {                        \
+    return pair_loop<F != 0, R != 0, U != 0>(a, b, e);                                \
+  }
+DEMFEM_PAIR_KERNEL(0, 0, 0)
+DEMFEM_PAIR_KERNEL(0, 0, 1)
+DEMFEM_PAIR_KERNEL(1, 0, 0)
+DEMFEM_PAIR_KERNEL(1, 0, 1)
+DEMFEM_PAIR_KERNEL(1, 1, 0)
+DEMFEM_PAIR_KERNEL(1, 1, 1)
+#undef DEMFEM_PAIR_KERNEL
+
+using PairKernel = double (*)(const PairKernelArgs&, std::int64_t, std::int64_t);
+PairKernel pick_pair_kernel(bool friction, bool rolling, bool uniform) {
+  if (!friction) return uniform ? pair_kernel_001 : pair_kernel_000;
+  if (!rolling) return uniform ? pair_kernel_101 : pair_kernel_100;
+  return uniform ? pair_kernel_111 : pair_kernel_110;
+}
+
+}  // namespace
+
 struct DemSystem::Impl {
   DemSettings s;
   int threads = 1;
@@ -101,6 +187,7 @@ struct DemSystem::Impl {
   std::vector<phys::PairConstants> pc;
   bool friction = false;  // some pair has friction or rolling resistance
   bool rolling = false;
+  std::int64_t uniform_mat = -1;  // the material of every particle, -1 = mixed
 
   ParticleState st;
   std::vector<double> tx, ty, tz;  // torque of the last step
@@ -115,6 +202,7 @@ struct DemSystem::Impl {
   bool need_rebuild = true;
   std::vector<std::int64_t> row;    // n + 1
   std::vector<std::int32_t> nbr;    // j of each pair
+  std::vector<std::int32_t> pown;   // i of each pair (flat pair loop)
   std::vector<std::int64_t> trow;   // n + 1
   std::vector<std::int64_t> tpair;  // pair index, grouped by j, i ascending
   std::vector<std::int32_t> tsrc;   // i of each transposed entry
@@ -413,6 +501,12 @@ struct DemSystem::Impl {
     row.swap(nrow);
     nbr.swap(nnbr);
     shear.swap(nshear);
+    pown.resize(npair);
+    for (std::size_t i = 0; i < np; ++i)
+      std::fill(pown.begin() + row[i], pown.begin() + row[i + 1], static_cast<std::int32_t>(i));
+    uniform_mat = np > 0 ? st.material[0] : -1;
+    for (std::size_t i = 0; i < np && uniform_mat >= 0; ++i)
+      if (st.material[i] != uniform_mat) uniform_mat = -1;
     pf.assign(3 * npair, 0.0);
     if (friction)
       pt.assign(3 * npair, 0.0);
@@ -514,103 +608,61 @@ struct DemSystem::Impl {
   }
 
   // ---------------------------------------------------------------------------------------
+  // Forces and the second half kick, in one parallel region. Each thread owns a contiguous
+  // range of particles (rows of the pair list) and walks it in blocks: the pair forces of the
+  // block's rows into the per-pair slots (vectorised kernel), then, while those slots are
+  // still in cache, the gather of the block's particles: own-row slots in row order, minus
+  // the transposed slots (pairs j < i, i ascending), walls, gravity, kick. A particle whose
+  // pairs reach back into an earlier thread's range (the first layer of each range) waits
+  // for a barrier, so that no thread reads a slot or a velocity that another thread has not
+  // written yet or has already kicked. Every sum has a fixed order and every pair is
+  // independent, so the result is bitwise identical for any thread count and block size.
   template <bool Friction>
-  void pair_forces() {
+  void forces_and_kick() {
     const std::int64_t sn = static_cast<std::int64_t>(n());
-    const double* px = st.px.data();
-    const double* py = st.py.data();
-    const double* pz = st.pz.data();
-    const double* vx = st.vx.data();
-    const double* vy = st.vy.data();
-    const double* vz = st.vz.data();
-    const double* wx = st.wx.data();
-    const double* wy = st.wy.data();
-    const double* wz = st.wz.data();
-    const double* rad = st.radius.data();
-    const double* mass = st.mass.data();
-    const std::int32_t* mat = st.material.data();
-    const double dt = s.dt;
-    const bool roll = rolling;
-    const phys::ParticleView view{px, py, pz, vx, vy, vz, wx, wy, wz, rad, mass};
-    double mo = 0.0;
-#pragma omp parallel for num_threads(nt()) schedule(static) reduction(max : mo)
-    for (std::int64_t i = 0; i < sn; ++i) {
-      double ax = 0, ay = 0, az = 0, qx = 0, qy = 0, qz = 0;
-      const double ri = rad[i];
-      const std::size_t mrow = static_cast<std::size_t>(mat[i]) * nmat;
-      for (std::int64_t p = row[i]; p < row[i + 1]; ++p) {
-        const std::int32_t j = nbr[p];
-        double* f = pf.data() + 3 * p;
-        Vec3 sh{0, 0, 0};
-        if constexpr (Friction) sh = Vec3{shear[3 * p], shear[3 * p + 1], shear[3 * p + 2]};
-        phys::ContactResult r;
-        double delta = 0.0;
-        if (!phys::sphere_sphere<Friction>(view, static_cast<int>(i), j, pc[mrow + mat[j]], dt, sh,
-                                           r, delta)) {
-          f[0] = f[1] = f[2] = 0.0;
-          if constexpr (Friction) {
-            double* shp = shear.data() + 3 * p;
-            shp[0] = shp[1] = shp[2] = 0.0;
-            double* tq = pt.data() + 3 * p;
-            tq[0] = tq[1] = tq[2] = 0.0;
-            if (roll) {
-              double* rq = pr.data() + 3 * p;
-              rq[0] = rq[1] = rq[2] = 0.0;
-            }
-          }
-          continue;
-        }
-        mo = std::max(mo, delta);
-        f[0] = r.force.x, f[1] = r.force.y, f[2] = r.force.z;
-        ax += r.force.x, ay += r.force.y, az += r.force.z;
-        if constexpr (Friction) {
-          double* shp = shear.data() + 3 * p;
-          shp[0] = sh.x, shp[1] = sh.y, shp[2] = sh.z;
-          double* tq = pt.data() + 3 * p;
-          tq[0] = r.torque.x, tq[1] = r.torque.y, tq[2] = r.torque.z;
-          qx += ri * r.torque.x, qy += ri * r.torque.y, qz += ri * r.torque.z;
-          if (roll) {
-            double* rq = pr.data() + 3 * p;
-            rq[0] = r.roll.x, rq[1] = r.roll.y, rq[2] = r.roll.z;
-            qx += r.roll.x, qy += r.roll.y, qz += r.roll.z;
-          }
-        }
-      }
-      acc[3 * i] = ax, acc[3 * i + 1] = ay, acc[3 * i + 2] = az;
-      if constexpr (Friction) acct[3 * i] = qx, acct[3 * i + 1] = qy, acct[3 * i + 2] = qz;
-    }
-    max_ov = mo;
-  }
+    PairKernelArgs a{};
+    a.view = phys::ParticleView{st.px.data(), st.py.data(),     st.pz.data(),  st.vx.data(),
+                                st.vy.data(), st.vz.data(),     st.wx.data(),  st.wy.data(),
+                                st.wz.data(), st.radius.data(), st.mass.data()};
+    a.pi = pown.data();
+    a.pj = nbr.data();
+    a.mat = st.material.data();
+    a.pc = uniform_mat >= 0 ? pc.data() + uniform_mat * (nmat + 1) : pc.data();
+    a.nmat = nmat;
+    a.dt = s.dt;
+    a.shear = shear.data();
+    a.pf = pf.data();
+    a.pt = pt.data();
+    a.pr = pr.data();
+    const PairKernel kern = pick_pair_kernel(Friction, Friction && rolling, uniform_mat >= 0);
 
-  phys::WallView wall_view() {
-    return {vpos.data(),     vvel.data(), tri_v.data(), tri_e.data(), tri_mat.data(),
-            tri_wall.data(), prow.data(), ptri.data(),  wkey.data(),  wshear.data(),
-            wf.data(),       wp.data(),   wb.data(),    wtri.data(),  wcount.data()};
-  }
-
-  template <bool Friction>
-  void gather_and_kick() {
-    const std::int64_t sn = static_cast<std::int64_t>(n());
     const double h = 0.5 * s.dt;
     const double g[3] = {s.gravity[0], s.gravity[1], s.gravity[2]};
     const bool walls_on = !tri_v.empty();
     const phys::WallView wv = wall_view();
-    const phys::ParticleView view{st.px.data(), st.py.data(),     st.pz.data(),  st.vx.data(),
-                                  st.vy.data(), st.vz.data(),     st.wx.data(),  st.wy.data(),
-                                  st.wz.data(), st.radius.data(), st.mass.data()};
-    double mo = max_ov, fmo = 0.0;
-#pragma omp parallel for num_threads(nt()) schedule(static) reduction(max : mo, fmo)
-    for (std::int64_t i = 0; i < sn; ++i) {
-      double fx = acc[3 * i], fy = acc[3 * i + 1], fz = acc[3 * i + 2];
+    const phys::ParticleView& view = a.view;
+    const double* PF = pf.data();
+    const double* PT = pt.data();
+    const double* PR = pr.data();
+    const bool roll = rolling;
+    auto gather = [&](std::int64_t i, double& mo, double& fmo) {
+      double fx = 0, fy = 0, fz = 0;
       double qx = 0, qy = 0, qz = 0;
-      if constexpr (Friction) qx = acct[3 * i], qy = acct[3 * i + 1], qz = acct[3 * i + 2];
       const double ri = st.radius[i];
+      // own row (pairs i < j) in row order, then the transposed pairs (j < i) in order
+      for (std::int64_t p = row[i]; p < row[i + 1]; ++p) {
+        fx += PF[3 * p], fy += PF[3 * p + 1], fz += PF[3 * p + 2];
+        if constexpr (Friction) {
+          qx += ri * PT[3 * p], qy += ri * PT[3 * p + 1], qz += ri * PT[3 * p + 2];
+          if (roll) qx += PR[3 * p], qy += PR[3 * p + 1], qz += PR[3 * p + 2];
+        }
+      }
       for (std::int64_t k = trow[i]; k < trow[i + 1]; ++k) {
         const std::int64_t p = tpair[k];
-        fx -= pf[3 * p], fy -= pf[3 * p + 1], fz -= pf[3 * p + 2];
+        fx -= PF[3 * p], fy -= PF[3 * p + 1], fz -= PF[3 * p + 2];
         if constexpr (Friction) {
-          qx += ri * pt[3 * p], qy += ri * pt[3 * p + 1], qz += ri * pt[3 * p + 2];
-          if (rolling) qx -= pr[3 * p], qy -= pr[3 * p + 1], qz -= pr[3 * p + 2];
+          qx += ri * PT[3 * p], qy += ri * PT[3 * p + 1], qz += ri * PT[3 * p + 2];
+          if (roll) qx -= PR[3 * p], qy -= PR[3 * p + 1], qz -= PR[3 * p + 2];
         }
       }
       if (walls_on) {
@@ -628,34 +680,79 @@ struct DemSystem::Impl {
         tx[i] = qx, ty[i] = qy, tz[i] = qz;
         phys::kick(st.wx[i], st.wy[i], st.wz[i], qx, qy, qz, h / st.inertia[i]);
       }
+    };
+    constexpr std::int64_t kBlock = 256;  // particles per block: ~1500 pairs, ~150 kB of slots
+    const int T = nt();
+    double mo = 0.0, fmo = 0.0;
+#pragma omp parallel num_threads(T) reduction(max : mo, fmo)
+    {
+      const std::int64_t k = omp_get_thread_num(), nth = omp_get_num_threads();
+      const std::int64_t lo = sn * k / nth, hi = sn * (k + 1) / nth;
+      auto waits = [&](std::int64_t i) { return trow[i] < trow[i + 1] && tsrc[trow[i]] < lo; };
+      for (std::int64_t b0 = lo; b0 < hi; b0 += kBlock) {
+        const std::int64_t b1 = std::min(hi, b0 + kBlock);
+        mo = std::max(mo, kern(a, row[b0], row[b1]));
+        for (std::int64_t i = b0; i < b1; ++i)
+          if (!waits(i)) gather(i, mo, fmo);
+      }
+#pragma omp barrier
+      for (std::int64_t i = lo; i < hi; ++i)
+        if (waits(i)) gather(i, mo, fmo);
     }
     max_ov = mo;
     flex_max_ov = std::max(flex_max_ov, fmo);
   }
 
-  // Half kick + drift; returns the largest displacement since the last build.
+  phys::WallView wall_view() {
+    return {vpos.data(),     vvel.data(), tri_v.data(), tri_e.data(), tri_mat.data(),
+            tri_wall.data(), prow.data(), ptri.data(),  wkey.data(),  wshear.data(),
+            wf.data(),       wp.data(),   wb.data(),    wtri.data(),  wcount.data()};
+  }
+
+  // Half kick + drift; returns the largest displacement since the last build. The
+  // orientation is advanced in a second loop: with only small rotations in this step (the
+  // usual case) it runs in SIMD lanes without sin/cos; the per-particle arithmetic is the
+  // same either way.
   template <bool Friction>
   double kick_drift() {
     const std::int64_t sn = static_cast<std::int64_t>(n());
     const double dt = s.dt, h = 0.5 * s.dt;
-    double m2 = 0.0;
+    double m2 = 0.0, w2max = 0.0;
     const bool have_build = bx.size() == n();
-#pragma omp parallel for num_threads(nt()) schedule(static) reduction(max : m2)
+    double *vx = st.vx.data(), *vy = st.vy.data(), *vz = st.vz.data();
+    double *px = st.px.data(), *py = st.py.data(), *pz = st.pz.data();
+    double *wx = st.wx.data(), *wy = st.wy.data(), *wz = st.wz.data();
+    const double *fx = st.fx.data(), *fy = st.fy.data(), *fz = st.fz.data();
+    const double *mass = st.mass.data(), *inertia = st.inertia.data();
+    const double *Tx = tx.data(), *Ty = ty.data(), *Tz = tz.data();
+    const double *Bx = bx.data(), *By = by.data(), *Bz = bz.data();
+#pragma omp parallel for simd num_threads(nt()) schedule(static) reduction(max : m2, w2max)
     for (std::int64_t i = 0; i < sn; ++i) {
-      const double hm = h / st.mass[i];
-      phys::kick(st.vx[i], st.vy[i], st.vz[i], st.fx[i], st.fy[i], st.fz[i], hm);
-      st.px[i] += dt * st.vx[i];
-      st.py[i] += dt * st.vy[i];
-      st.pz[i] += dt * st.vz[i];
+      const double hm = h / mass[i];
+      phys::kick(vx[i], vy[i], vz[i], fx[i], fy[i], fz[i], hm);
+      px[i] += dt * vx[i];
+      py[i] += dt * vy[i];
+      pz[i] += dt * vz[i];
       if constexpr (Friction) {
-        phys::kick(st.wx[i], st.wy[i], st.wz[i], tx[i], ty[i], tz[i], h / st.inertia[i]);
+        phys::kick(wx[i], wy[i], wz[i], Tx[i], Ty[i], Tz[i], h / inertia[i]);
       }
-      phys::rotate_quaternion(st.qw[i], st.qx[i], st.qy[i], st.qz[i], st.wx[i], st.wy[i], st.wz[i],
-                              dt);
+      const double w2 = wx[i] * wx[i] + wy[i] * wy[i] + wz[i] * wz[i];
+      w2max = w2max > w2 ? w2max : w2;
       if (have_build) {
-        const double dx = st.px[i] - bx[i], dy = st.py[i] - by[i], dz = st.pz[i] - bz[i];
-        m2 = std::max(m2, dx * dx + dy * dy + dz * dz);
+        const double dx = px[i] - Bx[i], dy = py[i] - By[i], dz = pz[i] - Bz[i];
+        const double d2 = dx * dx + dy * dy + dz * dz;
+        m2 = m2 > d2 ? m2 : d2;
       }
+    }
+    double *qw = st.qw.data(), *qx = st.qx.data(), *qy = st.qy.data(), *qz = st.qz.data();
+    if (phys::small_rotation(w2max, dt)) {
+#pragma omp parallel for simd num_threads(nt()) schedule(static)
+      for (std::int64_t i = 0; i < sn; ++i)
+        phys::rotate_quaternion_small(qw[i], qx[i], qy[i], qz[i], wx[i], wy[i], wz[i], dt);
+    } else {
+#pragma omp parallel for num_threads(nt()) schedule(static)
+      for (std::int64_t i = 0; i < sn; ++i)
+        phys::rotate_quaternion(qw[i], qx[i], qy[i], qz[i], wx[i], wy[i], wz[i], dt);
     }
     return have_build ? std::sqrt(m2) : 1e300;
   }
@@ -711,8 +808,7 @@ struct DemSystem::Impl {
     const double t1 = omp_get_wtime();
     if (need_rebuild || 2.0 * disp > skin || disp + wdisp > skin) rebuild();
     const double t2 = omp_get_wtime();
-    pair_forces<Friction>();
-    gather_and_kick<Friction>();
+    forces_and_kick<Friction>();
     if (!tri_v.empty()) wall_reduce(last, mode, substeps);
     ++steps;
     const double t3 = omp_get_wtime();

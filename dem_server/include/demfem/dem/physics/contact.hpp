@@ -59,13 +59,16 @@ struct ContactResult {
 
 /// Evaluates the contact law.
 /// @param n        unit normal from i towards j (for walls: from the particle to the wall)
-/// @param delta    overlap > 0, m
+/// @param delta    overlap > 0, m (0 gives zero force and leaves a finite spring)
 /// @param r_eff    effective radius R (eq. 2.8), m
 /// @param m_eff    effective mass m* (eq. 2.11), kg
 /// @param vrel     velocity of i relative to j at the contact point, m/s
 /// @param wrel     angular velocity of i relative to j (rolling resistance), rad/s
 /// @param shear    tangential spring (history), updated in place; untouched when frictionless
-template <bool Friction>
+/// The body has no data-dependent branches (only selects), so that the CPU pair loop can
+/// run it in SIMD lanes; Rolling = false leaves the rolling torque out at compile time (for
+/// tables where no pair has μ_r > 0), Rolling = true evaluates it where c.rolling > 0.
+template <bool Friction, bool Rolling = true>
 DEMFEM_HD ContactResult hertz_mindlin(const PairConstants& c, Vec3 n, double delta, double r_eff,
                                       double m_eff, Vec3 vrel, Vec3 wrel, Vec3& shear, double dt) {
   ContactResult out{};
@@ -75,7 +78,11 @@ DEMFEM_HD ContactResult hertz_mindlin(const PairConstants& c, Vec3 n, double del
   const double damp = -2.0 * 0.91287092917527685576 * c.beta;  // 2 sqrt(5/6) |β|
   const double vn = dot(vrel, n);  // > 0: approaching (i moves towards j)
   // Force on i along n: elastic repulsion pushes i away from j (-n), damping opposes vn.
-  const double gamma_n = damp == 0.0 ? 0.0 : damp * std::sqrt(sn * m_eff);
+  // Every operand below is evaluated unconditionally and then selected: the compiler may
+  // not speculate a division or square root that sits inside a condition (it could raise
+  // an FP flag), and a branch would keep the CPU pair loop from vectorising.
+  const double gamma_any = damp * std::sqrt(sn * m_eff);
+  const double gamma_n = damp == 0.0 ? 0.0 : gamma_any;
   const double fn = kn * delta + gamma_n * vn;  // magnitude pushing i along -n
   out.fn = fn;
   out.force = (-fn) * n;
@@ -89,28 +96,35 @@ DEMFEM_HD ContactResult hertz_mindlin(const PairConstants& c, Vec3 n, double del
     const double sn_dot = dot(shear, n);
     Vec3 s = shear - sn_dot * n;
     const double s2_new = norm2(s);
-    if (s2_new > 0.0) s = (1.0 + 0.5 * sn_dot * sn_dot / s2_new) * s;
+    // s2_new = 0 divides by zero in the unused operand of the select only
+    const double grow_any = 1.0 + 0.5 * sn_dot * sn_dot / s2_new;
+    const double grow = s2_new > 0.0 ? grow_any : 1.0;
+    s = grow * s;
     s = s + dt * vt;
     const double st = 8.0 * c.g_star * sqrt_rd;
     const double gamma_t = gamma_n * c.t_over_n;
     Vec3 ft = (-st) * s - gamma_t * vt;
     const double ft2 = norm2(ft);
     const double fmax = c.friction * (fn > 0.0 ? fn : -fn);
-    if (ft2 > fmax * fmax) {
-      // Sliding: scale to the Coulomb limit and make the spring consistent with it.
-      const double scale = fmax / std::sqrt(ft2);
-      ft = scale * ft;
-      s = (-1.0 / st) * (ft + gamma_t * vt);
-    }
+    // Sliding: scale to the Coulomb limit and make the spring consistent with it. Without
+    // sliding the scale is exactly 1 and the spring is kept (selects, no branch).
+    const bool slide = ft2 > fmax * fmax;
+    const double scale_any = fmax / std::sqrt(ft2);
+    const double scale = slide ? scale_any : 1.0;
+    ft = scale * ft;
+    const Vec3 s_slide = (-1.0 / st) * (ft + gamma_t * vt);
+    s = Vec3{slide ? s_slide.x : s.x, slide ? s_slide.y : s.y, slide ? s_slide.z : s.z};
     shear = s;
     out.force = out.force + ft;
     out.torque = cross(n, ft);
-    if (c.rolling > 0.0) {
-      const Vec3 wr = wrel - dot(wrel, n) * n;  // rolling part only (no twist)
-      const double w2 = norm2(wr);
-      if (w2 > 0.0) {
-        const double m = c.rolling * r_eff * (fn > 0.0 ? fn : 0.0) / std::sqrt(w2);
-        out.roll = (-m) * wr;
+    if constexpr (Rolling) {
+      if (c.rolling > 0.0) {
+        const Vec3 wr = wrel - dot(wrel, n) * n;  // rolling part only (no twist)
+        const double w2 = norm2(wr);
+        if (w2 > 0.0) {
+          const double m = c.rolling * r_eff * (fn > 0.0 ? fn : 0.0) / std::sqrt(w2);
+          out.roll = (-m) * wr;
+        }
       }
     }
   }

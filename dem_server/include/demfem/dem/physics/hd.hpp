@@ -7,6 +7,10 @@
 
 #if defined(__CUDACC__)
 #define DEMFEM_HD __host__ __device__ __forceinline__
+#elif defined(__GNUC__) || defined(__clang__)
+// Forced inlining as on the device: the CPU pair loop is vectorised only when the whole
+// contact law is inlined into it.
+#define DEMFEM_HD inline __attribute__((always_inline))
 #else
 #define DEMFEM_HD inline
 #endif

@@ -12,22 +12,23 @@ struct ParticleView {
   const double *px, *py, *pz, *vx, *vy, *vz, *wx, *wy, *wz, *radius, *mass;
 };
 
-/// Contact of spheres i and j (i's row in the pair list). Returns false when they do not
+/// Contact of spheres i and j (i's row in the pair list), evaluated without a branch on
+/// the overlap (the CPU runs it in SIMD lanes over the pair list). Returns whether they
 /// overlap. On contact: `out` holds the force on i (j gets the opposite), n × F_t (torque on
 /// i = r_i n × F_t, on j = r_j n × F_t) and the rolling torque on i; `shear` is updated;
-/// `delta` is the overlap.
-template <bool Friction>
-DEMFEM_HD bool sphere_sphere(const ParticleView& p, int i, int j, const PairConstants& c, double dt,
-                             Vec3& shear, ContactResult& out, double& delta) {
+/// `delta` is the overlap. Without contact `out` and `shear` are zero and `delta` is 0.
+template <bool Friction, bool Rolling = true>
+DEMFEM_HD bool sphere_sphere_select(const ParticleView& p, int i, int j, const PairConstants& c,
+                                    double dt, Vec3& shear, ContactResult& out, double& delta) {
   const double dx = p.px[j] - p.px[i], dy = p.py[j] - p.py[i], dz = p.pz[j] - p.pz[i];
   const double ri = p.radius[i], rj = p.radius[j];
   const double rs = ri + rj;
   const double d2 = dx * dx + dy * dy + dz * dz;
-  if (d2 >= rs * rs) return false;
+  const bool touch = d2 < rs * rs;
   const double d = std::sqrt(d2);
   const double inv = 1.0 / d;
   const Vec3 n{dx * inv, dy * inv, dz * inv};
-  delta = rs - d;  // eq. 2.9
+  delta = touch ? rs - d : 0.0;  // eq. 2.9
   // R* and m* (eq. 2.8, 2.11) with one division
   const double mi = p.mass[i], mj = p.mass[j];
   const double inv_rm = 1.0 / (rs * (mi + mj));
@@ -42,8 +43,29 @@ DEMFEM_HD bool sphere_sphere(const ParticleView& p, int i, int j, const PairCons
     vrel = vrel + cross(wsum, n);
     wrel = Vec3{p.wx[i] - p.wx[j], p.wy[i] - p.wy[j], p.wz[i] - p.wz[j]};
   }
-  out = hertz_mindlin<Friction>(c, n, delta, reff, meff, vrel, wrel, shear, dt);
-  return true;
+  const ContactResult r =
+      hertz_mindlin<Friction, Rolling>(c, n, delta, reff, meff, vrel, wrel, shear, dt);
+  const double z = 0.0;
+  out.force = Vec3{touch ? r.force.x : z, touch ? r.force.y : z, touch ? r.force.z : z};
+  out.torque = Vec3{touch ? r.torque.x : z, touch ? r.torque.y : z, touch ? r.torque.z : z};
+  out.roll = Vec3{touch ? r.roll.x : z, touch ? r.roll.y : z, touch ? r.roll.z : z};
+  out.fn = touch ? r.fn : z;
+  if constexpr (Friction) {
+    const Vec3 sh = shear;  // select between values, not a conditional load (vectorises)
+    shear = Vec3{touch ? sh.x : z, touch ? sh.y : z, touch ? sh.z : z};
+  }
+  return touch;
+}
+
+/// Contact of spheres i and j (i's row in the pair list). Returns false when they do not
+/// overlap (then nothing is written). On contact as sphere_sphere_select().
+template <bool Friction>
+DEMFEM_HD bool sphere_sphere(const ParticleView& p, int i, int j, const PairConstants& c, double dt,
+                             Vec3& shear, ContactResult& out, double& delta) {
+  const double dx = p.px[j] - p.px[i], dy = p.py[j] - p.py[i], dz = p.pz[j] - p.pz[i];
+  const double rs = p.radius[i] + p.radius[j];
+  if (dx * dx + dy * dy + dz * dz >= rs * rs) return false;
+  return sphere_sphere_select<Friction>(p, i, j, c, dt, shear, out, delta);
 }
 
 /// Contact of sphere i with a wall point `cp` (closest point of a triangle) moving with
