@@ -5,7 +5,8 @@
 // the solver libraries in this process instead (the reference for the three-process run).
 //
 // Exit status: 0 done; 1 a solver or the run failed; 2 bad command line or scene; 3 blow-up
-// (the diagnosis names step and quantity); 128 + N stopped by signal N (SIGINT: 130).
+// (the diagnosis names step and quantity); 4 a solver kept dying after checkpoint.max_retries
+// restarts from the same checkpoint; 128 + N stopped by signal N (SIGINT: 130).
 
 #include <unistd.h>
 
@@ -19,6 +20,7 @@
 #include <string>
 
 #include "demfem/coupling/beam_check.hpp"
+#include "demfem/coupling/checkpoint.hpp"
 #include "demfem/coupling/coupling_run.hpp"
 #include "demfem/coupling/coupling_settings.hpp"
 #include "demfem/coupling/local_solvers.hpp"
@@ -36,6 +38,7 @@ namespace {
 constexpr int kExitFailed = 1;
 constexpr int kExitUsage = 2;
 constexpr int kExitBlowUp = 3;
+constexpr int kExitRecoveryExhausted = 4;
 
 struct Options {
   std::string scene;
@@ -44,7 +47,39 @@ struct Options {
   bool quiet = false;
   bool in_process = false;
   int wait_spin_us = 0;
+  bool resume = false;
+  std::string resume_from;  // empty: the latest valid checkpoint
+  std::string debug_kill;   // ROLE:STEP[:always], fault injection for tests
 };
+
+// --debug-kill dem:17, fem:5:always, coupler:30 (docs/reliability.md). Testing only.
+struct DebugKill {
+  std::string role;
+  std::int64_t step = -1;
+  bool always = false;
+  bool fired = false;
+};
+
+std::optional<DebugKill> parse_debug_kill(const std::string& text) {
+  if (text.empty()) return std::nullopt;
+  DebugKill k;
+  const auto c1 = text.find(':');
+  if (c1 == std::string::npos) throw std::invalid_argument(text);
+  k.role = text.substr(0, c1);
+  std::string rest = text.substr(c1 + 1);
+  if (const auto c2 = rest.find(':'); c2 != std::string::npos) {
+    if (rest.substr(c2 + 1) != "always") throw std::invalid_argument(text);
+    k.always = true;
+    rest = rest.substr(0, c2);
+  }
+  std::size_t used = 0;
+  k.step = std::stoll(rest, &used);
+  if (used != rest.size() || k.step < 0 ||
+      (k.role != "dem" && k.role != "fem" && k.role != "coupler")) {
+    throw std::invalid_argument(text);
+  }
+  return k;
+}
 
 fs::path self_dir() {
   std::error_code ec;
@@ -87,6 +122,41 @@ int run(const Options& opt) {
   const fs::path out_dir =
       opt.output_dir.empty() ? settings.run.output_dir : fs::path(opt.output_dir);
   const bool remote = !opt.in_process;
+  std::optional<DebugKill> debug_kill;
+  try {
+    debug_kill = parse_debug_kill(opt.debug_kill);
+  } catch (const std::exception&) {
+    std::fprintf(stderr,
+                 "demfem run: --debug-kill '%s': expected ROLE:STEP[:always] with ROLE dem, fem "
+                 "or coupler and STEP >= 0\n",
+                 opt.debug_kill.c_str());
+    return kExitUsage;
+  }
+  // --resume: the checkpoint to start from, verified before any process starts.
+  RunControl control;
+  control.report = [](const std::string& m) {
+    std::fprintf(stderr, "demfem run: %s\n", m.c_str());
+  };
+  if (opt.resume) {
+    const fs::path dir = checkpoint_directory(settings, out_dir);
+    const auto parts = checkpoint_parts(settings);
+    if (!opt.resume_from.empty()) {
+      try {
+        (void)verify_checkpoint(opt.resume_from, parts);
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "demfem run: --resume %s: not a valid checkpoint: %s\n",
+                     opt.resume_from.c_str(), e.what());
+        return kExitUsage;
+      }
+      control.resume_from = fs::path(opt.resume_from);
+    } else {
+      control.resume_from = latest_valid_checkpoint(dir, parts, control.report);
+      if (!control.resume_from) {
+        std::fprintf(stderr, "demfem run: --resume: no valid checkpoint in %s\n", dir.c_str());
+        return kExitUsage;
+      }
+    }
+  }
   std::printf(
       "demfem run: %s: scheme %s, dt_C = %.6g s (n_D = %lld), %lld coupling steps to "
       "t = %.6g s%s\n",
@@ -118,10 +188,13 @@ int run(const Options& opt) {
         args.push_back("--output-dir");
         args.push_back(opt.output_dir);
       }
+      std::vector<std::string> fem_args = args;
+      // A resumed FEM continues its output series (the coupler then restores it).
+      if (opt.resume) fem_args.push_back("--resume");
       std::optional<pid_t> dem_pid, fem_pid;
       std::printf("demfem run: segment %s\n", session->segment_name().c_str());
       if (settings.has_fem) {
-        fem_proc = std::make_unique<SolverProcess>("FEM solver", bin / "fem_server", args);
+        fem_proc = std::make_unique<SolverProcess>("FEM solver", bin / "fem_server", fem_args);
         fem_pid = fem_proc->start();
         std::printf("demfem run: started fem_server (pid %d)\n", static_cast<int>(*fem_pid));
       }
@@ -132,20 +205,79 @@ int run(const Options& opt) {
       }
       std::fflush(stdout);
       link = std::make_unique<RemoteLink>(*session, dem_pid, fem_pid);
+      // A solver that died is started again and attached to the same segment; the run then
+      // rolls back to the last committed checkpoint (CouplingRun).
+      control.restart_solver = [&](protocol::Role role) {
+        SolverProcess* p = role == protocol::Role::dem ? dem_proc.get() : fem_proc.get();
+        const int c = p->stop(std::chrono::milliseconds(1000));
+        std::fprintf(stderr, "demfem run: the %s (pid %d) ended with status %d%s; restarting it\n",
+                     p->label().c_str(), static_cast<int>(p->pid()), c,
+                     c > 128 ? (" (signal " + std::to_string(c - 128) + ")").c_str() : "");
+        session->reset_peer(role);
+        if (role == protocol::Role::fem) p->add_argument("--resume");
+        const pid_t pid = p->start();
+        std::printf("demfem run: started %s (pid %d)\n",
+                    role == protocol::Role::dem ? "dem_server" : "fem_server",
+                    static_cast<int>(pid));
+        std::fflush(stdout);
+        session->wait_hello(role, pid);
+        session->reattach(role);
+      };
+      if (debug_kill) {
+        control.after_send = [&](protocol::Role role, std::int64_t step) {
+          DebugKill& k = *debug_kill;
+          if (step != k.step || (k.fired && !k.always)) return;
+          if (k.role == "coupler") {
+            std::fflush(stdout);
+            ::raise(SIGKILL);
+          }
+          if (k.role != protocol::role_name(role)) return;
+          k.fired = true;
+          SolverProcess* p = role == protocol::Role::dem ? dem_proc.get() : fem_proc.get();
+          std::fprintf(stderr, "demfem run: --debug-kill: SIGKILL to the %s in step %lld\n",
+                       p->label().c_str(), static_cast<long long>(step));
+          ::kill(p->pid(), SIGKILL);
+        };
+      }
     } else {
+      if (debug_kill && debug_kill->role != "coupler") {
+        std::fprintf(stderr,
+                     "demfem run: --debug-kill %s needs solver processes (not with "
+                     "--in-process)\n",
+                     opt.debug_kill.c_str());
+        return kExitUsage;
+      }
+      if (debug_kill) {
+        control.after_send = [&](protocol::Role, std::int64_t step) {
+          if (step != debug_kill->step) return;
+          std::fflush(stdout);
+          ::raise(SIGKILL);
+        };
+      }
       link = std::make_unique<LocalLink>(make_local_dem(*doc, settings, out_dir),
-                                         make_local_fem(*doc, settings, out_dir));
+                                         make_local_fem(*doc, settings, out_dir, opt.resume));
     }
     CouplingRun loop(*link, settings, out_dir, &SignalGuard::stop_flag());
+    loop.set_control(control);
     loop.set_observer([&](const StepDiagnostics& d, const CouplingSettings& s) {
       progress.update(d.step, s.step_count, d.time, s.run.end_time);
     });
     summary = loop.run();
     progress.finish();
+    const RecoveryStats& rs = loop.recovery_stats();
+    if (rs.checkpoints > 0 || rs.recoveries > 0) {
+      std::printf("demfem run: %lld checkpoints (%.3f s), %lld recoveries (%.3f s)\n",
+                  static_cast<long long>(rs.checkpoints), rs.checkpoint_wall,
+                  static_cast<long long>(rs.recoveries), rs.recovery_wall);
+    }
   } catch (const BlowUp& e) {
     progress.finish();
     std::fprintf(stderr, "demfem run: %s\n  output so far is in %s\n", e.what(), out_dir.c_str());
     code = kExitBlowUp;
+  } catch (const RecoveryExhausted& e) {
+    progress.finish();
+    std::fprintf(stderr, "demfem run: %s\n  output so far is in %s\n", e.what(), out_dir.c_str());
+    code = kExitRecoveryExhausted;
   } catch (const SolverFailure& e) {
     progress.finish();
     // The adapters refuse non-finite numbers themselves ("... is not finite (the DEM blew
@@ -231,8 +363,9 @@ int main(int argc, char** argv) {
   Options opt;
   CLI::App app{
       "Runs a demfem scene: starts dem_server and/or fem_server as the scene needs, couples "
-      "them, and exits with the run's status (0 ok, 1 failed, 2 bad input, 3 blow-up, 128+N "
-      "signal N)."};
+      "them, and exits with the run's status (0 ok, 1 failed, 2 bad input, 3 blow-up, 4 a solver "
+      "kept dying, "
+      "128+N signal N)."};
   app.add_option("SCENE", opt.scene, "scene file (TOML)")->required();
   app.add_option("--bin-dir", opt.bin_dir,
                  "folder with dem_server and fem_server (default: this program's folder)");
@@ -245,8 +378,16 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0, 100000));
   app.add_flag("--in-process", opt.in_process,
                "run the solvers in this process (no servers; same results on the CPU backend)");
+  auto* resume = app.add_option("--resume", opt.resume_from,
+                                "continue from a committed checkpoint: the given folder, or "
+                                "without a value the latest valid one in the checkpoint folder")
+                     ->expected(0, 1);
+  app.add_option("--debug-kill", opt.debug_kill,
+                 "testing only: SIGKILL a process at a coupling step, ROLE:STEP[:always] with "
+                 "ROLE dem, fem or coupler (docs/reliability.md)");
   try {
     app.parse(argc, argv);
+    opt.resume = resume->count() > 0;
   } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {

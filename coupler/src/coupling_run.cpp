@@ -5,9 +5,11 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
+#include <map>
 #include <optional>
 #include <sstream>
 
+#include "demfem/coupling/checkpoint.hpp"
 #include "demfem/io/atomic_file.hpp"
 #include "demfem/io/h5_file.hpp"
 
@@ -91,6 +93,30 @@ class SeriesFile {
     for (std::size_t k = 0; k < columns.size(); ++k) out_ << (k ? "," : "") << columns[k];
     out_ << '\n';
   }
+  /// Continues an existing series: keeps the header and the first `keep_rows` rows (those
+  /// of a checkpoint being resumed), drops the rest.
+  SeriesFile(const std::filesystem::path& path, std::size_t keep_rows) : path_(path) {
+    std::string kept;
+    {
+      std::ifstream in(path, std::ios::binary);
+      if (!in) throw std::runtime_error(path.string() + ": cannot read the series to continue");
+      std::string line;
+      std::size_t lines = 0;
+      while (lines < keep_rows + 1 && std::getline(in, line)) {
+        kept += line;
+        kept += '\n';
+        ++lines;
+      }
+      if (lines < keep_rows + 1) {
+        throw std::runtime_error(path.string() + ": has " +
+                                 std::to_string(lines == 0 ? 0 : lines - 1) +
+                                 " rows, the checkpoint counts " + std::to_string(keep_rows));
+      }
+    }
+    io::write_file_atomic(path, kept);
+    out_.open(path, std::ios::app);
+    if (!out_) throw std::runtime_error("cannot write " + path.string());
+  }
   void row(std::span<const double> values) {
     char text[40];
     line_.clear();
@@ -143,10 +169,56 @@ CouplingRun::CouplingRun(SolverLink& link, const CouplingSettings& settings,
                          std::filesystem::path output_dir, const std::atomic<bool>* stop)
     : link_(link), settings_(settings), output_dir_(std::move(output_dir)), stop_(stop) {}
 
+std::filesystem::path checkpoint_directory(const CouplingSettings& s,
+                                           const std::filesystem::path& output_dir) {
+  if (s.checkpoint.directory.empty()) return output_dir / "checkpoints";
+  return s.checkpoint.directory.is_absolute() ? s.checkpoint.directory
+                                              : output_dir / s.checkpoint.directory;
+}
+
+std::vector<std::string> checkpoint_parts(const CouplingSettings& s) {
+  std::vector<std::string> parts;
+  if (s.has_dem) parts.push_back("dem.h5");
+  if (s.has_fem) parts.push_back("fem.h5");
+  parts.push_back("coupler.h5");
+  return parts;
+}
+
+namespace {
+
+StepDiagnostics diagnostics_of(std::span<const double> r) {
+  StepDiagnostics d;
+  d.step = static_cast<std::int64_t>(r[0]);
+  d.time = r[1];
+  d.drift = r[2];
+  d.work_dem = r[3];
+  d.work_fem = r[4];
+  d.energy_error = r[5];
+  d.max_overlap = r[6];
+  d.dem_max_overlap = r[7];
+  d.kinetic_energy = r[8];
+  d.fem_max_displacement = r[9];
+  d.force_sum_z = r[10];
+  d.wall_dem = r[11];
+  d.wall_fem = r[12];
+  d.wall_coupling = r[13];
+  return d;
+}
+
+const char* role_label(Role role) {
+  return role == Role::dem ? "DEM" : "FEM";
+}
+
+}  // namespace
+
 RunSummary CouplingRun::run() {
   const CouplingSettings& s = settings_;
   std::filesystem::create_directories(output_dir_);
-  SeriesFile csv(output_dir_ / "coupling.csv", kColumns);
+  std::optional<SeriesFile> csv;
+  if (!control_.resume_from) csv.emplace(output_dir_ / "coupling.csv", kColumns);
+  auto report = [&](const std::string& m) {
+    if (control_.report) control_.report(m);
+  };
 
   RunSummary sum;
   sum.mesh = link_.start();
@@ -157,12 +229,14 @@ RunSummary CouplingRun::run() {
 
   // The coupler's own copies: the FEM interface state at t_i (P, V, A), the forces the FEM
   // was last given and the DEM's last forces, for the schemes and the work diagnostics.
+  // Everything here is the scheme's history and goes into coupler.h5 of a checkpoint.
   std::vector<double> pos = sum.mesh.reference_positions, vel(n3, 0.0), acc(n3, 0.0);
   std::vector<double> next_pos(n3), dem_start(n3), dem_end(n3);
   std::vector<double> dem_force(n3, 0.0), dem_force_prev(n3, 0.0);
   std::vector<double> fem_force(n3, 0.0), fem_force_prev(n3, 0.0);
   double work_dem = 0.0, work_fem = 0.0;
   bool settled = false;
+  std::int64_t csv_rows = 0;
 
   // Rows reach the disk at least every kFlushInterval of wall time (and at every end of the
   // run, normal or not): a flush per step would cost a system call per step.
@@ -170,9 +244,10 @@ RunSummary CouplingRun::run() {
   auto last_flush = Clock::now();
   auto write_row = [&](const StepDiagnostics& d) {
     const auto r = row_of(d);
-    csv.row(r);
+    csv->row(r);
+    ++csv_rows;
     if (const auto now = Clock::now(); now - last_flush >= kFlushInterval) {
-      csv.flush();
+      csv->flush();
       last_flush = now;
     }
   };
@@ -200,15 +275,172 @@ RunSummary CouplingRun::run() {
     io::commit_partial(final_path);
   };
 
+  // ---- checkpoints ------------------------------------------------------------------------
+  const CheckpointSettings& cps = s.checkpoint;
+  const auto cp_dir = checkpoint_directory(s, output_dir_);
+  std::optional<std::filesystem::path> last_cp;  // the newest committed checkpoint
+  std::int64_t last_cp_step = -1;
+  auto last_cp_wall = Clock::now();
+  const std::vector<std::string> parts = checkpoint_parts(s);
+
+  auto save_coupler = [&](const std::filesystem::path& file, std::int64_t steps) {
+    io::H5File h5(io::partial_path(file), io::H5File::Mode::create);
+    h5.set_attribute("/", "step", steps);
+    h5.set_attribute("/", "scheme", std::string(scheme_name(s.scheme)));
+    h5.set_attribute("/", "node_count", static_cast<std::int64_t>(n3 / 3));
+    h5.set_attribute("/", "time", sum.time);
+    h5.set_attribute("/", "work_dem", work_dem);
+    h5.set_attribute("/", "work_fem", work_fem);
+    h5.set_attribute("/", "settled", static_cast<std::int64_t>(settled));
+    h5.set_attribute("/", "csv_rows", csv_rows);
+    h5.set_attribute("/", "wall_dem", sum.wall_dem);
+    h5.set_attribute("/", "wall_fem", sum.wall_fem);
+    h5.set_attribute("/", "wall_coupling", sum.wall_coupling);
+    const auto last = row_of(sum.last);
+    h5.write("last_diagnostics", std::span<const double>(last), {last.size()});
+    h5.create_group("scheme");
+    const std::pair<const char*, const std::vector<double>*> arrays[] = {
+        {"scheme/positions", &pos},       {"scheme/velocities", &vel},
+        {"scheme/accelerations", &acc},   {"scheme/next_positions", &next_pos},
+        {"scheme/dem_start", &dem_start}, {"scheme/dem_end", &dem_end},
+        {"scheme/dem_force", &dem_force}, {"scheme/dem_force_prev", &dem_force_prev},
+        {"scheme/fem_force", &fem_force}, {"scheme/fem_force_prev", &fem_force_prev}};
+    for (const auto& [name, v] : arrays) h5.write(name, std::span<const double>(*v), {v->size()});
+    if (n3 > 0) {
+      // The interface buffer as the solvers left it (the schemes rewrite it before every
+      // read, but a restored run starts from exactly the same bytes).
+      h5.create_group("buffer");
+      h5.write("buffer/positions", std::span<const double>(buf.positions(b)), {n3});
+      h5.write("buffer/velocities", std::span<const double>(buf.velocities(b)), {n3});
+      h5.write("buffer/accelerations", std::span<const double>(buf.accelerations(b)), {n3});
+      h5.write("buffer/forces", std::span<const double>(buf.forces(b)), {n3});
+      h5.write("buffer/dem_positions", std::span<const double>(buf.dem_positions(b)), {n3});
+    }
+    h5.close();
+    io::commit_partial(file);
+  };
+  auto load_coupler = [&](const std::filesystem::path& file, std::int64_t steps) {
+    io::H5File h5(file, io::H5File::Mode::read);
+    auto need = [&](bool ok, const std::string& what) {
+      if (!ok) throw std::runtime_error(file.string() + ": " + what);
+    };
+    need(h5.attribute_int64("/", "step") == steps,
+         "attribute 'step' is " + std::to_string(h5.attribute_int64("/", "step")) +
+             ", the manifest says " + std::to_string(steps));
+    need(h5.attribute_string("/", "scheme") == scheme_name(s.scheme),
+         "attribute 'scheme' is '" + h5.attribute_string("/", "scheme") + "', the scene's is '" +
+             scheme_name(s.scheme) + "'");
+    need(h5.attribute_int64("/", "node_count") == static_cast<std::int64_t>(n3 / 3),
+         "attribute 'node_count' differs from the interface mesh of this run");
+    sum.time = h5.attribute_double("/", "time");
+    work_dem = h5.attribute_double("/", "work_dem");
+    work_fem = h5.attribute_double("/", "work_fem");
+    settled = h5.attribute_int64("/", "settled") != 0;
+    csv_rows = h5.attribute_int64("/", "csv_rows");
+    sum.wall_dem = h5.attribute_double("/", "wall_dem");
+    sum.wall_fem = h5.attribute_double("/", "wall_fem");
+    sum.wall_coupling = h5.attribute_double("/", "wall_coupling");
+    const auto last = h5.read_doubles("last_diagnostics");
+    need(last.size() == kColumns.size(), "dataset 'last_diagnostics' has the wrong size");
+    sum.last = diagnostics_of(last);
+    const std::pair<const char*, std::vector<double>*> arrays[] = {
+        {"scheme/positions", &pos},       {"scheme/velocities", &vel},
+        {"scheme/accelerations", &acc},   {"scheme/next_positions", &next_pos},
+        {"scheme/dem_start", &dem_start}, {"scheme/dem_end", &dem_end},
+        {"scheme/dem_force", &dem_force}, {"scheme/dem_force_prev", &dem_force_prev},
+        {"scheme/fem_force", &fem_force}, {"scheme/fem_force_prev", &fem_force_prev}};
+    for (const auto& [name, v] : arrays) {
+      auto data = h5.read_doubles(name);
+      need(data.size() == n3, std::string("dataset '") + name + "' has " +
+                                  std::to_string(data.size()) + " values, expected " +
+                                  std::to_string(n3));
+      *v = std::move(data);
+    }
+    if (n3 > 0) {
+      const std::pair<const char*, std::span<double>> bufs[] = {
+          {"buffer/positions", buf.positions(b)},
+          {"buffer/velocities", buf.velocities(b)},
+          {"buffer/accelerations", buf.accelerations(b)},
+          {"buffer/forces", buf.forces(b)},
+          {"buffer/dem_positions", buf.dem_positions(b)}};
+      for (const auto& [name, to] : bufs) {
+        const auto data = h5.read_doubles(name);
+        need(data.size() == n3, std::string("dataset '") + name + "' has the wrong size");
+        copy(data, to);
+      }
+    }
+    sum.steps = steps;
+  };
+
+  // Writes the checkpoint after `steps` coupling steps; a solver failing here is a
+  // SolverFailure like one failing in a step.
+  auto take_checkpoint = [&](std::int64_t steps) {
+    const auto t0 = Clock::now();
+    const auto folder = cp_dir / checkpoint_folder_name(steps);
+    std::filesystem::remove_all(folder);  // an uncommitted or rolled-back one
+    std::filesystem::create_directories(folder);
+    csv->flush();
+    for (Role role : {Role::dem, Role::fem}) {
+      if (!link_.has(role)) continue;
+      const auto file = folder / (role == Role::dem ? "dem.h5" : "fem.h5");
+      try {
+        link_.checkpoint(role, file, steps);
+      } catch (const std::exception& e) {
+        throw SolverFailure(role, steps, sum.time,
+                            std::string("the ") + role_label(role) +
+                                " solver failed writing checkpoint " + file.string() + ": " +
+                                e.what());
+      }
+    }
+    save_coupler(folder / "coupler.h5", steps);
+    commit_checkpoint(folder, steps, sum.time, scheme_name(s.scheme), parts);
+    last_cp = folder;
+    last_cp_step = steps;
+    prune_checkpoints(cp_dir, cps.keep);
+    last_cp_wall = Clock::now();
+    ++stats_.checkpoints;
+    stats_.checkpoint_wall += seconds(t0, last_cp_wall);
+  };
+  auto checkpoint_due = [&](std::int64_t steps) {
+    if (!cps.enabled || steps == last_cp_step || steps >= s.step_count) return false;
+    if (cps.every_steps > 0 && steps % cps.every_steps == 0) return true;
+    if (cps.every_sim_time > 0.0) {
+      const double t = static_cast<double>(steps) * s.coupling_dt;
+      const double t_last =
+          static_cast<double>(std::max<std::int64_t>(last_cp_step, 0)) * s.coupling_dt;
+      if (std::floor(t / cps.every_sim_time + 1e-9) >
+          std::floor(t_last / cps.every_sim_time + 1e-9))
+        return true;
+    }
+    return cps.every_wall_time > 0.0 && seconds(last_cp_wall, Clock::now()) >= cps.every_wall_time;
+  };
+  // Every process back to the checkpoint in `folder`: both solvers, the coupler's scheme
+  // history and the CSV rows. Returns the step to continue from.
+  auto restore_from = [&](const std::filesystem::path& folder) {
+    const CheckpointManifest m = verify_checkpoint(folder, parts);
+    for (Role role : {Role::dem, Role::fem}) {
+      if (!link_.has(role)) continue;
+      link_.restore(role, folder / (role == Role::dem ? "dem.h5" : "fem.h5"), m.step);
+    }
+    load_coupler(folder / "coupler.h5", m.step);
+    csv.reset();
+    csv.emplace(output_dir_ / "coupling.csv", static_cast<std::size_t>(csv_rows));
+    last_cp = folder;
+    last_cp_step = m.step;
+    last_cp_wall = Clock::now();
+    return m.step;
+  };
+
   // A solver that fails or dies inside a step: name it, the step and the time.
   auto solver_step = [&](Role role, const StepCommand& cmd) {
     try {
       link_.send_step(role, cmd);
+      if (control_.after_send) control_.after_send(role, cmd.step);
       return link_.wait_step_done(role);
     } catch (const std::exception& e) {
       std::ostringstream m;
-      m << "the " << (role == Role::dem ? "DEM" : "FEM") << " solver failed in coupling step "
-        << cmd.step << " (t = " << fmt(cmd.time) << " s): " << e.what();
+      m << "the " << role_label(role) << " solver failed in coupling step " << cmd.step
+        << " (t = " << fmt(cmd.time) << " s): " << e.what();
       throw SolverFailure(role, cmd.step, cmd.time, m.str());
     }
   };
@@ -233,7 +465,7 @@ RunSummary CouplingRun::run() {
   auto fail = [&](const StepDiagnostics& d, const std::string& quantity, double value, double bound,
                   const std::string& why) {
     write_row(d);
-    csv.flush();
+    csv->flush();
     sum.last = d;
     std::ostringstream m;
     m << "blow-up at coupling step " << d.step << " (t = " << fmt(d.time) << " s): " << why;
@@ -270,135 +502,195 @@ RunSummary CouplingRun::run() {
     }
   };
 
+  // One coupling step i (0-based); returns true when the run is complete (settled).
+  auto one_step = [&](std::int64_t i) {
+    const auto step_start = Clock::now();
+    StepDiagnostics d;
+    d.step = i;
+    const double t = static_cast<double>(i) * s.coupling_dt;
+    d.time = static_cast<double>(i + 1) * s.coupling_dt;
+    StepCommand dem_cmd;
+    dem_cmd.step = i;
+    dem_cmd.time = t;
+    dem_cmd.dt = s.coupling_dt;
+    dem_cmd.substeps = s.dem_substeps;
+    dem_cmd.buffer = b;
+    dem_cmd.force_mode = s.force_mode();
+    StepCommand fem_cmd = dem_cmd;
+    fem_cmd.substeps = 1;
+
+    switch (s.scheme) {
+      case Scheme::dem_only: {
+        // The DEM alone advances in slices; the last one is cut to end at run.end_time.
+        const double left = (s.run.end_time - t) / s.dem_dt;
+        const std::int64_t n = std::llround(left);
+        if (std::abs(left - static_cast<double>(n)) <= 1e-6 && n < dem_cmd.substeps) {
+          dem_cmd.substeps = std::max<std::int64_t>(1, n);
+          dem_cmd.dt = static_cast<double>(dem_cmd.substeps) * s.dem_dt;
+          d.time = t + dem_cmd.dt;
+        }
+        dem_step(dem_cmd, d);
+        break;
+      }
+      case Scheme::fem_only:
+        if (s.fem_static) fem_cmd.flags |= protocol::kStepStatic;
+        fem_step(fem_cmd, d);
+        if (n3 > 0) copy(buf.positions(b), pos);
+        break;
+      case Scheme::one_way_static: {
+        // The DEM mesh stays at the reference (no kinematics are sent).
+        if (i == 0) dem_start = pos;
+        dem_step(dem_cmd, d);
+        const bool last = i + 1 == s.step_count;
+        const bool ke_ok = s.settle_kinetic_energy > 0.0 &&
+                           d.time >= s.settle_min_time * (1.0 - 1e-12) &&
+                           d.kinetic_energy <= s.settle_kinetic_energy;
+        if (ke_ok || (last && s.settle_kinetic_energy == 0.0)) {
+          settled = true;
+          copy(dem_force, buf.forces(b));
+          fem_force = dem_force;
+          fem_cmd.flags |= protocol::kStepStatic;
+          fem_step(fem_cmd, d);
+          copy(buf.positions(b), next_pos);
+          // A slowly applied load does W = F.u / 2 (the strain energy); the DEM's mesh did
+          // not move, so its side is zero by construction (not a scheme error).
+          work_fem = trapezoid_work(fem_force_prev, fem_force, pos, next_pos);
+          pos = next_pos;
+        }
+        break;
+      }
+      case Scheme::just_in_time: {
+        // Algorithm 3: the DEM moves the mesh from the FEM's state at t_i (x + v tau +
+        // a tau^2/2) for n_D substeps; its forces then drive one FEM step.
+        copy(pos, buf.positions(b));
+        copy(vel, buf.velocities(b));
+        copy(acc, buf.accelerations(b));
+        dem_start = pos;
+        dem_cmd.flags |= protocol::kStepSetKinematics;
+        dem_step(dem_cmd, d);
+        // The DEM adapter left its forces in the buffer; the FEM reads them there.
+        fem_force = dem_force;
+        fem_step(fem_cmd, d);
+        copy(buf.positions(b), next_pos);
+        copy(buf.velocities(b), vel);
+        copy(buf.accelerations(b), acc);
+        break;
+      }
+      case Scheme::predictive: {
+        // eq. 3.4-3.7: the FEM steps first with the last DEM forces; the DEM then moves the
+        // mesh from P_i with V = (P_{i+1} - P_i) / dt_F and A = 0, ending where the FEM is.
+        fem_force = dem_force_prev;
+        copy(fem_force, buf.forces(b));
+        fem_step(fem_cmd, d);
+        copy(buf.positions(b), next_pos);
+        const double inv_dt = 1.0 / s.coupling_dt;
+        auto v = buf.velocities(b);
+        for (std::size_t k = 0; k < n3; ++k) v[k] = (next_pos[k] - pos[k]) * inv_dt;
+        copy(pos, buf.positions(b));
+        std::fill(buf.accelerations(b).begin(), buf.accelerations(b).end(), 0.0);
+        dem_start = pos;
+        dem_cmd.flags |= protocol::kStepSetKinematics;
+        dem_step(dem_cmd, d);
+        break;
+      }
+    }
+
+    if (coupled && s.scheme != Scheme::one_way_static) {
+      work_dem += trapezoid_work(dem_force_prev, dem_force, dem_start, dem_end);
+      work_fem += trapezoid_work(fem_force_prev, fem_force, pos, next_pos);
+      d.drift = max_node_distance(dem_end, next_pos);
+      pos = next_pos;
+    } else if (s.scheme == Scheme::one_way_static) {
+      d.drift = settled ? 0.0 : max_node_distance(dem_end, pos);
+    }
+    if (coupled) {
+      dem_force_prev = dem_force;
+      fem_force_prev = fem_force;
+    }
+    d.work_dem = work_dem;
+    d.work_fem = work_fem;
+    d.energy_error = work_dem - work_fem;
+    for (std::size_t k = 2; k < n3; k += 3) d.force_sum_z += dem_force[k];
+    check(d);
+    d.wall_coupling = std::max(0.0, seconds(step_start, Clock::now()) - d.wall_dem - d.wall_fem);
+    sum.steps = i + 1;
+    sum.time = d.time;
+    sum.wall_dem += d.wall_dem;
+    sum.wall_fem += d.wall_fem;
+    const bool row_due = (i + 1) % s.diagnostics_interval == 0 || i + 1 == s.step_count || settled;
+    if (row_due) write_row(d);
+    // The row's own write is part of the coupler's time; account it to the totals.
+    d.wall_coupling = std::max(0.0, seconds(step_start, Clock::now()) - d.wall_dem - d.wall_fem);
+    sum.wall_coupling += d.wall_coupling;
+    sum.last = d;
+    if (observer_) observer_(d, s);
+    return settled;
+  };
+
+  // A solver died: restart it, roll every process back to the last committed checkpoint.
+  // At most max_retries restarts per checkpoint step; then RecoveryExhausted.
+  std::map<std::int64_t, std::int64_t> tries;
+  std::string failures;
+  auto recover = [&](const SolverFailure& first) -> std::int64_t {
+    const auto t0 = Clock::now();
+    Role role = first.role();
+    std::string why = first.what();
+    for (;;) {
+      const std::int64_t n = ++tries[last_cp_step];
+      failures += "\n  " + why;
+      if (n > cps.max_retries) {
+        throw RecoveryExhausted(role, first.step(), first.time(),
+                                "the " + std::string(role_label(role)) + " solver kept failing: " +
+                                    std::to_string(cps.max_retries) + " restarts from checkpoint " +
+                                    last_cp->string() + " (step " + std::to_string(last_cp_step) +
+                                    ") did not get past it (checkpoint.max_retries = " +
+                                    std::to_string(cps.max_retries) + "); failures:" + failures);
+      }
+      report("the " + std::string(role_label(role)) + " solver failed (" + why + "); restart " +
+             std::to_string(n) + " of " + std::to_string(cps.max_retries) +
+             ", rolling back to checkpoint " + last_cp->string());
+      try {
+        control_.restart_solver(role);
+        const std::int64_t at = restore_from(*last_cp);
+        ++stats_.recoveries;
+        stats_.recovery_wall += seconds(t0, Clock::now());
+        report("recovered: every process is back at step " + std::to_string(at) + " (t = " +
+               fmt(sum.time) + " s), " + fmt(seconds(t0, Clock::now())) + " s after the failure");
+        return at;
+      } catch (const protocol::PeerDied& e) {
+        role = e.role();
+        why = e.what();
+      }
+      if (stop_ && stop_->load()) throw Interrupted("stopped by a signal during recovery");
+    }
+  };
+
   const auto run_start = Clock::now();
   try {
-    for (std::int64_t i = 0; i < s.step_count; ++i) {
+    std::int64_t i = 0;
+    if (control_.resume_from) {
+      i = restore_from(*control_.resume_from);
+      stats_.resumed_from = i;
+      report("resumed from checkpoint " + control_.resume_from->string() + " (step " +
+             std::to_string(i) + ", t = " + fmt(sum.time) + " s)");
+    } else if (cps.enabled) {
+      take_checkpoint(0);
+    }
+    while (i < s.step_count && !settled) {
       if (stop_ && stop_->load()) {
         throw Interrupted("stopped by a signal before coupling step " + std::to_string(i) +
                           " (t = " + fmt(static_cast<double>(i) * s.coupling_dt) + " s)");
       }
-      const auto step_start = Clock::now();
-      StepDiagnostics d;
-      d.step = i;
-      const double t = static_cast<double>(i) * s.coupling_dt;
-      d.time = static_cast<double>(i + 1) * s.coupling_dt;
-      StepCommand dem_cmd;
-      dem_cmd.step = i;
-      dem_cmd.time = t;
-      dem_cmd.dt = s.coupling_dt;
-      dem_cmd.substeps = s.dem_substeps;
-      dem_cmd.buffer = b;
-      dem_cmd.force_mode = s.force_mode();
-      StepCommand fem_cmd = dem_cmd;
-      fem_cmd.substeps = 1;
-
-      switch (s.scheme) {
-        case Scheme::dem_only: {
-          // The DEM alone advances in slices; the last one is cut to end at run.end_time.
-          const double left = (s.run.end_time - t) / s.dem_dt;
-          const std::int64_t n = std::llround(left);
-          if (std::abs(left - static_cast<double>(n)) <= 1e-6 && n < dem_cmd.substeps) {
-            dem_cmd.substeps = std::max<std::int64_t>(1, n);
-            dem_cmd.dt = static_cast<double>(dem_cmd.substeps) * s.dem_dt;
-            d.time = t + dem_cmd.dt;
-          }
-          dem_step(dem_cmd, d);
-          break;
-        }
-        case Scheme::fem_only:
-          if (s.fem_static) fem_cmd.flags |= protocol::kStepStatic;
-          fem_step(fem_cmd, d);
-          if (n3 > 0) copy(buf.positions(b), pos);
-          break;
-        case Scheme::one_way_static: {
-          // The DEM mesh stays at the reference (no kinematics are sent).
-          if (i == 0) dem_start = pos;
-          dem_step(dem_cmd, d);
-          const bool last = i + 1 == s.step_count;
-          const bool ke_ok = s.settle_kinetic_energy > 0.0 &&
-                             d.time >= s.settle_min_time * (1.0 - 1e-12) &&
-                             d.kinetic_energy <= s.settle_kinetic_energy;
-          if (ke_ok || (last && s.settle_kinetic_energy == 0.0)) {
-            settled = true;
-            copy(dem_force, buf.forces(b));
-            fem_force = dem_force;
-            fem_cmd.flags |= protocol::kStepStatic;
-            fem_step(fem_cmd, d);
-            copy(buf.positions(b), next_pos);
-            // A slowly applied load does W = F.u / 2 (the strain energy); the DEM's mesh did
-            // not move, so its side is zero by construction (not a scheme error).
-            work_fem = trapezoid_work(fem_force_prev, fem_force, pos, next_pos);
-            pos = next_pos;
-          }
-          break;
-        }
-        case Scheme::just_in_time: {
-          // Algorithm 3: the DEM moves the mesh from the FEM's state at t_i (x + v tau +
-          // a tau^2/2) for n_D substeps; its forces then drive one FEM step.
-          copy(pos, buf.positions(b));
-          copy(vel, buf.velocities(b));
-          copy(acc, buf.accelerations(b));
-          dem_start = pos;
-          dem_cmd.flags |= protocol::kStepSetKinematics;
-          dem_step(dem_cmd, d);
-          // The DEM adapter left its forces in the buffer; the FEM reads them there.
-          fem_force = dem_force;
-          fem_step(fem_cmd, d);
-          copy(buf.positions(b), next_pos);
-          copy(buf.velocities(b), vel);
-          copy(buf.accelerations(b), acc);
-          break;
-        }
-        case Scheme::predictive: {
-          // eq. 3.4-3.7: the FEM steps first with the last DEM forces; the DEM then moves the
-          // mesh from P_i with V = (P_{i+1} - P_i) / dt_F and A = 0, ending where the FEM is.
-          fem_force = dem_force_prev;
-          copy(fem_force, buf.forces(b));
-          fem_step(fem_cmd, d);
-          copy(buf.positions(b), next_pos);
-          const double inv_dt = 1.0 / s.coupling_dt;
-          auto v = buf.velocities(b);
-          for (std::size_t k = 0; k < n3; ++k) v[k] = (next_pos[k] - pos[k]) * inv_dt;
-          copy(pos, buf.positions(b));
-          std::fill(buf.accelerations(b).begin(), buf.accelerations(b).end(), 0.0);
-          dem_start = pos;
-          dem_cmd.flags |= protocol::kStepSetKinematics;
-          dem_step(dem_cmd, d);
-          break;
-        }
+      try {
+        if (checkpoint_due(i)) take_checkpoint(i);
+        if (one_step(i)) break;
+        ++i;
+      } catch (const SolverFailure& e) {
+        // A blow-up reported by a solver is not a crash: restarting would repeat it.
+        const bool refusal = std::string(e.what()).find("not finite") != std::string::npos;
+        if (!control_.restart_solver || !last_cp || refusal || (stop_ && stop_->load())) throw;
+        i = recover(e);
       }
-
-      if (coupled && s.scheme != Scheme::one_way_static) {
-        work_dem += trapezoid_work(dem_force_prev, dem_force, dem_start, dem_end);
-        work_fem += trapezoid_work(fem_force_prev, fem_force, pos, next_pos);
-        d.drift = max_node_distance(dem_end, next_pos);
-        pos = next_pos;
-      } else if (s.scheme == Scheme::one_way_static) {
-        d.drift = settled ? 0.0 : max_node_distance(dem_end, pos);
-      }
-      if (coupled) {
-        dem_force_prev = dem_force;
-        fem_force_prev = fem_force;
-      }
-      d.work_dem = work_dem;
-      d.work_fem = work_fem;
-      d.energy_error = work_dem - work_fem;
-      for (std::size_t k = 2; k < n3; k += 3) d.force_sum_z += dem_force[k];
-      check(d);
-      d.wall_coupling = std::max(0.0, seconds(step_start, Clock::now()) - d.wall_dem - d.wall_fem);
-      sum.steps = i + 1;
-      sum.time = d.time;
-      sum.wall_dem += d.wall_dem;
-      sum.wall_fem += d.wall_fem;
-      const bool row_due =
-          (i + 1) % s.diagnostics_interval == 0 || i + 1 == s.step_count || settled;
-      if (row_due) write_row(d);
-      // The row's own write is part of the coupler's time; account it to the totals.
-      d.wall_coupling = std::max(0.0, seconds(step_start, Clock::now()) - d.wall_dem - d.wall_fem);
-      sum.wall_coupling += d.wall_coupling;
-      sum.last = d;
-      if (observer_) observer_(d, s);
-      if (settled) break;
     }
     if (s.scheme == Scheme::one_way_static && !settled) {
       throw std::runtime_error(
@@ -409,15 +701,15 @@ RunSummary CouplingRun::run() {
     }
   } catch (...) {
     sum.wall_total = seconds(run_start, Clock::now());
-    csv.flush();
     try {
+      if (csv) csv->flush();
       write_h5();
     } catch (...) {
       // The original error matters more than a failed final file.
     }
     throw;
   }
-  csv.flush();
+  csv->flush();
   sum.wall_total = seconds(run_start, Clock::now());
   sum.settled = settled;
   sum.positions = pos;

@@ -154,6 +154,17 @@ CouplingSettings read_coupling_settings(const scene::Document& doc) {
     s.diagnostics_interval = coupling->integer("diagnostics_interval", 1, 1, INT64_MAX);
     coupling->finish();
   }
+  if (auto cp = root.table("checkpoint")) {
+    CheckpointSettings& c = s.checkpoint;
+    c.enabled = true;
+    c.every_steps = cp->integer("every_steps", 0, 0, INT64_MAX);
+    c.every_sim_time = cp->number("every_sim_time", 0.0, Range::non_negative());
+    c.every_wall_time = cp->number("every_wall_time", 0.0, Range::non_negative());
+    c.keep = cp->integer("keep", 3, 1, 1000000);
+    c.max_retries = cp->integer("max_retries", 3, 0, 1000);
+    if (cp->has("directory")) c.directory = cp->string("directory");
+    cp->finish();
+  }
   return s;
 }
 

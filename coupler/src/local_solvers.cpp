@@ -49,11 +49,14 @@ class LocalDem final : public protocol::SolverBackend {
 
 class LocalFem final : public protocol::SolverBackend {
  public:
-  LocalFem(fem::FemScene scene, const scene::RunSettings& run, const std::filesystem::path& out)
+  LocalFem(fem::FemScene scene, const scene::RunSettings& run, const std::filesystem::path& out,
+           bool resume)
       : solver_(std::move(scene.problem)) {
     if (scene.output.enabled) {
-      output_ = std::make_unique<fem::FemOutput>(out, "fem", solver_.problem().mesh, scene.output);
-      output_->write(solver_);  // reference state
+      output_ = std::make_unique<fem::FemOutput>(
+          out, "fem", solver_.problem().mesh, scene.output,
+          resume ? fem::OutputMode::resume : fem::OutputMode::replace);
+      if (!resume) output_->write(solver_);  // reference state
     }
     const double interval =
         scene.output.interval > 0.0 ? scene.output.interval : run.output_interval;
@@ -115,10 +118,11 @@ std::unique_ptr<protocol::SolverBackend> make_local_dem(const scene::Document& s
 
 std::unique_ptr<protocol::SolverBackend> make_local_fem(const scene::Document& scene,
                                                         const CouplingSettings& settings,
-                                                        const std::filesystem::path& out) {
+                                                        const std::filesystem::path& out,
+                                                        bool resume) {
   const auto fem = scene.root().table("fem");
   if (!fem) return nullptr;
-  return std::make_unique<LocalFem>(fem::read_fem_scene(*fem), settings.run, out);
+  return std::make_unique<LocalFem>(fem::read_fem_scene(*fem), settings.run, out, resume);
 }
 
 }  // namespace demfem::coupling

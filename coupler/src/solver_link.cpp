@@ -72,6 +72,14 @@ StepResult LocalLink::wait_step_done(Role role) {
   return r;
 }
 
+void LocalLink::checkpoint(Role role, const std::filesystem::path& file, std::int64_t step) {
+  backend(role)->write_checkpoint(file, step);
+}
+
+void LocalLink::restore(Role role, const std::filesystem::path& file, std::int64_t step) {
+  backend(role)->restore_checkpoint(file, step);
+}
+
 RemoteLink::RemoteLink(protocol::CouplerSession& session, std::optional<pid_t> dem_pid,
                        std::optional<pid_t> fem_pid)
     : session_(session) {
@@ -108,6 +116,16 @@ StepResult RemoteLink::wait_step_done(Role role) {
 
 InterfaceBuffers& RemoteLink::buffers() {
   return session_.buffers();
+}
+
+void RemoteLink::checkpoint(Role role, const std::filesystem::path& file, std::int64_t step) {
+  session_.checkpoint(role, file, step);
+  session_.wait_done(role);
+}
+
+void RemoteLink::restore(Role role, const std::filesystem::path& file, std::int64_t step) {
+  session_.restore(role, file, step);
+  session_.wait_done(role);
 }
 
 void RemoteLink::shutdown() {

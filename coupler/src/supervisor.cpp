@@ -4,6 +4,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cerrno>
 #include <csignal>
@@ -49,6 +50,12 @@ SolverProcess::~SolverProcess() {
   if (slot_ >= 0) g_children[slot_].store(0);
 }
 
+void SolverProcess::add_argument(const std::string& argument) {
+  if (std::find(arguments_.begin(), arguments_.end(), argument) == arguments_.end()) {
+    arguments_.push_back(argument);
+  }
+}
+
 pid_t SolverProcess::start() {
   if (::access(executable_.c_str(), X_OK) != 0) {
     throw std::runtime_error("cannot start the " + label_ + ": " + executable_.string() +
@@ -68,6 +75,8 @@ pid_t SolverProcess::start() {
   }
   pid_ = pid;
   exit_code_.reset();
+  if (slot_ >= 0) g_children[slot_].store(0);  // a restart: the old process is gone
+  slot_ = -1;
   for (int i = 0; i < kMaxChildren; ++i) {
     pid_t expected = 0;
     if (g_children[i].compare_exchange_strong(expected, pid)) {

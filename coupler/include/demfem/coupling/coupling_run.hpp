@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -55,6 +56,13 @@ class SolverFailure : public std::runtime_error {
   double time_;
 };
 
+/// @brief A solver kept dying: it was restarted `max_retries` times from the same
+/// checkpoint and died again. what() names the solver, the checkpoint and every failure.
+class RecoveryExhausted : public SolverFailure {
+ public:
+  using SolverFailure::SolverFailure;
+};
+
 /// @brief The run was asked to stop (signal) between two steps.
 class Interrupted : public std::runtime_error {
  public:
@@ -95,6 +103,30 @@ struct RunSummary {
   std::vector<double> forces;     ///< last interface forces (3n)
 };
 
+/// @brief How a run starts and what it does when a solver dies (docs/reliability.md).
+struct RunControl {
+  /// Start from this committed checkpoint folder instead of step 0 (`--resume`).
+  std::optional<std::filesystem::path> resume_from;
+  /// Starts a fresh process for a solver that died and attaches it to the run (the launcher's
+  /// supervisor). Empty: a dead solver ends the run. With checkpoints, the run then rolls
+  /// back to the last committed checkpoint and goes on.
+  std::function<void(protocol::Role role)> restart_solver;
+  /// Debug/testing hook, called after a Step was sent to `role` in coupling step `step`
+  /// (before its StepDone is awaited): fault injection (`demfem_run --debug-kill`).
+  std::function<void(protocol::Role role, std::int64_t step)> after_send;
+  /// Messages about checkpoints and recovery (stderr in demfem_run).
+  std::function<void(const std::string&)> report;
+};
+
+/// @brief Counts of the reliability machinery in one run.
+struct RecoveryStats {
+  std::int64_t checkpoints = 0;    ///< committed
+  double checkpoint_wall = 0.0;    ///< s spent writing them
+  std::int64_t recoveries = 0;     ///< solver restarts + rollbacks
+  double recovery_wall = 0.0;      ///< s from the failure to the restored state
+  std::int64_t resumed_from = -1;  ///< step of the checkpoint resumed from (-1 = none)
+};
+
 /// @brief Called after every coupling step (progress display).
 using StepObserver = std::function<void(const StepDiagnostics&, const CouplingSettings&)>;
 
@@ -107,6 +139,8 @@ class CouplingRun {
               const std::atomic<bool>* stop = nullptr);
 
   void set_observer(StepObserver observer) { observer_ = std::move(observer); }
+  void set_control(RunControl control) { control_ = std::move(control); }
+  const RecoveryStats& recovery_stats() const { return stats_; }
 
   /// Runs to the end. Throws BlowUp, Interrupted, or protocol errors; the CSV written so far
   /// is flushed and coupling.h5 holds the state of the last step in every case.
@@ -118,7 +152,17 @@ class CouplingRun {
   std::filesystem::path output_dir_;
   const std::atomic<bool>* stop_;
   StepObserver observer_;
+  RunControl control_;
+  RecoveryStats stats_;
 };
+
+/// @brief The checkpoint folder of a run: [checkpoint].directory (relative to the output
+/// folder) or <output_dir>/checkpoints.
+std::filesystem::path checkpoint_directory(const CouplingSettings& settings,
+                                           const std::filesystem::path& output_dir);
+
+/// @brief The parts a checkpoint of this run must hold (dem.h5 / fem.h5 / coupler.h5).
+std::vector<std::string> checkpoint_parts(const CouplingSettings& settings);
 
 /// @brief Index of the interface node nearest to `point` (ties: the lowest index).
 std::size_t nearest_node(const InterfaceMesh& mesh, const std::array<double, 3>& point);

@@ -42,6 +42,19 @@ struct BeamCheck {
   double youngs_modulus = 0.0;    ///< Pa
 };
 
+/// @brief The scene's [checkpoint] section (docs/reliability.md). A checkpoint is taken at
+/// the first coupling-step boundary where any enabled criterion is due; without [checkpoint]
+/// (or with every criterion 0) none is taken, and a crashed solver cannot be recovered.
+struct CheckpointSettings {
+  bool enabled = false;             ///< the section is present
+  std::int64_t every_steps = 0;     ///< coupling steps between checkpoints (0 = off)
+  double every_sim_time = 0.0;      ///< simulated s between checkpoints (0 = off)
+  double every_wall_time = 0.0;     ///< wall-clock s between checkpoints (0 = off)
+  std::int64_t keep = 3;            ///< committed checkpoints kept (K >= 1)
+  std::filesystem::path directory;  ///< empty = <output_dir>/checkpoints
+  std::int64_t max_retries = 3;     ///< restarts of a dying solver per checkpoint step
+};
+
 /// @brief Everything the coupler takes from a scene.
 struct CouplingSettings {
   scene::RunSettings run;
@@ -71,6 +84,7 @@ struct CouplingSettings {
   std::int64_t diagnostics_interval = 1;  ///< coupling steps between CSV rows
 
   std::optional<BeamCheck> beam_check;
+  CheckpointSettings checkpoint;
 
   ForceMode force_mode() const {
     return force_averaging ? ForceMode::average : ForceMode::last_substep;

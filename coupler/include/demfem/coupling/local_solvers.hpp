@@ -23,9 +23,11 @@ std::unique_ptr<protocol::SolverBackend> make_local_dem(const scene::Document& s
                                                         const CouplingSettings& settings,
                                                         const std::filesystem::path& output_dir);
 /// @brief The FEM engine of the scene's [fem] behind its FemBackend adapter, as fem_server
-/// sets it up (nullptr without [fem]).
+/// sets it up (nullptr without [fem]). `resume`: continue the output series in
+/// `output_dir` (a run resumed from a checkpoint) instead of replacing them.
 std::unique_ptr<protocol::SolverBackend> make_local_fem(const scene::Document& scene,
                                                         const CouplingSettings& settings,
-                                                        const std::filesystem::path& output_dir);
+                                                        const std::filesystem::path& output_dir,
+                                                        bool resume = false);
 
 }  // namespace demfem::coupling

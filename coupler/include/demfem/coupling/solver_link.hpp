@@ -5,6 +5,8 @@
 // over process-local interface buffers. Both run the same adapter code on the same inputs in
 // the same order, so a run through three processes equals the in-process run bit for bit.
 
+#include <cstdint>
+#include <filesystem>
 #include <memory>
 #include <optional>
 #include <string>
@@ -41,6 +43,10 @@ class SolverLink {
   virtual InterfaceBuffers& buffers() = 0;
   /// Ends the solvers cleanly (never throws).
   virtual void shutdown() = 0;
+  /// The solver writes its complete state to `file` (HDF5) and returns when it is written.
+  virtual void checkpoint(Role role, const std::filesystem::path& file, std::int64_t step) = 0;
+  /// The solver restores the state of `file`, written at coupling step `step`.
+  virtual void restore(Role role, const std::filesystem::path& file, std::int64_t step) = 0;
 };
 
 /// @brief Solvers in this process, driven through their SolverBackend adapters.
@@ -58,6 +64,8 @@ class LocalLink final : public SolverLink {
   StepResult wait_step_done(Role role) override;
   InterfaceBuffers& buffers() override { return buffers_; }
   void shutdown() override {}
+  void checkpoint(Role role, const std::filesystem::path& file, std::int64_t step) override;
+  void restore(Role role, const std::filesystem::path& file, std::int64_t step) override;
 
   protocol::SolverBackend* backend(Role role) const;
 
@@ -86,6 +94,8 @@ class RemoteLink final : public SolverLink {
   StepResult wait_step_done(Role role) override;
   InterfaceBuffers& buffers() override;
   void shutdown() override;
+  void checkpoint(Role role, const std::filesystem::path& file, std::int64_t step) override;
+  void restore(Role role, const std::filesystem::path& file, std::int64_t step) override;
 
  private:
   protocol::CouplerSession& session_;

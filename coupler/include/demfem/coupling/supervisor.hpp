@@ -29,6 +29,8 @@ class SolverProcess {
   /// registers it for signal forwarding.
   pid_t start();
   pid_t pid() const { return pid_; }
+  /// Adds an argument for the next start() (e.g. --resume for a restarted solver), once.
+  void add_argument(const std::string& argument);
   const std::string& label() const { return label_; }
   /// True while the process runs (reaps it when it has ended).
   bool running();

@@ -102,6 +102,15 @@ class DemBackend final : public protocol::SolverBackend {
   /// The state under group "dem" (and "dem_tools") of an HDF5 file, written under a
   /// temporary name and renamed when complete; attribute "step" on "/" records the step.
   void write_checkpoint(const std::filesystem::path& file, std::int64_t step) override {
+    // A checkpoint before the first step (the coupler's step-0 checkpoint): start the deferred
+    // output now, as the first advance() would (initial sensor samples and snapshot), so the
+    // checkpoint counts them and a rollback to it keeps them instead of writing them again
+    // at a later time.
+    try {
+      (void)run_.sensors();
+    } catch (const std::logic_error&) {
+      run_.after_advance();  // creates the sensors and output from the current state
+    }
     {
       io::H5File h5(io::partial_path(file), io::H5File::Mode::create);
       h5.set_attribute("/", "step", step);

@@ -1,0 +1,412 @@
+// Reliability tests with real processes (docs/reliability.md): a run killed at a random
+// coupling step (SIGKILL of dem_server, of fem_server, or of the coupler, through the
+// launcher's testing option --debug-kill ROLE:STEP) recovers or is resumed and ends with
+// results equal to the uninterrupted run: every CSV series equal cell for cell (wall-time
+// columns excepted, they measure this machine), every dataset of every HDF5 output file equal
+// bit for bit (the files themselves differ in HDF5's object time stamps even between two
+// uninterrupted runs), and no process or /dev/shm segment left behind. Corrupt checkpoints
+// (truncated part, missing part, bad checksum, no manifest) are skipped with a message naming
+// the file, and the previous checkpoint is used.
+#include <catch2/catch.hpp>
+
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <regex>
+#include <set>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "demfem/io/h5_file.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+const fs::path kBin = fs::path(DEMFEM_BINARY_DIR) / "bin";
+const fs::path kScene = fs::path(DEMFEM_SOURCE_DIR) / "cases" / "beam_checkpoint_ci.toml";
+constexpr const char* kOut = "out/beam_checkpoint_ci";
+constexpr int kSteps = 50;  // coupling steps of the case
+
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    static int counter = 0;
+    path = fs::temp_directory_path() /
+           ("demfem-reliability-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
+    fs::create_directories(path);
+  }
+  ~TempDir() { fs::remove_all(path); }
+};
+
+std::string read_text(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+struct Result {
+  int status = -1;  // exit code, or 128 + signal
+  std::string out, err;
+};
+
+// demfem_run in `dir` (relative output paths land there), stdout/stderr appended to files.
+Result run(const fs::path& dir, std::vector<std::string> args) {
+  std::vector<std::string> argv_s = {(kBin / "demfem_run").string(), "--bin-dir", kBin.string(),
+                                     kScene.string(), "--quiet"};
+  argv_s.insert(argv_s.end(), args.begin(), args.end());
+  std::vector<char*> argv;
+  for (auto& a : argv_s) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  const std::string out = (dir / "stdout.txt").string(), err = (dir / "stderr.txt").string();
+  posix_spawn_file_actions_addopen(&fa, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_addopen(&fa, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  const fs::path old = fs::current_path();
+  fs::current_path(dir);
+  pid_t pid = -1;
+  const int rc = posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ);
+  fs::current_path(old);
+  posix_spawn_file_actions_destroy(&fa);
+  REQUIRE(rc == 0);
+  int st = 0;
+  REQUIRE(waitpid(pid, &st, 0) == pid);
+  Result r;
+  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
+  r.out = read_text(dir / "stdout.txt");
+  r.err = read_text(dir / "stderr.txt");
+  return r;
+}
+
+std::vector<pid_t> started_pids(const std::string& out) {
+  std::vector<pid_t> pids;
+  std::regex re("started (dem|fem)_server \\(pid ([0-9]+)\\)");
+  for (auto it = std::sregex_iterator(out.begin(), out.end(), re); it != std::sregex_iterator();
+       ++it)
+    pids.push_back(std::stoi((*it)[2]));
+  return pids;
+}
+
+std::vector<std::string> segments_of(const std::string& out) {
+  std::vector<std::string> segs;
+  std::regex re("segment /(demfem-[0-9a-f]+)");
+  for (auto it = std::sregex_iterator(out.begin(), out.end(), re); it != std::sregex_iterator();
+       ++it)
+    segs.push_back((*it)[1]);
+  return segs;
+}
+
+// Every solver process of these outputs has ended (a solver whose coupler died leaves within
+// its peer timeout, 2 s) and none of the runs' segments is left in /dev/shm.
+void check_nothing_left(const std::vector<std::string>& outs) {
+  for (const auto& out : outs) {
+    for (pid_t p : started_pids(out)) {
+      const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+      while (::kill(p, 0) == 0 && std::chrono::steady_clock::now() < end) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      }
+      INFO("solver pid " << p);
+      CHECK((::kill(p, 0) != 0 && errno == ESRCH));
+    }
+    for (const auto& seg : segments_of(out)) {
+      INFO("segment " << seg);
+      CHECK_FALSE(fs::exists("/dev/shm/" + seg));
+      CHECK_FALSE(fs::exists("/dev/shm/" + seg + "-bulk"));
+    }
+  }
+}
+
+std::vector<std::vector<std::string>> read_csv(const fs::path& p) {
+  std::vector<std::vector<std::string>> rows;
+  std::ifstream in(p);
+  std::string line;
+  while (std::getline(in, line)) {
+    std::vector<std::string> row;
+    std::stringstream s(line);
+    std::string cell;
+    while (std::getline(s, cell, ',')) row.push_back(cell);
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+// "file.h5:/path" references of an XDMF file with their number type.
+std::vector<std::pair<std::string, bool>> xdmf_datasets(const fs::path& xdmf) {
+  std::vector<std::pair<std::string, bool>> refs;
+  const std::string text = read_text(xdmf);
+  std::regex re("NumberType=\"(Float|Int)\"[^>]*Format=\"HDF\">([^<]+)<");
+  for (auto it = std::sregex_iterator(text.begin(), text.end(), re); it != std::sregex_iterator();
+       ++it)
+    refs.emplace_back((*it)[2], (*it)[1] == "Float");
+  return refs;
+}
+
+// The output folder of run `b` equals that of run `a` (see the file comment).
+void check_same_results(const fs::path& a, const fs::path& b) {
+  auto listing = [](const fs::path& d) {
+    std::set<std::string> names;
+    for (const auto& e : fs::directory_iterator(d)) {
+      const std::string n = e.path().filename().string();
+      if (n != "checkpoints" && n != "timing.csv") names.insert(n);
+    }
+    return names;
+  };
+  REQUIRE(listing(a) == listing(b));
+  for (const auto& name : listing(a)) {
+    const fs::path fa = a / name, fb = b / name;
+    INFO(fb.string());
+    if (fa.extension() == ".csv") {
+      const auto ra = read_csv(fa), rb = read_csv(fb);
+      REQUIRE(ra.size() == rb.size());
+      for (std::size_t i = 0; i < ra.size(); ++i) {
+        REQUIRE(ra[i].size() == rb[i].size());
+        for (std::size_t k = 0; k < ra[i].size(); ++k) {
+          if (ra[0][k].rfind("wall_", 0) == 0) continue;  // wall-clock times
+          INFO("row " << i << " column " << ra[0][k]);
+          REQUIRE(ra[i][k] == rb[i][k]);
+        }
+      }
+    } else if (fa.extension() == ".xdmf") {
+      REQUIRE(read_text(fa) == read_text(fb));
+      for (const auto& [ref, is_float] : xdmf_datasets(fa)) {
+        const auto colon = ref.find(':');
+        const std::string file = ref.substr(0, colon), set = ref.substr(colon + 1);
+        INFO(ref);
+        demfem::io::H5File ha(a / file, demfem::io::H5File::Mode::read);
+        demfem::io::H5File hb(b / file, demfem::io::H5File::Mode::read);
+        if (is_float) {
+          REQUIRE(ha.read_doubles(set) == hb.read_doubles(set));
+        } else {
+          REQUIRE(ha.read_int64(set) == hb.read_int64(set));
+        }
+      }
+    }
+  }
+  demfem::io::H5File ha(a / "coupling.h5", demfem::io::H5File::Mode::read);
+  demfem::io::H5File hb(b / "coupling.h5", demfem::io::H5File::Mode::read);
+  REQUIRE(hb.attribute_int64("/", "steps") == kSteps);
+  REQUIRE(ha.attribute_double("/", "time") == hb.attribute_double("/", "time"));
+  for (const char* set : {"interface/positions", "interface/forces", "interface/dem_positions"}) {
+    INFO(set);
+    REQUIRE(ha.read_doubles(set) == hb.read_doubles(set));
+  }
+}
+
+// The uninterrupted run, once per test process.
+const fs::path& reference() {
+  static TempDir dir;
+  static bool done = false;
+  if (!done) {
+    const Result r = run(dir.path, {});
+    INFO(r.out << r.err);
+    REQUIRE(r.status == 0);
+    // Not a comparison of two empty runs: the beam moved and the spheres loaded it.
+    const auto rows = read_csv(dir.path / kOut / "coupling.csv");
+    REQUIRE(rows.size() == kSteps + 1);
+    REQUIRE(std::stod(rows.back()[9]) > 1e-7);   // fem_max_displacement, m
+    REQUIRE(std::stod(rows.back()[10]) < -400);  // force_sum_z, N
+    done = true;
+  }
+  static const fs::path out = dir.path / kOut;
+  return out;
+}
+
+// Steps 1..49 drawn per seed (step 0 would kill before the first checkpoint's successor).
+std::int64_t kill_step(int seed, int salt) {
+  std::mt19937 gen(static_cast<unsigned>(seed * 1000 + salt));
+  return std::uniform_int_distribution<int>(1, kSteps - 1)(gen);
+}
+
+}  // namespace
+
+TEST_CASE("checkpoints: committed every 10 steps with a manifest, the last 2 kept") {
+  const fs::path cp = reference() / "checkpoints";
+  std::set<std::string> names;
+  for (const auto& e : fs::directory_iterator(cp)) names.insert(e.path().filename().string());
+  CHECK(names == std::set<std::string>{"step-000030", "step-000040"});
+  const std::string manifest = read_text(cp / "step-000040" / "manifest.json");
+  for (const char* part : {"dem.h5", "fem.h5", "coupler.h5"}) {
+    INFO(part);
+    CHECK(manifest.find(std::string("\"name\": \"") + part + "\"") != std::string::npos);
+    CHECK(fs::file_size(cp / "step-000040" / part) > 0);
+  }
+  CHECK(manifest.find("\"step\": 40,") != std::string::npos);
+}
+
+TEST_CASE("a run with checkpoints equals the same run without them") {
+  TempDir d;
+  // The same scene with the [checkpoint] section renamed away (an unknown key would be refused,
+  // so the section's keys go with it).
+  std::string text = read_text(kScene);
+  const auto at = text.find("[checkpoint]");
+  const auto end = text.find("[coupling]");
+  REQUIRE((at != std::string::npos && end != std::string::npos));
+  text.erase(at, end - at);
+  const fs::path scene = d.path / "plain.toml";
+  std::ofstream(scene) << text;
+  std::vector<std::string> argv_s = {(kBin / "demfem_run").string(),
+                                     "--bin-dir",
+                                     kBin.string(),
+                                     scene.string(),
+                                     "--quiet",
+                                     "--output-dir",
+                                     (d.path / kOut).string()};
+  std::string cmd;
+  for (auto& a : argv_s) cmd += "'" + a + "' ";
+  REQUIRE(std::system((cmd + "> " + (d.path / "log.txt").string() + " 2>&1").c_str()) == 0);
+  CHECK_FALSE(fs::exists(d.path / kOut / "checkpoints"));
+  check_same_results(reference(), d.path / kOut);
+}
+
+TEST_CASE("SIGKILL of dem_server at a random step: restarted, rolled back, same results") {
+  for (int seed = 1; seed <= 5; ++seed) {
+    const std::int64_t step = kill_step(seed, 1);
+    INFO("seed " << seed << ": kill at step " << step);
+    TempDir d;
+    const Result r = run(d.path, {"--debug-kill", "dem:" + std::to_string(step)});
+    INFO(r.out << r.err);
+    REQUIRE(r.status == 0);
+    CHECK(r.err.find("SIGKILL to the DEM solver in step " + std::to_string(step)) !=
+          std::string::npos);
+    CHECK(r.err.find("recovered: every process is back at step " +
+                     std::to_string(step / 10 * 10)) != std::string::npos);
+    CHECK(started_pids(r.out).size() == 3);  // fem, dem, dem again
+    check_same_results(reference(), d.path / kOut);
+    check_nothing_left({r.out});
+  }
+}
+
+TEST_CASE("SIGKILL of fem_server at a random step: restarted, rolled back, same results") {
+  for (int seed = 1; seed <= 5; ++seed) {
+    const std::int64_t step = kill_step(seed, 2);
+    INFO("seed " << seed << ": kill at step " << step);
+    TempDir d;
+    const Result r = run(d.path, {"--debug-kill", "fem:" + std::to_string(step)});
+    INFO(r.out << r.err);
+    REQUIRE(r.status == 0);
+    CHECK(r.err.find("SIGKILL to the FEM solver in step " + std::to_string(step)) !=
+          std::string::npos);
+    CHECK(r.err.find("recovered: every process is back at step " +
+                     std::to_string(step / 10 * 10)) != std::string::npos);
+    check_same_results(reference(), d.path / kOut);
+    check_nothing_left({r.out});
+  }
+}
+
+TEST_CASE("SIGKILL of the coupler at a random step: the solvers leave, --resume finishes the run") {
+  for (int seed = 1; seed <= 5; ++seed) {
+    const std::int64_t step = kill_step(seed, 3);
+    INFO("seed " << seed << ": kill at step " << step);
+    TempDir d;
+    const Result killed = run(d.path, {"--debug-kill", "coupler:" + std::to_string(step)});
+    INFO(killed.out << killed.err);
+    REQUIRE(killed.status == 128 + SIGKILL);
+    // The orphaned solvers notice the dead coupler and exit by themselves.
+    for (pid_t p : started_pids(killed.out)) {
+      const auto end = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+      while (::kill(p, 0) == 0 && std::chrono::steady_clock::now() < end) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      }
+      CHECK((::kill(p, 0) != 0 && errno == ESRCH));
+    }
+    const Result resumed = run(d.path, {"--resume"});
+    INFO(resumed.out << resumed.err);
+    REQUIRE(resumed.status == 0);
+    CHECK(resumed.err.find("resumed from checkpoint") != std::string::npos);
+    CHECK(resumed.err.find("step-" + std::string(6 - std::to_string(step / 10 * 10).size(), '0') +
+                           std::to_string(step / 10 * 10)) != std::string::npos);
+    check_same_results(reference(), d.path / kOut);
+    check_nothing_left({killed.out, resumed.out});
+  }
+}
+
+TEST_CASE("in process: a killed run resumed with --in-process equals the three-process run") {
+  TempDir d;
+  const Result killed = run(d.path, {"--in-process", "--debug-kill", "coupler:33"});
+  INFO(killed.out << killed.err);
+  REQUIRE(killed.status == 128 + SIGKILL);
+  const Result resumed = run(d.path, {"--in-process", "--resume"});
+  INFO(resumed.out << resumed.err);
+  REQUIRE(resumed.status == 0);
+  CHECK(resumed.err.find("step-000030") != std::string::npos);
+  check_same_results(reference(), d.path / kOut);
+}
+
+TEST_CASE("a solver that keeps dying at the same step stops the run after max_retries (exit 4)") {
+  TempDir d;
+  const Result r = run(d.path, {"--debug-kill", "dem:25:always"});
+  INFO(r.out << r.err);
+  CHECK(r.status == 4);
+  CHECK(r.err.find("restart 3 of 3") != std::string::npos);
+  CHECK(r.err.find("kept failing: 3 restarts from checkpoint") != std::string::npos);
+  CHECK(r.err.find("step-000020") != std::string::npos);
+  CHECK(started_pids(r.out).size() == 5);  // fem, dem, and 3 restarts of dem
+  check_nothing_left({r.out});
+}
+
+TEST_CASE("a corrupt or incomplete checkpoint is skipped with a message, the previous is used") {
+  struct Damage {
+    const char* what;
+    const char* part;
+    const char* expect;  // in the message
+  };
+  const Damage cases[] = {
+      {"truncated", "dem.h5", "dem.h5: size"},
+      {"missing", "fem.h5", "fem.h5: part missing"},
+      {"bad checksum", "coupler.h5", "coupler.h5: checksum"},
+      {"no manifest", "manifest.json", "manifest.json: missing (the checkpoint was not committed)"},
+      {"truncated manifest", "manifest.json", "manifest.json:"},
+  };
+  for (const auto& c : cases) {
+    INFO(c.what);
+    TempDir d;
+    fs::create_directories(d.path / "out");
+    fs::copy(reference(), d.path / kOut, fs::copy_options::recursive);
+    const fs::path target = d.path / kOut / "checkpoints" / "step-000040" / c.part;
+    const std::string what = c.what;
+    if (what == "truncated") {
+      fs::resize_file(target, fs::file_size(target) / 2);
+    } else if (what == "missing" || what == "no manifest") {
+      fs::remove(target);
+    } else if (what == "bad checksum") {
+      std::fstream f(target, std::ios::in | std::ios::out | std::ios::binary);
+      f.seekg(static_cast<std::streamoff>(fs::file_size(target) - 9));
+      char byte = 0;
+      f.read(&byte, 1);
+      byte = static_cast<char>(byte ^ 0x5a);
+      f.seekp(static_cast<std::streamoff>(fs::file_size(target) - 9));
+      f.write(&byte, 1);
+    } else {
+      fs::resize_file(target, fs::file_size(target) - 20);
+    }
+    const Result r = run(d.path, {"--resume"});
+    INFO(r.out << r.err);
+    REQUIRE(r.status == 0);
+    CHECK(r.err.find("skipping checkpoint") != std::string::npos);
+    CHECK(r.err.find(c.expect) != std::string::npos);
+    CHECK(r.err.find("resumed from checkpoint " + std::string(kOut) + "/checkpoints/step-000030") !=
+          std::string::npos);
+    check_same_results(reference(), d.path / kOut);
+    // Given explicitly, a damaged checkpoint is refused (exit 2), naming the file.
+    if (what != "no manifest") {
+      fs::copy(reference() / "checkpoints" / "step-000040", d.path / "cp40",
+               fs::copy_options::recursive);
+      fs::copy_file(d.path / "cp40" / "coupler.h5", d.path / "cp40" / "dem.h5",
+                    fs::copy_options::overwrite_existing);
+      const Result e = run(d.path, {"--resume", (d.path / "cp40").string()});
+      CHECK(e.status == 2);
+      CHECK(e.err.find("cp40/dem.h5: size") != std::string::npos);
+    }
+  }
+}
