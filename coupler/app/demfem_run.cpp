@@ -57,6 +57,7 @@ struct DebugKill {
   std::string role;
   std::int64_t step = -1;
   bool always = false;
+  bool stop = false;
   bool fired = false;
 };
 
@@ -68,8 +69,14 @@ std::optional<DebugKill> parse_debug_kill(const std::string& text) {
   k.role = text.substr(0, c1);
   std::string rest = text.substr(c1 + 1);
   if (const auto c2 = rest.find(':'); c2 != std::string::npos) {
-    if (rest.substr(c2 + 1) != "always") throw std::invalid_argument(text);
-    k.always = true;
+    const std::string how = rest.substr(c2 + 1);
+    if (how == "always") {
+      k.always = true;
+    } else if (how == "stop") {
+      k.stop = true;  // SIGSTOP: a hung process, found by its stale heartbeat
+    } else {
+      throw std::invalid_argument(text);
+    }
     rest = rest.substr(0, c2);
   }
   std::size_t used = 0;
@@ -127,8 +134,8 @@ int run(const Options& opt) {
     debug_kill = parse_debug_kill(opt.debug_kill);
   } catch (const std::exception&) {
     std::fprintf(stderr,
-                 "demfem run: --debug-kill '%s': expected ROLE:STEP[:always] with ROLE dem, fem "
-                 "or coupler and STEP >= 0\n",
+                 "demfem run: --debug-kill '%s': expected ROLE:STEP[:always|:stop] with ROLE dem, "
+                 "fem or coupler and STEP >= 0\n",
                  opt.debug_kill.c_str());
     return kExitUsage;
   }
@@ -209,6 +216,9 @@ int run(const Options& opt) {
       // rolls back to the last committed checkpoint (CouplingRun).
       control.restart_solver = [&](protocol::Role role) {
         SolverProcess* p = role == protocol::Role::dem ? dem_proc.get() : fem_proc.get();
+        // The protocol gave it up (gone, or heartbeat stale: stopped or hung): a hung process
+        // would never answer again, so it is killed rather than asked to leave.
+        p->signal(SIGKILL);
         const int c = p->stop(std::chrono::milliseconds(1000));
         std::fprintf(stderr, "demfem run: the %s (pid %d) ended with status %d%s; restarting it\n",
                      p->label().c_str(), static_cast<int>(p->pid()), c,
@@ -234,9 +244,10 @@ int run(const Options& opt) {
           if (k.role != protocol::role_name(role)) return;
           k.fired = true;
           SolverProcess* p = role == protocol::Role::dem ? dem_proc.get() : fem_proc.get();
-          std::fprintf(stderr, "demfem run: --debug-kill: SIGKILL to the %s in step %lld\n",
-                       p->label().c_str(), static_cast<long long>(step));
-          ::kill(p->pid(), SIGKILL);
+          std::fprintf(stderr, "demfem run: --debug-kill: %s to the %s in step %lld\n",
+                       k.stop ? "SIGSTOP" : "SIGKILL", p->label().c_str(),
+                       static_cast<long long>(step));
+          ::kill(p->pid(), k.stop ? SIGSTOP : SIGKILL);
         };
       }
     } else {
@@ -383,8 +394,8 @@ int main(int argc, char** argv) {
                                 "without a value the latest valid one in the checkpoint folder")
                      ->expected(0, 1);
   app.add_option("--debug-kill", opt.debug_kill,
-                 "testing only: SIGKILL a process at a coupling step, ROLE:STEP[:always] with "
-                 "ROLE dem, fem or coupler (docs/reliability.md)");
+                 "testing only: SIGKILL (or with :stop SIGSTOP) a process at a coupling step, "
+                 "ROLE:STEP[:always|:stop] with ROLE dem, fem or coupler (docs/reliability.md)");
   try {
     app.parse(argc, argv);
     opt.resume = resume->count() > 0;

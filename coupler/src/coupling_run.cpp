@@ -389,7 +389,8 @@ RunSummary CouplingRun::run() {
         throw SolverFailure(role, steps, sum.time,
                             std::string("the ") + role_label(role) +
                                 " solver failed writing checkpoint " + file.string() + ": " +
-                                e.what());
+                                e.what(),
+                            dynamic_cast<const protocol::PeerDied*>(&e) != nullptr);
       }
     }
     save_coupler(folder / "coupler.h5", steps);
@@ -441,7 +442,8 @@ RunSummary CouplingRun::run() {
       std::ostringstream m;
       m << "the " << role_label(role) << " solver failed in coupling step " << cmd.step
         << " (t = " << fmt(cmd.time) << " s): " << e.what();
-      throw SolverFailure(role, cmd.step, cmd.time, m.str());
+      throw SolverFailure(role, cmd.step, cmd.time, m.str(),
+                          dynamic_cast<const protocol::PeerDied*>(&e) != nullptr);
     }
   };
   auto dem_step = [&](const StepCommand& cmd, StepDiagnostics& d) {
@@ -686,9 +688,9 @@ RunSummary CouplingRun::run() {
         if (one_step(i)) break;
         ++i;
       } catch (const SolverFailure& e) {
-        // A blow-up reported by a solver is not a crash: restarting would repeat it.
-        const bool refusal = std::string(e.what()).find("not finite") != std::string::npos;
-        if (!control_.restart_solver || !last_cp || refusal || (stop_ && stop_->load())) throw;
+        // Only a dead (or silent) solver is restarted: an error it reported, such as a
+        // blow-up refusal, would repeat from the checkpoint.
+        if (!control_.restart_solver || !last_cp || !e.died() || (stop_ && stop_->load())) throw;
         i = recover(e);
       }
     }

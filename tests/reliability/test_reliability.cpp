@@ -410,3 +410,36 @@ TEST_CASE("a corrupt or incomplete checkpoint is skipped with a message, the pre
     }
   }
 }
+
+TEST_CASE("a bad [checkpoint] key is refused before any process starts, naming file, line, key") {
+  TempDir d;
+  std::string text = read_text(kScene);
+  const std::string from = "keep = 2 ";
+  const auto at = text.find(from);
+  REQUIRE(at != std::string::npos);
+  text.replace(at, from.size(), "keep = 0 ");
+  const fs::path scene = d.path / "bad.toml";
+  std::ofstream(scene) << text;
+  const std::string cmd = "'" + (kBin / "demfem_run").string() + "' '" + scene.string() +
+                          "' --quiet > '" + (d.path / "log.txt").string() + "' 2>&1";
+  const int st = std::system(cmd.c_str());
+  REQUIRE(WIFEXITED(st));
+  CHECK(WEXITSTATUS(st) == 2);
+  const std::string log = read_text(d.path / "log.txt");
+  INFO(log);
+  CHECK(log.find("bad.toml:13") != std::string::npos);
+  CHECK(log.find("keep") != std::string::npos);
+  CHECK(log.find("started") == std::string::npos);
+}
+
+TEST_CASE("a hung (SIGSTOP) dem_server is found by its stale heartbeat, killed and replaced") {
+  TempDir d;
+  const Result r = run(d.path, {"--debug-kill", "dem:31:stop"});
+  INFO(r.out << r.err);
+  REQUIRE(r.status == 0);
+  CHECK(r.err.find("SIGSTOP to the DEM solver in step 31") != std::string::npos);
+  CHECK(r.err.find("heartbeat stale") != std::string::npos);
+  CHECK(r.err.find("recovered: every process is back at step 30") != std::string::npos);
+  check_same_results(reference(), d.path / kOut);
+  check_nothing_left({r.out});
+}

@@ -44,8 +44,12 @@ class BlowUp : public std::runtime_error {
 /// and the time, and the cause (the protocol's PeerDied / SolverError text).
 class SolverFailure : public std::runtime_error {
  public:
-  SolverFailure(protocol::Role role, std::int64_t step, double time, const std::string& text)
-      : std::runtime_error(text), role_(role), step_(step), time_(time) {}
+  SolverFailure(protocol::Role role, std::int64_t step, double time, const std::string& text,
+                bool died = false)
+      : std::runtime_error(text), role_(role), step_(step), time_(time), died_(died) {}
+  /// The solver process died or stopped answering (protocol::PeerDied), as opposed to
+  /// reporting an error: only a death is recovered from a checkpoint (an error would repeat).
+  bool died() const { return died_; }
   protocol::Role role() const { return role_; }
   std::int64_t step() const { return step_; }
   double time() const { return time_; }
@@ -54,6 +58,7 @@ class SolverFailure : public std::runtime_error {
   protocol::Role role_;
   std::int64_t step_;
   double time_;
+  bool died_;
 };
 
 /// @brief A solver kept dying: it was restarted `max_retries` times from the same
