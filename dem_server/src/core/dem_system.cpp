@@ -747,8 +747,11 @@ struct DemSystem::Impl {
     double *qw = st.qw.data(), *qx = st.qx.data(), *qy = st.qy.data(), *qz = st.qz.data();
     if (phys::small_rotation(w2max, dt)) {
 #pragma omp parallel for simd num_threads(nt()) schedule(static)
-      for (std::int64_t i = 0; i < sn; ++i)
-        phys::rotate_quaternion_small(qw[i], qx[i], qy[i], qz[i], wx[i], wy[i], wz[i], dt);
+      for (std::int64_t i = 0; i < sn; ++i) {
+        double q0 = qw[i], q1 = qx[i], q2 = qy[i], q3 = qz[i];  // registers, not memory
+        phys::rotate_quaternion_small(q0, q1, q2, q3, wx[i], wy[i], wz[i], dt);
+        qw[i] = q0, qx[i] = q1, qy[i] = q2, qz[i] = q3;
+      }
     } else {
 #pragma omp parallel for num_threads(nt()) schedule(static)
       for (std::int64_t i = 0; i < sn; ++i)

@@ -29,20 +29,21 @@ DEMFEM_HD bool small_rotation(double w2, double dt) {
 DEMFEM_HD void rotate_quaternion_small(double& qw, double& qx, double& qy, double& qz, double wx,
                                        double wy, double wz, double dt) {
   const double w2 = wx * wx + wy * wy + wz * wz;
-  const double h2 = 0.25 * w2 * dt * dt;  // (|ω| Δt / 2)^2
+  const double h2 = 0.25 * w2 * dt * dt;                // (|ω| Δt / 2)^2
+  const double q0w = qw, q0x = qx, q0y = qy, q0z = qz;  // selects read values, not memory
   const double s = 0.5 * dt * (1.0 - h2 / 6.0 * (1.0 - h2 / 20.0 * (1.0 - h2 / 42.0)));
   const double c = 1.0 - 0.5 * h2 * (1.0 - h2 / 12.0 * (1.0 - h2 / 30.0));
   const double rw = c, rx = s * wx, ry = s * wy, rz = s * wz;
-  const double nw = rw * qw - rx * qx - ry * qy - rz * qz;
-  const double nx = rw * qx + rx * qw + ry * qz - rz * qy;
-  const double ny = rw * qy - rx * qz + ry * qw + rz * qx;
-  const double nz = rw * qz + rx * qy - ry * qx + rz * qw;
+  const double nw = rw * q0w - rx * q0x - ry * q0y - rz * q0z;
+  const double nx = rw * q0x + rx * q0w + ry * q0z - rz * q0y;
+  const double ny = rw * q0y - rx * q0z + ry * q0w + rz * q0x;
+  const double nz = rw * q0z + rx * q0y - ry * q0x + rz * q0w;
   const double inv = 1.0 / std::sqrt(nw * nw + nx * nx + ny * ny + nz * nz);
   const bool turn = w2 != 0.0;
-  qw = turn ? nw * inv : qw;
-  qx = turn ? nx * inv : qx;
-  qy = turn ? ny * inv : qy;
-  qz = turn ? nz * inv : qz;
+  qw = turn ? nw * inv : q0w;
+  qx = turn ? nx * inv : q0x;
+  qy = turn ? ny * inv : q0y;
+  qz = turn ? nz * inv : q0z;
 }
 
 /// q ← rotation(ω Δt) ⊗ q, normalised.
