@@ -543,6 +543,10 @@ void DemRun::save(io::H5File& file, const std::string& group) const {
   std::vector<std::int64_t> r(rows.begin(), rows.end());
   r.push_back(0);  // never empty
   file.write(g + "/sensor_rows", std::span<const std::int64_t>(r));
+  // The sensors' schedule, so that a restored run samples at the same step ends.
+  std::vector<double> sched = sensors_ ? sensors_->schedule() : std::vector<double>{};
+  sched.push_back(0.0);  // never empty
+  file.write(g + "/sensor_schedule", std::span<const double>(sched));
   file.set_attribute(g, "next_id", next_id_);
   file.set_attribute(g, "snapshots", static_cast<std::int64_t>(output_ ? output_->count() : 0));
   file.set_attribute(g, "next_output", next_output_);
@@ -568,7 +572,17 @@ void DemRun::restore(const io::H5File& file, const std::string& group) {
     throw std::runtime_error(file.path().string() + ": " + g + " has " + std::to_string(r.size()) +
                              " sensor series, the scene " + std::to_string(scene_.sensors.size()));
   }
-  sensors_->resume(std::vector<std::size_t>(r.begin(), r.end()), system_->time());
+  std::vector<std::size_t> rows(r.begin(), r.end());
+  std::vector<double> sched;
+  if (file.exists(g + "/sensor_schedule")) {  // absent in checkpoints of older versions
+    sched = file.read_doubles(g + "/sensor_schedule");
+    sched.pop_back();
+  }
+  if (sched.size() == 2 * rows.size() && !rows.empty()) {
+    sensors_->resume(rows, system_->time(), sched);
+  } else {
+    sensors_->resume(rows, system_->time());
+  }
   if (output_) output_->resume(static_cast<std::size_t>(file.attribute_int64(g, "snapshots")));
   next_output_ = file.attribute_double(g, "next_output");
   auto reps = file.read_int64(g + "/insert_repeats");

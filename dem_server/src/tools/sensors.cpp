@@ -197,6 +197,28 @@ void SensorSet::resume(const std::vector<std::size_t>& rows, double time) {
   }
 }
 
+std::vector<double> SensorSet::schedule() const {
+  std::vector<double> s;
+  for (const auto& e : entries_) {
+    s.push_back(e->next);
+    s.push_back(e->last_time);
+  }
+  return s;
+}
+
+void SensorSet::resume(const std::vector<std::size_t>& rows, double time,
+                       const std::vector<double>& schedule) {
+  if (schedule.size() != 2 * entries_.size()) {
+    throw std::runtime_error("sensor schedule of " + std::to_string(schedule.size() / 2) +
+                             " sensors for " + std::to_string(entries_.size()));
+  }
+  resume(rows, time);
+  for (std::size_t i = 0; i < entries_.size(); ++i) {
+    entries_[i]->next = schedule[2 * i];
+    entries_[i]->last_time = schedule[2 * i + 1];
+  }
+}
+
 void SensorSet::sample(const DemSystem& system, std::span<const std::int64_t> ids) {
   const double t = system.time();
   // A tolerance of a tenth of a step absorbs the round-off of t = n * dt.

@@ -114,6 +114,13 @@ class SensorSet {
   /// Re-opens the series after a restore, keeping `rows[i]` rows of sensor i, and restarts
   /// the schedule at `time`.
   void resume(const std::vector<std::size_t>& rows, double time);
+  /// Each sensor's schedule (next sample time, last sample time), flattened, for a checkpoint:
+  /// with it, resume() continues the schedule exactly instead of restarting it at `time`
+  /// (which would sample again at the first step after the checkpoint).
+  std::vector<double> schedule() const;
+  /// resume() with the schedule() of the checkpoint.
+  void resume(const std::vector<std::size_t>& rows, double time,
+              const std::vector<double>& schedule);
 
  private:
   struct Entry;
