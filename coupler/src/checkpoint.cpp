@@ -59,7 +59,7 @@ std::int64_t step_of_folder(const fs::path& p) {
 std::uint64_t fnv1a64_file(const fs::path& file) {
   std::ifstream in(file, std::ios::binary);
   if (!in) throw std::runtime_error(file.string() + ": cannot read");
-  std::uint64_t h = 1469598103934665603ULL;
+  std::uint64_t h = 14695981039346656037ULL;  // FNV-1a 64 offset basis
   char buf[1 << 16];
   while (in) {
     in.read(buf, sizeof(buf));
