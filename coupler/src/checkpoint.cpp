@@ -250,4 +250,14 @@ void prune_checkpoints(const fs::path& dir, std::int64_t keep) {
   }
 }
 
+void discard_checkpoints_after(const fs::path& dir, std::int64_t step) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) return;
+  std::vector<fs::path> doomed;
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    if (step_of_folder(e.path()) > step) doomed.push_back(e.path());
+  }
+  for (const auto& p : doomed) fs::remove_all(p, ec);
+}
+
 }  // namespace demfem::coupling

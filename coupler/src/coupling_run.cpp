@@ -673,9 +673,11 @@ RunSummary CouplingRun::run() {
     if (control_.resume_from) {
       i = restore_from(*control_.resume_from);
       stats_.resumed_from = i;
+      if (cps.enabled) discard_checkpoints_after(cp_dir, i);
       report("resumed from checkpoint " + control_.resume_from->string() + " (step " +
              std::to_string(i) + ", t = " + fmt(sum.time) + " s)");
     } else if (cps.enabled) {
+      discard_checkpoints_after(cp_dir, -1);  // an older run's, its series are being replaced
       take_checkpoint(0);
     }
     while (i < s.step_count && !settled) {

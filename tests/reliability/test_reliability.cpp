@@ -61,9 +61,9 @@ struct Result {
 };
 
 // demfem_run in `dir` (relative output paths land there), stdout/stderr appended to files.
-Result run(const fs::path& dir, std::vector<std::string> args) {
+Result run(const fs::path& dir, std::vector<std::string> args, const fs::path& scene = kScene) {
   std::vector<std::string> argv_s = {(kBin / "demfem_run").string(), "--bin-dir", kBin.string(),
-                                     kScene.string(), "--quiet"};
+                                     scene.string(), "--quiet"};
   argv_s.insert(argv_s.end(), args.begin(), args.end());
   std::vector<char*> argv;
   for (auto& a : argv_s) argv.push_back(a.data());
@@ -442,4 +442,78 @@ TEST_CASE("a hung (SIGSTOP) dem_server is found by its stale heartbeat, killed a
   CHECK(r.err.find("recovered: every process is back at step 30") != std::string::npos);
   check_same_results(reference(), d.path / kOut);
   check_nothing_left({r.out});
+}
+
+// The case with some `key = value` texts replaced (each must occur).
+fs::path variant(const fs::path& dir,
+                 const std::vector<std::pair<std::string, std::string>>& subs) {
+  std::string text = read_text(kScene);
+  for (const auto& [from, to] : subs) {
+    const auto at = text.find(from);
+    REQUIRE(at != std::string::npos);
+    text.replace(at, from.size(), to);
+  }
+  const fs::path p = dir / "variant.toml";
+  std::ofstream(p) << text;
+  return p;
+}
+
+TEST_CASE("predictive scheme with force averaging: a killed solver recovers to the same results") {
+  // The predictive scheme keeps the previous DEM forces between steps: the coupler's part of
+  // the checkpoint must carry them.
+  TempDir ref, a, b;
+  const fs::path scene =
+      variant(ref.path, {{"scheme = \"just_in_time\"", "scheme = \"predictive\""},
+                         {"force_averaging = false", "force_averaging = true"}});
+  const Result r0 = run(ref.path, {}, scene);
+  INFO(r0.out << r0.err);
+  REQUIRE(r0.status == 0);
+  const Result r1 = run(a.path, {"--debug-kill", "dem:23"}, scene);
+  INFO(r1.out << r1.err);
+  REQUIRE(r1.status == 0);
+  CHECK(r1.err.find("back at step 20") != std::string::npos);
+  check_same_results(ref.path / kOut, a.path / kOut);
+  const Result r2 = run(b.path, {"--debug-kill", "fem:37"}, scene);
+  INFO(r2.out << r2.err);
+  REQUIRE(r2.status == 0);
+  CHECK(r2.err.find("back at step 30") != std::string::npos);
+  check_same_results(ref.path / kOut, b.path / kOut);
+  check_nothing_left({r1.out, r2.out});
+}
+
+TEST_CASE("every_sim_time: checkpoints where the simulated time passes a multiple") {
+  TempDir d;
+  // 1.5 ms = 15 coupling steps: checkpoints at steps 0, 15, 30, 45 (all kept).
+  const fs::path scene = variant(
+      d.path, {{"every_steps = 10 ", "every_sim_time = 1.5e-3 "}, {"keep = 2 ", "keep = 9 "}});
+  const Result r = run(d.path, {"--debug-kill", "fem:40"}, scene);
+  INFO(r.out << r.err);
+  REQUIRE(r.status == 0);
+  CHECK(r.err.find("back at step 30") != std::string::npos);
+  std::set<std::string> names;
+  for (const auto& e : fs::directory_iterator(d.path / kOut / "checkpoints"))
+    names.insert(e.path().filename().string());
+  CHECK(names == std::set<std::string>{"step-000000", "step-000015", "step-000030", "step-000045"});
+  check_same_results(reference(), d.path / kOut);
+}
+
+TEST_CASE(
+    "old checkpoints do not outlive their run: a fresh run and an older resume discard them") {
+  TempDir d;
+  REQUIRE(run(d.path, {}).status == 0);  // leaves step-30 and step-40
+  const fs::path cp = d.path / kOut / "checkpoints";
+  // A fresh run in the same folder, killed and recovered: it must roll back to its own
+  // checkpoint, not find an older run's step-40 newer than its own.
+  const Result r = run(d.path, {"--debug-kill", "fem:15"});
+  INFO(r.out << r.err);
+  REQUIRE(r.status == 0);
+  CHECK(r.err.find("back at step 10") != std::string::npos);
+  check_same_results(reference(), d.path / kOut);
+  // Resuming explicitly from an older checkpoint drops the newer ones, then writes its own.
+  const Result e =
+      run(d.path, {"--resume", (cp / "step-000030").string(), "--debug-kill", "dem:45"});
+  INFO(e.out << e.err);
+  REQUIRE(e.status == 0);
+  CHECK(e.err.find("back at step 40") != std::string::npos);
+  check_same_results(reference(), d.path / kOut);
 }

@@ -107,6 +107,11 @@ FemOutput::FemOutput(std::filesystem::path dir, std::string name, const Mesh& me
       }
     }
   } else {
+    // Step files of an earlier run in this folder go: a later resume (a restarted solver)
+    // scans the folder and would take them for this run's.
+    for (std::size_t k = 1; std::filesystem::exists(step_path(k)); ++k) {
+      std::filesystem::remove(step_path(k));
+    }
     write_mesh(mesh);
     if (settings_.csv) csv_ = std::make_unique<io::CsvWriter>(csv_path(), columns);
   }

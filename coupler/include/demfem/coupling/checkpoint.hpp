@@ -61,4 +61,9 @@ std::optional<std::filesystem::path> latest_valid_checkpoint(
 /// (no manifest) older than the newest committed one.
 void prune_checkpoints(const std::filesystem::path& dir, std::int64_t keep);
 
+/// @brief Removes every step folder under `dir` of a step after `step` (-1: all): at the
+/// start of a fresh run they belong to an older run, after a resume to the abandoned future
+/// of this one; left there, they would count as the newest when pruning.
+void discard_checkpoints_after(const std::filesystem::path& dir, std::int64_t step);
+
 }  // namespace demfem::coupling
