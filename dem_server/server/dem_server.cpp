@@ -81,6 +81,7 @@ int main(int argc, char** argv) {
       demfem::dem::DemBackend backend(dem_run);
       demfem::protocol::ServeOptions options;
       options.segment = segment;
+      options.remove_orphaned_segments = true;  // a killed coupler leaves nothing behind
       options.role = demfem::protocol::Role::dem;
       const int code = demfem::protocol::serve(backend, options);
       if (code == demfem::protocol::kExitOk) dem_run.finish();  // the end state

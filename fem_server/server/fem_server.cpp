@@ -92,6 +92,7 @@ int main(int argc, char** argv) {
       demfem::fem::FemBackend backend(solver, output.get(), interval);
       demfem::protocol::ServeOptions options;
       options.segment = segment;
+      options.remove_orphaned_segments = true;  // a killed coupler leaves nothing behind
       options.role = demfem::protocol::Role::fem;
       const int code = demfem::protocol::serve(backend, options);
       // The end state, unless the last step was just written by the backend.

@@ -320,6 +320,12 @@ TEST_CASE("SIGKILL of the coupler at a random step: the solvers leave, --resume 
       }
       CHECK((::kill(p, 0) != 0 && errno == ESRCH));
     }
+    // ... and, the coupler's pid being gone, remove its segments themselves.
+    for (const auto& seg : segments_of(killed.out)) {
+      INFO("segment " << seg << " after the coupler died");
+      CHECK_FALSE(fs::exists("/dev/shm/" + seg));
+      CHECK_FALSE(fs::exists("/dev/shm/" + seg + "-bulk"));
+    }
     const Result resumed = run(d.path, {"--resume"});
     INFO(resumed.out << resumed.err);
     REQUIRE(resumed.status == 0);

@@ -74,6 +74,14 @@ class Server {
     } catch (const CouplerGone& g) {
       std::fprintf(stderr, "%sthe coupler died: %s\n", prefix.c_str(), g.why.c_str());
       detach();
+      // A coupler that is certainly gone (its pid, not only a stale heartbeat) cannot remove
+      // its segments any more: the solvers do, so that nothing stays in /dev/shm until the
+      // next run (a second remover finds nothing; a stopped coupler keeps them).
+      if (options_.remove_orphaned_segments && coupler_pid_ > 0 &&
+          !shm::process_alive(coupler_pid_)) {
+        shm::MappedSegment::remove(options_.segment + "-bulk");
+        shm::MappedSegment::remove(options_.segment);
+      }
       return kExitCouplerDied;
     } catch (const BackendFailure& f) {
       std::fprintf(stderr, "%s%s\n", prefix.c_str(), f.text.c_str());
@@ -166,6 +174,7 @@ class Server {
                           std::to_string(fixed->layout_size) + ", expected " +
                           std::to_string(sizeof(shm::Segment)));
     seg_ = static_cast<shm::Segment*>(segment_.data());
+    coupler_pid_ = fixed->owner_pid.load();
     coupler_watch_ = shm::PeerWatch(&seg_->coupler, fixed->owner_pid.load(),
                                     shm::stale_after(options_.peer_timeout));
     if (const std::string why = coupler_watch_.check(); !why.empty()) throw CouplerGone{why};
@@ -341,6 +350,7 @@ class Server {
   ServeOptions options_;
   shm::MappedSegment segment_;
   shm::MappedSegment bulk_;
+  pid_t coupler_pid_ = 0;  // the segment's owner
   shm::Segment* seg_ = nullptr;
   shm::PeerWatch coupler_watch_;
   std::unique_ptr<shm::Heartbeat> heartbeat_;

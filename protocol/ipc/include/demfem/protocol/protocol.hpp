@@ -167,6 +167,10 @@ struct ServeOptions {
   /// Install SIGTERM/SIGINT handlers for the duration of serve() so that either signal
   /// makes it return promptly (exit code 128 + signal) after detaching cleanly.
   bool handle_signals = true;
+  /// When the coupler has died (its pid is gone, not only its heartbeat stale), remove its
+  /// segments on the way out, so that none stays in /dev/shm until the next run's cleanup.
+  /// Off by default; dem_server and fem_server turn it on.
+  bool remove_orphaned_segments = false;
 };
 
 /// @brief Attaches to the segment, Hello (version check), mesh exchange, then serves
