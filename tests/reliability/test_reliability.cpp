@@ -523,3 +523,19 @@ TEST_CASE(
   CHECK(e.err.find("back at step 40") != std::string::npos);
   check_same_results(reference(), d.path / kOut);
 }
+
+TEST_CASE("every_wall_time: a checkpoint whenever the wall-time interval has passed") {
+  TempDir d;
+  // 1 ns: due at every step boundary (the results may not depend on where they fall).
+  const fs::path scene = variant(d.path, {{"every_steps = 10 ", "every_wall_time = 1e-9 "}});
+  const Result r = run(d.path, {"--debug-kill", "dem:37"}, scene);
+  INFO(r.out << r.err);
+  REQUIRE(r.status == 0);
+  CHECK(r.err.find("back at step 37") != std::string::npos);
+  CHECK(r.out.find("50 checkpoints") != std::string::npos);  // steps 0..49
+  std::set<std::string> names;
+  for (const auto& e : fs::directory_iterator(d.path / kOut / "checkpoints"))
+    names.insert(e.path().filename().string());
+  CHECK(names == std::set<std::string>{"step-000048", "step-000049"});
+  check_same_results(reference(), d.path / kOut);
+}
