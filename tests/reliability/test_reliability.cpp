@@ -153,7 +153,7 @@ std::vector<std::pair<std::string, bool>> xdmf_datasets(const fs::path& xdmf) {
 }
 
 // The output folder of run `b` equals that of run `a` (see the file comment).
-void check_same_results(const fs::path& a, const fs::path& b) {
+void check_same_results(const fs::path& a, const fs::path& b, std::int64_t steps = kSteps) {
   auto listing = [](const fs::path& d) {
     std::set<std::string> names;
     for (const auto& e : fs::directory_iterator(d)) {
@@ -195,7 +195,7 @@ void check_same_results(const fs::path& a, const fs::path& b) {
   }
   demfem::io::H5File ha(a / "coupling.h5", demfem::io::H5File::Mode::read);
   demfem::io::H5File hb(b / "coupling.h5", demfem::io::H5File::Mode::read);
-  REQUIRE(hb.attribute_int64("/", "steps") == kSteps);
+  REQUIRE(hb.attribute_int64("/", "steps") == steps);
   REQUIRE(ha.attribute_double("/", "time") == hb.attribute_double("/", "time"));
   for (const char* set : {"interface/positions", "interface/forces", "interface/dem_positions"}) {
     INFO(set);
@@ -538,4 +538,26 @@ TEST_CASE("every_wall_time: a checkpoint whenever the wall-time interval has pas
     names.insert(e.path().filename().string());
   CHECK(names == std::set<std::string>{"step-000048", "step-000049"});
   check_same_results(reference(), d.path / kOut);
+}
+
+TEST_CASE("one-way static: a FEM killed in its static solve recovers to the same deflection") {
+  // cases/beam_fixed_ci.toml (the DEM settles for 8 steps, then one static FEM solve) with a
+  // checkpoint every 5 steps; fem_server is killed in step 7, the settle step.
+  TempDir ref, d;
+  std::string text = read_text(fs::path(DEMFEM_SOURCE_DIR) / "cases" / "beam_fixed_ci.toml");
+  const auto at = text.find("[coupling]\n");
+  REQUIRE(at != std::string::npos);
+  text.insert(at, "[checkpoint]\nevery_steps = 5\n\n");
+  const fs::path scene = ref.path / "fixed.toml";
+  std::ofstream(scene) << text;
+  const Result r0 = run(ref.path, {}, scene);
+  INFO(r0.out << r0.err);
+  REQUIRE(r0.status == 0);
+  const Result r1 = run(d.path, {"--debug-kill", "fem:7"}, scene);
+  INFO(r1.out << r1.err);
+  REQUIRE(r1.status == 0);
+  CHECK(r1.err.find("SIGKILL to the FEM solver in step 7") != std::string::npos);
+  CHECK(r1.err.find("back at step 5") != std::string::npos);
+  check_same_results(ref.path / "out/beam_fixed_ci", d.path / "out/beam_fixed_ci", 8);
+  check_nothing_left({r1.out});
 }
