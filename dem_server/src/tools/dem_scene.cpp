@@ -547,6 +547,19 @@ void DemRun::save(io::H5File& file, const std::string& group) const {
   std::vector<double> sched = sensors_ ? sensors_->schedule() : std::vector<double>{};
   sched.push_back(0.0);  // never empty
   file.write(g + "/sensor_schedule", std::span<const double>(sched));
+  // Mass-flow counters: the cumulative mass and the side of every particle id.
+  if (sensors_) {
+    const auto states = sensors_->counter_states();
+    for (std::size_t i = 0; i < states.size(); ++i) {
+      if (!states[i].present) continue;
+      std::vector<std::uint8_t> sides;
+      for (std::int8_t v : states[i].sides) sides.push_back(static_cast<std::uint8_t>(v + 1));
+      sides.push_back(1);  // never empty
+      const std::string name = g + "/mass_flow_" + std::to_string(i);
+      file.write(name + "_sides", std::span<const std::uint8_t>(sides), {sides.size()});
+      file.set_attribute(g, "mass_flow_" + std::to_string(i) + "_cumulative", states[i].cumulative);
+    }
+  }
   file.set_attribute(g, "next_id", next_id_);
   file.set_attribute(g, "snapshots", static_cast<std::int64_t>(output_ ? output_->count() : 0));
   file.set_attribute(g, "next_output", next_output_);
@@ -582,6 +595,20 @@ void DemRun::restore(const io::H5File& file, const std::string& group) {
     sensors_->resume(rows, system_->time(), sched);
   } else {
     sensors_->resume(rows, system_->time());
+  }
+  {
+    auto states = sensors_->counter_states();
+    for (std::size_t i = 0; i < states.size(); ++i) {
+      const std::string name = g + "/mass_flow_" + std::to_string(i);
+      if (!states[i].present || !file.exists(name + "_sides")) continue;
+      auto sides = file.read_uint8(name + "_sides");
+      sides.pop_back();
+      states[i].sides.clear();
+      for (std::uint8_t v : sides) states[i].sides.push_back(static_cast<std::int8_t>(v) - 1);
+      states[i].cumulative =
+          file.attribute_double(g, "mass_flow_" + std::to_string(i) + "_cumulative");
+    }
+    sensors_->restore_counter_states(states);
   }
   if (output_) output_->resume(static_cast<std::size_t>(file.attribute_int64(g, "snapshots")));
   next_output_ = file.attribute_double(g, "next_output");

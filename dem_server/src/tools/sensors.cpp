@@ -219,6 +219,25 @@ void SensorSet::resume(const std::vector<std::size_t>& rows, double time,
   }
 }
 
+std::vector<SensorSet::CounterState> SensorSet::counter_states() const {
+  std::vector<CounterState> out(entries_.size());
+  for (std::size_t i = 0; i < entries_.size(); ++i) {
+    if (!entries_[i]->counter) continue;
+    out[i].present = true;
+    out[i].cumulative = entries_[i]->cumulative;
+    out[i].sides = entries_[i]->counter->sides();
+  }
+  return out;
+}
+
+void SensorSet::restore_counter_states(const std::vector<CounterState>& states) {
+  for (std::size_t i = 0; i < entries_.size() && i < states.size(); ++i) {
+    if (!entries_[i]->counter || !states[i].present) continue;
+    entries_[i]->cumulative = states[i].cumulative;
+    entries_[i]->counter->set_sides(states[i].sides);
+  }
+}
+
 void SensorSet::sample(const DemSystem& system, std::span<const std::int64_t> ids) {
   const double t = system.time();
   // A tolerance of a tenth of a step absorbs the round-off of t = n * dt.

@@ -32,6 +32,10 @@ class MassFlowCounter {
   MassFlowCounter(std::array<double, 3> point, std::array<double, 3> direction, double radius);
   /// Net mass (kg) that crossed in +direction since the previous update.
   double update(const ParticleState& particles, std::span<const std::int64_t> ids);
+  /// The side of every particle id at the last update (0 unknown, -1 back, +1 front): the
+  /// counter's state for a checkpoint.
+  const std::vector<std::int8_t>& sides() const { return side_; }
+  void set_sides(std::vector<std::int8_t> sides) { side_ = std::move(sides); }
 
  private:
   std::array<double, 3> point_;
@@ -118,6 +122,15 @@ class SensorSet {
   /// with it, resume() continues the schedule exactly instead of restarting it at `time`
   /// (which would sample again at the first step after the checkpoint).
   std::vector<double> schedule() const;
+  /// State of a mass_flow sensor for a checkpoint (other kinds have none).
+  struct CounterState {
+    bool present = false;            ///< the sensor is a mass_flow sensor
+    double cumulative = 0.0;         ///< mass_crossed, kg
+    std::vector<std::int8_t> sides;  ///< MassFlowCounter::sides()
+  };
+  std::vector<CounterState> counter_states() const;
+  /// After resume(): the mass_flow sensors continue from these states (same order).
+  void restore_counter_states(const std::vector<CounterState>& states);
   /// resume() with the schedule() of the checkpoint.
   void resume(const std::vector<std::size_t>& rows, double time,
               const std::vector<double>& schedule);
