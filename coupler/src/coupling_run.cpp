@@ -11,6 +11,7 @@
 
 #include "demfem/coupling/checkpoint.hpp"
 #include "demfem/io/atomic_file.hpp"
+#include "demfem/io/checkpoint_file.hpp"
 #include "demfem/io/h5_file.hpp"
 
 namespace demfem::coupling {
@@ -284,49 +285,44 @@ RunSummary CouplingRun::run() {
   const std::vector<std::string> parts = checkpoint_parts(s);
 
   auto save_coupler = [&](const std::filesystem::path& file, std::int64_t steps) {
-    io::H5File h5(io::partial_path(file), io::H5File::Mode::create);
-    h5.set_attribute("/", "step", steps);
-    h5.set_attribute("/", "scheme", std::string(scheme_name(s.scheme)));
-    h5.set_attribute("/", "node_count", static_cast<std::int64_t>(n3 / 3));
-    h5.set_attribute("/", "time", sum.time);
-    h5.set_attribute("/", "work_dem", work_dem);
-    h5.set_attribute("/", "work_fem", work_fem);
-    h5.set_attribute("/", "settled", static_cast<std::int64_t>(settled));
-    h5.set_attribute("/", "csv_rows", csv_rows);
-    h5.set_attribute("/", "wall_dem", sum.wall_dem);
-    h5.set_attribute("/", "wall_fem", sum.wall_fem);
-    h5.set_attribute("/", "wall_coupling", sum.wall_coupling);
-    const auto last = row_of(sum.last);
-    h5.write("last_diagnostics", std::span<const double>(last), {last.size()});
-    h5.create_group("scheme");
-    const std::pair<const char*, const std::vector<double>*> arrays[] = {
-        {"scheme/positions", &pos},       {"scheme/velocities", &vel},
-        {"scheme/accelerations", &acc},   {"scheme/next_positions", &next_pos},
-        {"scheme/dem_start", &dem_start}, {"scheme/dem_end", &dem_end},
-        {"scheme/dem_force", &dem_force}, {"scheme/dem_force_prev", &dem_force_prev},
-        {"scheme/fem_force", &fem_force}, {"scheme/fem_force_prev", &fem_force_prev}};
-    for (const auto& [name, v] : arrays) h5.write(name, std::span<const double>(*v), {v->size()});
-    if (n3 > 0) {
-      // The interface buffer as the solvers left it (the schemes rewrite it before every
-      // read, but a restored run starts from exactly the same bytes).
-      h5.create_group("buffer");
-      h5.write("buffer/positions", std::span<const double>(buf.positions(b)), {n3});
-      h5.write("buffer/velocities", std::span<const double>(buf.velocities(b)), {n3});
-      h5.write("buffer/accelerations", std::span<const double>(buf.accelerations(b)), {n3});
-      h5.write("buffer/forces", std::span<const double>(buf.forces(b)), {n3});
-      h5.write("buffer/dem_positions", std::span<const double>(buf.dem_positions(b)), {n3});
-    }
-    h5.close();
-    io::commit_partial(file);
+    io::write_checkpoint_file(file, steps, [&](io::H5File& h5) {
+      h5.set_attribute("/", "scheme", std::string(scheme_name(s.scheme)));
+      h5.set_attribute("/", "node_count", static_cast<std::int64_t>(n3 / 3));
+      h5.set_attribute("/", "time", sum.time);
+      h5.set_attribute("/", "work_dem", work_dem);
+      h5.set_attribute("/", "work_fem", work_fem);
+      h5.set_attribute("/", "settled", static_cast<std::int64_t>(settled));
+      h5.set_attribute("/", "csv_rows", csv_rows);
+      h5.set_attribute("/", "wall_dem", sum.wall_dem);
+      h5.set_attribute("/", "wall_fem", sum.wall_fem);
+      h5.set_attribute("/", "wall_coupling", sum.wall_coupling);
+      const auto last = row_of(sum.last);
+      h5.write("last_diagnostics", std::span<const double>(last), {last.size()});
+      h5.create_group("scheme");
+      const std::pair<const char*, const std::vector<double>*> arrays[] = {
+          {"scheme/positions", &pos},       {"scheme/velocities", &vel},
+          {"scheme/accelerations", &acc},   {"scheme/next_positions", &next_pos},
+          {"scheme/dem_start", &dem_start}, {"scheme/dem_end", &dem_end},
+          {"scheme/dem_force", &dem_force}, {"scheme/dem_force_prev", &dem_force_prev},
+          {"scheme/fem_force", &fem_force}, {"scheme/fem_force_prev", &fem_force_prev}};
+      for (const auto& [name, v] : arrays) h5.write(name, std::span<const double>(*v), {v->size()});
+      if (n3 > 0) {
+        // The interface buffer as the solvers left it (the schemes rewrite it before every
+        // read, but a restored run starts from exactly the same bytes).
+        h5.create_group("buffer");
+        h5.write("buffer/positions", std::span<const double>(buf.positions(b)), {n3});
+        h5.write("buffer/velocities", std::span<const double>(buf.velocities(b)), {n3});
+        h5.write("buffer/accelerations", std::span<const double>(buf.accelerations(b)), {n3});
+        h5.write("buffer/forces", std::span<const double>(buf.forces(b)), {n3});
+        h5.write("buffer/dem_positions", std::span<const double>(buf.dem_positions(b)), {n3});
+      }
+    });
   };
   auto load_coupler = [&](const std::filesystem::path& file, std::int64_t steps) {
-    io::H5File h5(file, io::H5File::Mode::read);
+    const io::H5File h5 = io::open_checkpoint_file(file, steps);
     auto need = [&](bool ok, const std::string& what) {
       if (!ok) throw std::runtime_error(file.string() + ": " + what);
     };
-    need(h5.attribute_int64("/", "step") == steps,
-         "attribute 'step' is " + std::to_string(h5.attribute_int64("/", "step")) +
-             ", the manifest says " + std::to_string(steps));
     need(h5.attribute_string("/", "scheme") == scheme_name(s.scheme),
          "attribute 'scheme' is '" + h5.attribute_string("/", "scheme") + "', the scene's is '" +
              scheme_name(s.scheme) + "'");

@@ -511,14 +511,18 @@ void DemRun::after_advance() {
   }
 }
 
-void DemRun::advance(std::int64_t substeps, ForceMode mode) {
+void DemRun::start_deferred_output() {
   if (!sensors_) start_output(false);
+}
+
+void DemRun::advance(std::int64_t substeps, ForceMode mode) {
+  start_deferred_output();
   system_->advance(substeps, mode);
   after_advance();
 }
 
 void DemRun::run_to(double end_time, const std::function<void(double)>& progress) {
-  if (!sensors_) start_output(false);
+  start_deferred_output();
   const double dt = scene_.settings.dt;
   while (system_->time() + 0.5 * dt < end_time) {
     double target = std::min({end_time, sensors_->next_time(), next_pour_time()});

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "demfem/dem/dem_scene.hpp"
-#include "demfem/io/atomic_file.hpp"
+#include "demfem/io/checkpoint_file.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem/protocol/protocol.hpp"
 
@@ -106,28 +106,12 @@ class DemBackend final : public protocol::SolverBackend {
     // output now, as the first advance() would (initial sensor samples and snapshot), so the
     // checkpoint counts them and a rollback to it keeps them instead of writing them again
     // at a later time.
-    try {
-      (void)run_.sensors();
-    } catch (const std::logic_error&) {
-      run_.after_advance();  // creates the sensors and output from the current state
-    }
-    {
-      io::H5File h5(io::partial_path(file), io::H5File::Mode::create);
-      h5.set_attribute("/", "step", step);
-      run_.save(h5, "dem");
-      h5.close();
-    }
-    io::commit_partial(file);
+    run_.start_deferred_output();
+    io::write_checkpoint_file(file, step, [this](io::H5File& h5) { run_.save(h5, "dem"); });
   }
 
   void restore_checkpoint(const std::filesystem::path& file, std::int64_t step) override {
-    io::H5File h5(file, io::H5File::Mode::read);
-    const std::int64_t saved = h5.attribute_int64("/", "step");
-    if (saved != step) {
-      throw std::runtime_error(file.string() + ": checkpoint is of step " + std::to_string(saved) +
-                               ", asked to restore step " + std::to_string(step));
-    }
-    run_.restore(h5, "dem");
+    run_.restore(io::open_checkpoint_file(file, step), "dem");
   }
 
  private:

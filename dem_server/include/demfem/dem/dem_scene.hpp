@@ -109,6 +109,9 @@ class DemRun {
   void finish();
   /// Sensor samples and snapshot due at the current time.
   void after_advance();
+  /// Starts deferred output now (initial sensor samples and snapshot), as the first
+  /// advance() would; does nothing when it has started.
+  void start_deferred_output();
 
   /// Checkpoint: the system (DemSystem::save into `group`) and the tools' state (ids, output
   /// and sensor row counts) into `group` + "_tools".

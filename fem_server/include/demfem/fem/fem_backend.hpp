@@ -13,7 +13,7 @@
 
 #include "demfem/fem/fem_output.hpp"
 #include "demfem/fem/fem_solver.hpp"
-#include "demfem/io/atomic_file.hpp"
+#include "demfem/io/checkpoint_file.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem/protocol/protocol.hpp"
 
@@ -86,24 +86,14 @@ class FemBackend final : public protocol::SolverBackend {
   /// The solver state under group "fem" of an HDF5 file, written under a temporary name and
   /// renamed when complete; attribute "step" on "/" records the coupling step.
   void write_checkpoint(const std::filesystem::path& file, std::int64_t step) override {
-    {
-      io::H5File h5(io::partial_path(file), io::H5File::Mode::create);
-      h5.set_attribute("/", "step", step);
+    io::write_checkpoint_file(file, step, [this](io::H5File& h5) {
       h5.create_group("fem");
       solver_.save(h5, "fem");
-      h5.close();
-    }
-    io::commit_partial(file);
+    });
   }
 
   void restore_checkpoint(const std::filesystem::path& file, std::int64_t step) override {
-    io::H5File h5(file, io::H5File::Mode::read);
-    const std::int64_t saved = h5.attribute_int64("/", "step");
-    if (saved != step) {
-      throw std::runtime_error(file.string() + ": checkpoint is of step " + std::to_string(saved) +
-                               ", asked to restore step " + std::to_string(step));
-    }
-    solver_.restore(h5, "fem");
+    solver_.restore(io::open_checkpoint_file(file, step), "fem");
     if (interval_ > 0.0) {
       // The next multiple of the interval after the restored time, as in the original run.
       next_output_ = interval_ * (std::floor(solver_.time() / interval_ + 1e-9) + 1.0);
