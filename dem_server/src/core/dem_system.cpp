@@ -19,11 +19,13 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <map>
 #include <stdexcept>
+#include <type_traits>
 #include <utility>
 
 #include "dem_cuda_backend.hpp"
@@ -1239,6 +1241,48 @@ std::vector<T> from64(const std::vector<std::int64_t>& v) {
 }
 }  // namespace
 
+// Every double array of the saved state with its dataset name: one list serves save() and
+// restore(), so the two cannot drift apart. ImplT is Impl or const Impl.
+template <class ImplT>
+auto double_arrays(ImplT& I) {
+  using Vec =
+      std::conditional_t<std::is_const_v<ImplT>, const std::vector<double>, std::vector<double>>;
+  auto& st = I.st;
+  return std::array<std::pair<const char*, Vec*>, 33>{{{"px", &st.px},
+                                                       {"py", &st.py},
+                                                       {"pz", &st.pz},
+                                                       {"vx", &st.vx},
+                                                       {"vy", &st.vy},
+                                                       {"vz", &st.vz},
+                                                       {"wx", &st.wx},
+                                                       {"wy", &st.wy},
+                                                       {"wz", &st.wz},
+                                                       {"qw", &st.qw},
+                                                       {"qx", &st.qx},
+                                                       {"qy", &st.qy},
+                                                       {"qz", &st.qz},
+                                                       {"fx", &st.fx},
+                                                       {"fy", &st.fy},
+                                                       {"fz", &st.fz},
+                                                       {"radius", &st.radius},
+                                                       {"mass", &st.mass},
+                                                       {"inertia", &st.inertia},
+                                                       {"tx", &I.tx},
+                                                       {"ty", &I.ty},
+                                                       {"tz", &I.tz},
+                                                       {"shear", &I.shear},
+                                                       {"bx", &I.bx},
+                                                       {"by", &I.by},
+                                                       {"bz", &I.bz},
+                                                       {"wshear", &I.wshear},
+                                                       {"vpos", &I.vpos},
+                                                       {"vbuild", &I.vbuild},
+                                                       {"flex_x", &I.flex_x},
+                                                       {"flex_v", &I.flex_v},
+                                                       {"flex_a", &I.flex_a},
+                                                       {"flex_force", &I.flex_force}}};
+}
+
 void DemSystem::save(io::H5File& f, const std::string& group) const {
   const auto& I = *impl_;
   const auto& st = I.st;
@@ -1250,40 +1294,7 @@ void DemSystem::save(io::H5File& f, const std::string& group) const {
   f.set_attribute(group, "max_overlap", I.max_ov);
   f.set_attribute(group, "flex_max_overlap", I.flex_max_ov);
   f.set_attribute(group, "format", std::string("demfem-dem-state-1"));
-  const std::pair<const char*, const std::vector<double>*> dv[] = {{"px", &st.px},
-                                                                   {"py", &st.py},
-                                                                   {"pz", &st.pz},
-                                                                   {"vx", &st.vx},
-                                                                   {"vy", &st.vy},
-                                                                   {"vz", &st.vz},
-                                                                   {"wx", &st.wx},
-                                                                   {"wy", &st.wy},
-                                                                   {"wz", &st.wz},
-                                                                   {"qw", &st.qw},
-                                                                   {"qx", &st.qx},
-                                                                   {"qy", &st.qy},
-                                                                   {"qz", &st.qz},
-                                                                   {"fx", &st.fx},
-                                                                   {"fy", &st.fy},
-                                                                   {"fz", &st.fz},
-                                                                   {"radius", &st.radius},
-                                                                   {"mass", &st.mass},
-                                                                   {"inertia", &st.inertia},
-                                                                   {"tx", &I.tx},
-                                                                   {"ty", &I.ty},
-                                                                   {"tz", &I.tz},
-                                                                   {"shear", &I.shear},
-                                                                   {"bx", &I.bx},
-                                                                   {"by", &I.by},
-                                                                   {"bz", &I.bz},
-                                                                   {"wshear", &I.wshear},
-                                                                   {"vpos", &I.vpos},
-                                                                   {"vbuild", &I.vbuild},
-                                                                   {"flex_x", &I.flex_x},
-                                                                   {"flex_v", &I.flex_v},
-                                                                   {"flex_a", &I.flex_a},
-                                                                   {"flex_force", &I.flex_force}};
-  for (const auto& [name, v] : dv) f.write(g + name, std::span<const double>(*v));
+  for (const auto& [name, v] : double_arrays(I)) f.write(g + name, std::span<const double>(*v));
   f.write(g + "material", std::span<const std::int64_t>(to64(st.material)));
   f.write(g + "shape", std::span<const std::uint8_t>(st.shape));
   f.write(g + "row", std::span<const std::int64_t>(I.row));
@@ -1303,40 +1314,7 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   I.flex_tau = f.attribute_double(group, "flex_tau");
   I.max_ov = f.attribute_double(group, "max_overlap");
   I.flex_max_ov = f.attribute_double(group, "flex_max_overlap");
-  const std::pair<const char*, std::vector<double>*> dv[] = {{"px", &st.px},
-                                                             {"py", &st.py},
-                                                             {"pz", &st.pz},
-                                                             {"vx", &st.vx},
-                                                             {"vy", &st.vy},
-                                                             {"vz", &st.vz},
-                                                             {"wx", &st.wx},
-                                                             {"wy", &st.wy},
-                                                             {"wz", &st.wz},
-                                                             {"qw", &st.qw},
-                                                             {"qx", &st.qx},
-                                                             {"qy", &st.qy},
-                                                             {"qz", &st.qz},
-                                                             {"fx", &st.fx},
-                                                             {"fy", &st.fy},
-                                                             {"fz", &st.fz},
-                                                             {"radius", &st.radius},
-                                                             {"mass", &st.mass},
-                                                             {"inertia", &st.inertia},
-                                                             {"tx", &I.tx},
-                                                             {"ty", &I.ty},
-                                                             {"tz", &I.tz},
-                                                             {"shear", &I.shear},
-                                                             {"bx", &I.bx},
-                                                             {"by", &I.by},
-                                                             {"bz", &I.bz},
-                                                             {"wshear", &I.wshear},
-                                                             {"vpos", &I.vpos},
-                                                             {"vbuild", &I.vbuild},
-                                                             {"flex_x", &I.flex_x},
-                                                             {"flex_v", &I.flex_v},
-                                                             {"flex_a", &I.flex_a},
-                                                             {"flex_force", &I.flex_force}};
-  for (const auto& [name, v] : dv) *v = f.read_doubles(g + name);
+  for (const auto& [name, v] : double_arrays(I)) *v = f.read_doubles(g + name);
   st.material = from64<std::int32_t>(f.read_int64(g + "material"));
   st.shape = f.read_uint8(g + "shape");
   I.row = f.read_int64(g + "row");
