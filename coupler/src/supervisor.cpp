@@ -34,8 +34,11 @@ void on_signal(int sig) {
   }
 }
 
-constexpr int kSignals[] = {SIGINT, SIGTERM, SIGHUP};
-struct sigaction g_old[3];
+// SIGPIPE too: `demfem run ... | head` closes our output; stop cleanly like Ctrl-C instead
+// of dying at once and leaving the solvers to notice the lost coupler.
+constexpr int kSignals[] = {SIGINT, SIGTERM, SIGHUP, SIGPIPE};
+constexpr int kSignalCount = static_cast<int>(std::size(kSignals));
+struct sigaction g_old[kSignalCount];
 
 }  // namespace
 
@@ -132,7 +135,7 @@ int SolverProcess::stop(std::chrono::milliseconds grace) {
 SignalGuard::SignalGuard() {
   g_stop.store(false);
   g_signal.store(0);
-  for (int i = 0; i < 3; ++i) {
+  for (int i = 0; i < kSignalCount; ++i) {
     struct sigaction sa {};
     sa.sa_handler = on_signal;
     sigemptyset(&sa.sa_mask);
@@ -142,7 +145,7 @@ SignalGuard::SignalGuard() {
 }
 
 SignalGuard::~SignalGuard() {
-  for (int i = 0; i < 3; ++i) ::sigaction(kSignals[i], &g_old[i], nullptr);
+  for (int i = 0; i < kSignalCount; ++i) ::sigaction(kSignals[i], &g_old[i], nullptr);
 }
 
 const std::atomic<bool>& SignalGuard::stop_flag() {

@@ -338,6 +338,54 @@ TEST_CASE("SIGTERM or SIGINT stops all three processes and leaves no shared memo
   }
 }
 
+TEST_CASE("a closed output pipe (demfem run | head) stops all three cleanly") {
+  TempDir d;
+  // Long enough that a progress line (every 10 %) is written after the pipe is closed.
+  const auto scene = variant(d.path, "long.toml", "beam_dynamic_ci.toml",
+                             {{"end_time = 0.005 ", "end_time = 1.0 "}});
+  int fds[2];
+  REQUIRE(pipe(fds) == 0);
+  std::vector<std::string> argv_s = {(kBin / "demfem_run").string(), "--bin-dir", kBin.string(),
+                                     scene.string()};
+  std::vector<char*> argv;
+  for (auto& a : argv_s) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_adddup2(&fa, fds[1], 1);
+  posix_spawn_file_actions_addclose(&fa, fds[0]);
+  const std::string err = (d.path / "stderr.txt").string();
+  posix_spawn_file_actions_addopen(&fa, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  const fs::path old = fs::current_path();
+  fs::current_path(d.path);
+  pid_t pid = -1;
+  const int rc = posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ);
+  fs::current_path(old);
+  posix_spawn_file_actions_destroy(&fa);
+  close(fds[1]);
+  REQUIRE(rc == 0);
+  // Read like `head` until both solvers have started, then close the pipe.
+  std::string out;
+  char buf[512];
+  while (started_pids(out).size() < 2) {
+    const ssize_t n = read(fds[0], buf, sizeof buf);
+    REQUIRE(n > 0);
+    out.append(buf, static_cast<std::size_t>(n));
+  }
+  close(fds[0]);
+  const auto pids = started_pids(out);
+  const std::string segment = segment_of(out);
+  REQUIRE(!segment.empty());
+  int st = 0;
+  REQUIRE(waitpid(pid, &st, 0) == pid);
+  INFO(read_text(d.path / "stderr.txt"));
+  CHECK(WIFEXITED(st));
+  CHECK(WEXITSTATUS(st) == 128 + SIGPIPE);
+  for (pid_t p : pids) CHECK(pid_gone(p));
+  CHECK(!fs::exists(fs::path("/dev/shm") / segment));
+  CHECK(!fs::exists(fs::path("/dev/shm") / (segment + "-bulk")));
+}
+
 TEST_CASE("two-way dynamic beam settles to the static deflection within 0.5 %") {
   for (const char* name : {"beam_dynamic_jit", "beam_dynamic_predictive"}) {
     DYNAMIC_SECTION(name) {

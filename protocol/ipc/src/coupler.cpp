@@ -27,7 +27,7 @@ struct CleanupEntry {
 std::array<CleanupEntry, kCleanupSlots> g_cleanup;
 std::once_flag g_cleanup_once;
 struct sigaction g_previous[65];
-constexpr std::array<int, 3> kCleanupSignals{SIGTERM, SIGINT, SIGHUP};
+constexpr std::array<int, 4> kCleanupSignals{SIGTERM, SIGINT, SIGHUP, SIGPIPE};
 
 void unlink_registered() {
   for (auto& entry : g_cleanup)

@@ -1,6 +1,6 @@
 #pragma once
 // Child solver processes of a run and the coupler's signal handling. The launcher starts
-// each solver as a SolverProcess (posix_spawn), watches it, and on SIGINT/SIGTERM/SIGHUP
+// each solver as a SolverProcess (posix_spawn), watches it, and on SIGINT/SIGTERM/SIGHUP/SIGPIPE
 // sets the stop flag and forwards SIGTERM to every live child so that all three processes
 // end cleanly. A SolverProcess keeps its executable and arguments so that a crashed solver
 // can be started again (from a checkpoint, a later addition) with the same command line.
@@ -54,7 +54,7 @@ class SolverProcess {
   std::optional<int> exit_code_;
 };
 
-/// @brief Process-wide stop request from SIGINT/SIGTERM/SIGHUP.
+/// @brief Process-wide stop request from SIGINT/SIGTERM/SIGHUP/SIGPIPE.
 class SignalGuard {
  public:
   /// Installs the handlers (restored by the destructor).
