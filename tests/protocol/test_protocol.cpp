@@ -358,8 +358,10 @@ TEST_CASE("a stopped solver (heartbeat stale) is reported dead within the timeou
   require_removed(names);
 }
 
+// [serial]: while the SIGKILLed coupler's segment is left behind, any other test's new
+// CouplerSession would (rightly) remove it, so this test runs alone.
 TEST_CASE("a solver notices a SIGKILLed coupler and exits, and the next run removes its segment",
-          "[protocol][process]") {
+          "[protocol][process][serial]") {
   Child coupler = spawn({"coupler-steps"}, true);
   const std::string name = read_line(coupler.stdout_fd);
   REQUIRE(name.rfind("/demfem-", 0) == 0);
