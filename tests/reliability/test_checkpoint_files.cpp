@@ -9,22 +9,15 @@
 #include <string>
 
 #include "demfem/coupling/checkpoint.hpp"
+#include "demfem_test/temp_dir.hpp"
 
 namespace fs = std::filesystem;
 using namespace demfem::coupling;
 
 namespace {
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    static int counter = 0;
-    path = fs::temp_directory_path() /
-           ("demfem-cpfiles-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
-    fs::create_directories(path);
-  }
-  ~TempDir() { fs::remove_all(path); }
-};
+using demfem::test::read_text;
+using demfem::test::TempDir;
 
 void write(const fs::path& p, const std::string& text) {
   std::ofstream(p, std::ios::binary) << text;

@@ -16,29 +16,15 @@
 #include "demfem/dem/dem_scene.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem/scene/scene_reader.hpp"
+#include "demfem_test/temp_dir.hpp"
 
 namespace fs = std::filesystem;
 using namespace demfem;
 
 namespace {
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    static int counter = 0;
-    path = fs::temp_directory_path() /
-           ("demfem-demrestore-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
-    fs::create_directories(path);
-  }
-  ~TempDir() { fs::remove_all(path); }
-};
-
-std::string read_text(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using demfem::test::read_text;
+using demfem::test::TempDir;
 
 // Two soft spheres apart from each other in free fall; a kinetic-energy sensor and a mass-flow
 // plane `drop` metres below their centres, both sampled every 10 ms.

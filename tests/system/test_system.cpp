@@ -20,31 +20,17 @@
 #include <vector>
 
 #include "demfem/io/h5_file.hpp"
+#include "demfem_test/temp_dir.hpp"
 
 namespace fs = std::filesystem;
 
 namespace {
 
+using demfem::test::read_text;
+using demfem::test::TempDir;
+
 const fs::path kBin = fs::path(DEMFEM_BINARY_DIR) / "bin";
 const fs::path kCases = fs::path(DEMFEM_SOURCE_DIR) / "cases";
-
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    static int counter = 0;
-    path = fs::temp_directory_path() /
-           ("demfem-system-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
-    fs::create_directories(path);
-  }
-  ~TempDir() { fs::remove_all(path); }
-};
-
-std::string read_text(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 struct Result {
   int status = -1;  // exit code, or 128 + signal

@@ -8,7 +8,7 @@
 #include <cmath>
 
 #include "demfem/dem/dem_backend.hpp"
-#include "temp_dir.hpp"
+#include "demfem_test/temp_dir.hpp"
 
 using namespace demfem;
 using namespace demfem::dem;

@@ -8,7 +8,7 @@
 
 #include "demfem/dem/dem_output.hpp"
 #include "demfem/io/h5_file.hpp"
-#include "temp_dir.hpp"
+#include "demfem_test/temp_dir.hpp"
 
 using namespace demfem::dem;
 using demfem::io::H5File;
@@ -53,7 +53,7 @@ std::size_t occurrences(const std::string& s, const std::string& what) {
 
 TEST_CASE("particle snapshots re-read from HDF5 and indexed in XDMF", "[output]") {
   TempDir dir;
-  ParticleOutput out(dir.path());
+  ParticleOutput out(dir.path);
   const auto a = make_state(4, 0.0);
   const std::vector<std::int64_t> ids_a{10, 11, 12, 13};
   out.write(a, ids_a, 0.0);
@@ -86,11 +86,11 @@ TEST_CASE("particle snapshots re-read from HDF5 and indexed in XDMF", "[output]"
       x, Catch::Contains("Dimensions=\"3 3\"") && Catch::Contains("particles_000001.h5:/position"));
   CHECK_THAT(x, Catch::Contains("</Xdmf>"));
   // No partial files left behind.
-  for (const auto& e : std::filesystem::directory_iterator(dir.path()))
+  for (const auto& e : std::filesystem::directory_iterator(dir.path))
     CHECK(e.path().extension() != ".part");
 
   // Resume after a restore to one snapshot: the index lists only the first.
-  ParticleOutput again(dir.path());
+  ParticleOutput again(dir.path);
   again.resume(1);
   CHECK(again.count() == 1);
   CHECK(occurrences(read_text(again.index_path()), "<Grid Name=\"step_") == 1);

@@ -9,7 +9,7 @@
 
 #include "demfem/dem/dem_scene.hpp"
 #include "demfem/dem/stl_reader.hpp"
-#include "temp_dir.hpp"
+#include "demfem_test/temp_dir.hpp"
 
 using namespace demfem::dem;
 using demfem::scene::Document;

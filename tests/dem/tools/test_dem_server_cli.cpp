@@ -10,7 +10,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "temp_dir.hpp"
+#include "demfem_test/temp_dir.hpp"
 
 using demfem::test::TempDir;
 

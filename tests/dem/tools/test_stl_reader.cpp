@@ -10,7 +10,7 @@
 #include <map>
 
 #include "demfem/dem/stl_reader.hpp"
-#include "temp_dir.hpp"
+#include "demfem_test/temp_dir.hpp"
 
 using namespace demfem::dem;
 using demfem::test::TempDir;

@@ -12,28 +12,15 @@
 #include "demfem/fem/fem_output.hpp"
 #include "demfem/fem/inp_reader.hpp"
 #include "demfem/io/h5_file.hpp"
+#include "demfem_test/temp_dir.hpp"
 
 using namespace demfem;
 using namespace demfem::fem;
 
 namespace {
 
-struct TempDir {
-  std::filesystem::path path;
-  TempDir() {
-    path = std::filesystem::temp_directory_path() /
-           ("demfem_fem_output_" + std::to_string(::getpid()));
-    std::filesystem::remove_all(path);
-  }
-  ~TempDir() { std::filesystem::remove_all(path); }
-};
-
-std::string slurp(const std::filesystem::path& p) {
-  std::ifstream in(p);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using demfem::test::read_text;
+using demfem::test::TempDir;
 
 /// A mixed mesh: the unit hex (nodes 0..7) plus a shell quad on its top face and a tet.
 Mesh mixed_mesh() {
@@ -79,7 +66,7 @@ TEST_CASE("FemOutput: HDF5 + XDMF of a mixed mesh re-read, references valid, CSV
   const std::size_t ne = mesh.elements.size();
   FemOutput out(tmp.path, "run", mesh);
   CHECK(std::filesystem::exists(out.mesh_path()));
-  CHECK(slurp(out.xdmf_path()).find("CollectionType=\"Temporal\"") != std::string::npos);
+  CHECK(read_text(out.xdmf_path()).find("CollectionType=\"Temporal\"") != std::string::npos);
   for (int s = 0; s < 3; ++s) out.write(fields_at(0.1 * (s + 1), n, ne));
   REQUIRE(out.steps() == 3);
 
@@ -103,7 +90,7 @@ TEST_CASE("FemOutput: HDF5 + XDMF of a mixed mesh re-read, references valid, CSV
   CHECK(mh5.read_int64("node_labels").back() == 200);
 
   // Every "file.h5:/dataset" in the XDMF exists, with the dimensions the XDMF states.
-  const std::string xdmf = slurp(out.xdmf_path());
+  const std::string xdmf = read_text(out.xdmf_path());
   CHECK(xdmf.find("<Xdmf Version=\"3.0\"") != std::string::npos);
   for (const char* topo : {"Hexahedron", "Tetrahedron", "Quadrilateral"}) {
     CHECK(xdmf.find(std::string("TopologyType=\"") + topo + "\"") != std::string::npos);
@@ -141,7 +128,7 @@ TEST_CASE("FemOutput: HDF5 + XDMF of a mixed mesh re-read, references valid, CSV
 
   // CSV: header + one row per step; row 3 holds max |u|, max von Mises, max strain and the
   // summed reaction (10 t per node in z).
-  const std::string csv = slurp(out.csv_path());
+  const std::string csv = read_text(out.csv_path());
   CHECK(csv.rfind("time,max_displacement,max_von_mises,max_principal_strain,reaction_x,", 0) == 0);
   CHECK(std::count(csv.begin(), csv.end(), '\n') == 4);
   const FemScalars s3 = summarize(fields_at(0.3, n, ne));
@@ -166,7 +153,7 @@ TEST_CASE("FemOutput: selected fields only, and wrong sizes are refused") {
   CHECK(h5.exists("displacement"));
   CHECK_FALSE(h5.exists("velocity"));
   CHECK_FALSE(h5.exists("hex8/von_mises"));
-  const std::string xdmf = slurp(out.xdmf_path());
+  const std::string xdmf = read_text(out.xdmf_path());
   CHECK(xdmf.find("Name=\"velocity\"") == std::string::npos);
   CHECK(xdmf.find("Name=\"displacement\"") != std::string::npos);
   CHECK_FALSE(std::filesystem::exists(out.csv_path()));
@@ -185,8 +172,8 @@ TEST_CASE("FemOutput: rollback drops later steps, resume continues an existing s
     out.rollback(0.2);  // a restore to t = 0.2: step 3 goes
     CHECK(out.steps() == 2);
     CHECK_FALSE(std::filesystem::exists(out.step_path(3)));
-    CHECK(slurp(out.xdmf_path()).find("fem_000003.h5") == std::string::npos);
-    const std::string csv = slurp(out.csv_path());
+    CHECK(read_text(out.xdmf_path()).find("fem_000003.h5") == std::string::npos);
+    const std::string csv = read_text(out.csv_path());
     CHECK(std::count(csv.begin(), csv.end(), '\n') == 3);  // header + 2 rows
     out.write(fields_at(0.3, 8, 1));                       // the continuation
     CHECK(out.steps() == 3);
@@ -199,10 +186,10 @@ TEST_CASE("FemOutput: rollback drops later steps, resume continues an existing s
   CHECK_FALSE(std::filesystem::exists(tmp.path / "fem_000004.h5.part"));
   again.write(fields_at(0.4, 8, 1));
   CHECK(std::filesystem::exists(again.step_path(4)));
-  const std::string xdmf = slurp(again.xdmf_path());
+  const std::string xdmf = read_text(again.xdmf_path());
   CHECK(xdmf.find("fem_000001.h5:/displacement") != std::string::npos);
   CHECK(xdmf.find("fem_000004.h5:/hex8/strain") != std::string::npos);
-  const std::string csv = slurp(again.csv_path());
+  const std::string csv = read_text(again.csv_path());
   CHECK(std::count(csv.begin(), csv.end(), '\n') == 5);  // header + 4 rows
   // Resuming with another mesh is refused.
   Mesh other = mesh;

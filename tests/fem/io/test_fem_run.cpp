@@ -18,29 +18,15 @@
 #include "demfem/fem/fem_scene.hpp"
 #include "demfem/fem/fem_solver.hpp"
 #include "demfem/io/h5_file.hpp"
+#include "demfem_test/temp_dir.hpp"
 
 using namespace demfem;
 using namespace demfem::fem;
 
 namespace {
 
-struct TempDir {
-  std::filesystem::path path;
-  explicit TempDir(const std::string& tag) {
-    path = std::filesystem::temp_directory_path() /
-           ("demfem_fem_run_" + tag + "_" + std::to_string(::getpid()));
-    std::filesystem::remove_all(path);
-    std::filesystem::create_directories(path);
-  }
-  ~TempDir() { std::filesystem::remove_all(path); }
-};
-
-std::string slurp(const std::filesystem::path& p) {
-  std::ifstream in(p);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using demfem::test::read_text;
+using demfem::test::TempDir;
 
 const std::string kMeshDir = std::string(DEMFEM_SOURCE_DIR) + "/cases/meshes";
 
@@ -102,7 +88,7 @@ TEST_CASE("standalone dynamic run: HDF5/XDMF/CSV re-read equal the solver's own 
   CHECK(sum.max_displacement == umax);
 
   // Every dataset the XDMF names exists.
-  const std::string xdmf = slurp(tmp.path / "fem.xdmf");
+  const std::string xdmf = read_text(tmp.path / "fem.xdmf");
   const std::regex ref_re(R"re(>([^<>:]+\.h5):([^<]+)<)re");
   int refs = 0;
   for (auto it = std::sregex_iterator(xdmf.begin(), xdmf.end(), ref_re);
@@ -187,30 +173,30 @@ TEST_CASE("fem_server executable: --help, standalone run, bad scene exits 2 nami
   TempDir tmp("exe");
   const auto log = tmp.path / "log.txt";
   CHECK(run_command(exe + " --help > " + log.string() + " 2>&1") == 0);
-  CHECK(slurp(log).find("--segment") != std::string::npos);
+  CHECK(read_text(log).find("--segment") != std::string::npos);
 
   const auto good = tmp.path / "tiny.toml";
   std::ofstream(good) << kTinyDynamic;
   CHECK(run_command(exe + " --scene " + good.string() + " --output-dir " +
                     (tmp.path / "out").string() + " > " + log.string() + " 2>&1") == 0);
-  CHECK(slurp(log).find("fem: done, dynamic") != std::string::npos);
+  CHECK(read_text(log).find("fem: done, dynamic") != std::string::npos);
   CHECK(std::filesystem::exists(tmp.path / "out/fem.xdmf"));
   CHECK(std::filesystem::exists(tmp.path / "out/fem_000003.h5"));
 
   const auto bad = tmp.path / "bad.toml";
   std::ofstream(bad) << std::regex_replace(kTinyDynamic, std::regex("dt = 1e-4"), "dt = -1e-4");
   CHECK(run_command(exe + " --scene " + bad.string() + " > " + log.string() + " 2>&1") == 2);
-  CHECK_THAT(slurp(log), Catch::Contains("bad.toml:6:6: key 'fem.dt'"));
+  CHECK_THAT(read_text(log), Catch::Contains("bad.toml:6:6: key 'fem.dt'"));
 
   const auto nodt = tmp.path / "nodt.toml";
   std::ofstream(nodt) << std::regex_replace(kTinyDynamic, std::regex("dt = 1e-4\n"), "");
   CHECK(run_command(exe + " --scene " + nodt.string() + " --output-dir " +
                     (tmp.path / "out2").string() + " > " + log.string() + " 2>&1") == 2);
-  CHECK_THAT(slurp(log), Catch::Contains("key 'fem.dt'") && Catch::Contains("is required"));
+  CHECK_THAT(read_text(log), Catch::Contains("key 'fem.dt'") && Catch::Contains("is required"));
 
   CHECK(run_command(exe + " --scene " + (tmp.path / "missing.toml").string() + " > " +
                     log.string() + " 2>&1") == 2);
-  CHECK_THAT(slurp(log), Catch::Contains("missing.toml: cannot open scene file"));
+  CHECK_THAT(read_text(log), Catch::Contains("missing.toml: cannot open scene file"));
 }
 
 TEST_CASE("standalone static runs of a shell .inp and a tet box write their topologies") {
@@ -228,7 +214,7 @@ magnitude = 100
   CHECK(a.steps == 0);
   CHECK(a.outputs == 1);
   CHECK(a.max_displacement > 0.0);
-  CHECK(slurp(tmp.path / "shell/fem.xdmf").find("TopologyType=\"Quadrilateral\"") !=
+  CHECK(read_text(tmp.path / "shell/fem.xdmf").find("TopologyType=\"Quadrilateral\"") !=
         std::string::npos);
   io::H5File h5(tmp.path / "shell/fem_000001.h5", io::H5File::Mode::read);
   CHECK(h5.read_doubles("quad4/von_mises").size() == 2);
@@ -252,5 +238,5 @@ total_force = -1000
   double rx = 0.0;
   for (std::size_t i = 0; i < r.size(); i += 3) rx += r[i];
   CHECK(rx == Approx(-1000.0).epsilon(1e-8));
-  CHECK(slurp(tmp.path / "tet/fem.xdmf").find("TopologyType=\"Tetrahedron\"") != std::string::npos);
+  CHECK(read_text(tmp.path / "tet/fem.xdmf").find("TopologyType=\"Tetrahedron\"") != std::string::npos);
 }
