@@ -74,6 +74,14 @@ std::string sanitise_for_toml(std::string_view text, const std::string& name) {
   std::size_t line = 1;
   std::size_t line_start = 0;
   auto starts = [&](std::size_t i, std::string_view s) { return text.substr(i, s.size()) == s; };
+  // A backslash in a basic string skips the character it escapes when that is plain ASCII
+  // on the same line (a line-ending backslash or a UTF-8 sequence is scanned as usual).
+  auto escape_length = [&](std::size_t i) -> std::size_t {
+    return i + 1 < text.size() && text[i + 1] != '\n' &&
+                   static_cast<unsigned char>(text[i + 1]) < 0x80
+               ? 2
+               : 1;
+  };
   for (std::size_t i = 0; i < text.size();) {
     const char ch = text[i];
     if (ch == '\n') {
@@ -124,21 +132,15 @@ std::string sanitise_for_toml(std::string_view text, const std::string& name) {
           state = State::literal;
         break;
       case State::basic:
-        if (ch == '\\') {  // skip the escaped character when it is plain ASCII on this line
-          i += (i + 1 < text.size() && text[i + 1] != '\n' &&
-                static_cast<unsigned char>(text[i + 1]) < 0x80)
-                   ? 2
-                   : 1;
+        if (ch == '\\') {
+          i += escape_length(i);
           continue;
         }
         if (ch == '"') state = State::normal;
         break;
       case State::ml_basic:
-        if (ch == '\\') {  // skip the escaped character when it is plain ASCII on this line
-          i += (i + 1 < text.size() && text[i + 1] != '\n' &&
-                static_cast<unsigned char>(text[i + 1]) < 0x80)
-                   ? 2
-                   : 1;
+        if (ch == '\\') {
+          i += escape_length(i);
           continue;
         }
         if (starts(i, "\"\"\"")) {
