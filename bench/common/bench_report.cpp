@@ -86,8 +86,8 @@ void Report::print() const {
     width[c] = columns_[c].size();
     for (const auto& r : rows_) width[c] = std::max(width[c], cell_text(r[c]).size());
   }
-  std::cout << "# " << benchmark_ << "  (" << machine_description() << ", commit "
-            << git_commit() << ")\n";
+  std::cout << "# " << benchmark_ << "  (" << machine_description() << ", commit " << git_commit()
+            << ")\n";
   for (const auto& [k, v] : info_) std::cout << "#   " << k << " = " << cell_text(v) << "\n";
   for (std::size_t c = 0; c < columns_.size(); ++c) {
     std::cout << std::setw(static_cast<int>(width[c]) + 2) << columns_[c];
@@ -110,13 +110,15 @@ void Report::write_json(const std::string& path) const {
   out << "  \"machine\": \"" << json_escape(machine_description()) << "\",\n";
   out << "  \"commit\": \"" << json_escape(git_commit()) << "\",\n  \"info\": {";
   for (std::size_t i = 0; i < info_.size(); ++i) {
-    out << (i ? ", " : "") << "\"" << json_escape(info_[i].first) << "\": " << cell_json(info_[i].second);
+    out << (i ? ", " : "") << "\"" << json_escape(info_[i].first)
+        << "\": " << cell_json(info_[i].second);
   }
   out << "},\n  \"rows\": [\n";
   for (std::size_t r = 0; r < rows_.size(); ++r) {
     out << "    {";
     for (std::size_t c = 0; c < columns_.size(); ++c) {
-      out << (c ? ", " : "") << "\"" << json_escape(columns_[c]) << "\": " << cell_json(rows_[r][c]);
+      out << (c ? ", " : "") << "\"" << json_escape(columns_[c])
+          << "\": " << cell_json(rows_[r][c]);
     }
     out << "}" << (r + 1 < rows_.size() ? "," : "") << "\n";
   }
@@ -131,23 +133,30 @@ std::string json_path_from_args(int argc, char** argv) {
   return "";
 }
 
+// Both are asked by print() and write_json(); they shell out, so each is computed once.
 std::string machine_description() {
-  std::string cpu = run_command("grep -m1 'model name' /proc/cpuinfo | cut -d: -f2");
-  while (!cpu.empty() && cpu.front() == ' ') cpu.erase(cpu.begin());
-  std::string gpu = run_command("nvidia-smi --query-gpu=name --format=csv,noheader 2>/dev/null");
-  std::ostringstream s;
-  s << (cpu.empty() ? "unknown CPU" : cpu) << ", " << std::thread::hardware_concurrency()
-    << " hardware threads";
-  if (!gpu.empty()) s << ", GPU " << gpu;
-  return s.str();
+  static const std::string cached = [] {
+    std::string cpu = run_command("grep -m1 'model name' /proc/cpuinfo | cut -d: -f2");
+    while (!cpu.empty() && cpu.front() == ' ') cpu.erase(cpu.begin());
+    std::string gpu = run_command("nvidia-smi --query-gpu=name --format=csv,noheader 2>/dev/null");
+    std::ostringstream s;
+    s << (cpu.empty() ? "unknown CPU" : cpu) << ", " << std::thread::hardware_concurrency()
+      << " hardware threads";
+    if (!gpu.empty()) s << ", GPU " << gpu;
+    return s.str();
+  }();
+  return cached;
 }
 
 std::string git_commit() {
-  std::string c = run_command("git -C " DEMFEM_SOURCE_DIR " rev-parse --short HEAD 2>/dev/null");
-  if (c.empty()) return "unknown";
-  const std::string dirty =
-      run_command("git -C " DEMFEM_SOURCE_DIR " status --porcelain --untracked-files=no 2>/dev/null");
-  return dirty.empty() ? c : c + "-dirty";
+  static const std::string cached = []() -> std::string {
+    std::string c = run_command("git -C " DEMFEM_SOURCE_DIR " rev-parse --short HEAD 2>/dev/null");
+    if (c.empty()) return "unknown";
+    const std::string dirty = run_command("git -C " DEMFEM_SOURCE_DIR
+                                          " status --porcelain --untracked-files=no 2>/dev/null");
+    return dirty.empty() ? c : c + "-dirty";
+  }();
+  return cached;
 }
 
 }  // namespace demfem::bench
