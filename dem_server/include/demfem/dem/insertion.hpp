@@ -47,7 +47,8 @@ inline constexpr double kMaxRandomPackingFraction = 0.40;
 
 /// @brief Places particles at random positions (uniform in the box, drawn from
 /// Rng(seed)) so that none overlaps another new one or a particle of `existing` (may be
-/// nullptr). A uniform cell grid makes each overlap test O(1). Deterministic for a given
+/// nullptr). A uniform cell grid makes each overlap test O(1). The result is ordered by grid
+/// cell (z, y, x), so that neighbours in space are neighbours in memory. Deterministic for a given
 /// request and existing state. Throws InsertionError when the request exceeds
 /// kMaxRandomPackingFraction of the region, when the largest particle does not fit, or when a
 /// particle finds no free place in max_attempts tries (the message names the request and
