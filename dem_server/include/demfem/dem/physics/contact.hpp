@@ -108,11 +108,14 @@ DEMFEM_HD ContactResult hertz_mindlin(const PairConstants& c, Vec3 n, double del
     const double fmax = c.friction * (fn > 0.0 ? fn : -fn);
     // Sliding: scale to the Coulomb limit and make the spring consistent with it. Without
     // sliding the scale is exactly 1 and the spring is kept (selects, no branch).
+    // fmax/|F_t| and 1/S_t from one division (only used when sliding, so |F_t| > 0, S_t > 0)
     const bool slide = ft2 > fmax * fmax;
-    const double scale_any = fmax / std::sqrt(ft2);
+    const double ft_norm = std::sqrt(ft2);
+    const double inv_fs = 1.0 / (ft_norm * st);
+    const double scale_any = fmax * st * inv_fs;
     const double scale = slide ? scale_any : 1.0;
     ft = scale * ft;
-    const Vec3 s_slide = (-1.0 / st) * (ft + gamma_t * vt);
+    const Vec3 s_slide = (-(ft_norm * inv_fs)) * (ft + gamma_t * vt);
     s = Vec3{slide ? s_slide.x : s.x, slide ? s_slide.y : s.y, slide ? s_slide.z : s.z};
     shear = s;
     out.force = out.force + ft;

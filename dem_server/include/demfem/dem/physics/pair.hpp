@@ -26,12 +26,15 @@ DEMFEM_HD bool sphere_sphere_select(const ParticleView& p, int i, int j, const P
   const double d2 = dx * dx + dy * dy + dz * dz;
   const bool touch = d2 < rs * rs;
   const double d = std::sqrt(d2);
-  const double inv = 1.0 / d;
+  // 1/d and 1/(r_s (m_i + m_j)) (for R* and m*, eq. 2.8, 2.11) from one division: division
+  // and square root are the slowest operations of the pair loop
+  const double mi = p.mass[i], mj = p.mass[j];
+  const double q = rs * (mi + mj);
+  const double inv_dq = 1.0 / (d * q);
+  const double inv = q * inv_dq;
+  const double inv_rm = d * inv_dq;
   const Vec3 n{dx * inv, dy * inv, dz * inv};
   delta = touch ? rs - d : 0.0;  // eq. 2.9
-  // R* and m* (eq. 2.8, 2.11) with one division
-  const double mi = p.mass[i], mj = p.mass[j];
-  const double inv_rm = 1.0 / (rs * (mi + mj));
   const double reff = ri * rj * (mi + mj) * inv_rm;
   const double meff = mi * mj * rs * inv_rm;
   Vec3 vrel{p.vx[i] - p.vx[j], p.vy[i] - p.vy[j], p.vz[i] - p.vz[j]};
