@@ -34,6 +34,7 @@
 #include "demfem/dem/physics/integrator.hpp"
 #include "demfem/dem/physics/pair.hpp"
 #include "demfem/dem/physics/wall_contact.hpp"
+#include "demfem/dem/physics/wall_motion.hpp"
 #include "demfem/io/h5_file.hpp"
 
 namespace demfem::dem {
@@ -88,10 +89,16 @@ void validate(const DemSettings& s) {
   if (s.threads < 0) bad("settings.threads = " + std::to_string(s.threads) + " must be >= 0");
 }
 
-double dist_from_origin_pose(const WallMotion& m, double t, double& phase_out) {
-  const double tc = std::clamp(t, m.start_time, m.end_time);
-  phase_out = tc - m.start_time;
-  return tc;
+// POD copy of a wall's motion for the shared kinematics (physics/wall_motion.hpp).
+phys::RigidMotion rigid_motion(const WallMotion& m) {
+  phys::RigidMotion r{};
+  r.kind = static_cast<int>(m.kind);
+  for (int d = 0; d < 3; ++d)
+    r.velocity[d] = m.velocity[d], r.axis_point[d] = m.axis_point[d], r.axis[d] = m.axis[d];
+  r.angular_velocity = m.angular_velocity, r.amplitude = m.amplitude;
+  r.frequency = m.frequency, r.phase = m.phase;
+  r.start_time = m.start_time, r.end_time = m.end_time;
+  return r;
 }
 
 }  // namespace
@@ -328,61 +335,25 @@ struct DemSystem::Impl {
     need_rebuild = true;
   }
 
-  // Vertex positions and velocities of the walls at time tt (tau: time into the advance()).
+  // Vertex positions and velocities of the walls at time tt (tau: time into the advance()),
+  // by the kinematics shared with the CUDA backend (physics/wall_motion.hpp).
   void update_walls(double tt, double tau) {
     for (auto& w : walls) {
-      const WallMotion& m = w.mesh.motion;
-      if (m.kind == WallMotion::Kind::fixed) continue;
-      double el = 0.0;
-      const double tc = dist_from_origin_pose(m, tt, el);
-      const bool active = tt >= m.start_time && tt < m.end_time;
+      if (w.mesh.motion.kind == WallMotion::Kind::fixed) continue;
+      const phys::RigidPose pose = phys::rigid_pose(rigid_motion(w.mesh.motion), tt);
       const std::size_t nv = w.mesh.vertices.size() / 3;
       double* x = vpos.data() + 3 * w.vbase;
       double* v = vvel.data() + 3 * w.vbase;
       const double* x0 = w.mesh.vertices.data();
-      if (m.kind == WallMotion::Kind::translation) {
-        for (std::size_t k = 0; k < nv; ++k)
-          for (int d = 0; d < 3; ++d) {
-            x[3 * k + d] = x0[3 * k + d] + m.velocity[d] * el;
-            v[3 * k + d] = active ? m.velocity[d] : 0.0;
-          }
-      } else if (m.kind == WallMotion::Kind::sinusoid) {
-        const double pi = 3.14159265358979323846;
-        const double arg = 2 * pi * m.frequency * el + m.phase;
-        const double u = m.amplitude * std::sin(arg);
-        const double du = active ? m.amplitude * 2 * pi * m.frequency * std::cos(arg) : 0.0;
-        (void)tc;
-        for (std::size_t k = 0; k < nv; ++k)
-          for (int d = 0; d < 3; ++d) {
-            x[3 * k + d] = x0[3 * k + d] + m.axis[d] * u;
-            v[3 * k + d] = m.axis[d] * du;
-          }
-      } else {  // rotation about axis through axis_point by angle ω el (Rodrigues)
-        const Vec3 ax{m.axis[0], m.axis[1], m.axis[2]};
-        const double an = std::sqrt(phys::norm2(ax));
-        const Vec3 a = (1.0 / an) * ax;
-        const double th = m.angular_velocity * el;
-        const double c = std::cos(th), sn = std::sin(th);
-        const Vec3 o{m.axis_point[0], m.axis_point[1], m.axis_point[2]};
-        const double wv = active ? m.angular_velocity : 0.0;
-        for (std::size_t k = 0; k < nv; ++k) {
-          const Vec3 r = Vec3{x0[3 * k], x0[3 * k + 1], x0[3 * k + 2]} - o;
-          const Vec3 rr = c * r + sn * phys::cross(a, r) + ((1 - c) * phys::dot(a, r)) * a;
-          const Vec3 p = o + rr;
-          const Vec3 vel = wv * phys::cross(a, rr);
-          x[3 * k] = p.x, x[3 * k + 1] = p.y, x[3 * k + 2] = p.z;
-          v[3 * k] = vel.x, v[3 * k + 1] = vel.y, v[3 * k + 2] = vel.z;
-        }
-      }
+      for (std::size_t k = 0; k < nv; ++k)
+        phys::rigid_vertex(pose, x0 + 3 * k, x + 3 * k, v + 3 * k);
     }
     if (has_flex && flex_x.size() == flex.mesh.vertices.size()) {
       const std::size_t nv = flex.mesh.vertices.size() / 3;
       double* x = vpos.data() + 3 * flex.vbase;
       double* v = vvel.data() + 3 * flex.vbase;
-      for (std::size_t k = 0; k < 3 * nv; ++k) {
-        x[k] = flex_x[k] + flex_v[k] * tau + 0.5 * flex_a[k] * tau * tau;
-        v[k] = flex_v[k] + flex_a[k] * tau;
-      }
+      for (std::size_t k = 0; k < 3 * nv; ++k)
+        phys::flexible_node(flex_x[k], flex_v[k], flex_a[k], tau, x[k], v[k]);
     }
   }
 
@@ -783,9 +754,8 @@ struct DemSystem::Impl {
         } else {
           for (int e = 0; e < 3; ++e) {
             const std::int64_t node = tri_v[3 * tri + e] - flex.vbase;
-            const double b = wb[3 * slot + e];
-            nodef[3 * node] += b * f.x, nodef[3 * node + 1] += b * f.y,
-                nodef[3 * node + 2] += b * f.z;
+            const Vec3 fb = phys::node_share(wb[3 * slot + e], f);
+            nodef[3 * node] += fb.x, nodef[3 * node + 1] += fb.y, nodef[3 * node + 2] += fb.z;
           }
         }
       }
