@@ -1,11 +1,16 @@
 // CUDA backend of DemSystem: the same physics headers as the CPU backend
 // (physics/contact.hpp, physics/integrator.hpp) over device structure-of-arrays state.
-// Static rigid walls use the shared sphere-triangle contact set (physics/wall_contact.hpp)
-// inside the gather kernel. One step is three kernels (kick+drift, pair forces per CSR row,
+// Walls use the shared sphere-triangle contact set (physics/wall_contact.hpp) inside the
+// gather kernel. One step is three kernels (kick+drift, pair forces per CSR row,
 // gather+kick), captured once into a CUDA graph and replayed without host synchronisation; the host
 // reads one flag per chunk of steps to learn whether the neighbour list must be rebuilt. Sums are
-// in a fixed order (per-pair slots gathered per particle), so results are deterministic; the only
-// atomics are integer ones (flags, step counter, the bit pattern of the max overlap).
+// in a fixed order (per-pair slots gathered per particle), so the particle state is
+// deterministic; the atomics are integer ones (flags, step counter, bit patterns of maxima).
+// Moving walls and the flexible mesh add a kernel after the drift that places every wall vertex
+// at the new time (physics/wall_motion.hpp, the CPU's update_walls) and measures its displacement
+// since the build, and one after the gather that folds the substep's flexible node forces into
+// the output as ForceMode asks. The node forces are summed with floating-point atomicAdd, so they
+// agree with the CPU to round-off only (they are an output and do not feed back into the step).
 
 #include <cuda_runtime.h>
 
@@ -56,30 +61,113 @@ struct Dev {
   double *wshear, *wf, *wp, *wb;
   std::int32_t* wtri;
   std::uint8_t* wcount;
+  // moving walls and the flexible mesh
+  double *vbuild, *vref;          // 3 per vertex: positions at the build / reference positions
+  std::int32_t* vwall;            // wall per vertex, -1 = flexible mesh
+  phys::RigidMotion* motion;      // per rigid wall
+  double *flex_v, *flex_a;        // 3 per node, start of the advance()
+  double *flex_force, *node_buf;  // 3 per node: output (ForceMode), forces of this substep
+  std::int64_t flex_vbase;
+  std::size_t flex_nodes;
+  double* clock;                        // t and tau after the last drift
+  unsigned long long *pdisp2, *wdisp2;  // bits of the largest squared displacement this step
+  unsigned long long* flex_max_ov;      // bits of the largest overlap with the flexible mesh
   int* stop;
   unsigned long long* steps_done;
   unsigned long long* max_ov;
 };
 
-__global__ void k_kick_drift(Dev d, std::size_t n, double dt, double half_skin2, bool friction) {
-  if (*d.stop) return;
-  const std::size_t i = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x;
-  if (i == 0) *d.max_ov = 0ull;  // max overlap of this step (read after the pair kernel)
-  if (i >= n) return;
-  const double h = 0.5 * dt;
-  phys::kick(d.vx[i], d.vy[i], d.vz[i], d.fx[i], d.fy[i], d.fz[i], h / d.mass[i]);
-  d.px[i] += dt * d.vx[i];
-  d.py[i] += dt * d.vy[i];
-  d.pz[i] += dt * d.vz[i];
-  if (friction) phys::kick(d.wx[i], d.wy[i], d.wz[i], d.tx[i], d.ty[i], d.tz[i], h / d.inertia[i]);
-  phys::rotate_quaternion(d.qw[i], d.qx[i], d.qy[i], d.qz[i], d.wx[i], d.wy[i], d.wz[i], dt);
-  const double dx = d.px[i] - d.bx[i], dy = d.py[i] - d.by[i], dz = d.pz[i] - d.bz[i];
-  if (dx * dx + dy * dy + dz * dz > half_skin2) atomicExch(d.stop + 1, 1);
+// Folds v (>= 0) into *dst, the bit pattern of a non-negative double (whose integer order is
+// the order of the values): a shuffle reduction over the warp, then one atomic per warp. Every
+// lane of the warp must call it (no thread of the block may have returned before).
+__device__ void warp_max_to(double v, unsigned long long* dst) {
+  for (int o = 16; o > 0; o >>= 1) v = fmax(v, __shfl_down_sync(0xffffffffu, v, o));
+  if ((threadIdx.x & 31u) == 0 && v > 0.0)
+    atomicMax(dst, static_cast<unsigned long long>(__double_as_longlong(v)));
 }
 
-// Promotes a pending rebuild request (stop[1]) to a stop of the following kernels.
-__global__ void k_latch(Dev d) {
-  if (d.stop[1] && !d.stop[0]) d.stop[0] = 2;  // 2: drift of this step done, forces pending
+__device__ double bits_to_double(unsigned long long b) {
+  return __longlong_as_double(static_cast<long long>(b));
+}
+
+// track: also record the largest squared displacement since the build (moving walls).
+__global__ void k_kick_drift(Dev d, std::size_t n, double dt, double half_skin2, bool friction,
+                             bool track) {
+  if (*d.stop) return;  // the same for all threads: stop[0] is written by k_latch only
+  const std::size_t i = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x;
+  if (i == 0) *d.max_ov = 0ull;  // max overlap of this step (read after the pair kernel)
+  double d2 = 0.0;
+  if (i < n) {
+    const double h = 0.5 * dt;
+    phys::kick(d.vx[i], d.vy[i], d.vz[i], d.fx[i], d.fy[i], d.fz[i], h / d.mass[i]);
+    d.px[i] += dt * d.vx[i];
+    d.py[i] += dt * d.vy[i];
+    d.pz[i] += dt * d.vz[i];
+    if (friction)
+      phys::kick(d.wx[i], d.wy[i], d.wz[i], d.tx[i], d.ty[i], d.tz[i], h / d.inertia[i]);
+    phys::rotate_quaternion(d.qw[i], d.qx[i], d.qy[i], d.qz[i], d.wx[i], d.wy[i], d.wz[i], dt);
+    const double dx = d.px[i] - d.bx[i], dy = d.py[i] - d.by[i], dz = d.pz[i] - d.bz[i];
+    d2 = dx * dx + dy * dy + dz * dz;
+    if (d2 > half_skin2) atomicExch(d.stop + 1, 1);
+  }
+  if (track) warp_max_to(d2, d.pdisp2);
+}
+
+// Wall vertices at the new time t + dt (tau + dt into the advance()), as update_walls() on the
+// CPU: rigid walls from their reference vertices and motion, the flexible mesh from the node
+// kinematics of the advance(); and the largest squared displacement since the build.
+__global__ void k_walls(Dev d, std::size_t nverts, double dt) {
+  if (*d.stop) return;
+  const std::size_t k = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x;
+  double d2 = 0.0;
+  if (k < nverts) {
+    double* x = d.vpos + 3 * k;
+    double* v = d.vvel + 3 * k;
+    const std::int32_t w = d.vwall[k];
+    if (w >= 0) {  // a fixed wall (kind 0) keeps its vertices
+      phys::rigid_vertex(phys::rigid_pose(d.motion[w], d.clock[0] + dt), d.vref + 3 * k, x, v);
+    } else {
+      const double tau = d.clock[1] + dt;
+      const std::int64_t node = static_cast<std::int64_t>(k) - d.flex_vbase;
+      for (int c = 0; c < 3; ++c)
+        phys::flexible_node(d.vref[3 * k + c], d.flex_v[3 * node + c], d.flex_a[3 * node + c], tau,
+                            x[c], v[c]);
+    }
+    const double dx = x[0] - d.vbuild[3 * k], dy = x[1] - d.vbuild[3 * k + 1],
+                 dz = x[2] - d.vbuild[3 * k + 2];
+    d2 = dx * dx + dy * dy + dz * dz;
+  }
+  warp_max_to(d2, d.wdisp2);
+}
+
+// After the drift (and the walls) of a step that was not skipped: advances the clock and
+// promotes a rebuild request to a stop of the following kernels (2: drift of this step done,
+// forces pending). Particle rule: a particle moved more than skin / 2 (stop[1]); with moving
+// walls also the CPU rule 2 disp > skin or disp + wall disp > skin on the same maxima.
+__global__ void k_latch(Dev d, double dt, double skin, bool moving) {
+  if (d.stop[0]) return;
+  d.clock[0] += dt;
+  d.clock[1] += dt;
+  bool rebuild = d.stop[1] != 0;
+  if (moving) {
+    const double disp = sqrt(bits_to_double(*d.pdisp2));
+    const double wdisp = sqrt(bits_to_double(*d.wdisp2));
+    *d.pdisp2 = 0ull;
+    *d.wdisp2 = 0ull;
+    rebuild = rebuild || 2.0 * disp > skin || disp + wdisp > skin;
+  }
+  if (rebuild) d.stop[0] = 2;
+}
+
+// Flexible node forces of this substep into the output: the average over the substeps or the
+// last substep (ForceMode), as wall_reduce() on the CPU; clears the substep buffer.
+__global__ void k_flex_fold(Dev d, std::size_t n3, bool average, double inv, bool force) {
+  if (*d.stop && !force) return;
+  const std::size_t k = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x;
+  if (k >= n3) return;
+  const double f = d.node_buf[k];
+  d.node_buf[k] = 0.0;
+  d.flex_force[k] = average ? d.flex_force[k] + inv * f : f;
 }
 
 template <bool Friction>
@@ -167,6 +255,25 @@ __global__ void k_gather_kick(Dev d, std::size_t n, std::size_t nmat, double dt,
     fx = f.x, fy = f.y, fz = f.z;
     qx = q.x, qy = q.y, qz = q.z;
     if (mo > 0.0) atomicMax(d.max_ov, static_cast<unsigned long long>(__double_as_longlong(mo)));
+    if (d.flex_nodes > 0) {
+      if (fmo > 0.0)
+        atomicMax(d.flex_max_ov, static_cast<unsigned long long>(__double_as_longlong(fmo)));
+      // this particle's contacts with the flexible mesh, split onto the nodes of the touched
+      // triangle with the barycentric weights of the contact point (as wall_reduce())
+      for (int c = 0; c < d.wcount[i]; ++c) {
+        const std::int64_t slot = phys::kMaxWallContacts * static_cast<std::int64_t>(i) + c;
+        const std::int32_t tri = d.wtri[slot];
+        if (d.tri_wall[tri] >= 0) continue;  // a rigid wall: reduced on the host
+        const phys::Vec3 fw{-d.wf[3 * slot], -d.wf[3 * slot + 1], -d.wf[3 * slot + 2]};
+        for (int e = 0; e < 3; ++e) {
+          const std::int64_t node = d.tri_v[3 * tri + e] - d.flex_vbase;
+          const phys::Vec3 fb = phys::node_share(d.wb[3 * slot + e], fw);
+          atomicAdd(d.node_buf + 3 * node, fb.x);
+          atomicAdd(d.node_buf + 3 * node + 1, fb.y);
+          atomicAdd(d.node_buf + 3 * node + 2, fb.z);
+        }
+      }
+    }
   }
   const double m = d.mass[i];
   fx += m * gx, fy += m * gy, fz += m * gz;
@@ -189,7 +296,11 @@ struct CudaBackend {
   bool friction = false, rolling = false;
   cudaStream_t stream = nullptr;
   cudaGraphExec_t graph = nullptr;
-  double graph_half_skin = -1.0;
+  double graph_skin = -1.0;
+  bool walls_moving = false;  // walls move or a flexible mesh is set (this advance())
+  std::size_t nverts = 0, flex_nodes = 0;
+  bool flex_average = false;
+  double flex_inv = 1.0;
   int* host_flags = nullptr;  // pinned: stop[2], steps_done (as 2 ints)
 };
 
@@ -208,7 +319,15 @@ CudaBackend* cuda_backend_create() {
   check(cudaMalloc(&b->d.stop, 2 * sizeof(int)), "cudaMalloc");
   check(cudaMalloc(&b->d.steps_done, sizeof(unsigned long long)), "cudaMalloc");
   check(cudaMalloc(&b->d.max_ov, sizeof(unsigned long long)), "cudaMalloc");
+  check(cudaMalloc(&b->d.clock, 2 * sizeof(double)), "cudaMalloc");
+  check(cudaMalloc(&b->d.pdisp2, sizeof(unsigned long long)), "cudaMalloc");
+  check(cudaMalloc(&b->d.wdisp2, sizeof(unsigned long long)), "cudaMalloc");
+  check(cudaMalloc(&b->d.flex_max_ov, sizeof(unsigned long long)), "cudaMalloc");
   check(cudaMemset(b->d.stop, 0, 2 * sizeof(int)), "cudaMemset");
+  check(cudaMemset(b->d.clock, 0, 2 * sizeof(double)), "cudaMemset");
+  check(cudaMemset(b->d.pdisp2, 0, sizeof(unsigned long long)), "cudaMemset");
+  check(cudaMemset(b->d.wdisp2, 0, sizeof(unsigned long long)), "cudaMemset");
+  check(cudaMemset(b->d.flex_max_ov, 0, sizeof(unsigned long long)), "cudaMemset");
   return b;
 }
 
@@ -228,6 +347,10 @@ void cuda_backend_destroy(CudaBackend* b) {
   cudaFree(b->d.tri_mat), cudaFree(b->d.tri_wall), cudaFree(b->d.prow), cudaFree(b->d.ptri);
   cudaFree(b->d.wkey), cudaFree(b->d.wshear), cudaFree(b->d.wf), cudaFree(b->d.wp);
   cudaFree(b->d.wb), cudaFree(b->d.wtri), cudaFree(b->d.wcount);
+  cudaFree(b->d.vbuild), cudaFree(b->d.vref), cudaFree(b->d.vwall), cudaFree(b->d.motion);
+  cudaFree(b->d.flex_v), cudaFree(b->d.flex_a), cudaFree(b->d.flex_force);
+  cudaFree(b->d.node_buf), cudaFree(b->d.clock), cudaFree(b->d.pdisp2), cudaFree(b->d.wdisp2);
+  cudaFree(b->d.flex_max_ov);
   if (b->stream) cudaStreamDestroy(b->stream);
   delete b;
 }
@@ -272,6 +395,26 @@ void cuda_upload_state(CudaBackend* b, const GpuHostView& v) {
     ensure(d.wtri, c[51], ns);
     up(d.wcount, c[52], v.wcount, n);
   }
+  // moving walls and the flexible mesh: reference vertices, motions, node kinematics of this
+  // advance(); the node force output starts at zero (as on the CPU)
+  b->walls_moving = d.walls && v.walls_moving;
+  b->nverts = d.walls ? v.nverts : 0;
+  b->flex_nodes = b->walls_moving ? v.flex_nodes : 0;
+  b->flex_average = v.flex_average, b->flex_inv = v.flex_inv_substeps;
+  d.flex_nodes = b->flex_nodes;
+  d.flex_vbase = static_cast<std::int64_t>(v.flex_vbase);
+  if (b->walls_moving) {
+    up(d.vref, c[56], v.vref, 3 * v.nverts), up(d.vwall, c[57], v.vwall, v.nverts);
+    up(d.motion, c[58], v.motion, v.nwalls);
+    if (b->flex_nodes > 0) {
+      const std::size_t n3 = 3 * b->flex_nodes;
+      up(d.flex_v, c[59], v.flex_v, n3), up(d.flex_a, c[60], v.flex_a, n3);
+      ensure(d.flex_force, c[61], n3), ensure(d.node_buf, c[62], n3);
+      check(cudaMemset(d.flex_force, 0, n3 * sizeof(double)), "cudaMemset");
+      check(cudaMemset(d.node_buf, 0, n3 * sizeof(double)), "cudaMemset");
+    }
+  }
+  check(cudaMemset(d.flex_max_ov, 0, sizeof(unsigned long long)), "cudaMemset");
   check(cudaMemset(d.max_ov, 0, sizeof(unsigned long long)), "cudaMemset");
   if (b->graph) cudaGraphExecDestroy(b->graph), b->graph = nullptr;  // pointers may move
 }
@@ -286,6 +429,7 @@ void cuda_upload_lists(CudaBackend* b, const GpuHostView& v) {
   up(d.bx, c[30], v.bx, n), up(d.by, c[31], v.by, n), up(d.bz, c[32], v.bz, n);
   ensure(d.pf, c[33], 3 * np);
   if (v.ntris > 0) up(d.prow, c[53], v.prow, n + 1), up(d.ptri, c[54], v.ptri, v.nptri);
+  if (v.ntris > 0 && v.walls_moving) up(d.vbuild, c[55], v.vbuild, 3 * v.nverts);
   if (v.friction) {
     up(d.shear, c[34], v.shear, 3 * np);
     ensure(d.pt, c[35], 3 * np), ensure(d.pr, c[36], 3 * np);
@@ -310,6 +454,11 @@ void cuda_download_state(CudaBackend* b, const GpuHostView& v) {
     down(v.wp, d.wp, 3 * ns), down(v.wb, d.wb, 3 * ns), down(v.wtri, d.wtri, ns);
     down(v.wcount, d.wcount, n);
   }
+  if (v.ntris > 0 && v.walls_moving && b->walls_moving && b->nverts == v.nverts) {
+    down(v.vpos, d.vpos, 3 * v.nverts), down(v.vvel, d.vvel, 3 * v.nverts);
+    if (v.flex_force && b->flex_nodes == v.flex_nodes)
+      down(v.flex_force, d.flex_force, 3 * v.flex_nodes);
+  }
 }
 
 namespace {
@@ -328,30 +477,47 @@ void enqueue_forces(CudaBackend* b, bool force) {
     k_gather_kick<false><<<grid, kBlock, 0, b->stream>>>(b->d, n, b->nmat, b->dt, b->g[0], b->g[1],
                                                          b->g[2], b->rolling, force);
   }
+  if (b->flex_nodes > 0) {
+    const std::size_t n3 = 3 * b->flex_nodes;
+    const unsigned gridf = static_cast<unsigned>((n3 + kBlock - 1) / kBlock);
+    k_flex_fold<<<gridf, kBlock, 0, b->stream>>>(b->d, n3, b->flex_average, b->flex_inv, force);
+  }
 }
 
-void enqueue_step(CudaBackend* b, double half_skin) {
+void enqueue_step(CudaBackend* b, double skin) {
   const std::size_t n = b->n;
   const unsigned grid = static_cast<unsigned>((n + kBlock - 1) / kBlock);
-  k_kick_drift<<<grid, kBlock, 0, b->stream>>>(b->d, n, b->dt, half_skin * half_skin, b->friction);
-  k_latch<<<1, 1, 0, b->stream>>>(b->d);
+  const double half_skin = 0.5 * skin;
+  k_kick_drift<<<grid, kBlock, 0, b->stream>>>(b->d, n, b->dt, half_skin * half_skin, b->friction,
+                                               b->walls_moving);
+  if (b->walls_moving && b->nverts > 0) {
+    const unsigned gridv = static_cast<unsigned>((b->nverts + kBlock - 1) / kBlock);
+    k_walls<<<gridv, kBlock, 0, b->stream>>>(b->d, b->nverts, b->dt);
+  }
+  k_latch<<<1, 1, 0, b->stream>>>(b->d, b->dt, skin, b->walls_moving);
   enqueue_forces(b, false);
 }
 }  // namespace
 
-std::int64_t cuda_run_steps(CudaBackend* b, std::int64_t steps, double half_skin) {
+std::int64_t cuda_run_steps(CudaBackend* b, std::int64_t steps, double skin, double t, double tau) {
   if (b->n == 0) return steps;
   check(cudaMemsetAsync(b->d.stop, 0, 2 * sizeof(int), b->stream), "cudaMemset");
   check(cudaMemsetAsync(b->d.steps_done, 0, sizeof(unsigned long long), b->stream), "cudaMemset");
-  if (!b->graph || b->graph_half_skin != half_skin) {
+  check(cudaMemsetAsync(b->d.pdisp2, 0, sizeof(unsigned long long), b->stream), "cudaMemset");
+  check(cudaMemsetAsync(b->d.wdisp2, 0, sizeof(unsigned long long), b->stream), "cudaMemset");
+  // The clock of the host (pageable source: the call returns once it has been staged).
+  const double clock[2] = {t, tau};
+  check(cudaMemcpyAsync(b->d.clock, clock, sizeof(clock), cudaMemcpyHostToDevice, b->stream),
+        "clock");
+  if (!b->graph || b->graph_skin != skin) {
     if (b->graph) cudaGraphExecDestroy(b->graph), b->graph = nullptr;
     cudaGraph_t g;
     check(cudaStreamBeginCapture(b->stream, cudaStreamCaptureModeThreadLocal), "capture");
-    enqueue_step(b, half_skin);
+    enqueue_step(b, skin);
     check(cudaStreamEndCapture(b->stream, &g), "capture");
     check(cudaGraphInstantiate(&b->graph, g, 0), "cudaGraphInstantiate");
     cudaGraphDestroy(g);
-    b->graph_half_skin = half_skin;
+    b->graph_skin = skin;
   }
   // Replay in chunks; steps after a rebuild request return at once on the device.
   std::int64_t done = 0;
@@ -378,12 +544,22 @@ void cuda_finish_step(CudaBackend* b) {
   check(cudaStreamSynchronize(b->stream), "cudaStreamSynchronize");
 }
 
-double cuda_max_overlap(CudaBackend* b) {
+namespace {
+double read_max(const unsigned long long* dev_bits) {
   unsigned long long bits = 0;
-  check(cudaMemcpy(&bits, b->d.max_ov, sizeof(bits), cudaMemcpyDeviceToHost), "max_overlap");
+  check(cudaMemcpy(&bits, dev_bits, sizeof(bits), cudaMemcpyDeviceToHost), "max_overlap");
   double v = 0.0;
   std::memcpy(&v, &bits, sizeof(v));
   return v;
+}
+}  // namespace
+
+double cuda_max_overlap(CudaBackend* b) {
+  return read_max(b->d.max_ov);
+}
+
+double cuda_flex_max_overlap(CudaBackend* b) {
+  return read_max(b->d.flex_max_ov);
 }
 
 }  // namespace demfem::dem

@@ -38,13 +38,16 @@ void cuda_upload_lists(CudaBackend*, const GpuHostView&) {
 void cuda_download_state(CudaBackend*, const GpuHostView&) {
   no_cuda();
 }
-std::int64_t cuda_run_steps(CudaBackend*, std::int64_t, double) {
+std::int64_t cuda_run_steps(CudaBackend*, std::int64_t, double, double, double) {
   no_cuda();
 }
 void cuda_finish_step(CudaBackend*) {
   no_cuda();
 }
 double cuda_max_overlap(CudaBackend*) {
+  no_cuda();
+}
+double cuda_flex_max_overlap(CudaBackend*) {
   no_cuda();
 }
 #endif

@@ -9,6 +9,7 @@
 
 #include "demfem/dem/physics/contact.hpp"
 #include "demfem/dem/physics/wall_contact.hpp"
+#include "demfem/dem/physics/wall_motion.hpp"
 
 namespace demfem::dem {
 
@@ -27,9 +28,9 @@ struct GpuHostView {
   const std::int32_t* nbr;
   double* shear;  // 3 per pair (may be null when frictionless)
   const double *bx, *by, *bz;
-  // static rigid walls (triangle store, candidate lists, per-particle contact slots)
+  // walls (triangle store, candidate lists, per-particle contact slots)
   std::size_t nverts = 0, ntris = 0, nptri = 0;
-  const double *vpos = nullptr, *vvel = nullptr;
+  double *vpos = nullptr, *vvel = nullptr;  // in; out when walls_moving
   const std::int32_t *tri_v = nullptr, *tri_e = nullptr, *tri_mat = nullptr, *tri_wall = nullptr;
   const std::int64_t* prow = nullptr;
   const std::int32_t* ptri = nullptr;
@@ -37,6 +38,19 @@ struct GpuHostView {
   double *wshear = nullptr, *wf = nullptr, *wp = nullptr, *wb = nullptr;
   std::int32_t* wtri = nullptr;
   std::uint8_t* wcount = nullptr;
+  // moving walls and the flexible mesh: vertex positions and velocities are computed on
+  // the device every step (physics/wall_motion.hpp)
+  bool walls_moving = false;
+  const double* vbuild = nullptr;       ///< 3 per vertex: positions at the last build
+  const double* vref = nullptr;         ///< 3 per vertex: reference (rigid) / start (flexible)
+  const std::int32_t* vwall = nullptr;  ///< per vertex: wall index, -1 = flexible mesh
+  const phys::RigidMotion* motion = nullptr;  ///< per rigid wall
+  std::size_t nwalls = 0;
+  std::size_t flex_vbase = 0, flex_nodes = 0;         ///< first vertex and node count of the mesh
+  const double *flex_v = nullptr, *flex_a = nullptr;  ///< 3 per node, start of the advance()
+  double* flex_force = nullptr;                       ///< 3 per node: out, as ForceMode asked
+  bool flex_average = false;  ///< ForceMode::average (else the last substep)
+  double flex_inv_substeps = 1.0;
   // parameters
   const phys::PairConstants* pc;
   std::size_t nmat = 0;
@@ -52,16 +66,22 @@ void cuda_backend_destroy(CudaBackend* b);
 void cuda_upload_state(CudaBackend* b, const GpuHostView& v);
 /// Copies the neighbour list, springs and build positions to the device.
 void cuda_upload_lists(CudaBackend* b, const GpuHostView& v);
-/// Copies the particle state and the springs back to the host.
+/// Copies the particle state and the springs back to the host; with moving walls also the
+/// wall vertex positions and velocities and the flexible node forces.
 void cuda_download_state(CudaBackend* b, const GpuHostView& v);
 /// Runs up to `steps` steps on the device (one CUDA graph for the whole chunk) and stops
-/// early when a particle has moved more than `half_skin` since the last build: returns the
-/// number of steps done. The displacement is checked on the device; the host reads one flag
-/// per chunk.
-std::int64_t cuda_run_steps(CudaBackend* b, std::int64_t steps, double half_skin);
+/// early when the neighbour list must be rebuilt (the CPU rule: a particle moved more than
+/// skin / 2, or the largest particle displacement plus the largest wall vertex displacement
+/// since the last build exceeds the skin): returns the number of steps done. The check runs
+/// on the device; the host reads one flag per chunk. t and tau are the time and the time
+/// into the advance() at the start (the device advances its copy by dt per step, as the
+/// host does).
+std::int64_t cuda_run_steps(CudaBackend* b, std::int64_t steps, double skin, double t, double tau);
 /// Completes a step whose drift was done but whose forces were held back for a rebuild.
 void cuda_finish_step(CudaBackend* b);
-/// Largest overlap seen since the last upload_state, m.
+/// Largest overlap of the last step, m.
 double cuda_max_overlap(CudaBackend* b);
+/// Largest overlap with the flexible mesh since the last upload_state, m.
+double cuda_flex_max_overlap(CudaBackend* b);
 
 }  // namespace demfem::dem

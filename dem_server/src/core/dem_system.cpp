@@ -34,6 +34,7 @@
 #include "demfem/dem/physics/integrator.hpp"
 #include "demfem/dem/physics/pair.hpp"
 #include "demfem/dem/physics/wall_contact.hpp"
+#include "demfem/dem/physics/wall_motion.hpp"
 #include "demfem/io/h5_file.hpp"
 
 namespace demfem::dem {
@@ -88,10 +89,16 @@ void validate(const DemSettings& s) {
   if (s.threads < 0) bad("settings.threads = " + std::to_string(s.threads) + " must be >= 0");
 }
 
-double dist_from_origin_pose(const WallMotion& m, double t, double& phase_out) {
-  const double tc = std::clamp(t, m.start_time, m.end_time);
-  phase_out = tc - m.start_time;
-  return tc;
+// POD copy of a wall's motion for the shared kinematics (physics/wall_motion.hpp).
+phys::RigidMotion rigid_motion(const WallMotion& m) {
+  phys::RigidMotion r{};
+  r.kind = static_cast<int>(m.kind);
+  for (int d = 0; d < 3; ++d)
+    r.velocity[d] = m.velocity[d], r.axis_point[d] = m.axis_point[d], r.axis[d] = m.axis[d];
+  r.angular_velocity = m.angular_velocity, r.amplitude = m.amplitude;
+  r.frequency = m.frequency, r.phase = m.phase;
+  r.start_time = m.start_time, r.end_time = m.end_time;
+  return r;
 }
 
 }  // namespace
@@ -328,61 +335,25 @@ struct DemSystem::Impl {
     need_rebuild = true;
   }
 
-  // Vertex positions and velocities of the walls at time tt (tau: time into the advance()).
+  // Vertex positions and velocities of the walls at time tt (tau: time into the advance()),
+  // by the kinematics shared with the CUDA backend (physics/wall_motion.hpp).
   void update_walls(double tt, double tau) {
     for (auto& w : walls) {
-      const WallMotion& m = w.mesh.motion;
-      if (m.kind == WallMotion::Kind::fixed) continue;
-      double el = 0.0;
-      const double tc = dist_from_origin_pose(m, tt, el);
-      const bool active = tt >= m.start_time && tt < m.end_time;
+      if (w.mesh.motion.kind == WallMotion::Kind::fixed) continue;
+      const phys::RigidPose pose = phys::rigid_pose(rigid_motion(w.mesh.motion), tt);
       const std::size_t nv = w.mesh.vertices.size() / 3;
       double* x = vpos.data() + 3 * w.vbase;
       double* v = vvel.data() + 3 * w.vbase;
       const double* x0 = w.mesh.vertices.data();
-      if (m.kind == WallMotion::Kind::translation) {
-        for (std::size_t k = 0; k < nv; ++k)
-          for (int d = 0; d < 3; ++d) {
-            x[3 * k + d] = x0[3 * k + d] + m.velocity[d] * el;
-            v[3 * k + d] = active ? m.velocity[d] : 0.0;
-          }
-      } else if (m.kind == WallMotion::Kind::sinusoid) {
-        const double pi = 3.14159265358979323846;
-        const double arg = 2 * pi * m.frequency * el + m.phase;
-        const double u = m.amplitude * std::sin(arg);
-        const double du = active ? m.amplitude * 2 * pi * m.frequency * std::cos(arg) : 0.0;
-        (void)tc;
-        for (std::size_t k = 0; k < nv; ++k)
-          for (int d = 0; d < 3; ++d) {
-            x[3 * k + d] = x0[3 * k + d] + m.axis[d] * u;
-            v[3 * k + d] = m.axis[d] * du;
-          }
-      } else {  // rotation about axis through axis_point by angle ω el (Rodrigues)
-        const Vec3 ax{m.axis[0], m.axis[1], m.axis[2]};
-        const double an = std::sqrt(phys::norm2(ax));
-        const Vec3 a = (1.0 / an) * ax;
-        const double th = m.angular_velocity * el;
-        const double c = std::cos(th), sn = std::sin(th);
-        const Vec3 o{m.axis_point[0], m.axis_point[1], m.axis_point[2]};
-        const double wv = active ? m.angular_velocity : 0.0;
-        for (std::size_t k = 0; k < nv; ++k) {
-          const Vec3 r = Vec3{x0[3 * k], x0[3 * k + 1], x0[3 * k + 2]} - o;
-          const Vec3 rr = c * r + sn * phys::cross(a, r) + ((1 - c) * phys::dot(a, r)) * a;
-          const Vec3 p = o + rr;
-          const Vec3 vel = wv * phys::cross(a, rr);
-          x[3 * k] = p.x, x[3 * k + 1] = p.y, x[3 * k + 2] = p.z;
-          v[3 * k] = vel.x, v[3 * k + 1] = vel.y, v[3 * k + 2] = vel.z;
-        }
-      }
+      for (std::size_t k = 0; k < nv; ++k)
+        phys::rigid_vertex(pose, x0 + 3 * k, x + 3 * k, v + 3 * k);
     }
     if (has_flex && flex_x.size() == flex.mesh.vertices.size()) {
       const std::size_t nv = flex.mesh.vertices.size() / 3;
       double* x = vpos.data() + 3 * flex.vbase;
       double* v = vvel.data() + 3 * flex.vbase;
-      for (std::size_t k = 0; k < 3 * nv; ++k) {
-        x[k] = flex_x[k] + flex_v[k] * tau + 0.5 * flex_a[k] * tau * tau;
-        v[k] = flex_v[k] + flex_a[k] * tau;
-      }
+      for (std::size_t k = 0; k < 3 * nv; ++k)
+        phys::flexible_node(flex_x[k], flex_v[k], flex_a[k], tau, x[k], v[k]);
     }
   }
 
@@ -783,9 +754,8 @@ struct DemSystem::Impl {
         } else {
           for (int e = 0; e < 3; ++e) {
             const std::int64_t node = tri_v[3 * tri + e] - flex.vbase;
-            const double b = wb[3 * slot + e];
-            nodef[3 * node] += b * f.x, nodef[3 * node + 1] += b * f.y,
-                nodef[3 * node + 2] += b * f.z;
+            const Vec3 fb = phys::node_share(wb[3 * slot + e], f);
+            nodef[3 * node] += fb.x, nodef[3 * node + 1] += fb.y, nodef[3 * node + 2] += fb.z;
           }
         }
       }
@@ -822,6 +792,26 @@ struct DemSystem::Impl {
     timing.forces += t3 - t2;
   }
 
+  // Wall kinematics for the device (filled by gpu_wall_kinematics() when walls move): the
+  // reference vertices (rigid walls) and the node positions at the start of the advance()
+  // (flexible mesh) in store order, the wall of each vertex (-1: flexible), the motions.
+  std::vector<double> gpu_vref;
+  std::vector<std::int32_t> gpu_vwall;
+  std::vector<phys::RigidMotion> gpu_motion;
+
+  void gpu_wall_kinematics() {
+    gpu_vref.assign(vpos.size(), 0.0);
+    gpu_vwall.assign(vpos.size() / 3, -1);
+    gpu_motion.clear();
+    for (std::size_t w = 0; w < walls.size(); ++w) {
+      const auto& x0 = walls[w].mesh.vertices;
+      std::copy(x0.begin(), x0.end(), gpu_vref.begin() + 3 * walls[w].vbase);
+      std::fill_n(gpu_vwall.begin() + walls[w].vbase, x0.size() / 3, static_cast<std::int32_t>(w));
+      gpu_motion.push_back(rigid_motion(walls[w].mesh.motion));
+    }
+    if (has_flex) std::copy(flex_x.begin(), flex_x.end(), gpu_vref.begin() + 3 * flex.vbase);
+  }
+
   GpuHostView gpu_view() {
     GpuHostView v;
     v.n = n();
@@ -849,42 +839,71 @@ struct DemSystem::Impl {
       v.tri_wall = tri_wall.data(), v.prow = prow.data(), v.ptri = ptri.data();
       v.wkey = wkey.data(), v.wshear = wshear.data(), v.wf = wf.data(), v.wp = wp.data();
       v.wb = wb.data(), v.wtri = wtri.data(), v.wcount = wcount.data();
+      if (walls_moving) {
+        v.walls_moving = true;
+        v.vbuild = vbuild.data(), v.vref = gpu_vref.data(), v.vwall = gpu_vwall.data();
+        v.motion = gpu_motion.data(), v.nwalls = gpu_motion.size();
+        if (has_flex) {
+          v.flex_vbase = static_cast<std::size_t>(flex.vbase), v.flex_nodes = flex_x.size() / 3;
+          v.flex_v = flex_v.data(), v.flex_a = flex_a.data(), v.flex_force = flex_force.data();
+        }
+      }
     }
     return v;
   }
 
   // CUDA backend: the same step on the device; the neighbour list is built here (host) when
-  // the device reports that some particle moved more than half the skin.
-  void advance_gpu(std::int64_t substeps) {
-    if (walls_moving || has_flex)
-      bad("settings.backend = 'cuda' supports static walls only (no prescribed motion, no "
-          "flexible mesh yet); use backend = 'cpu' for this scene");
+  // the device reports that it must be (the CPU rule, moving walls included). Moving walls
+  // and the flexible mesh are placed on the device every step by the CPU's formulas
+  // (physics/wall_motion.hpp); the device sums the flexible node forces as `mode` asks.
+  void advance_gpu(std::int64_t substeps, ForceMode mode) {
     const double t0 = omp_get_wtime();
+    if (has_flex) {
+      std::fill(flex_force.begin(), flex_force.end(), 0.0);
+      flex_max_ov = 0.0;
+    }
+    if (n() == 0) {  // nothing for the device: the CPU step moves the walls and the clock
+      for (std::int64_t k = 0; k < substeps; ++k)
+        friction ? step<true>(k + 1 == substeps, mode, substeps)
+                 : step<false>(k + 1 == substeps, mode, substeps);
+      return;
+    }
     if (need_rebuild || row.size() != n() + 1 || bx.size() != n()) rebuild();
-    cuda_upload_state(gpu, gpu_view());
-    cuda_upload_lists(gpu, gpu_view());
+    if (walls_moving) gpu_wall_kinematics();
+    auto view = [&] {
+      GpuHostView v = gpu_view();
+      v.flex_average = mode == ForceMode::average;
+      v.flex_inv_substeps = 1.0 / static_cast<double>(substeps);
+      return v;
+    };
+    cuda_upload_state(gpu, view());
+    cuda_upload_lists(gpu, view());
     std::int64_t left = substeps;
     double tdet = 0.0;
     while (left > 0) {
-      const std::int64_t done = cuda_run_steps(gpu, left, 0.5 * skin);
-      t += s.dt * static_cast<double>(done);
+      const std::int64_t done = cuda_run_steps(gpu, left, skin, t, flex_tau);
+      for (std::int64_t k = 0; k < done; ++k) t += s.dt, flex_tau += s.dt;  // the device's sums
       steps += done;
       left -= done;
       if (left > 0) {  // drift of the next step done, forces wait for the new list
         const double r0 = omp_get_wtime();
-        cuda_download_state(gpu, gpu_view());
+        cuda_download_state(gpu, view());  // with the moved walls
         rebuild();
-        cuda_upload_lists(gpu, gpu_view());
+        cuda_upload_lists(gpu, view());
         tdet += omp_get_wtime() - r0;
         cuda_finish_step(gpu);
-        t += s.dt;
+        t += s.dt, flex_tau += s.dt;
         ++steps;
         --left;
       }
     }
-    cuda_download_state(gpu, gpu_view());
+    cuda_download_state(gpu, view());
     max_ov = cuda_max_overlap(gpu);
-    if (!tri_v.empty()) wall_reduce(true, ForceMode::last_substep, 1);  // last step's slots
+    if (has_flex) flex_max_ov = cuda_flex_max_overlap(gpu);
+    if (walls_moving && tri_v.empty()) update_walls(t, flex_tau);  // no triangle on the device
+    // Per-wall force and torque of the last step from its contact slots, in the CPU's order
+    // (last = false: the flexible node forces came from the device).
+    if (!tri_v.empty()) wall_reduce(false, ForceMode::last_substep, 1);
     timing.detection += tdet;
     timing.forces += omp_get_wtime() - t0 - tdet;  // device steps are not split further
   }
@@ -1161,7 +1180,7 @@ void DemSystem::advance(std::int64_t substeps, ForceMode mode) {
   if (substeps < 0) bad("advance: substeps = " + std::to_string(substeps) + " must be >= 0");
   if (substeps == 0) return;
   if (I.gpu) {
-    I.advance_gpu(substeps);
+    I.advance_gpu(substeps, mode);
     return;
   }
   if (I.has_flex) {
