@@ -113,27 +113,47 @@ TEST_CASE("Elastic frictionless collisions conserve energy", "[dem][contact]") {
 }
 
 namespace {
-// Sphere on a plane tilted by theta: returns (acceleration along the slope, angular
-// acceleration) from the velocities between t = 0.02 s and 0.08 s.
-std::pair<double, double> incline(double theta, double mu, double rolling = 0.0, double v0 = 0.0) {
-  auto s = two_material_settings(kE, kNu, kRho, 0.4, mu, 2e-6, rolling);
+// A sphere of radius 2 mm on a plane tilted by theta (72 triangles), started near the upper
+// end with an overlap of 1e-7 m (just above the equilibrium overlap, ~3.6e-7 m), moving
+// down the slope at v0 and rolling with v0 / r.
+struct Incline {
+  static constexpr double kR = 0.002;
+  DemSystem sys;
+  double c, sn;
+  double along() const { return sys.particles().px[0] * c - sys.particles().pz[0] * sn; }
+  double v_along() const { return sys.particles().vx[0] * c - sys.particles().vz[0] * sn; }
+  // rotation angle about y (the rolling axis; the sphere does not turn about x or z), rad
+  double angle() const { return 2 * std::atan2(sys.particles().qy[0], sys.particles().qw[0]); }
+  // how far the contact point has slipped over the plane: displacement minus rolling, m
+  double slip() const { return along() - kR * angle(); }
+  double v_slip() const { return v_along() - kR * sys.particles().wy[0]; }
+};
+
+Incline make_incline(double theta, double mu, double rolling = 0.0, double v0 = 0.0,
+                     double dt = 2e-6) {
+  auto s = two_material_settings(kE, kNu, kRho, 0.4, mu, dt, rolling);
   s.gravity = {0, 0, -9.81};
-  DemSystem sys(s);
-  sys.add_wall(plane_mesh(0.12, 6, theta));
-  const double r = 0.002;
-  const double c = std::cos(theta), sn = std::sin(theta);
+  Incline in{DemSystem(s), std::cos(theta), std::sin(theta)};
+  in.sys.add_wall(plane_mesh(0.12, 6, theta));
+  const double r = Incline::kR, c = in.c, sn = in.sn;
   // start on the plane (normal (sin, 0, cos)) near the upper end, overlap ~ equilibrium
   const double x0 = -0.05;
   const std::array<double, 3> on{c * x0, 0.0013, -sn * x0};
   const double h = r - 1e-7;
   const std::vector<ParticleInit> p = {
       sphere({on[0] + sn * h, on[1], on[2] + c * h}, r, {v0 * c, 0, -v0 * sn}, {0, v0 / r, 0})};
-  sys.add_particles(p);
-  sys.advance(10000);
-  const auto& st = sys.particles();
-  const double v1 = st.vx[0] * c - st.vz[0] * sn, w1 = st.wy[0];
-  sys.advance(30000);
-  const double v2 = st.vx[0] * c - st.vz[0] * sn, w2 = st.wy[0];
+  in.sys.add_particles(p);
+  return in;
+}
+
+// Sphere on a plane tilted by theta: returns (acceleration along the slope, angular
+// acceleration) from the velocities between t = 0.02 s and 0.08 s.
+std::pair<double, double> incline(double theta, double mu, double rolling = 0.0, double v0 = 0.0) {
+  Incline in = make_incline(theta, mu, rolling, v0);
+  in.sys.advance(10000);
+  const double v1 = in.v_along(), w1 = in.sys.particles().wy[0];
+  in.sys.advance(30000);
+  const double v2 = in.v_along(), w2 = in.sys.particles().wy[0];
   return {(v2 - v1) / 0.06, (w2 - w1) / 0.06};
 }
 }  // namespace
@@ -174,4 +194,106 @@ TEST_CASE("Rolling resistance decelerates a rolling sphere", "[dem][contact][wal
   const auto [a, alpha] = incline(0.0, 0.5, mur, 0.5);
   (void)alpha;
   CHECK(a == Approx(-5.0 / 7.0 * mur * g).epsilon(0.02));
+}
+
+namespace {
+constexpr double kDeg = std::numbers::pi / 180;
+constexpr double kMuR = 1.0;  // rolling resistance that keeps the sphere from rolling
+
+// A sphere on a plane tilted by theta < atan(mu), settled for 0.05 s, then watched for 0.3 s.
+struct StickRun {
+  double s;             // elastic creep m g sin / k_t that holds the sphere, m
+  double slip_total;    // contact slip from the start to the end, m
+  double max_slip_win;  // largest |contact slip| in the window relative to its start, m
+  double max_v_slip;    // largest |contact slip velocity| in the window, m/s
+  double disp_total;    // sphere displacement along the slope, start to end, m
+  double max_disp_win;  // largest |displacement| in the window relative to its start, m
+  double max_v;         // largest |velocity along the slope| in the window, m/s
+};
+
+StickRun stick_run(double theta, double mu) {
+  const double g = 9.81, r = Incline::kR, m = kRho * 4.0 / 3.0 * std::numbers::pi * r * r * r;
+  const double g_star = 1.0 / (4.0 * (2.0 - kNu) * (1.0 + kNu) / kE);  // two equal materials
+  // equilibrium overlap d = (3 m g cos / (4 E* sqrt R))^(2/3) (eq. 2.6), tangential stiffness
+  // k_t = 8 G* sqrt(R d) (eq. 2.16): the spring holds m g sin at the stretch s = m g sin / k_t
+  const double d = std::pow(3 * m * g * std::cos(theta) / (4 * e_star() * std::sqrt(r)), 2.0 / 3.0);
+  StickRun out{};
+  out.s = m * g * std::sin(theta) / (8 * g_star * std::sqrt(r * d));
+  Incline in = make_incline(theta, mu, kMuR);
+  const double x0 = in.along(), slip0 = in.slip();
+  in.sys.advance(25000);  // 0.05 s: the elastic oscillations (period ~1 ms) have died out
+  const double x1 = in.along(), slip1 = in.slip();
+  for (int k = 0; k < 60; ++k) {  // 0.3 s, sampled every 5 ms
+    in.sys.advance(2500);
+    out.max_slip_win = std::max(out.max_slip_win, std::abs(in.slip() - slip1));
+    out.max_v_slip = std::max(out.max_v_slip, std::abs(in.v_slip()));
+    out.max_disp_win = std::max(out.max_disp_win, std::abs(in.along() - x1));
+    out.max_v = std::max(out.max_v, std::abs(in.v_along()));
+  }
+  out.slip_total = in.slip() - slip0;
+  out.disp_total = in.along() - x0;
+  return out;
+}
+}  // namespace
+
+TEST_CASE("Sphere that cannot roll sticks below atan(mu) and slides above it",
+          "[dem][contact][wall]") {
+  // Rolling resistance mu_r = 1 keeps the sphere from rolling: rigid-body statics need a
+  // rolling torque m g sin(theta) r <= mu_r r N, i.e. tan(theta) <= mu_r (all angles below
+  // have tan(theta) <= 0.71), and while sliding the friction torque mu N r < mu_r N r. The
+  // contact then follows Coulomb's law like a block: no slip for tan(theta) < mu, sliding
+  // with a = g (sin(theta) - mu cos(theta)) for tan(theta) > mu.
+  const double g = 9.81, dt = 2e-6;
+  for (const double th : {std::atan(0.5) - 3 * kDeg, 10 * kDeg}) {
+    SECTION("sticks: mu = 0.5, theta = " + std::to_string(th / kDeg) + " deg") {
+      const StickRun run = stick_run(th, 0.5);
+      INFO("s " << run.s << " slip " << run.slip_total << " window slip " << run.max_slip_win
+                << " slip velocity " << run.max_v_slip);
+      // Reference: Mindlin's tangential spring. The contact point creeps by the stretch s
+      // that holds m g sin(theta), then stays put. Tolerance 1 % on the creep (k_t is taken
+      // at the Hertz equilibrium overlap), 1 % of s for any slip after settling (a sliding
+      // contact would slip by micrometres within the window).
+      CHECK(run.slip_total == Approx(run.s).epsilon(0.01));
+      CHECK(run.max_slip_win <= 0.01 * run.s);
+      // The constant directional rolling torque flips with the sign of omega every few
+      // steps, so the instantaneous contact velocity chatters by one step of the full torque
+      // (mu_r N + m g sin) r dt / I, times r: 2.5 g (mu_r cos + sin) dt; its mean is zero
+      // (the window slip above).
+      CHECK(run.max_v_slip <= 2.5 * g * (kMuR * std::cos(th) + std::sin(th)) * dt);
+    }
+  }
+  for (const auto& [th, mu] : {std::pair{std::atan(0.5) + 5 * kDeg, 0.5}, {35 * kDeg, 0.3}}) {
+    SECTION("slides: mu = " + std::to_string(mu) + ", theta = " + std::to_string(th / kDeg)) {
+      // Reference: the block on an incline, a = g (sin - mu cos); tolerance 1 % (the issue's).
+      // The sphere must not spin up (a free one would at 5 mu g cos / (2 r)): the rolling
+      // speed r alpha t stays below 1 % of the sliding speed a t.
+      const auto [a, alpha] = incline(th, mu, kMuR);
+      INFO("a " << a << " alpha " << alpha);
+      CHECK(a == Approx(g * (std::sin(th) - mu * std::cos(th))).epsilon(0.01));
+      CHECK(std::abs(alpha) * Incline::kR <= 0.01 * a);
+    }
+  }
+}
+
+TEST_CASE("Sphere that cannot roll stays at rest below atan(mu)",
+          "[dem][contact][wall][!shouldfail]") {
+  // KNOWN DEFECT (expected to fail; remove [!shouldfail] when fixed): the issue asks that the
+  // sphere stick, i.e. stay at rest. The contact does stick (test above), but the constant
+  // directional torque (CDT) rolling model has no static state: at omega ~ 0 its torque
+  // mu_r R F_n flips with the sign of omega, omega chatters with a non-zero mean and the
+  // sphere rolls down without slip at a speed proportional to dt (Ai et al. 2011, Powder
+  // Technology 206, 269-282; their elastic-plastic spring-dashpot model holds statically).
+  // Measured at dt = 2e-6 s: 2.1e-5 m/s at 23.6 deg, 4.3e-6 m/s at 10 deg; halving dt
+  // halves it. Reference: rest up to the elastic creep s; tolerance: after settling the
+  // sphere moves less than s in 0.3 s, and less than 3 s in all.
+  for (const double th : {std::atan(0.5) - 3 * kDeg, 10 * kDeg}) {
+    SECTION("mu = 0.5, theta = " + std::to_string(th / kDeg) + " deg") {
+      const StickRun run = stick_run(th, 0.5);
+      INFO("s " << run.s << " displacement " << run.disp_total << " in window " << run.max_disp_win
+                << " speed " << run.max_v);
+      CHECK(run.max_disp_win <= run.s);
+      CHECK(std::abs(run.disp_total) <= 3 * run.s);
+      CHECK(run.max_v <= run.s / 0.3);
+    }
+  }
 }
