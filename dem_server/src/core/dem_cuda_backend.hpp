@@ -25,7 +25,8 @@ struct GpuHostView {
   std::size_t npairs = 0;
   const std::int64_t *row, *trow, *tpair;
   const std::int32_t* nbr;
-  double* shear;  // 3 per pair (may be null when frictionless)
+  double* shear;            // 3 per pair (may be null when frictionless)
+  double* rhist = nullptr;  // 3 per pair: rolling-torque history (null unless rolling)
   const double *bx, *by, *bz;
   // static rigid walls (triangle store, candidate lists, per-particle contact slots)
   std::size_t nverts = 0, ntris = 0, nptri = 0;
@@ -37,6 +38,7 @@ struct GpuHostView {
   double *wshear = nullptr, *wf = nullptr, *wp = nullptr, *wb = nullptr;
   std::int32_t* wtri = nullptr;
   std::uint8_t* wcount = nullptr;
+  double* wroll = nullptr;  // 3 per slot: rolling-torque history (null unless rolling)
   // parameters
   const phys::PairConstants* pc;
   std::size_t nmat = 0;
@@ -52,7 +54,7 @@ void cuda_backend_destroy(CudaBackend* b);
 void cuda_upload_state(CudaBackend* b, const GpuHostView& v);
 /// Copies the neighbour list, springs and build positions to the device.
 void cuda_upload_lists(CudaBackend* b, const GpuHostView& v);
-/// Copies the particle state and the springs back to the host.
+/// Copies the particle state and the springs (tangential and rolling) back to the host.
 void cuda_download_state(CudaBackend* b, const GpuHostView& v);
 /// Runs up to `steps` steps on the device (one CUDA graph for the whole chunk) and stops
 /// early when a particle has moved more than `half_skin` since the last build: returns the
