@@ -50,6 +50,7 @@ struct Dev {
   std::int64_t *row, *trow, *tpair;
   std::int32_t* nbr;
   double *shear, *pf, *pt, *pr;
+  double *rhist, *wroll;  // rolling-torque histories per pair / wall slot (when rolling)
   phys::PairConstants* pc;
   // walls
   bool walls;
@@ -184,12 +185,14 @@ __global__ void k_pairs(Dev d, std::size_t n, std::size_t nmat, double dt, bool 
   for (std::int64_t p = d.row[i]; p < d.row[i + 1]; ++p) {
     const std::int32_t j = d.nbr[p];
     double* f = d.pf + 3 * p;
-    phys::Vec3 sh{0, 0, 0};
+    phys::Vec3 sh{0, 0, 0}, rh{0, 0, 0};
     if (Friction) sh = phys::Vec3{d.shear[3 * p], d.shear[3 * p + 1], d.shear[3 * p + 2]};
-    phys::ContactResult r;
+    if (Friction && rolling)
+      rh = phys::Vec3{d.rhist[3 * p], d.rhist[3 * p + 1], d.rhist[3 * p + 2]};
+    phys::ContactResult r{};
     double delta = 0.0;
     if (!phys::sphere_sphere<Friction>(view, static_cast<int>(i), j, d.pc[mrow + d.material[j]], dt,
-                                       sh, r, delta)) {
+                                       sh, rh, r, delta)) {
       f[0] = f[1] = f[2] = 0.0;
       if (Friction) {
         double* shp = d.shear + 3 * p;
@@ -198,6 +201,8 @@ __global__ void k_pairs(Dev d, std::size_t n, std::size_t nmat, double dt, bool 
         tq[0] = tq[1] = tq[2] = 0.0;
         double* rq = d.pr + 3 * p;
         if (rolling) rq[0] = rq[1] = rq[2] = 0.0;
+        double* rhp = d.rhist + 3 * p;
+        if (rolling) rhp[0] = rhp[1] = rhp[2] = 0.0;
       }
       continue;
     }
@@ -214,6 +219,8 @@ __global__ void k_pairs(Dev d, std::size_t n, std::size_t nmat, double dt, bool 
         double* rq = d.pr + 3 * p;
         rq[0] = r.roll.x, rq[1] = r.roll.y, rq[2] = r.roll.z;
         qx += r.roll.x, qy += r.roll.y, qz += r.roll.z;
+        double* rhp = d.rhist + 3 * p;
+        rhp[0] = rh.x, rhp[1] = rh.y, rhp[2] = rh.z;
       }
     }
   }
@@ -244,9 +251,9 @@ __global__ void k_gather_kick(Dev d, std::size_t n, std::size_t nmat, double dt,
   if (d.walls) {
     const phys::ParticleView view{d.px, d.py, d.pz, d.vx,     d.vy,  d.vz,
                                   d.wx, d.wy, d.wz, d.radius, d.mass};
-    const phys::WallView wv{d.vpos,     d.vvel, d.tri_v, d.tri_e, d.tri_mat,
-                            d.tri_wall, d.prow, d.ptri,  d.wkey,  d.wshear,
-                            d.wf,       d.wp,   d.wb,    d.wtri,  d.wcount};
+    phys::WallView wv{d.vpos, d.vvel,   d.tri_v, d.tri_e, d.tri_mat, d.tri_wall, d.prow,  d.ptri,
+                      d.wkey, d.wshear, d.wf,    d.wp,    d.wb,      d.wtri,     d.wcount};
+    wv.wroll = rolling ? d.wroll : nullptr;
     phys::Vec3 f{fx, fy, fz}, q{qx, qy, qz};
     double mo = 0.0, fmo = 0.0;
     phys::wall_contacts<Friction>(view, wv, static_cast<std::int64_t>(i),
@@ -351,6 +358,7 @@ void cuda_backend_destroy(CudaBackend* b) {
   cudaFree(b->d.flex_v), cudaFree(b->d.flex_a), cudaFree(b->d.flex_force);
   cudaFree(b->d.node_buf), cudaFree(b->d.clock), cudaFree(b->d.pdisp2), cudaFree(b->d.wdisp2);
   cudaFree(b->d.flex_max_ov);
+  cudaFree(b->d.rhist), cudaFree(b->d.wroll);
   if (b->stream) cudaStreamDestroy(b->stream);
   delete b;
 }
@@ -394,6 +402,7 @@ void cuda_upload_state(CudaBackend* b, const GpuHostView& v) {
     ensure(d.wf, c[48], 3 * ns), ensure(d.wp, c[49], 3 * ns), ensure(d.wb, c[50], 3 * ns);
     ensure(d.wtri, c[51], ns);
     up(d.wcount, c[52], v.wcount, n);
+    if (v.wroll) up(d.wroll, c[38], v.wroll, 3 * ns);
   }
   // moving walls and the flexible mesh: reference vertices, motions, node kinematics of this
   // advance(); the node force output starts at zero (as on the CPU)
@@ -433,6 +442,7 @@ void cuda_upload_lists(CudaBackend* b, const GpuHostView& v) {
   if (v.friction) {
     up(d.shear, c[34], v.shear, 3 * np);
     ensure(d.pt, c[35], 3 * np), ensure(d.pr, c[36], 3 * np);
+    if (v.rhist) up(d.rhist, c[37], v.rhist, 3 * np);
   }
   if (b->graph) cudaGraphExecDestroy(b->graph), b->graph = nullptr;
 }
@@ -448,11 +458,13 @@ void cuda_download_state(CudaBackend* b, const GpuHostView& v) {
   down(v.fx, d.fx, n), down(v.fy, d.fy, n), down(v.fz, d.fz, n);
   down(v.tx, d.tx, n), down(v.ty, d.ty, n), down(v.tz, d.tz, n);
   if (v.friction && v.shear && b->npairs == v.npairs) down(v.shear, d.shear, 3 * v.npairs);
+  if (v.rhist && b->npairs == v.npairs) down(v.rhist, d.rhist, 3 * v.npairs);
   if (v.ntris > 0) {
     const std::size_t ns = static_cast<std::size_t>(phys::kMaxWallContacts) * n;
     down(v.wkey, d.wkey, ns), down(v.wshear, d.wshear, 3 * ns), down(v.wf, d.wf, 3 * ns);
     down(v.wp, d.wp, 3 * ns), down(v.wb, d.wb, 3 * ns), down(v.wtri, d.wtri, ns);
     down(v.wcount, d.wcount, n);
+    if (v.wroll) down(v.wroll, d.wroll, 3 * ns);
   }
   if (v.ntris > 0 && v.walls_moving && b->walls_moving && b->nverts == v.nverts) {
     down(v.vpos, d.vpos, 3 * v.nverts), down(v.vvel, d.vvel, 3 * v.nverts);

@@ -26,7 +26,8 @@ struct GpuHostView {
   std::size_t npairs = 0;
   const std::int64_t *row, *trow, *tpair;
   const std::int32_t* nbr;
-  double* shear;  // 3 per pair (may be null when frictionless)
+  double* shear;            // 3 per pair (may be null when frictionless)
+  double* rhist = nullptr;  // 3 per pair: rolling-torque history (null unless rolling)
   const double *bx, *by, *bz;
   // walls (triangle store, candidate lists, per-particle contact slots)
   std::size_t nverts = 0, ntris = 0, nptri = 0;
@@ -51,6 +52,7 @@ struct GpuHostView {
   double* flex_force = nullptr;                       ///< 3 per node: out, as ForceMode asked
   bool flex_average = false;  ///< ForceMode::average (else the last substep)
   double flex_inv_substeps = 1.0;
+  double* wroll = nullptr;  // 3 per slot: rolling-torque history (null unless rolling)
   // parameters
   const phys::PairConstants* pc;
   std::size_t nmat = 0;
@@ -66,8 +68,9 @@ void cuda_backend_destroy(CudaBackend* b);
 void cuda_upload_state(CudaBackend* b, const GpuHostView& v);
 /// Copies the neighbour list, springs and build positions to the device.
 void cuda_upload_lists(CudaBackend* b, const GpuHostView& v);
-/// Copies the particle state and the springs back to the host; with moving walls also the
-/// wall vertex positions and velocities and the flexible node forces.
+/// Copies the particle state and the springs (tangential and rolling) back to the host;
+/// with moving walls also the wall vertex positions and velocities and the flexible node
+/// forces.
 void cuda_download_state(CudaBackend* b, const GpuHostView& v);
 /// Runs up to `steps` steps on the device (one CUDA graph for the whole chunk) and stops
 /// early when the neighbour list must be rebuilt (the CPU rule: a particle moved more than

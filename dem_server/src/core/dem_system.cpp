@@ -124,6 +124,7 @@ struct PairKernelArgs {
   double* pf;     // 3 per pair
   double* pt;     // 3 per pair (Friction)
   double* pr;     // 3 per pair (Rolling)
+  double* rhist;  // 3 per pair (Rolling): rolling-torque history
 };
 
 template <bool Friction, bool Rolling, bool Uniform>
@@ -137,6 +138,7 @@ template <bool Friction, bool Rolling, bool Uniform>
   double* pf = a.pf;
   double* pt = a.pt;
   double* pr = a.pr;
+  double* rhist = a.rhist;
   const double dt = a.dt;
 #pragma omp simd reduction(max : mo)
   for (std::int64_t p = begin; p < end; ++p) {
@@ -145,16 +147,20 @@ template <bool Friction, bool Rolling, bool Uniform>
         Uniform ? a.pc[0] : a.pc[static_cast<std::size_t>(a.mat[i]) * a.nmat + a.mat[j]];
     Vec3 sh{0, 0, 0};
     if constexpr (Friction) sh = Vec3{shear[3 * p], shear[3 * p + 1], shear[3 * p + 2]};
+    Vec3 rh{0, 0, 0};
+    if constexpr (Rolling) rh = Vec3{rhist[3 * p], rhist[3 * p + 1], rhist[3 * p + 2]};
     phys::ContactResult r;
     double delta;
-    phys::sphere_sphere_select<Friction, Rolling>(view, i, j, c, dt, sh, r, delta);
+    phys::sphere_sphere_select<Friction, Rolling>(view, i, j, c, dt, sh, rh, r, delta);
     mo = mo > delta ? mo : delta;
     pf[3 * p] = r.force.x, pf[3 * p + 1] = r.force.y, pf[3 * p + 2] = r.force.z;
     if constexpr (Friction) {
       shear[3 * p] = sh.x, shear[3 * p + 1] = sh.y, shear[3 * p + 2] = sh.z;
       pt[3 * p] = r.torque.x, pt[3 * p + 1] = r.torque.y, pt[3 * p + 2] = r.torque.z;
-      if constexpr (Rolling)
+      if constexpr (Rolling) {
         pr[3 * p] = r.roll.x, pr[3 * p + 1] = r.roll.y, pr[3 * p + 2] = r.roll.z;
+        rhist[3 * p] = rh.x, rhist[3 * p + 1] = rh.y, rhist[3 * p + 2] = rh.z;
+      }
     }
   }
   return mo;
@@ -216,6 +222,7 @@ struct DemSystem::Impl {
   std::vector<std::int64_t> tpair;  // pair index, grouped by j, i ascending
   std::vector<std::int32_t> tsrc;   // i of each transposed entry
   std::vector<double> shear;        // 3 per pair
+  std::vector<double> rhist;        // 3 per pair: rolling-torque history (only if rolling)
   std::vector<double> pf, pt, pr;   // 3 per pair: force on i, n x F_t, rolling torque on i
   std::vector<double> bx, by, bz;   // positions at the last build
   double max_ov = 0.0;
@@ -250,6 +257,7 @@ struct DemSystem::Impl {
   // per-particle wall contact slots
   std::vector<std::int64_t> wkey;  // kMaxWallContacts per particle, -1 = empty
   std::vector<double> wshear;      // 3 per slot
+  std::vector<double> wroll;       // 3 per slot: rolling-torque history (only if rolling)
   std::vector<double> wf, wp, wb;  // force on particle, contact point, barycentric weights
   std::vector<std::int32_t> wtri;
   std::vector<std::uint8_t> wcount;
@@ -451,7 +459,8 @@ struct DemSystem::Impl {
     }
     // carry the tangential springs over (merge of the sorted old and new rows)
     const std::size_t npair = nnbr.size();
-    std::vector<double> nshear;
+    std::vector<double> nshear, nrhist;
+    if (rolling) nrhist.assign(3 * npair, 0.0);  // carried with the springs
     if (friction) {
       nshear.assign(3 * npair, 0.0);
       if (row.size() == np + 1) {
@@ -465,6 +474,8 @@ struct DemSystem::Impl {
               ++b;
             } else {
               for (int d = 0; d < 3; ++d) nshear[3 * b + d] = shear[3 * a + d];
+              if (rolling && rhist.size() == shear.size())
+                for (int d = 0; d < 3; ++d) nrhist[3 * b + d] = rhist[3 * a + d];
               ++a, ++b;
             }
           }
@@ -474,6 +485,7 @@ struct DemSystem::Impl {
     row.swap(nrow);
     nbr.swap(nnbr);
     shear.swap(nshear);
+    rhist.swap(nrhist);
     pown.resize(npair);
     for (std::size_t i = 0; i < np; ++i)
       std::fill(pown.begin() + row[i], pown.begin() + row[i + 1], static_cast<std::int32_t>(i));
@@ -607,6 +619,7 @@ struct DemSystem::Impl {
     a.pf = pf.data();
     a.pt = pt.data();
     a.pr = pr.data();
+    a.rhist = rhist.data();
     const PairKernel kern = pick_pair_kernel(Friction, Friction && rolling, uniform_mat >= 0);
 
     const double h = 0.5 * s.dt;
@@ -677,9 +690,11 @@ struct DemSystem::Impl {
   }
 
   phys::WallView wall_view() {
-    return {vpos.data(),     vvel.data(), tri_v.data(), tri_e.data(), tri_mat.data(),
-            tri_wall.data(), prow.data(), ptri.data(),  wkey.data(),  wshear.data(),
-            wf.data(),       wp.data(),   wb.data(),    wtri.data(),  wcount.data()};
+    phys::WallView v{vpos.data(),     vvel.data(), tri_v.data(), tri_e.data(), tri_mat.data(),
+                     tri_wall.data(), prow.data(), ptri.data(),  wkey.data(),  wshear.data(),
+                     wf.data(),       wp.data(),   wb.data(),    wtri.data(),  wcount.data()};
+    v.wroll = rolling ? wroll.data() : nullptr;
+    return v;
   }
 
   // Half kick + drift; returns the largest displacement since the last build. The
@@ -826,6 +841,7 @@ struct DemSystem::Impl {
     v.npairs = nbr.size();
     v.row = row.data(), v.trow = trow.data(), v.tpair = tpair.data(), v.nbr = nbr.data();
     v.shear = shear.data();
+    v.rhist = rolling ? rhist.data() : nullptr;
     v.bx = bx.data(), v.by = by.data(), v.bz = bz.data();
     v.pc = pc.data();
     v.nmat = nmat;
@@ -848,6 +864,7 @@ struct DemSystem::Impl {
           v.flex_v = flex_v.data(), v.flex_a = flex_a.data(), v.flex_force = flex_force.data();
         }
       }
+      v.wroll = rolling ? wroll.data() : nullptr;
     }
     return v;
   }
@@ -975,6 +992,7 @@ std::size_t DemSystem::add_particles(std::span<const ParticleInit> particles) {
   I.acc.resize(3 * n), I.acct.resize(3 * n);
   I.wkey.resize(kMaxWallContacts * n, -1);
   I.wshear.resize(3 * kMaxWallContacts * n, 0.0);
+  if (I.rolling) I.wroll.resize(3 * kMaxWallContacts * n, 0.0);
   I.wf.resize(3 * kMaxWallContacts * n), I.wp.resize(3 * kMaxWallContacts * n),
       I.wb.resize(3 * kMaxWallContacts * n), I.wtri.resize(kMaxWallContacts * n);
   I.wcount.resize(n, 0);
@@ -1009,7 +1027,7 @@ void DemSystem::remove_particles(std::span<const std::uint8_t> keep) {
   if (I.row.size() == n + 1) {
     std::vector<std::int64_t> nrow(static_cast<std::size_t>(m) + 1, 0);
     std::vector<std::int32_t> nnbr;
-    std::vector<double> nsh;
+    std::vector<double> nsh, nrh;
     for (std::size_t i = 0; i < n; ++i) {
       if (!keep[i]) continue;
       for (std::int64_t p = I.row[i]; p < I.row[i + 1]; ++p) {
@@ -1017,10 +1035,12 @@ void DemSystem::remove_particles(std::span<const std::uint8_t> keep) {
         nnbr.push_back(map[I.nbr[p]]);
         if (!I.shear.empty())
           for (int d = 0; d < 3; ++d) nsh.push_back(I.shear[3 * p + d]);
+        if (!I.rhist.empty())
+          for (int d = 0; d < 3; ++d) nrh.push_back(I.rhist[3 * p + d]);
       }
       nrow[map[i] + 1] = static_cast<std::int64_t>(nnbr.size());
     }
-    I.row.swap(nrow), I.nbr.swap(nnbr), I.shear.swap(nsh);
+    I.row.swap(nrow), I.nbr.swap(nnbr), I.shear.swap(nsh), I.rhist.swap(nrh);
   }
   auto& st = I.st;
   for (auto* v : {&st.px,     &st.py,   &st.pz,      &st.vx, &st.vy, &st.vz, &st.wx, &st.wy,
@@ -1031,6 +1051,7 @@ void DemSystem::remove_particles(std::span<const std::uint8_t> keep) {
   compact(st.shape, 1);
   compact(I.acc, 3), compact(I.acct, 3);
   compact(I.wkey, kMaxWallContacts), compact(I.wshear, 3 * kMaxWallContacts);
+  if (!I.wroll.empty()) compact(I.wroll, 3 * kMaxWallContacts);
   compact(I.wf, 3 * kMaxWallContacts), compact(I.wp, 3 * kMaxWallContacts),
       compact(I.wb, 3 * kMaxWallContacts), compact(I.wtri, kMaxWallContacts);
   compact(I.wcount, 1);
@@ -1267,7 +1288,7 @@ auto double_arrays(ImplT& I) {
   using Vec =
       std::conditional_t<std::is_const_v<ImplT>, const std::vector<double>, std::vector<double>>;
   auto& st = I.st;
-  return std::array<std::pair<const char*, Vec*>, 33>{{{"px", &st.px},
+  return std::array<std::pair<const char*, Vec*>, 35>{{{"px", &st.px},
                                                        {"py", &st.py},
                                                        {"pz", &st.pz},
                                                        {"vx", &st.vx},
@@ -1290,6 +1311,8 @@ auto double_arrays(ImplT& I) {
                                                        {"ty", &I.ty},
                                                        {"tz", &I.tz},
                                                        {"shear", &I.shear},
+                                                       {"rhist", &I.rhist},
+                                                       {"wroll", &I.wroll},
                                                        {"bx", &I.bx},
                                                        {"by", &I.by},
                                                        {"bz", &I.bz},
@@ -1333,7 +1356,12 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   I.flex_tau = f.attribute_double(group, "flex_tau");
   I.max_ov = f.attribute_double(group, "max_overlap");
   I.flex_max_ov = f.attribute_double(group, "flex_max_overlap");
-  for (const auto& [name, v] : double_arrays(I)) *v = f.read_doubles(g + name);
+  for (const auto& [name, v] : double_arrays(I)) {
+    // the rolling histories are absent in states written before the rolling spring model:
+    // they then start at zero (checked against the pair list below)
+    const bool history = std::strcmp(name, "rhist") == 0 || std::strcmp(name, "wroll") == 0;
+    *v = history && !f.exists(g + name) ? std::vector<double>{} : f.read_doubles(g + name);
+  }
   st.material = from64<std::int32_t>(f.read_int64(g + "material"));
   st.shape = f.read_uint8(g + "shape");
   I.row = f.read_int64(g + "row");
@@ -1354,6 +1382,15 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   // springs. Forces of the pairs do not depend on which non-touching pairs the list holds,
   // so the continuation is bitwise identical to an uninterrupted run.
   if (I.row.empty()) I.row.assign(n + 1, 0);  // saved before the first step: no pairs yet
+  if (!I.rolling) {
+    I.rhist.clear(), I.wroll.clear();
+  } else {
+    if (I.rhist.empty()) I.rhist.assign(3 * I.nbr.size(), 0.0);
+    if (I.wroll.empty()) I.wroll.assign(3 * kMaxWallContacts * n, 0.0);
+    if (I.rhist.size() != 3 * I.nbr.size() || I.wroll.size() != 3 * kMaxWallContacts * n)
+      bad("restore: rolling history sizes in '" + group + "' of " + f.path().string() +
+          " do not match the pair list and particles");
+  }
   if (I.wcount.size() != n || I.wkey.size() != kMaxWallContacts * n ||
       I.wshear.size() != 3 * kMaxWallContacts * n || I.row.size() != n + 1)
     bad("restore: inconsistent array sizes in '" + group + "' of " + f.path().string());

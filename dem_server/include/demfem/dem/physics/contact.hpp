@@ -10,7 +10,17 @@
 //                that -S_t s - γ_t v_t = F_t (Coulomb limit, eq. 2.18)
 // Because F_t = S_t(δ) s uses the current stiffness, the spring force follows the change of
 // stiffness under unloading (the k_t^n / k_t^{n-1} factor of eq. 2.15).
-//   rolling:     constant directional torque (CDT model) M_r = -μ_r R F_n ω̂_rel.
+//   rolling:     elastic-plastic spring (EPSD without its dashpot, the form LIGGGHTS calls
+//                epsd2; Ai, Chen, Rotter & Ooi 2011, Powder Technol. 206:269):
+//                M_r ← M_r rotated into the current contact plane - k_r ω_r Δt  (history)
+//                |M_r| ≤ μ_r R F_n: beyond it M_r is scaled to the limit (full rolling)
+//                k_r = 2.25 μ_r² R² S_n  (Ai et al.'s k_r = 2.25 k_n μ_r² R², k_n := S_n)
+//                ω_r = ω_rel without its twist part (ω_rel - (ω_rel·n) n).
+//                A constant directional torque M_r = -μ_r R F_n ω̂_rel (CDT, used before) has
+//                no static state: at ω ≈ 0 its full-size torque flips with the sign of ω, so
+//                a sphere on an incline creeps down by rolling at ~g sinθ Δt. The spring
+//                holds it at rest while |M_r| < μ_r R F_n and gives CDT's torque once
+//                saturated.
 // The head-on restitution of this law equals e to < 1e-5 (checked by the tests).
 // Every function here is shared by the CPU and CUDA backends; no other file holds a formula.
 
@@ -65,12 +75,16 @@ struct ContactResult {
 /// @param vrel     velocity of i relative to j at the contact point, m/s
 /// @param wrel     angular velocity of i relative to j (rolling resistance), rad/s
 /// @param shear    tangential spring (history), updated in place; untouched when frictionless
+/// @param roll_hist rolling-resistance torque on i (history), N m, updated in place when
+///                 Friction and Rolling; untouched otherwise
 /// The body has no data-dependent branches (only selects), so that the CPU pair loop can
 /// run it in SIMD lanes; Rolling = false leaves the rolling torque out at compile time (for
-/// tables where no pair has μ_r > 0), Rolling = true evaluates it where c.rolling > 0.
+/// tables where no pair has μ_r > 0), Rolling = true evaluates the rolling spring for every
+/// pair (exactly zero torque where μ_r = 0).
 template <bool Friction, bool Rolling = true>
 DEMFEM_HD ContactResult hertz_mindlin(const PairConstants& c, Vec3 n, double delta, double r_eff,
-                                      double m_eff, Vec3 vrel, Vec3 wrel, Vec3& shear, double dt) {
+                                      double m_eff, Vec3 vrel, Vec3 wrel, Vec3& shear,
+                                      Vec3& roll_hist, double dt) {
   ContactResult out{};
   const double sqrt_rd = std::sqrt(r_eff * delta);
   const double kn = (4.0 / 3.0) * c.e_star * sqrt_rd;
@@ -121,14 +135,34 @@ DEMFEM_HD ContactResult hertz_mindlin(const PairConstants& c, Vec3 n, double del
     out.force = out.force + ft;
     out.torque = cross(n, ft);
     if constexpr (Rolling) {
-      if (c.rolling > 0.0) {
-        const Vec3 wr = wrel - dot(wrel, n) * n;  // rolling part only (no twist)
-        const double w2 = norm2(wr);
-        if (w2 > 0.0) {
-          const double m = c.rolling * r_eff * (fn > 0.0 ? fn : 0.0) / std::sqrt(w2);
-          out.roll = (-m) * wr;
-        }
-      }
+      // Elastic-plastic spring (epsd2, see the file comment), branch-free like the spring
+      // above. With μ_r = 0 both k_r and the limit are 0 and the torque stays exactly 0.
+      // The dashpot of the full EPSD model is left out: it needs a further material
+      // parameter (the damping ratio η_r), and the rolling mode is damped through its
+      // coupling to the tangential dashpot (measured: a sphere at rest on an incline settles
+      // within 0.05 s, tests/dem/core/test_contact_law.cpp).
+      const Vec3 wr = wrel - dot(wrel, n) * n;  // rolling part only (no twist)
+      // Keep the stored torque in the current tangent plane (project, restore its length to
+      // second order, as for the tangential spring).
+      const double mn = dot(roll_hist, n);
+      Vec3 mr = roll_hist - mn * n;
+      const double mr2_new = norm2(mr);
+      const double rgrow_any = 1.0 + 0.5 * mn * mn / mr2_new;  // 0/0 only in the unused select
+      mr = (mr2_new > 0.0 ? rgrow_any : 1.0) * mr;
+      // k_r = 2.25 k_n μ_r² R² (Ai et al. 2011) with k_n taken as the tangent stiffness
+      // S_n = dF_n/dδ of the Hertz contact, the stiffness a small rolling rocks the contact
+      // with. (LIGGGHTS' epsd takes its secant k_n = 4/3 E* sqrt(Rδ), its epsd2 k_t R².)
+      // With this k_r the torque saturates after the rolling angle
+      // μ_r R F_n / k_r = 2δ / (6.75 μ_r R) (F_n = 2/3 S_n δ), whatever the stiffness.
+      const double kr = 2.25 * c.rolling * c.rolling * r_eff * r_eff * sn;
+      mr = mr - (kr * dt) * wr;
+      const double mmax = c.rolling * r_eff * (fn > 0.0 ? fn : 0.0);
+      const double mr2 = norm2(mr);
+      const bool full = mr2 > mmax * mmax;  // rolling beyond the elastic limit: plastic
+      const double rscale_any = mmax / std::sqrt(mr2);
+      mr = (full ? rscale_any : 1.0) * mr;
+      roll_hist = mr;
+      out.roll = mr;
     }
   }
   return out;

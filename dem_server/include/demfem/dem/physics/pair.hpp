@@ -15,11 +15,13 @@ struct ParticleView {
 /// Contact of spheres i and j (i's row in the pair list), evaluated without a branch on
 /// the overlap (the CPU runs it in SIMD lanes over the pair list). Returns whether they
 /// overlap. On contact: `out` holds the force on i (j gets the opposite), n × F_t (torque on
-/// i = r_i n × F_t, on j = r_j n × F_t) and the rolling torque on i; `shear` is updated;
-/// `delta` is the overlap. Without contact `out` and `shear` are zero and `delta` is 0.
+/// i = r_i n × F_t, on j = r_j n × F_t) and the rolling torque on i; `shear` and `roll` (the
+/// rolling-torque history, used when Friction and Rolling) are updated; `delta` is the
+/// overlap. Without contact `out`, `shear` and `roll` are zero and `delta` is 0.
 template <bool Friction, bool Rolling = true>
 DEMFEM_HD bool sphere_sphere_select(const ParticleView& p, int i, int j, const PairConstants& c,
-                                    double dt, Vec3& shear, ContactResult& out, double& delta) {
+                                    double dt, Vec3& shear, Vec3& roll, ContactResult& out,
+                                    double& delta) {
   const double dx = p.px[j] - p.px[i], dy = p.py[j] - p.py[i], dz = p.pz[j] - p.pz[i];
   const double ri = p.radius[i], rj = p.radius[j];
   const double rs = ri + rj;
@@ -47,7 +49,7 @@ DEMFEM_HD bool sphere_sphere_select(const ParticleView& p, int i, int j, const P
     wrel = Vec3{p.wx[i] - p.wx[j], p.wy[i] - p.wy[j], p.wz[i] - p.wz[j]};
   }
   const ContactResult r =
-      hertz_mindlin<Friction, Rolling>(c, n, delta, reff, meff, vrel, wrel, shear, dt);
+      hertz_mindlin<Friction, Rolling>(c, n, delta, reff, meff, vrel, wrel, shear, roll, dt);
   const double z = 0.0;
   out.force = Vec3{touch ? r.force.x : z, touch ? r.force.y : z, touch ? r.force.z : z};
   out.torque = Vec3{touch ? r.torque.x : z, touch ? r.torque.y : z, touch ? r.torque.z : z};
@@ -56,6 +58,10 @@ DEMFEM_HD bool sphere_sphere_select(const ParticleView& p, int i, int j, const P
   if constexpr (Friction) {
     const Vec3 sh = shear;  // select between values, not a conditional load (vectorises)
     shear = Vec3{touch ? sh.x : z, touch ? sh.y : z, touch ? sh.z : z};
+    if constexpr (Rolling) {
+      const Vec3 rh = roll;
+      roll = Vec3{touch ? rh.x : z, touch ? rh.y : z, touch ? rh.z : z};
+    }
   }
   return touch;
 }
@@ -64,19 +70,20 @@ DEMFEM_HD bool sphere_sphere_select(const ParticleView& p, int i, int j, const P
 /// overlap (then nothing is written). On contact as sphere_sphere_select().
 template <bool Friction>
 DEMFEM_HD bool sphere_sphere(const ParticleView& p, int i, int j, const PairConstants& c, double dt,
-                             Vec3& shear, ContactResult& out, double& delta) {
+                             Vec3& shear, Vec3& roll, ContactResult& out, double& delta) {
   const double dx = p.px[j] - p.px[i], dy = p.py[j] - p.py[i], dz = p.pz[j] - p.pz[i];
   const double rs = p.radius[i] + p.radius[j];
   if (dx * dx + dy * dy + dz * dz >= rs * rs) return false;
-  return sphere_sphere_select<Friction>(p, i, j, c, dt, shear, out, delta);
+  return sphere_sphere_select<Friction>(p, i, j, c, dt, shear, roll, out, delta);
 }
 
 /// Contact of sphere i with a wall point `cp` (closest point of a triangle) moving with
 /// velocity `vw`. Returns false without overlap or with the centre on the wall. Torque on
-/// the particle: r_i n × F_t + roll.
+/// the particle: r_i n × F_t + out.roll; `roll` is the rolling-torque history (updated
+/// only where the pair has μ_r > 0).
 template <bool Friction>
 DEMFEM_HD bool sphere_wall(const ParticleView& p, int i, Vec3 cp, Vec3 vw, const PairConstants& c,
-                           double dt, Vec3& shear, ContactResult& out, double& delta) {
+                           double dt, Vec3& shear, Vec3& roll, ContactResult& out, double& delta) {
   const Vec3 x{p.px[i], p.py[i], p.pz[i]};
   const double ri = p.radius[i];
   const double d2 = norm2(x - cp);
@@ -92,7 +99,11 @@ DEMFEM_HD bool sphere_wall(const ParticleView& p, int i, Vec3 cp, Vec3 vw, const
     wrel = w;
   }
   // wall: infinite radius and mass, R* = r_i, m* = m_i
-  out = hertz_mindlin<Friction>(c, n, delta, ri, p.mass[i], vrel, wrel, shear, dt);
+  // scalar code: pairs without rolling resistance skip the rolling spring
+  if (c.rolling > 0.0)
+    out = hertz_mindlin<Friction, true>(c, n, delta, ri, p.mass[i], vrel, wrel, shear, roll, dt);
+  else
+    out = hertz_mindlin<Friction, false>(c, n, delta, ri, p.mass[i], vrel, wrel, shear, roll, dt);
   return true;
 }
 

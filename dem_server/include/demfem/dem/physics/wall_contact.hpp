@@ -7,7 +7,9 @@
 //   * a vertex contact counts unless a triangle with that vertex touches with its face or an
 //     edge with that vertex touches, and once per vertex id.
 // The tangential history is kept in up to kMaxWallContacts slots per particle keyed by
-// (feature type, feature id); a new contact takes the spring of the slot with its key.
+// (feature type, feature id); a new contact takes the spring of the slot with its key. The
+// rolling-torque history (wroll, present only when some pair has rolling resistance) is kept
+// in the same slots and carried with the same key.
 
 #include <cstdint>
 
@@ -37,6 +39,8 @@ struct WallView {
   double* wb;            ///< 3 per slot: barycentric weights of the contact point
   std::int32_t* wtri;    ///< triangle per slot
   std::uint8_t* wcount;  ///< used slots per particle
+
+  double* wroll = nullptr;  ///< 3 per slot: rolling-torque history (null: no pair rolls)
 };
 
 /// Adds the wall contact forces and torques of particle i to f and q; fills its slots;
@@ -100,11 +104,15 @@ DEMFEM_HD void wall_contacts(const ParticleView& p, const WallView& w, std::int6
   double* shr = w.wshear + 3 * kMaxWallContacts * i;
   std::int64_t okey[kMaxWallContacts];
   double osh[3 * kMaxWallContacts];
+  double* rol = w.wroll ? w.wroll + 3 * kMaxWallContacts * i : nullptr;
+  double orl[3 * kMaxWallContacts];
   const int oc = w.wcount[i];
   if constexpr (Friction) {
     for (int o = 0; o < oc; ++o) {
       okey[o] = key[o];
       osh[3 * o] = shr[3 * o], osh[3 * o + 1] = shr[3 * o + 1], osh[3 * o + 2] = shr[3 * o + 2];
+      if (rol)
+        orl[3 * o] = rol[3 * o], orl[3 * o + 1] = rol[3 * o + 1], orl[3 * o + 2] = rol[3 * o + 2];
     }
   }
   int cnt = 0;
@@ -118,19 +126,23 @@ DEMFEM_HD void wall_contacts(const ParticleView& p, const WallView& w, std::int6
     const Vec3 vw = cp[a].u * Vec3{vv[3 * tv[0]], vv[3 * tv[0] + 1], vv[3 * tv[0] + 2]} +
                     cp[a].v * Vec3{vv[3 * tv[1]], vv[3 * tv[1] + 1], vv[3 * tv[1] + 2]} +
                     cp[a].w * Vec3{vv[3 * tv[2]], vv[3 * tv[2] + 1], vv[3 * tv[2] + 2]};
-    Vec3 sh{0, 0, 0};
+    Vec3 sh{0, 0, 0}, rh{0, 0, 0};
     if constexpr (Friction)
       for (int o = 0; o < oc; ++o)
-        if (okey[o] == ckey[a]) sh = Vec3{osh[3 * o], osh[3 * o + 1], osh[3 * o + 2]};
-    ContactResult r;
+        if (okey[o] == ckey[a]) {
+          sh = Vec3{osh[3 * o], osh[3 * o + 1], osh[3 * o + 2]};
+          if (rol) rh = Vec3{orl[3 * o], orl[3 * o + 1], orl[3 * o + 2]};
+        }
+    ContactResult r{};
     double delta = 0.0;
     if (!sphere_wall<Friction>(p, static_cast<int>(i), cp[a].point, vw, pc_row[w.tri_mat[tri]], dt,
-                               sh, r, delta))
+                               sh, rh, r, delta))
       continue;
     f = f + r.force;
     if constexpr (Friction) {
       q = q + ri * r.torque + r.roll;
       shr[3 * cnt] = sh.x, shr[3 * cnt + 1] = sh.y, shr[3 * cnt + 2] = sh.z;
+      if (rol) rol[3 * cnt] = rh.x, rol[3 * cnt + 1] = rh.y, rol[3 * cnt + 2] = rh.z;
     }
     key[cnt] = ckey[a];
     const std::int64_t slot = kMaxWallContacts * i + cnt;
