@@ -66,6 +66,7 @@ struct Dev {
   double *vbuild, *vref;          // 3 per vertex: positions at the build / reference positions
   std::int32_t* vwall;            // wall per vertex, -1 = flexible mesh
   phys::RigidMotion* motion;      // per rigid wall
+  bool walls_moving;              // motion (and the clock) are valid
   double *flex_v, *flex_a;        // 3 per node, start of the advance()
   double *flex_force, *node_buf;  // 3 per node: output (ForceMode), forces of this substep
   std::int64_t flex_vbase;
@@ -254,6 +255,7 @@ __global__ void k_gather_kick(Dev d, std::size_t n, std::size_t nmat, double dt,
     phys::WallView wv{d.vpos, d.vvel,   d.tri_v, d.tri_e, d.tri_mat, d.tri_wall, d.prow,  d.ptri,
                       d.wkey, d.wshear, d.wf,    d.wp,    d.wb,      d.wtri,     d.wcount};
     wv.wroll = rolling ? d.wroll : nullptr;
+    if (d.walls_moving) wv.motion = d.motion, wv.time = d.clock[0];  // clock: this step's time
     phys::Vec3 f{fx, fy, fz}, q{qx, qy, qz};
     double mo = 0.0, fmo = 0.0;
     phys::wall_contacts<Friction>(view, wv, static_cast<std::int64_t>(i),
@@ -407,6 +409,7 @@ void cuda_upload_state(CudaBackend* b, const GpuHostView& v) {
   // moving walls and the flexible mesh: reference vertices, motions, node kinematics of this
   // advance(); the node force output starts at zero (as on the CPU)
   b->walls_moving = d.walls && v.walls_moving;
+  d.walls_moving = b->walls_moving && v.nwalls > 0;
   b->nverts = d.walls ? v.nverts : 0;
   b->flex_nodes = b->walls_moving ? v.flex_nodes : 0;
   b->flex_average = v.flex_average, b->flex_inv = v.flex_inv_substeps;

@@ -252,6 +252,7 @@ struct DemSystem::Impl {
   std::vector<std::int32_t> tri_v, tri_e;  // 3 per triangle: vertices / edge ids
   std::vector<std::int32_t> tri_wall;      // wall index, -1 = flexible mesh
   std::vector<std::int32_t> tri_mat;
+  std::vector<phys::RigidMotion> wall_motions;  // per rigid wall (its spin at the step's time)
   std::size_t nedges = 0;
   bool walls_dirty = true;  // topology must be rebuilt
   bool walls_moving = false;
@@ -341,8 +342,11 @@ struct DemSystem::Impl {
     }
     nedges = static_cast<std::size_t>(id + 1);
     walls_moving = has_flex;
-    for (auto& w : walls)
+    wall_motions.clear();
+    for (auto& w : walls) {
       walls_moving = walls_moving || w.mesh.motion.kind != WallMotion::Kind::fixed;
+      wall_motions.push_back(rigid_motion(w.mesh.motion));
+    }
     walls_dirty = false;
     need_rebuild = true;
   }
@@ -698,6 +702,7 @@ struct DemSystem::Impl {
                      tri_wall.data(), prow.data(), ptri.data(),  wkey.data(),  wshear.data(),
                      wf.data(),       wp.data(),   wb.data(),    wtri.data(),  wcount.data()};
     v.wroll = rolling ? wroll.data() : nullptr;
+    if (walls_moving && !wall_motions.empty()) v.motion = wall_motions.data(), v.time = t;
     return v;
   }
 

@@ -9,6 +9,7 @@
 #include "dem_test_util.hpp"
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/dem/physics/contact.hpp"
+#include "demfem/dem/physics/wall_contact.hpp"
 
 using namespace demfem::dem;
 using namespace demfem::dem::test;
@@ -367,6 +368,62 @@ TEST_CASE("Sphere that cannot roll stays at rest below atan(mu)", "[dem][contact
         CHECK(run.disp_total == Approx(run.xe).epsilon(0.01));
       else
         CHECK(run.disp_total >= 0.99 * run.xe);
+    }
+  }
+}
+
+TEST_CASE("Rolling resistance acts on rolling relative to a rotating wall",
+          "[dem][contact][wall]") {
+  // A sphere resting on one triangle of a wall that rotates about the y axis at Omega (through
+  // a far point, so that the triangle is a moving plane) and spinning with the wall at
+  // omega = Omega y does not roll relative to it: the rolling spring must stay unloaded. The
+  // same sphere on a wall without motion rolls at Omega: the spring loads by -k_r Omega dt per
+  // step (Ai et al. 2011; k_r = 2.25 mu_r^2 R^2 S_n, wall: R* = r). Tolerance 1e-12 relative
+  // (round-off of the increments).
+  namespace phys = demfem::dem::phys;
+  const double mur = 0.3, r = 0.002, delta = 1e-6, dt = 1e-6, omega = 3.0;
+  const phys::PairConstants c = phys::pair_constants(kE, kNu, kE, kNu, 0.5, 0.5, mur);
+  // particle 0 at height r - delta above the triangle in the plane z = 0
+  double px = 0, py = 0, pz = r - delta, vx = 0, vy = 0, vz = 0, wx = 0, wy = omega, wz = 0;
+  double rad = r, mass = 1e-4;
+  const phys::ParticleView p{&px, &py, &pz, &vx, &vy, &vz, &wx, &wy, &wz, &rad, &mass};
+  const double vpos[9] = {-0.01, -0.01, 0, 0.01, -0.01, 0, 0, 0.01, 0};
+  const double vvel[9] = {};  // the contact point's velocity is not what is tested here
+  const std::int32_t tri_v[3] = {0, 1, 2}, tri_e[3] = {0, 1, 2}, tri_mat[1] = {0},
+                     tri_wall[1] = {0};
+  const std::int64_t prow[2] = {0, 1};
+  const std::int32_t ptri[1] = {0};
+  phys::RigidMotion rot{};
+  rot.kind = phys::kMotionRotation;
+  rot.axis[1] = 2.0;  // not unit: rigid_spin normalises it
+  rot.axis_point[2] = -1.0;
+  rot.angular_velocity = omega;
+  rot.start_time = 0.0, rot.end_time = 1.0;
+  const double s_n = 2.0 * (kE / (2.0 * (1.0 - kNu * kNu))) * std::sqrt(r * delta);
+  const double kr = 2.25 * mur * mur * r * r * s_n;
+  for (const bool moving : {true, false}) {
+    std::int64_t wkey[phys::kMaxWallContacts] = {};
+    double wshear[3 * phys::kMaxWallContacts] = {}, wroll[3 * phys::kMaxWallContacts] = {};
+    double wf[3 * phys::kMaxWallContacts] = {}, wp[3 * phys::kMaxWallContacts] = {},
+                  wb[3 * phys::kMaxWallContacts] = {};
+    std::int32_t wtri[phys::kMaxWallContacts] = {};
+    std::uint8_t wcount[1] = {0};
+    phys::WallView w{vpos, vvel,   tri_v, tri_e, tri_mat, tri_wall, prow,  ptri,
+                     wkey, wshear, wf,    wp,    wb,      wtri,     wcount};
+    w.wroll = wroll;
+    if (moving) w.motion = &rot, w.time = 0.5;
+    for (int k = 1; k <= 20; ++k) {
+      phys::Vec3 f{0, 0, 0}, q{0, 0, 0};
+      double mo = 0, fmo = 0;
+      phys::wall_contacts<true>(p, w, 0, &c, dt, f, q, mo, fmo);
+      REQUIRE(wcount[0] == 1);
+      INFO("moving " << moving << ", step " << k);
+      if (moving) {
+        CHECK(wroll[0] == 0.0);
+        CHECK(wroll[1] == 0.0);
+      } else {  // rolling at omega about y: the stored torque on the sphere opposes it
+        CHECK(wroll[1] == Approx(-kr * omega * dt * k).epsilon(1e-12));
+      }
     }
   }
 }

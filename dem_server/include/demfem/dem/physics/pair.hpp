@@ -78,12 +78,13 @@ DEMFEM_HD bool sphere_sphere(const ParticleView& p, int i, int j, const PairCons
 }
 
 /// Contact of sphere i with a wall point `cp` (closest point of a triangle) moving with
-/// velocity `vw`. Returns false without overlap or with the centre on the wall. Torque on
-/// the particle: r_i n × F_t + out.roll; `roll` is the rolling-torque history (updated
-/// only where the pair has μ_r > 0).
+/// velocity `vw` on a wall spinning at `ww` (rad/s). Returns false without overlap or with the
+/// centre on the wall. Torque on the particle: r_i n × F_t + out.roll; `roll` is the rolling-torque
+/// history (updated only where the pair has μ_r > 0).
 template <bool Friction>
-DEMFEM_HD bool sphere_wall(const ParticleView& p, int i, Vec3 cp, Vec3 vw, const PairConstants& c,
-                           double dt, Vec3& shear, Vec3& roll, ContactResult& out, double& delta) {
+DEMFEM_HD bool sphere_wall(const ParticleView& p, int i, Vec3 cp, Vec3 vw, Vec3 ww,
+                           const PairConstants& c, double dt, Vec3& shear, Vec3& roll,
+                           ContactResult& out, double& delta) {
   const Vec3 x{p.px[i], p.py[i], p.pz[i]};
   const double ri = p.radius[i];
   const double d2 = norm2(x - cp);
@@ -96,7 +97,7 @@ DEMFEM_HD bool sphere_wall(const ParticleView& p, int i, Vec3 cp, Vec3 vw, const
   if constexpr (Friction) {
     const Vec3 w{p.wx[i], p.wy[i], p.wz[i]};
     vrel = vrel + ri * cross(w, n);
-    wrel = w;
+    wrel = w - ww;  // rolling relative to the wall (a rotating wall carries a resting sphere)
   }
   // wall: infinite radius and mass, R* = r_i, m* = m_i
   // scalar code: pairs without rolling resistance skip the rolling spring

@@ -15,6 +15,7 @@
 
 #include "demfem/dem/physics/geometry.hpp"
 #include "demfem/dem/physics/pair.hpp"
+#include "demfem/dem/physics/wall_motion.hpp"
 
 namespace demfem::dem::phys {
 
@@ -41,6 +42,10 @@ struct WallView {
   std::uint8_t* wcount;  ///< used slots per particle
 
   double* wroll = nullptr;  ///< 3 per slot: rolling-torque history (null: no pair rolls)
+  /// Motions of the rigid walls (index = tri_wall) and the time of the step, for the spin of a
+  /// rotating wall; null: no wall moves.
+  const RigidMotion* motion = nullptr;
+  double time = 0.0;
 };
 
 /// Adds the wall contact forces and torques of particle i to f and q; fills its slots;
@@ -135,8 +140,11 @@ DEMFEM_HD void wall_contacts(const ParticleView& p, const WallView& w, std::int6
         }
     ContactResult r{};
     double delta = 0.0;
-    if (!sphere_wall<Friction>(p, static_cast<int>(i), cp[a].point, vw, pc_row[w.tri_mat[tri]], dt,
-                               sh, rh, r, delta))
+    const std::int32_t wall = w.tri_wall[tri];
+    const Vec3 ww =
+        w.motion != nullptr && wall >= 0 ? rigid_spin(w.motion[wall], w.time) : Vec3{0, 0, 0};
+    if (!sphere_wall<Friction>(p, static_cast<int>(i), cp[a].point, vw, ww, pc_row[w.tri_mat[tri]],
+                               dt, sh, rh, r, delta))
       continue;
     f = f + r.force;
     if constexpr (Friction) {

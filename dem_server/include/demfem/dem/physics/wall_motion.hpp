@@ -73,6 +73,16 @@ DEMFEM_HD RigidPose rigid_pose(const RigidMotion& m, double t) {
   return p;
 }
 
+/// Angular velocity of a wall at time t: ω â for a rotation while it is active, else zero.
+/// (The contact point's velocity needs no spin: the vertex velocities carry it, and their
+/// barycentric interpolation is exact for a rigid motion; the rolling resistance needs the
+/// wall's spin to take the particle's rolling relative to the wall.)
+DEMFEM_HD Vec3 rigid_spin(const RigidMotion& m, double t) {
+  if (m.kind != kMotionRotation || !(t >= m.start_time && t < m.end_time)) return Vec3{0, 0, 0};
+  const Vec3 ax{m.axis[0], m.axis[1], m.axis[2]};
+  return (m.angular_velocity / std::sqrt(norm2(ax))) * ax;
+}
+
 /// Position x and velocity v (3 each) of the vertex with reference position x0 in pose p.
 /// A fixed wall (kind 0) leaves x and v untouched.
 DEMFEM_HD void rigid_vertex(const RigidPose& p, const double* x0, double* x, double* v) {
