@@ -252,7 +252,7 @@ struct DemSystem::Impl {
   std::vector<std::int32_t> tri_v, tri_e;  // 3 per triangle: vertices / edge ids
   std::vector<std::int32_t> tri_wall;      // wall index, -1 = flexible mesh
   std::vector<std::int32_t> tri_mat;
-  std::vector<phys::RigidMotion> wall_motions;  // per rigid wall (its spin at the step's time)
+  std::vector<phys::RigidMotion> wall_motions;  // per rigid wall: its motion, for both backends
   std::size_t nedges = 0;
   bool walls_dirty = true;  // topology must be rebuilt
   bool walls_moving = false;
@@ -354,9 +354,10 @@ struct DemSystem::Impl {
   // Vertex positions and velocities of the walls at time tt (tau: time into the advance()),
   // by the kinematics shared with the CUDA backend (physics/wall_motion.hpp).
   void update_walls(double tt, double tau) {
-    for (auto& w : walls) {
+    for (std::size_t wi = 0; wi < walls.size(); ++wi) {
+      const Wall& w = walls[wi];
       if (w.mesh.motion.kind == WallMotion::Kind::fixed) continue;
-      const phys::RigidPose pose = phys::rigid_pose(rigid_motion(w.mesh.motion), tt);
+      const phys::RigidPose pose = phys::rigid_pose(wall_motions[wi], tt);
       const std::size_t nv = w.mesh.vertices.size() / 3;
       double* x = vpos.data() + 3 * w.vbase;
       double* v = vvel.data() + 3 * w.vbase;
@@ -818,20 +819,17 @@ struct DemSystem::Impl {
 
   // Wall kinematics for the device (filled by gpu_wall_kinematics() when walls move): the
   // reference vertices (rigid walls) and the node positions at the start of the advance()
-  // (flexible mesh) in store order, the wall of each vertex (-1: flexible), the motions.
+  // (flexible mesh) in store order, the wall of each vertex (-1: flexible).
   std::vector<double> gpu_vref;
   std::vector<std::int32_t> gpu_vwall;
-  std::vector<phys::RigidMotion> gpu_motion;
 
   void gpu_wall_kinematics() {
     gpu_vref.assign(vpos.size(), 0.0);
     gpu_vwall.assign(vpos.size() / 3, -1);
-    gpu_motion.clear();
     for (std::size_t w = 0; w < walls.size(); ++w) {
       const auto& x0 = walls[w].mesh.vertices;
       std::copy(x0.begin(), x0.end(), gpu_vref.begin() + 3 * walls[w].vbase);
       std::fill_n(gpu_vwall.begin() + walls[w].vbase, x0.size() / 3, static_cast<std::int32_t>(w));
-      gpu_motion.push_back(rigid_motion(walls[w].mesh.motion));
     }
     if (has_flex) std::copy(flex_x.begin(), flex_x.end(), gpu_vref.begin() + 3 * flex.vbase);
   }
@@ -867,7 +865,7 @@ struct DemSystem::Impl {
       if (walls_moving) {
         v.walls_moving = true;
         v.vbuild = vbuild.data(), v.vref = gpu_vref.data(), v.vwall = gpu_vwall.data();
-        v.motion = gpu_motion.data(), v.nwalls = gpu_motion.size();
+        v.motion = wall_motions.data(), v.nwalls = wall_motions.size();
         if (has_flex) {
           v.flex_vbase = static_cast<std::size_t>(flex.vbase), v.flex_nodes = flex_x.size() / 3;
           v.flex_v = flex_v.data(), v.flex_a = flex_a.data(), v.flex_force = flex_force.data();
