@@ -4,7 +4,7 @@
 #
 #   tools/gpu_session.sh pack     (here, on the development machine) builds build-gpu with
 #                                 CUDA for Hopper (sm_90) and packs test_dem_core, dem_throughput
-#                                 and dem_server into .gpu (git ignores it via .git/info/exclude)
+#                                 and dem_server into .gpu (git ignores it)
 #   tools/gpu_session.sh run      (on the GPU machine, repository root; pass carry [".gpu"])
 #                                 runs the [gpu] tests (CPU vs CUDA trajectories) and the
 #                                 throughput bench up to 10^6 spheres, the beds settled on the
@@ -22,8 +22,7 @@ case "${1:-}" in
     exes=(build-gpu/tests/dem/test_dem_core build-gpu/bench/dem_throughput
           build-gpu/bin/dem_server)
     for e in "${exes[@]}"; do [ -x "$e" ] || { echo "gpu_session: missing $e" >&2; exit 1; }; done
-    ../shared/device/bundle.sh .gpu "${exes[@]}"
-    grep -qx '/.gpu/' .git/info/exclude 2>/dev/null || echo '/.gpu/' >> .git/info/exclude
+    ../shared/device/bundle.sh .gpu "${exes[@]}"  # .gitignore holds /.gpu/
     ;;
   run)
     out=${OUT:-gpu_out}
