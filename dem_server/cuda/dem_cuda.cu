@@ -74,6 +74,7 @@ struct Dev {
   double* clock;                        // t and tau after the last drift
   unsigned long long *pdisp2, *wdisp2;  // bits of the largest squared displacement this step
   unsigned long long* flex_max_ov;      // bits of the largest overlap with the flexible mesh
+  unsigned long long* adv_max_ov;       // bits of the largest overlap since upload_state
   int* stop;
   unsigned long long* steps_done;
   unsigned long long* max_ov;
@@ -227,7 +228,10 @@ __global__ void k_pairs(Dev d, std::size_t n, std::size_t nmat, double dt, bool 
   }
   d.acc[3 * i] = ax, d.acc[3 * i + 1] = ay, d.acc[3 * i + 2] = az;
   if (Friction) d.acct[3 * i] = qx, d.acct[3 * i + 1] = qy, d.acct[3 * i + 2] = qz;
-  if (mo > 0.0) atomicMax(d.max_ov, static_cast<unsigned long long>(__double_as_longlong(mo)));
+  if (mo > 0.0) {
+    atomicMax(d.max_ov, static_cast<unsigned long long>(__double_as_longlong(mo)));
+    atomicMax(d.adv_max_ov, static_cast<unsigned long long>(__double_as_longlong(mo)));
+  }
 }
 
 template <bool Friction>
@@ -263,7 +267,10 @@ __global__ void k_gather_kick(Dev d, std::size_t n, std::size_t nmat, double dt,
                                   mo, fmo);
     fx = f.x, fy = f.y, fz = f.z;
     qx = q.x, qy = q.y, qz = q.z;
-    if (mo > 0.0) atomicMax(d.max_ov, static_cast<unsigned long long>(__double_as_longlong(mo)));
+    if (mo > 0.0) {
+      atomicMax(d.max_ov, static_cast<unsigned long long>(__double_as_longlong(mo)));
+      atomicMax(d.adv_max_ov, static_cast<unsigned long long>(__double_as_longlong(mo)));
+    }
     if (d.flex_nodes > 0) {
       if (fmo > 0.0)
         atomicMax(d.flex_max_ov, static_cast<unsigned long long>(__double_as_longlong(fmo)));
@@ -332,11 +339,13 @@ CudaBackend* cuda_backend_create() {
   check(cudaMalloc(&b->d.pdisp2, sizeof(unsigned long long)), "cudaMalloc");
   check(cudaMalloc(&b->d.wdisp2, sizeof(unsigned long long)), "cudaMalloc");
   check(cudaMalloc(&b->d.flex_max_ov, sizeof(unsigned long long)), "cudaMalloc");
+  check(cudaMalloc(&b->d.adv_max_ov, sizeof(unsigned long long)), "cudaMalloc");
   check(cudaMemset(b->d.stop, 0, 2 * sizeof(int)), "cudaMemset");
   check(cudaMemset(b->d.clock, 0, 2 * sizeof(double)), "cudaMemset");
   check(cudaMemset(b->d.pdisp2, 0, sizeof(unsigned long long)), "cudaMemset");
   check(cudaMemset(b->d.wdisp2, 0, sizeof(unsigned long long)), "cudaMemset");
   check(cudaMemset(b->d.flex_max_ov, 0, sizeof(unsigned long long)), "cudaMemset");
+  check(cudaMemset(b->d.adv_max_ov, 0, sizeof(unsigned long long)), "cudaMemset");
   return b;
 }
 
@@ -351,7 +360,7 @@ void cuda_backend_destroy(CudaBackend* b) {
   for (auto* p : dp) cudaFree(*p);
   cudaFree(b->d.material), cudaFree(b->d.row), cudaFree(b->d.trow), cudaFree(b->d.tpair);
   cudaFree(b->d.nbr), cudaFree(b->d.pc), cudaFree(b->d.stop), cudaFree(b->d.steps_done);
-  cudaFree(b->d.max_ov);
+  cudaFree(b->d.max_ov), cudaFree(b->d.adv_max_ov);
   cudaFree(b->d.vpos), cudaFree(b->d.vvel), cudaFree(b->d.tri_v), cudaFree(b->d.tri_e);
   cudaFree(b->d.tri_mat), cudaFree(b->d.tri_wall), cudaFree(b->d.prow), cudaFree(b->d.ptri);
   cudaFree(b->d.wkey), cudaFree(b->d.wshear), cudaFree(b->d.wf), cudaFree(b->d.wp);
@@ -427,6 +436,7 @@ void cuda_upload_state(CudaBackend* b, const GpuHostView& v) {
     }
   }
   check(cudaMemset(d.flex_max_ov, 0, sizeof(unsigned long long)), "cudaMemset");
+  check(cudaMemset(d.adv_max_ov, 0, sizeof(unsigned long long)), "cudaMemset");
   check(cudaMemset(d.max_ov, 0, sizeof(unsigned long long)), "cudaMemset");
   if (b->graph) cudaGraphExecDestroy(b->graph), b->graph = nullptr;  // pointers may move
 }
@@ -575,6 +585,10 @@ double cuda_max_overlap(CudaBackend* b) {
 
 double cuda_flex_max_overlap(CudaBackend* b) {
   return read_max(b->d.flex_max_ov);
+}
+
+double cuda_advance_max_overlap(CudaBackend* b) {
+  return read_max(b->d.adv_max_ov);
 }
 
 }  // namespace demfem::dem

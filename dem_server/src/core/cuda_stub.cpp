@@ -50,6 +50,9 @@ double cuda_max_overlap(CudaBackend*) {
 double cuda_flex_max_overlap(CudaBackend*) {
   no_cuda();
 }
+double cuda_advance_max_overlap(CudaBackend*) {
+  return 0.0;
+}
 #endif
 
 }  // namespace demfem::dem

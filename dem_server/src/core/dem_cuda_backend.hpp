@@ -86,5 +86,7 @@ void cuda_finish_step(CudaBackend* b);
 double cuda_max_overlap(CudaBackend* b);
 /// Largest overlap with the flexible mesh since the last upload_state, m.
 double cuda_flex_max_overlap(CudaBackend* b);
+/// Largest overlap (particles and walls) since the last upload_state, m.
+double cuda_advance_max_overlap(CudaBackend* b);
 
 }  // namespace demfem::dem

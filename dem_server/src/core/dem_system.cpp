@@ -230,6 +230,7 @@ struct DemSystem::Impl {
   std::vector<double> pf, pt, pr;   // 3 per pair: force on i, n x F_t, rolling torque on i
   std::vector<double> bx, by, bz;   // positions at the last build
   double max_ov = 0.0;
+  double adv_max_ov = 0.0;  // largest overlap over the steps of the last advance()
   std::int64_t rebuilds = 0;
 
   // Walls: all triangles (rigid walls first, then the flexible mesh) in one store.
@@ -695,6 +696,7 @@ struct DemSystem::Impl {
         if (waits(i)) gather(i, mo, fmo);
     }
     max_ov = mo;
+    adv_max_ov = std::max(adv_max_ov, mo);
     flex_max_ov = std::max(flex_max_ov, fmo);
   }
 
@@ -923,6 +925,7 @@ struct DemSystem::Impl {
     }
     cuda_download_state(gpu, view());
     max_ov = cuda_max_overlap(gpu);
+    adv_max_ov = cuda_advance_max_overlap(gpu);
     if (has_flex) flex_max_ov = cuda_flex_max_overlap(gpu);
     if (walls_moving && tri_v.empty()) update_walls(t, flex_tau);  // no triangle on the device
     // Per-wall force and torque of the last step from its contact slots, in the CPU's order
@@ -1207,6 +1210,7 @@ void DemSystem::advance(std::int64_t substeps, ForceMode mode) {
   auto& I = *impl_;
   if (substeps < 0) bad("advance: substeps = " + std::to_string(substeps) + " must be >= 0");
   if (substeps == 0) return;
+  I.adv_max_ov = 0.0;
   if (I.gpu) {
     I.advance_gpu(substeps, mode);
     return;
@@ -1224,6 +1228,9 @@ void DemSystem::advance(std::int64_t substeps, ForceMode mode) {
   }
 }
 
+double DemSystem::advance_max_overlap() const {
+  return impl_->adv_max_ov;
+}
 double DemSystem::time() const {
   return impl_->t;
 }

@@ -494,7 +494,28 @@ void DemRun::finish() {
   if (output_ && output_->last_time() != system_->time()) write_snapshot();
 }
 
+void DemRun::check_stable() const {
+  const auto& radius = system_->particles().radius;
+  if (radius.empty()) return;
+  const double ke = system_->kinetic_energy();
+  const double ov = system_->advance_max_overlap();
+  const double rmin = *std::min_element(radius.begin(), radius.end());
+  if (std::isfinite(ke) && ov <= kMaxStableOverlap * rmin) return;
+  std::ostringstream m;
+  m << "DEM run unstable in the steps up to t = " << system_->time() << " s: ";
+  if (!std::isfinite(ke))
+    m << "the kinetic energy is " << ke << " (the particle state is no longer finite)";
+  else
+    m << "the largest overlap, " << ov << " m, was " << ov / rmin << " of the smallest radius "
+      << rmin << " m (at most " << kMaxStableOverlap << ")";
+  m << ". dt = " << scene_.settings.dt << " s against a Rayleigh time step of "
+    << system_->rayleigh_time_step() << " s; reduce dt (" << scene_.dt_where
+    << ") or the velocities and loads of the scene. The output holds the states before it.";
+  throw std::runtime_error(m.str());
+}
+
 void DemRun::after_advance() {
+  check_stable();  // before anything of this state is sampled or written
   pour();
   if (!sensors_) {
     start_output(false);  // samples the current state itself

@@ -77,6 +77,11 @@ DemScene read_dem_scene(const scene::Table& dem);
 inline constexpr double kRayleighWarnFraction = 0.2;
 
 /// @brief A DEM system built from a scene, with stable particle ids, sensors and output.
+/// @brief Largest overlap a DEM run accepts, as a fraction of the smallest particle radius.
+/// A Hertz contact of a well-resolved run stays at a few per cent; half a radius means the
+/// spheres pass through each other.
+inline constexpr double kMaxStableOverlap = 0.5;
+
 class DemRun {
  public:
   /// Builds the system: walls, lattice fills, random insertions (seed: the entry's seed, or
@@ -109,6 +114,12 @@ class DemRun {
   void finish();
   /// Sensor samples and snapshot due at the current time.
   void after_advance();
+  /// Throws std::runtime_error naming the time, the largest overlap against the smallest
+  /// radius, dt and the Rayleigh time step when the state is not finite or two bodies
+  /// overlap by more than kMaxStableOverlap of the smallest radius (the soft-sphere contact
+  /// no longer resolves them: dt too large for the stiffness, or loads beyond it). Called by
+  /// after_advance(), so that no such state is sampled or written.
+  void check_stable() const;
   /// Starts deferred output now (initial sensor samples and snapshot), as the first
   /// advance() would; does nothing when it has started.
   void start_deferred_output();

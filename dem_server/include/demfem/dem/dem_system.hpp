@@ -152,6 +152,10 @@ class DemSystem {
   double kinetic_energy() const;
   /// Largest particle-particle or particle-wall overlap of the last step, m.
   double max_overlap() const;
+  /// Largest particle-particle or particle-wall overlap over all steps of the last
+  /// advance(), m (a deep overlap in the middle of an advance() is seen here even when the
+  /// bodies have parted again by its end).
+  double advance_max_overlap() const;
 
   /// @brief Wall-clock seconds spent in each phase since construction (for benchmarks).
   struct Timings {
