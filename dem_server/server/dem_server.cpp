@@ -17,13 +17,10 @@
 #include "demfem/dem/dem_scene.hpp"
 #include "demfem/protocol/protocol.hpp"
 #include "demfem/scene/scene_reader.hpp"
+#include "demfem/scene/solver_command_line.hpp"
 
-namespace {
-
-constexpr int kExitFailure = 1;
-constexpr int kExitBadInput = 2;
-
-}  // namespace
+using demfem::scene::kExitBadInput;
+using demfem::scene::kExitFailure;
 
 int main(int argc, char** argv) {
   CLI::App app{
@@ -34,43 +31,19 @@ int main(int argc, char** argv) {
       "HDF5 file per output time) and sensor_<name>.csv per [[dem.sensors]], and printing "
       "progress. docs/scene_dem.md lists the [dem] keys.\n"
       "Exit codes: 0 ok, 1 failure while running, 2 bad command line or scene."};
-  std::string scene_file;
-  std::string segment;
-  std::string output_dir;
-  bool quiet = false;
-  app.add_option("--scene", scene_file, "Scene file (TOML) with [run] and [dem]")->required();
-  app.add_option("--segment", segment,
-                 "Shared-memory segment of the coupler to serve (e.g. /demfem-1a2b); omit to "
-                 "run the DEM alone");
-  app.add_option("--output-dir", output_dir, "Output folder (default: run.output_dir)");
-  app.add_flag("--quiet", quiet, "No progress lines");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::CallForHelp& e) {
-    return app.exit(e);
-  } catch (const CLI::ParseError& e) {
-    app.exit(e);
-    return kExitBadInput;
-  }
+  demfem::scene::SolverCommandLine cl;
+  cl.add_to(app, "dem", "the DEM");
+  if (const auto code = demfem::scene::parse_solver_command_line(app, argc, argv)) return *code;
 
   demfem::scene::RunSettings run;
   demfem::dem::DemScene dem;
-  try {
-    const auto doc = demfem::scene::Document::load(scene_file);
-    run = demfem::scene::read_run_settings(doc);
-    const auto root = doc.root();
-    auto dem_table = root.table("dem");
-    if (!dem_table) {
-      std::cerr << scene_file << ": the scene has no [dem] section, nothing for dem_server\n";
-      return kExitBadInput;
-    }
-    dem = demfem::dem::read_dem_scene(*dem_table);
-  } catch (const demfem::scene::SceneError& e) {
-    std::cerr << e.what() << "\n";
-    return kExitBadInput;
-  }
-  const std::filesystem::path out_dir =
-      output_dir.empty() ? run.output_dir : std::filesystem::path(output_dir);
+  if (const auto code = demfem::scene::load_solver_scene(
+          cl.scene_file, "dem", "dem_server", run,
+          [&](const auto& t) { dem = demfem::dem::read_dem_scene(t); }))
+    return *code;
+  const std::filesystem::path out_dir = cl.output_folder(run);
+  const std::string& segment = cl.segment;
+  const bool quiet = cl.quiet;
   std::ostream* log = quiet ? nullptr : (segment.empty() ? &std::cout : &std::cerr);
 
   try {

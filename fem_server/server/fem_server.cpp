@@ -19,13 +19,10 @@
 #include "demfem/fem/fem_solver.hpp"
 #include "demfem/protocol/protocol.hpp"
 #include "demfem/scene/scene_reader.hpp"
+#include "demfem/scene/solver_command_line.hpp"
 
-namespace {
-
-constexpr int kExitFailure = 1;
-constexpr int kExitBadInput = 2;
-
-}  // namespace
+using demfem::scene::kExitBadInput;
+using demfem::scene::kExitFailure;
 
 int main(int argc, char** argv) {
   CLI::App app{
@@ -36,47 +33,23 @@ int main(int argc, char** argv) {
       "fem.dt up to run.end_time, writing <output-dir>/fem.xdmf (+ HDF5 files) and "
       "fem_series.csv.\n"
       "Exit codes: 0 ok, 1 failure while running, 2 bad command line or scene."};
-  std::string scene_file;
-  std::string segment;
-  std::string output_dir;
-  bool quiet = false;
-  app.add_option("--scene", scene_file, "Scene file (TOML) with [run] and [fem]")->required();
-  app.add_option("--segment", segment,
-                 "Shared-memory segment of the coupler to serve (e.g. /demfem-1a2b); omit to "
-                 "run the FEM alone");
-  app.add_option("--output-dir", output_dir, "Output folder (default: run.output_dir)");
-  app.add_flag("--quiet", quiet, "No progress lines");
+  demfem::scene::SolverCommandLine cl;
+  cl.add_to(app, "fem", "the FEM");
   bool resume = false;
   app.add_flag("--resume", resume,
                "With --segment: continue the output series in the output folder instead of "
                "replacing it (a restarted solver that the coupler then restores)");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::CallForHelp& e) {
-    return app.exit(e);
-  } catch (const CLI::ParseError& e) {
-    app.exit(e);
-    return kExitBadInput;
-  }
+  if (const auto code = demfem::scene::parse_solver_command_line(app, argc, argv)) return *code;
 
   demfem::scene::RunSettings run;
   demfem::fem::FemScene fem;
-  try {
-    const auto doc = demfem::scene::Document::load(scene_file);
-    run = demfem::scene::read_run_settings(doc);
-    const auto root = doc.root();
-    auto fem_table = root.table("fem");
-    if (!fem_table) {
-      std::cerr << scene_file << ": the scene has no [fem] section, nothing for fem_server\n";
-      return kExitBadInput;
-    }
-    fem = demfem::fem::read_fem_scene(*fem_table);
-  } catch (const demfem::scene::SceneError& e) {
-    std::cerr << e.what() << "\n";
-    return kExitBadInput;
-  }
-  const std::filesystem::path out_dir =
-      output_dir.empty() ? run.output_dir : std::filesystem::path(output_dir);
+  if (const auto code = demfem::scene::load_solver_scene(
+          cl.scene_file, "fem", "fem_server", run,
+          [&](const auto& t) { fem = demfem::fem::read_fem_scene(t); }))
+    return *code;
+  const std::filesystem::path out_dir = cl.output_folder(run);
+  const std::string& segment = cl.segment;
+  const bool quiet = cl.quiet;
 
   try {
     if (!segment.empty()) {

@@ -1,0 +1,87 @@
+#pragma once
+// The command line and scene loading that every solver process shares (dem_server,
+// fem_server, and any other engine that attaches through the protocol):
+//   <solver> --scene FILE [--segment NAME] [--output-dir DIR] [--quiet]
+// with the exit codes 0 ok, 1 failure while running, 2 bad command line or scene.
+// Header-only; the program links CLI11 and demfem::scene.
+
+#include <CLI/CLI.hpp>
+
+#include <filesystem>
+#include <iostream>
+#include <optional>
+#include <string>
+
+#include "demfem/scene/scene_reader.hpp"
+
+namespace demfem::scene {
+
+inline constexpr int kExitFailure = 1;   ///< a failure while running (engine, I/O)
+inline constexpr int kExitBadInput = 2;  ///< a bad command line or scene
+
+/// @brief The options every solver process takes.
+struct SolverCommandLine {
+  std::string scene_file;
+  std::string segment;     ///< empty: run the scene alone
+  std::string output_dir;  ///< empty: run.output_dir
+  bool quiet = false;
+
+  /// Adds --scene, --segment, --output-dir and --quiet; `section` is the scene table the
+  /// solver reads ("dem", "fem"), `engine` how the help names it ("the DEM").
+  void add_to(CLI::App& app, const std::string& section, const std::string& engine) {
+    app.add_option("--scene", scene_file, "Scene file (TOML) with [run] and [" + section + "]")
+        ->required();
+    app.add_option("--segment", segment,
+                   "Shared-memory segment of the coupler to serve (e.g. /demfem-1a2b); omit "
+                   "to run " +
+                       engine + " alone");
+    app.add_option("--output-dir", output_dir, "Output folder (default: run.output_dir)");
+    app.add_flag("--quiet", quiet, "No progress lines");
+  }
+
+  /// The output folder: --output-dir, else run.output_dir of the scene.
+  std::filesystem::path output_folder(const RunSettings& run) const {
+    return output_dir.empty() ? run.output_dir : std::filesystem::path(output_dir);
+  }
+};
+
+/// Parses the command line: nullopt to go on, else the exit code (0 after --help, 2 after
+/// a mistake, with CLI11's message).
+inline std::optional<int> parse_solver_command_line(CLI::App& app, int argc, char** argv) {
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    app.exit(e);
+    return kExitBadInput;
+  }
+  return std::nullopt;
+}
+
+/// Loads the scene file: its [run] settings into `run`, then `read(table)` on its
+/// [`section`] (which may throw SceneError). nullopt on success, else kExitBadInput after
+/// printing the reason (a missing section, or the SceneError naming file, line and key) to
+/// stderr; `solver` names the program in the message.
+template <class Read>
+std::optional<int> load_solver_scene(const std::string& scene_file, const std::string& section,
+                                     const std::string& solver, RunSettings& run, Read&& read) {
+  try {
+    const auto doc = Document::load(scene_file);
+    run = read_run_settings(doc);
+    const auto root = doc.root();
+    auto table = root.table(section);
+    if (!table) {
+      std::cerr << scene_file << ": the scene has no [" << section << "] section, nothing for "
+                << solver << "\n";
+      return kExitBadInput;
+    }
+    read(*table);
+  } catch (const SceneError& e) {
+    std::cerr << e.what() << "\n";
+    return kExitBadInput;
+  }
+  return std::nullopt;
+}
+
+}  // namespace demfem::scene
