@@ -27,13 +27,17 @@
 #include <vector>
 
 #include "demfem/io/h5_file.hpp"
+#include "demfem_test/run_output.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 namespace fs = std::filesystem;
 
 namespace {
 
+using demfem::test::read_csv;
 using demfem::test::read_text;
+using demfem::test::segments_of;
+using demfem::test::started_pids;
 using demfem::test::TempDir;
 
 const fs::path kBin = fs::path(DEMFEM_BINARY_DIR) / "bin";
@@ -75,24 +79,6 @@ Result run(const fs::path& dir, std::vector<std::string> args, const fs::path& s
   return r;
 }
 
-std::vector<pid_t> started_pids(const std::string& out) {
-  std::vector<pid_t> pids;
-  std::regex re("started (dem|fem)_server \\(pid ([0-9]+)\\)");
-  for (auto it = std::sregex_iterator(out.begin(), out.end(), re); it != std::sregex_iterator();
-       ++it)
-    pids.push_back(std::stoi((*it)[2]));
-  return pids;
-}
-
-std::vector<std::string> segments_of(const std::string& out) {
-  std::vector<std::string> segs;
-  std::regex re("segment /(demfem-[0-9a-f]+)");
-  for (auto it = std::sregex_iterator(out.begin(), out.end(), re); it != std::sregex_iterator();
-       ++it)
-    segs.push_back((*it)[1]);
-  return segs;
-}
-
 // Every solver process of these outputs has ended (a solver whose coupler died leaves within
 // its peer timeout, 2 s) and none of the runs' segments is left in /dev/shm.
 void check_nothing_left(const std::vector<std::string>& outs) {
@@ -111,20 +97,6 @@ void check_nothing_left(const std::vector<std::string>& outs) {
       CHECK_FALSE(fs::exists("/dev/shm/" + seg + "-bulk"));
     }
   }
-}
-
-std::vector<std::vector<std::string>> read_csv(const fs::path& p) {
-  std::vector<std::vector<std::string>> rows;
-  std::ifstream in(p);
-  std::string line;
-  while (std::getline(in, line)) {
-    std::vector<std::string> row;
-    std::stringstream s(line);
-    std::string cell;
-    while (std::getline(s, cell, ',')) row.push_back(cell);
-    rows.push_back(row);
-  }
-  return rows;
 }
 
 // "file.h5:/path" references of an XDMF file with their number type.

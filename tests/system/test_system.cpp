@@ -20,13 +20,17 @@
 #include <vector>
 
 #include "demfem/io/h5_file.hpp"
+#include "demfem_test/run_output.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 namespace fs = std::filesystem;
 
 namespace {
 
+using demfem::test::read_csv;
 using demfem::test::read_text;
+using demfem::test::segments_of;
+using demfem::test::started_pids;
 using demfem::test::TempDir;
 
 const fs::path kBin = fs::path(DEMFEM_BINARY_DIR) / "bin";
@@ -80,37 +84,13 @@ Result run(const fs::path& dir, const std::vector<std::string>& args) {
   return wait_run(dir, spawn_run(dir, args, false));
 }
 
-std::vector<std::vector<std::string>> read_csv(const fs::path& p) {
-  std::vector<std::vector<std::string>> rows;
-  std::ifstream in(p);
-  std::string line;
-  while (std::getline(in, line)) {
-    std::vector<std::string> row;
-    std::stringstream s(line);
-    std::string cell;
-    while (std::getline(s, cell, ',')) row.push_back(cell);
-    rows.push_back(row);
-  }
-  return rows;
-}
-
 bool pid_gone(pid_t pid) {
   return kill(pid, 0) != 0 && errno == ESRCH;
 }
 
-std::vector<pid_t> started_pids(const std::string& out) {
-  std::vector<pid_t> pids;
-  std::regex re("started (dem|fem)_server \\(pid ([0-9]+)\\)");
-  for (auto it = std::sregex_iterator(out.begin(), out.end(), re); it != std::sregex_iterator();
-       ++it)
-    pids.push_back(std::stoi((*it)[2]));
-  return pids;
-}
-
 std::string segment_of(const std::string& out) {
-  std::smatch m;
-  if (std::regex_search(out, m, std::regex("segment /(demfem-[0-9a-f]+)"))) return m[1];
-  return "";
+  const auto segs = segments_of(out);
+  return segs.empty() ? std::string() : segs.front();
 }
 
 // Waits until the run has written `rows` CSV data rows (it is in its loop).

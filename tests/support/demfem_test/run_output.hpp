@@ -1,0 +1,51 @@
+#pragma once
+// Shared by the tests that run demfem_run as a process: reading its CSV output and the
+// solver pids and segment names it prints.
+
+#include <sys/types.h>
+
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace demfem::test {
+
+/// The rows of a CSV file, split at commas (no quoting: demfem writes none).
+inline std::vector<std::vector<std::string>> read_csv(const std::filesystem::path& p) {
+  std::vector<std::vector<std::string>> rows;
+  std::ifstream in(p);
+  std::string line;
+  while (std::getline(in, line)) {
+    std::vector<std::string> row;
+    std::stringstream s(line);
+    std::string cell;
+    while (std::getline(s, cell, ',')) row.push_back(cell);
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+/// The pids of the solver processes a run reports ("started dem_server (pid N)").
+inline std::vector<pid_t> started_pids(const std::string& out) {
+  std::vector<pid_t> pids;
+  std::regex re("started (dem|fem)_server \\(pid ([0-9]+)\\)");
+  for (auto it = std::sregex_iterator(out.begin(), out.end(), re); it != std::sregex_iterator();
+       ++it)
+    pids.push_back(std::stoi((*it)[2]));
+  return pids;
+}
+
+/// The shared-memory segments a run reports ("segment /demfem-<hex>"), without the slash.
+inline std::vector<std::string> segments_of(const std::string& out) {
+  std::vector<std::string> segs;
+  std::regex re("segment /(demfem-[0-9a-f]+)");
+  for (auto it = std::sregex_iterator(out.begin(), out.end(), re); it != std::sregex_iterator();
+       ++it)
+    segs.push_back((*it)[1]);
+  return segs;
+}
+
+}  // namespace demfem::test
