@@ -61,6 +61,15 @@ WallMesh quad(std::array<double, 3> a, std::array<double, 3> b, std::array<doubl
   return w;
 }
 
+// Floor and four side walls of the box [0, lx] x [0, ly] x [0, h] (open top).
+std::vector<WallMesh> box_walls(double lx, double ly, double h) {
+  return {quad({0, 0, 0}, {lx, 0, 0}, {lx, ly, 0}, {0, ly, 0}, "floor"),
+          quad({0, 0, 0}, {0, ly, 0}, {0, ly, h}, {0, 0, h}, "x0"),
+          quad({lx, 0, 0}, {lx, 0, h}, {lx, ly, h}, {lx, ly, 0}, "x1"),
+          quad({0, 0, 0}, {0, 0, h}, {lx, 0, h}, {lx, 0, 0}, "y0"),
+          quad({0, ly, 0}, {lx, ly, 0}, {lx, ly, h}, {0, ly, h}, "y1")};
+}
+
 struct Bed {
   std::vector<ParticleInit> particles;
   std::vector<WallMesh> walls;
@@ -114,11 +123,7 @@ Bed make_bed(const BedSpec& b) {
       }
   const double lx = nx * a + a, ly = ny * dy + a, h = (b.n / (nx * ny) + 2) * dz + a;
   bed.lx = lx, bed.ly = ly;
-  bed.walls.push_back(quad({0, 0, 0}, {lx, 0, 0}, {lx, ly, 0}, {0, ly, 0}, "floor"));
-  bed.walls.push_back(quad({0, 0, 0}, {0, ly, 0}, {0, ly, h}, {0, 0, h}, "x0"));
-  bed.walls.push_back(quad({lx, 0, 0}, {lx, 0, h}, {lx, ly, h}, {lx, ly, 0}, "x1"));
-  bed.walls.push_back(quad({0, 0, 0}, {0, 0, h}, {lx, 0, h}, {lx, 0, 0}, "y0"));
-  bed.walls.push_back(quad({0, ly, 0}, {lx, ly, 0}, {lx, ly, h}, {0, ly, h}, "y1"));
+  bed.walls = box_walls(lx, ly, h);
   return bed;
 }
 
@@ -141,11 +146,7 @@ Bed make_poured_bed(const BedSpec& b) {
   bed.particles = insert_random(q);
   bed.lx = lx, bed.ly = ly;
   const double h = hz + 2 * a;
-  bed.walls.push_back(quad({0, 0, 0}, {lx, 0, 0}, {lx, ly, 0}, {0, ly, 0}, "floor"));
-  bed.walls.push_back(quad({0, 0, 0}, {0, ly, 0}, {0, ly, h}, {0, 0, h}, "x0"));
-  bed.walls.push_back(quad({lx, 0, 0}, {lx, 0, h}, {lx, ly, h}, {lx, ly, 0}, "x1"));
-  bed.walls.push_back(quad({0, 0, 0}, {0, 0, h}, {lx, 0, h}, {lx, 0, 0}, "y0"));
-  bed.walls.push_back(quad({0, ly, 0}, {lx, ly, 0}, {lx, ly, h}, {0, ly, h}, "y1"));
+  bed.walls = box_walls(lx, ly, h);
   return bed;
 }
 
