@@ -11,6 +11,8 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <chrono>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
@@ -189,6 +191,8 @@ int run(const Options& opt) {
       // machine with few cores, and the blocking round trip costs only a few microseconds.
       protocol::CouplerOptions copt;
       copt.wait.spin = std::chrono::microseconds(opt.wait_spin_us);
+      copt.reply_timeout = std::chrono::milliseconds(
+          static_cast<std::int64_t>(std::ceil(1000.0 * settings.checkpoint.reply_timeout)));
       session = std::make_unique<protocol::CouplerSession>(copt);
       std::vector<std::string> args = {"--scene", opt.scene, "--segment", session->segment_name()};
       if (!opt.output_dir.empty()) {

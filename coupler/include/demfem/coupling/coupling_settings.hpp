@@ -53,6 +53,11 @@ struct CheckpointSettings {
   std::int64_t keep = 3;            ///< committed checkpoints kept (K >= 1)
   std::filesystem::path directory;  ///< empty = <output_dir>/checkpoints
   std::int64_t max_retries = 3;     ///< restarts of a dying solver per checkpoint step
+  /// Longest wait for a live solver's reply (a coupling step, a checkpoint, a restore), s;
+  /// 0 = no limit. The heartbeat proves a solver alive, not that its step progresses: a
+  /// solver that hangs inside a step is treated as dead after this long. Applies with or
+  /// without the section (without it there is nothing to recover to: the run stops).
+  double reply_timeout = 3600.0;
 };
 
 /// @brief Everything the coupler takes from a scene.
