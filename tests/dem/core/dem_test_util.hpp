@@ -1,6 +1,7 @@
 #pragma once
 // Small builders shared by the dem core tests.
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <vector>
@@ -50,6 +51,15 @@ inline ParticleInit sphere(std::array<double, 3> x, double r, std::array<double,
   p.radius = r;
   p.material = 0;
   return p;
+}
+
+/// Largest difference of one position coordinate between two states of the same particles, m.
+inline double max_position_difference(const ParticleState& a, const ParticleState& b) {
+  double worst = 0.0;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    worst = std::max({worst, std::abs(a.px[i] - b.px[i]), std::abs(a.py[i] - b.py[i]),
+                      std::abs(a.pz[i] - b.pz[i])});
+  return worst;
 }
 
 }  // namespace demfem::dem::test

@@ -183,10 +183,7 @@ TEST_CASE("CPU and CUDA backends agree with moving walls and a flexible mesh", "
   const auto& a = cpu.particles();
   const auto& b = gpu.particles();
   REQUIRE(a.size() == b.size());
-  double worst = 0.0;
-  for (std::size_t i = 0; i < a.size(); ++i)
-    worst = std::max({worst, std::abs(a.px[i] - b.px[i]), std::abs(a.py[i] - b.py[i]),
-                      std::abs(a.pz[i] - b.pz[i])});
+  const double worst = max_position_difference(a, b);
   CHECK(worst < 1e-9 * 0.002);
   const auto xc = cpu.flexible_positions(), xg = gpu.flexible_positions();
   REQUIRE(xc.size() == xg.size());
