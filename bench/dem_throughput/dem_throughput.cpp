@@ -223,6 +223,10 @@ int main(int argc, char** argv) {
   app.add_option("--settle-threads", settle_threads, "CPU threads for settling the bed")
       ->check(CLI::PositiveNumber);
   app.add_option("--only", only, "run only the bed with this many particles");
+  double work = 4e6;
+  app.add_option("--work", work,
+                 "particle-steps per measurement (steps = work / particles, 20 to 20000)")
+      ->check(CLI::PositiveNumber);
   app.add_option("--threads", threads, "CPU thread counts to run (default 1 2)");
   app.add_flag("!--no-gpu", gpu, "skip the GPU even when one is present");
   std::string settle_backend = "auto";
@@ -316,7 +320,7 @@ int main(int argc, char** argv) {
         label += " (" + std::to_string(spec.n - sys.particle_count()) + " thrown out)";
     }
     const std::int64_t steps = std::clamp<std::int64_t>(
-        static_cast<std::int64_t>(4e6 / static_cast<double>(spec.n)), 20, 2000);
+        static_cast<std::int64_t>(work / static_cast<double>(spec.n)), 20, 20000);
     std::vector<std::pair<std::string, int>> runs;
     for (int t : threads) runs.push_back({"cpu", t});
     if (have_gpu) runs.push_back({"cuda", 0});

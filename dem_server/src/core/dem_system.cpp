@@ -271,6 +271,50 @@ struct DemSystem::Impl {
   CudaBackend* gpu = nullptr;
   DemSystem::Timings timing;
 
+  // Particle ranges of the threads in forces_and_kick(), moved towards equal busy times. The
+  // bottom of a bed has more contacts per particle and the wall contacts, so equal counts
+  // leave one thread waiting (measured on the 20,000-sphere bed: 0.3 of its time). The
+  // result does not depend on the ranges (every sum has a fixed order; see
+  // forces_and_kick()), so timing them is safe for bitwise reproducibility.
+  struct ThreadBalance {
+    std::vector<std::int64_t> split;                 // T + 1 range bounds
+    std::vector<double> busy;                        // per thread: time before the barrier, s
+    std::vector<std::vector<std::int64_t>> waiting;  // per thread: particles gathered after it
+    void ensure(int threads, std::int64_t count) {
+      const auto T = static_cast<std::size_t>(threads);
+      if (split.size() == T + 1 && split.back() == count) return;
+      split.resize(T + 1);
+      for (std::size_t k = 0; k <= T; ++k)
+        split[k] = count * static_cast<std::int64_t>(k) / static_cast<std::int64_t>(T);
+      busy.assign(T, 0.0);
+      waiting.resize(T);
+    }
+    // New bounds from each thread's particles per second, halfway towards the balanced ones
+    // (timings on a shared machine are noisy).
+    void adapt() {
+      const std::size_t T = busy.size();
+      if (T < 2) return;
+      std::vector<double> rate(T);
+      double sum = 0.0;
+      for (std::size_t k = 0; k < T; ++k) {
+        const double cnt = static_cast<double>(split[k + 1] - split[k]);
+        rate[k] = busy[k] > 0.0 && cnt > 0.0 ? cnt / busy[k] : 0.0;
+        if (!(rate[k] > 0.0)) return;  // no usable timing
+        sum += rate[k];
+      }
+      const std::int64_t count = split.back();
+      double acc = 0.0;
+      for (std::size_t k = 1; k < T; ++k) {
+        acc += rate[k - 1];
+        const double target = static_cast<double>(count) * acc / sum;
+        const auto next = static_cast<std::int64_t>(0.5 * (static_cast<double>(split[k]) + target));
+        // at least one particle per thread, bounds ascending
+        split[k] = std::clamp<std::int64_t>(next, split[k - 1] + 1,
+                                            count - static_cast<std::int64_t>(T - k));
+      }
+    }
+  } balance;
+
   ~Impl() { cuda_backend_destroy(gpu); }
 
   // ---------------------------------------------------------------------------------------
@@ -610,8 +654,9 @@ struct DemSystem::Impl {
   // the transposed slots (pairs j < i, i ascending), walls, gravity, kick. A particle whose
   // pairs reach back into an earlier thread's range (the first layer of each range) waits
   // for a barrier, so that no thread reads a slot or a velocity that another thread has not
-  // written yet or has already kicked. Every sum has a fixed order and every pair is
-  // independent, so the result is bitwise identical for any thread count and block size.
+  // written yet or has already kicked; after the barrier the threads share the waiting
+  // particles out evenly. Every sum has a fixed order and every pair is independent, so the
+  // result is bitwise identical for any thread count, range bounds and block size.
   template <bool Friction>
   void forces_and_kick() {
     const std::int64_t sn = static_cast<std::int64_t>(n());
@@ -679,22 +724,41 @@ struct DemSystem::Impl {
     };
     constexpr std::int64_t kBlock = 256;  // particles per block: ~1500 pairs, ~150 kB of slots
     const int T = nt();
+    balance.ensure(T, sn);
     double mo = 0.0, fmo = 0.0;
 #pragma omp parallel num_threads(T) reduction(max : mo, fmo)
     {
-      const std::int64_t k = omp_get_thread_num(), nth = omp_get_num_threads();
-      const std::int64_t lo = sn * k / nth, hi = sn * (k + 1) / nth;
+      const int k = omp_get_thread_num();
+      const double start = omp_get_wtime();
+      const std::int64_t lo = balance.split[k], hi = balance.split[k + 1];
       auto waits = [&](std::int64_t i) { return trow[i] < trow[i + 1] && tsrc[trow[i]] < lo; };
+      std::vector<std::int64_t>& waiting = balance.waiting[k];
+      waiting.clear();
       for (std::int64_t b0 = lo; b0 < hi; b0 += kBlock) {
         const std::int64_t b1 = std::min(hi, b0 + kBlock);
         mo = std::max(mo, kern(a, row[b0], row[b1]));
         for (std::int64_t i = b0; i < b1; ++i)
-          if (!waits(i)) gather(i, mo, fmo);
+          if (waits(i))
+            waiting.push_back(i);
+          else
+            gather(i, mo, fmo);
       }
+      balance.busy[k] = omp_get_wtime() - start;
 #pragma omp barrier
-      for (std::int64_t i = lo; i < hi; ++i)
-        if (waits(i)) gather(i, mo, fmo);
+      // the waiting particles of all threads, shared out evenly (each gather is independent)
+      std::int64_t total = 0;
+      for (const auto& list : balance.waiting) total += static_cast<std::int64_t>(list.size());
+      const std::int64_t w0 = total * k / T, w1 = total * (k + 1) / T;
+      std::int64_t base = 0;
+      for (std::size_t th = 0; th < balance.waiting.size() && base < w1; ++th) {
+        const auto& list = balance.waiting[th];
+        const std::int64_t len = static_cast<std::int64_t>(list.size());
+        for (std::int64_t m = std::max(w0, base); m < std::min(w1, base + len); ++m)
+          gather(list[m - base], mo, fmo);
+        base += len;
+      }
     }
+    balance.adapt();
     max_ov = mo;
     adv_max_ov = std::max(adv_max_ov, mo);
     flex_max_ov = std::max(flex_max_ov, fmo);
@@ -811,7 +875,10 @@ struct DemSystem::Impl {
     if (need_rebuild || 2.0 * disp > skin || disp + wdisp > skin) rebuild();
     const double t2 = omp_get_wtime();
     forces_and_kick<Friction>();
-    if (!tri_v.empty()) wall_reduce(last, mode, substeps);
+    // Wall forces and torques are read after advance(): summed at its last step only. The
+    // flexible mesh's node forces are summed every substep when they are averaged.
+    if (!tri_v.empty() && (last || (has_flex && mode == ForceMode::average)))
+      wall_reduce(last, mode, substeps);
     ++steps;
     const double t3 = omp_get_wtime();
     timing.integration += t1 - t0;
