@@ -21,6 +21,7 @@
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
+#include <limits>
 #include <random>
 #include <unordered_map>
 
@@ -152,6 +153,7 @@ Bed make_poured_bed(const BedSpec& b) {
 
 struct Result {
   double rate = 0, cpu_rate = 0, det = 0, force = 0, integ = 0, contacts = 0, pairs = 0;
+  double steps_per_build = 0, steps_per_refilter = 0;  // inf: none while measuring
   bool ok = false;
   std::string note;
 };
@@ -169,12 +171,19 @@ Result measure(const Bed& bed, const std::filesystem::path& state, int threads,
     }
     sys.advance(10);  // warm-up: neighbour list, caches
     const auto t0 = sys.timings();
+    const std::int64_t b0 = sys.neighbour_rebuilds(), f0 = sys.neighbour_refilters();
     const auto c0 = std::chrono::steady_clock::now();
     const std::clock_t k0 = std::clock();
     sys.advance(steps);
     const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count();
     const double cpu = static_cast<double>(std::clock() - k0) / CLOCKS_PER_SEC;
     const auto t1 = sys.timings();
+    const auto per = [&](std::int64_t count) {
+      return count > 0 ? static_cast<double>(steps) / static_cast<double>(count)
+                       : std::numeric_limits<double>::infinity();
+    };
+    r.steps_per_build = per(sys.neighbour_rebuilds() - b0);
+    r.steps_per_refilter = per(sys.neighbour_refilters() - f0);
     const double tot =
         (t1.detection - t0.detection) + (t1.forces - t0.forces) + (t1.integration - t0.integration);
     r.rate = static_cast<double>(sys.particle_count()) * static_cast<double>(steps) / el;
@@ -245,10 +254,11 @@ int main(int argc, char** argv) {
       {1000, 0.0015, 0.0025, "d 3-5 mm"},     {10000, 0.0015, 0.0025, "d 3-5 mm"},
       {20000, 0.002, 0.002, "target r 2 mm"}, {100000, 0.0015, 0.0025, "d 3-5 mm"},
       {200000, 0.0015, 0.0025, "d 3-5 mm"},   {1000000, 0.0015, 0.0025, "d 3-5 mm"}};
-  demfem::bench::Report rep("dem_throughput",
-                            {"particles", "bed", "settled s", "KE/(N m g d)", "backend", "threads",
-                             "contacts/particle", "list pairs/particle", "particle-steps/s",
-                             "per cpu-s", "detection", "forces", "integration"});
+  demfem::bench::Report rep(
+      "dem_throughput",
+      {"particles", "bed", "settled s", "KE/(N m g d)", "backend", "threads", "contacts/particle",
+       "list pairs/particle", "steps/build", "steps/refilter", "particle-steps/s", "per cpu-s",
+       "detection", "forces", "integration"});
   rep.set_info("dt", 1e-5);
   rep.set_info("model",
                std::string("Hertz-Mindlin with history, E 100 MPa, nu 0.3, e 0.4, mu 0.5"));
@@ -331,8 +341,8 @@ int main(int argc, char** argv) {
         continue;
       }
       rep.add_row({static_cast<long long>(spec.n), label, settled_s, ke_ratio, backend,
-                   static_cast<long long>(th), r.contacts, r.pairs, r.rate, r.cpu_rate, r.det,
-                   r.force, r.integ});
+                   static_cast<long long>(th), r.contacts, r.pairs, r.steps_per_build,
+                   r.steps_per_refilter, r.rate, r.cpu_rate, r.det, r.force, r.integ});
     }
     if (!cache) std::filesystem::remove(state);
   }

@@ -18,8 +18,10 @@ namespace {
 // friction and rolling resistance, or without walls (for the CUDA comparison) in a
 // converging velocity field so that many contacts form (v = -40 (x - c) 1/s: about 150-300
 // contacts from step 400 on; -4 1/s left the cloud almost contact-free in 1000 steps).
-DemSystem make_scene(int threads, bool walls, const std::string& backend = "cpu", int side = 8) {
+DemSystem make_scene(int threads, bool walls, const std::string& backend = "cpu", int side = 8,
+                     double list_skin = 0.0) {
   auto s = two_material_settings(1e8, 0.3, 2500.0, 0.4, 0.5, 1e-5, 0.02);
+  s.list_skin = list_skin;
   s.gravity = {0, 0, walls ? -9.81 : 0.0};
   s.threads = threads;
   s.backend = backend;
@@ -122,6 +124,30 @@ TEST_CASE("Neighbour list is reused until particles moved half the skin", "[dem]
   CHECK(sys.neighbour_rebuilds() >= 5);
   CHECK(sys.rayleigh_time_step() == Approx(3.14159265358979 * 0.002 / (0.1631 * 0.3 + 0.8766) *
                                            std::sqrt(2500.0 / (1e8 / 2.6))));  // eq. 2.27
+}
+
+TEST_CASE("The two-level pair list gives the bits of a one-level list", "[dem][detection]") {
+  // Reference: the same run with list_skin = 1 (the pair list holds every candidate within
+  // the whole skin, refiltered only at a build). Tolerance: none (bitwise): a pair list that
+  // missed a touching pair, or a spring lost at a refilter, changes the trajectory.
+  auto run = [](double list_skin) {
+    DemSystem sys = make_scene(1, true, "cpu", 8, list_skin);
+    sys.advance(600);
+    return sys;
+  };
+  DemSystem one = run(1.0), thin = run(0.1), adaptive = run(0.0);
+  CHECK(one.neighbour_refilters() == one.neighbour_rebuilds());
+  CHECK(one.neighbour_rebuilds() < 60);  // one level: a build per skin/2 of motion only
+  CHECK(thin.neighbour_refilters() > thin.neighbour_rebuilds());  // refilters did happen
+  CHECK(thin.neighbour_pairs() < one.neighbour_pairs());
+  CHECK(thin.contact_count() == one.contact_count());
+  CHECK(same_state(one.particles(), thin.particles()));
+  CHECK(same_state(one.particles(), adaptive.particles()));
+  CHECK(std::memcmp(one.wall_force(0).data(), thin.wall_force(0).data(), 3 * sizeof(double)) == 0);
+  // and it is rejected outside [0, 1]
+  auto bad = one.settings();
+  bad.list_skin = 1.5;
+  CHECK_THROWS_WITH(DemSystem(bad), Catch::Contains("settings.list_skin"));
 }
 
 TEST_CASE("Bad input is rejected with a message naming the key", "[dem][input]") {

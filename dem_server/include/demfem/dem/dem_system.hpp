@@ -41,7 +41,10 @@ struct DemSettings {
   std::vector<Material> materials;
   /// Symmetric table, materials.size()^2 entries, row-major: pairs[i * n + j].
   std::vector<MaterialPair> pairs;
-  double skin = 0.0;            ///< neighbour-list skin, m; 0 = 0.2 * largest radius
+  double skin = 0.0;  ///< neighbour-list skin, m; 0 = 0.2 * largest radius
+  /// Skin of the pair list refiltered from the grid build's candidates, as a fraction of
+  /// `skin` in (0, 1]; 0 = adaptive (0.1 to 0.5, docs/dem.md); 1 = one level. CPU backend.
+  double list_skin = 0.0;
   std::string backend = "cpu";  ///< "cpu" or "cuda"
   int threads = 0;              ///< CPU threads; 0 = OpenMP default
 };
@@ -164,8 +167,10 @@ class DemSystem {
     double integration = 0.0;  ///< kicks, drift, wall motion
   };
   Timings timings() const;
-  /// Number of neighbour-list rebuilds so far and pairs in the current list.
+  /// Number of neighbour-list builds from the cell grid so far, of refilters of the pair
+  /// list from the build's candidates (one per build included), and pairs in the current list.
   std::int64_t neighbour_rebuilds() const;
+  std::int64_t neighbour_refilters() const;
   std::size_t neighbour_pairs() const;
   /// Number of particle-particle pairs in contact in the last step.
   std::size_t contact_count() const;
