@@ -43,7 +43,7 @@ struct DemSettings {
   std::vector<MaterialPair> pairs;
   double skin = 0.0;  ///< neighbour-list skin, m; 0 = 0.2 * largest radius
   /// Skin of the pair list refiltered from the grid build's candidates, as a fraction of
-  /// `skin` in (0, 1]; 0 = adaptive (0.1 to 0.5, docs/dem.md); 1 = one level. CPU backend.
+  /// `skin` in (0, 1]; 0 = adaptive (docs/dem.md, contact detection); 1 = one level. CPU backend.
   double list_skin = 0.0;
   std::string backend = "cpu";  ///< "cpu" or "cuda"
   int threads = 0;              ///< CPU threads; 0 = OpenMP default
