@@ -707,7 +707,8 @@ struct DemSystem::Impl {
     shear.swap(nshear);
     rhist.swap(nrhist);
     pown.resize(npair);
-    for (std::size_t i = 0; i < np; ++i)
+#pragma omp parallel for num_threads(nt()) schedule(static)
+    for (std::int64_t i = 0; i < sn; ++i)
       std::fill(pown.begin() + row[i], pown.begin() + row[i + 1], static_cast<std::int32_t>(i));
     uniform_mat = np > 0 ? st.material[0] : -1;
     for (std::size_t i = 0; i < np && uniform_mat >= 0; ++i)
@@ -738,18 +739,21 @@ struct DemSystem::Impl {
     }
     // the gather's list: per particle its own row's pairs (sign +1), then its transposed
     // pairs (sign -1), in the order of the two loops it replaces
+    // (row and trow are prefix sums, so particle i's entries start at row[i] + trow[i])
     gather_row.resize(np + 1);
     gather_pair.resize(2 * npair);
     gather_sign.resize(2 * npair);
-    gather_row[0] = 0;
-    for (std::size_t i = 0; i < np; ++i) {
+    bx.resize(np), by.resize(np), bz.resize(np);
+#pragma omp parallel for num_threads(nt()) schedule(static)
+    for (std::int64_t i = 0; i <= sn; ++i) gather_row[i] = row[i] + trow[i];
+#pragma omp parallel for num_threads(nt()) schedule(static)
+    for (std::int64_t i = 0; i < sn; ++i) {
       std::int64_t g = gather_row[i];
       for (std::int64_t p = row[i]; p < row[i + 1]; ++p) gather_pair[g] = p, gather_sign[g++] = 1.0;
       for (std::int64_t k = trow[i]; k < trow[i + 1]; ++k)
         gather_pair[g] = tpair[k], gather_sign[g++] = -1.0;
-      gather_row[i + 1] = g;
+      bx[i] = st.px[i], by[i] = st.py[i], bz[i] = st.pz[i];
     }
-    bx = st.px, by = st.py, bz = st.pz;
   }
 
   // ---------------------------------------------------------------------------------------
