@@ -254,38 +254,43 @@ struct DemSystem::Impl {
   double skin_in = 0.0;
   double out_disp = 0.0;  // bound of the largest displacement since the build, refilters summed
   std::int64_t refilters = 0;
-  std::int64_t steps_at_build = -1, refilters_at_build = 0;
+  std::int64_t steps_at_update = -1;  // step of the last build or refilter
 
-  // At a build, from the steps since the last build (I) and the refilters in between (F):
-  //  * two levels, refiltered more often than every 10 steps (a flow: I / (F + 1) < 10): one
-  //    level. In a flow the build budget (skin - skin_in) / 2, checked against the sum of
-  //    the refilter intervals' largest displacements, ran out about twice as fast as skin / 2
+  // The list's skin adapts at each list update (build or refilter) to the steps since the
+  // previous one, u:
+  //  * u < 10 (a flow): skin_in grows by 1.5; beyond kInnerSkinMax x skin the list goes to one
+  //    level (skin_in = skin). In a flow the build budget (skin - skin_in) / 2, checked
+  //    against the summed refilter intervals, runs out about twice as fast as skin / 2
   //    (measured: 96 builds and 31 refilters against 53 builds in 1500 steps of 4096 falling
-  //    spheres, 10 % slower);
-  //  * two levels otherwise: the list's skin grows by 1.5 below 20 steps per refilter and
-  //    shrinks above 40, within [kInnerSkin, kInnerSkinMax] x skin;
-  //  * one level, builds more than 100 steps apart (a settled bed): two levels again.
-  // It depends on the step counts only, and the list's non-touching pairs do not change the
-  // result, so it keeps the bits.
-  void adapt_inner_skin() {
-    if (gpu != nullptr || s.list_skin > 0.0) return;  // one level there; or fixed
-    if (steps_at_build >= 0 && steps > steps_at_build) {
-      const double since = static_cast<double>(steps - steps_at_build);
-      if (skin_in >= skin) {
-        if (since > 100.0) skin_in = kInnerSkin * skin;
-      } else {
-        const double per_refilter =
-            since / static_cast<double>(std::max<std::int64_t>(1, refilters - refilters_at_build));
-        if (per_refilter < 10.0)
-          skin_in = skin;
-        else if (per_refilter < 20.0)
-          skin_in = std::min(kInnerSkinMax * skin, 1.5 * skin_in);
-        else if (per_refilter > 40.0)
-          skin_in = std::max(kInnerSkin * skin, skin_in / 1.5);
-      }
+  //    spheres, 10 % slower). A refilter that may not grow the skin (the build budget) asks
+  //    for a build;
+  //  * u > 40 (a settled bed): skin_in shrinks by 1.5, to kInnerSkin x skin at least;
+  //  * one level: a build more than 100 steps after the last goes back to two levels.
+  // It depends on step counts only, and the list's non-touching pairs do not change the
+  // result, so it keeps the bits. Returns false when a refilter must be a build instead.
+  bool adapt_inner_skin(bool build, double dbuild = 0.0) {
+    const std::int64_t since = steps - steps_at_update;
+    const bool first = steps_at_update < 0;
+    if (build) steps_at_update = steps;
+    if (gpu != nullptr || s.list_skin > 0.0 || first) {  // fixed; one level on the device
+      steps_at_update = steps;
+      return true;
     }
-    steps_at_build = steps;
-    refilters_at_build = refilters;
+    if (skin_in >= skin) {  // one level: updates are builds
+      if (since > 100) skin_in = kInnerSkin * skin;
+    } else if (since < 10) {
+      const double grown = 1.5 * skin_in;
+      if (build) {
+        skin_in = grown > kInnerSkinMax * skin ? skin : grown;
+      } else {
+        if (grown > kInnerSkinMax * skin || 2.0 * dbuild > skin - grown) return false;
+        skin_in = grown;
+      }
+    } else if (since > 40) {
+      skin_in = std::max(kInnerSkin * skin, skin_in / 1.5);
+    }
+    steps_at_update = steps;
+    return true;
   }
   double max_ov = 0.0;
   double adv_max_ov = 0.0;  // largest overlap over the steps of the last advance()
@@ -572,7 +577,7 @@ struct DemSystem::Impl {
     orow.swap(nrow);
     onbr.swap(nnbr);
     out_disp = 0.0;
-    adapt_inner_skin();
+    adapt_inner_skin(true);
     // triangles: binned into the particle cells their AABB (grown by rmax + skin) touches
     prow.assign(np + 1, 0);
     ptri.clear();
@@ -985,8 +990,12 @@ struct DemSystem::Impl {
     } else if (need_rebuild || 2.0 * dbuild > skin - skin_in || dbuild + wdisp > skin) {
       rebuild();
     } else if (2.0 * disp > skin_in) {
-      out_disp += disp;
-      refilter();
+      if (adapt_inner_skin(false, dbuild)) {
+        out_disp += disp;
+        refilter();
+      } else {
+        rebuild();
+      }
     }
     const double t2 = omp_get_wtime();
     forces_and_kick<Friction>();
