@@ -234,7 +234,8 @@ int main(int argc, char** argv) {
   app.add_option("--only", only, "run only the bed with this many particles");
   double work = 4e6;
   app.add_option("--work", work,
-                 "particle-steps per measurement (steps = work / particles, 20 to 20000)")
+                 "particle-steps per measurement (steps = work / particles, 200 to 20000: fewer "
+                 "steps would measure the list adapting after the restore)")
       ->check(CLI::PositiveNumber);
   app.add_option("--threads", threads, "CPU thread counts to run (default 1 2)");
   app.add_flag("!--no-gpu", gpu, "skip the GPU even when one is present");
@@ -330,7 +331,7 @@ int main(int argc, char** argv) {
         label += " (" + std::to_string(spec.n - sys.particle_count()) + " thrown out)";
     }
     const std::int64_t steps = std::clamp<std::int64_t>(
-        static_cast<std::int64_t>(work / static_cast<double>(spec.n)), 20, 20000);
+        static_cast<std::int64_t>(work / static_cast<double>(spec.n)), 200, 20000);
     std::vector<std::pair<std::string, int>> runs;
     for (int t : threads) runs.push_back({"cpu", t});
     if (have_gpu) runs.push_back({"cuda", 0});
