@@ -3,14 +3,18 @@
 // shared with the CUDA backend (cuda/*.cu).
 //
 // Step structure (velocity Verlet, see physics/integrator.hpp):
-//   1. per particle: half kick with the last force, drift, max displacement since the build
+//   1. per particle: half kick with the last force, drift, max displacement since the last
+//      list update
 //   2. walls: vertex positions/velocities at the new time (moving walls, flexible mesh)
-//   3. neighbour list rebuild when some particle moved more than half the skin
+//   3. pair list: refiltered from the grid build's candidates when some particle moved half
+//      the list skin, built from the grid when the candidates may no longer hold every pair
+//      that can touch (two levels, see Impl::orow)
 //   4. per particle i (parallel): forces of the pairs (i, j > i) of its CSR row, written to
-//      per-pair slots, own share summed in row order
-//   5. per particle (parallel): own share - transposed pair slots (fixed order) + walls +
+//      per-pair slots
+//   5. per particle (parallel): own-row slots + transposed pair slots (fixed order) + walls +
 //      gravity, second half kick
-//   6. walls (serial, fixed order): per-wall force/torque and flexible node forces
+//   6. walls (serial, fixed order, at the last substep of an advance() or for averaged
+//      flexible node forces): per-wall force/torque and flexible node forces
 // No floating-point atomics: every sum has a fixed order independent of the thread count, so
 // the result is bitwise identical for any number of threads.
 
@@ -108,6 +112,13 @@ phys::RigidMotion rigid_motion(const WallMotion& m) {
 
 namespace {
 
+// Skin of the pair list as a fraction of the build skin (see DemSystem::Impl::orow), and its
+// range when it adapts. On the settled 20,000-sphere bed (dem_throughput) 0.1 keeps 2.6 list
+// pairs per particle (the whole skin: 3.6) and refilters every ~25 steps: +15 % particle-steps
+// per second (best of 8 runs; 0.05: 2.5 pairs, no further gain). In a fast flow a thin
+// skin would refilter every step or two, so the skin grows there (Impl::adapt_inner_skin()).
+constexpr double kInnerSkin = 0.1, kInnerSkinMax = 0.5;
+
 // ---------------------------------------------------------------------------------------
 // Pair forces over a range of the flat pair list, one pair per SIMD lane: the contact law
 // (physics/pair.hpp, contact.hpp) has no data-dependent branch, so the loop vectorises.
@@ -117,13 +128,6 @@ namespace {
 // the CPU supports. Without FMA contraction every clone rounds each operation as the scalar
 // code does (IEEE +, -, *, /, sqrt), so the clones give bitwise identical results (checked:
 // a build without clones gives the same bits).
-// Skin of the pair list as a fraction of the build skin (see DemSystem::Impl::orow), and its
-// range when it adapts. On the settled 20,000-sphere bed (dem_throughput) 0.1 keeps 2.6 list
-// pairs per particle (the whole skin: 3.6) and refilters every ~25 steps: +15 % particle-steps
-// per second (best of 8 runs; 0.05: 2.5 pairs, no further gain). In a fast flow a thin
-// skin would refilter every step or two, so the skin grows there (see rebuild()).
-constexpr double kInnerSkin = 0.1, kInnerSkinMax = 0.5;
-
 struct PairKernelArgs {
   phys::ParticleView view;
   const std::int32_t* pi;  // i of each pair
@@ -271,7 +275,6 @@ struct DemSystem::Impl {
   bool adapt_inner_skin(bool build, double dbuild = 0.0) {
     const std::int64_t since = steps - steps_at_update;
     const bool first = steps_at_update < 0;
-    if (build) steps_at_update = steps;
     if (gpu != nullptr || s.list_skin > 0.0 || first) {  // fixed; one level on the device
       steps_at_update = steps;
       return true;
