@@ -17,6 +17,21 @@ DEMFEM_HD void kick(double& vx, double& vy, double& vz, double fx, double fy, do
   vz += h_over_m * fz;
 }
 
+/// A quaternion w + x i + y j + z k.
+struct Quat {
+  double w, x, y, z;
+};
+
+/// r ⊗ q, normalised: orientation q turned by the rotation r.
+DEMFEM_HD Quat turn_normalised(Quat r, Quat q) {
+  const double nw = r.w * q.w - r.x * q.x - r.y * q.y - r.z * q.z;
+  const double nx = r.w * q.x + r.x * q.w + r.y * q.z - r.z * q.y;
+  const double ny = r.w * q.y - r.x * q.z + r.y * q.w + r.z * q.x;
+  const double nz = r.w * q.z + r.x * q.y - r.y * q.x + r.z * q.w;
+  const double inv = 1.0 / std::sqrt(nw * nw + nx * nx + ny * ny + nz * nz);
+  return {nw * inv, nx * inv, ny * inv, nz * inv};
+}
+
 /// True when the rotation angle |ω| Δt of a step is small enough (< 2e-2 rad) for the series
 /// of rotate_quaternion_small().
 DEMFEM_HD bool small_rotation(double w2, double dt) {
@@ -33,17 +48,12 @@ DEMFEM_HD void rotate_quaternion_small(double& qw, double& qx, double& qy, doubl
   const double q0w = qw, q0x = qx, q0y = qy, q0z = qz;  // selects read values, not memory
   const double s = 0.5 * dt * (1.0 - h2 / 6.0 * (1.0 - h2 / 20.0 * (1.0 - h2 / 42.0)));
   const double c = 1.0 - 0.5 * h2 * (1.0 - h2 / 12.0 * (1.0 - h2 / 30.0));
-  const double rw = c, rx = s * wx, ry = s * wy, rz = s * wz;
-  const double nw = rw * q0w - rx * q0x - ry * q0y - rz * q0z;
-  const double nx = rw * q0x + rx * q0w + ry * q0z - rz * q0y;
-  const double ny = rw * q0y - rx * q0z + ry * q0w + rz * q0x;
-  const double nz = rw * q0z + rx * q0y - ry * q0x + rz * q0w;
-  const double inv = 1.0 / std::sqrt(nw * nw + nx * nx + ny * ny + nz * nz);
+  const Quat n = turn_normalised({c, s * wx, s * wy, s * wz}, {q0w, q0x, q0y, q0z});
   const bool turn = w2 != 0.0;
-  qw = turn ? nw * inv : q0w;
-  qx = turn ? nx * inv : q0x;
-  qy = turn ? ny * inv : q0y;
-  qz = turn ? nz * inv : q0z;
+  qw = turn ? n.w : q0w;
+  qx = turn ? n.x : q0x;
+  qy = turn ? n.y : q0y;
+  qz = turn ? n.z : q0z;
 }
 
 /// q ← rotation(ω Δt) ⊗ q, normalised.
@@ -59,16 +69,8 @@ DEMFEM_HD void rotate_quaternion(double& qw, double& qx, double& qy, double& qz,
   const double half = 0.5 * wn * dt;
   const double s = std::sin(half) / wn;
   const double c = std::cos(half);
-  const double rw = c, rx = s * wx, ry = s * wy, rz = s * wz;
-  const double nw = rw * qw - rx * qx - ry * qy - rz * qz;
-  const double nx = rw * qx + rx * qw + ry * qz - rz * qy;
-  const double ny = rw * qy - rx * qz + ry * qw + rz * qx;
-  const double nz = rw * qz + rx * qy - ry * qx + rz * qw;
-  const double inv = 1.0 / std::sqrt(nw * nw + nx * nx + ny * ny + nz * nz);
-  qw = nw * inv;
-  qx = nx * inv;
-  qy = ny * inv;
-  qz = nz * inv;
+  const Quat n = turn_normalised({c, s * wx, s * wy, s * wz}, {qw, qx, qy, qz});
+  qw = n.w, qx = n.x, qy = n.y, qz = n.z;
 }
 
 }  // namespace demfem::dem::phys
