@@ -540,42 +540,59 @@ struct DemSystem::Impl {
       std::vector<std::int64_t> fill(cstart.begin(), cstart.end() - 1);
       for (std::size_t i = 0; i < np; ++i) sorted[fill[cell[i]]++] = static_cast<std::int32_t>(i);
     }
-    // two passes over particles: count, then fill (deterministic, parallel)
-    std::vector<std::int64_t> nrow(np + 1, 0);
+    // Positions and radii in cell order: the scan reads each neighbour cell's spheres from
+    // contiguous memory (in particle order they are scattered once a bed has flowed).
+    const std::int64_t sn = static_cast<std::int64_t>(np);
+    std::vector<double> sx(np), sy(np), sz(np), sr(np);
     const double* R = st.radius.data();
+#pragma omp parallel for num_threads(nt()) schedule(static)
+    for (std::int64_t k = 0; k < sn; ++k) {
+      const std::int32_t i = sorted[k];
+      sx[k] = P[0][i], sy[k] = P[1][i], sz[k] = P[2][i], sr[k] = R[i];
+    }
     auto scan = [&](std::size_t i, auto&& emit) {
-      const std::int64_t cx = cell_coord(P[0][i], 0), cy = cell_coord(P[1][i], 1),
-                         cz = cell_coord(P[2][i], 2);
+      const double xi = P[0][i], yi = P[1][i], zi = P[2][i], ri = R[i];
+      const std::int64_t cx = cell_coord(xi, 0), cy = cell_coord(yi, 1), cz = cell_coord(zi, 2);
       for (std::int64_t z = std::max<std::int64_t>(0, cz - 1); z <= std::min(dim[2] - 1, cz + 1);
            ++z)
         for (std::int64_t y = std::max<std::int64_t>(0, cy - 1); y <= std::min(dim[1] - 1, cy + 1);
-             ++y)
-          for (std::int64_t x = std::max<std::int64_t>(0, cx - 1);
-               x <= std::min(dim[0] - 1, cx + 1); ++x) {
-            const std::int64_t c = (z * dim[1] + y) * dim[0] + x;
-            for (std::int64_t k = cstart[c]; k < cstart[c + 1]; ++k) {
-              const std::size_t j = static_cast<std::size_t>(sorted[k]);
-              if (j <= i) continue;
-              const double dx = P[0][j] - P[0][i], dy = P[1][j] - P[1][i], dz = P[2][j] - P[2][i];
-              const double cut = R[i] + R[j] + skin;
-              if (dx * dx + dy * dy + dz * dz < cut * cut) emit(static_cast<std::int32_t>(j));
-            }
+             ++y) {
+          // the three cells x - 1 .. x + 1 of a row are consecutive in cell order
+          const std::int64_t c0 = (z * dim[1] + y) * dim[0];
+          const std::int64_t k1 = cstart[c0 + std::min(dim[0] - 1, cx + 1) + 1];
+          for (std::int64_t k = cstart[c0 + std::max<std::int64_t>(0, cx - 1)]; k < k1; ++k) {
+            const std::size_t j = static_cast<std::size_t>(sorted[k]);
+            if (j <= i) continue;
+            const double dx = sx[k] - xi, dy = sy[k] - yi, dz = sz[k] - zi;
+            const double cut = ri + sr[k] + skin;
+            if (dx * dx + dy * dy + dz * dz < cut * cut) emit(static_cast<std::int32_t>(j));
           }
+        }
     };
-    const std::int64_t sn = static_cast<std::int64_t>(np);
-#pragma omp parallel for num_threads(nt()) schedule(static)
-    for (std::int64_t i = 0; i < sn; ++i) {
-      std::int64_t c = 0;
-      scan(static_cast<std::size_t>(i), [&](std::int32_t) { ++c; });
-      nrow[i + 1] = c;
+    // One scan: the particles in nt() contiguous chunks, each chunk's sorted rows appended to
+    // its own buffer, then the buffers copied into place (the rows of a scan per particle,
+    // for any thread count).
+    std::vector<std::int64_t> nrow(np + 1, 0);
+    const std::int64_t chunks = nt();
+    std::vector<std::vector<std::int32_t>> found(static_cast<std::size_t>(chunks));
+#pragma omp parallel for num_threads(nt()) schedule(static, 1)
+    for (std::int64_t ch = 0; ch < chunks; ++ch) {
+      const std::int64_t b0 = sn * ch / chunks, b1 = sn * (ch + 1) / chunks;
+      auto& buf = found[static_cast<std::size_t>(ch)];
+      buf.reserve(static_cast<std::size_t>(8 * (b1 - b0)));
+      for (std::int64_t i = b0; i < b1; ++i) {
+        const std::size_t start = buf.size();
+        scan(static_cast<std::size_t>(i), [&](std::int32_t j) { buf.push_back(j); });
+        std::sort(buf.begin() + static_cast<std::ptrdiff_t>(start), buf.end());
+        nrow[i + 1] = static_cast<std::int64_t>(buf.size() - start);
+      }
     }
     for (std::size_t i = 0; i < np; ++i) nrow[i + 1] += nrow[i];
     std::vector<std::int32_t> nnbr(static_cast<std::size_t>(nrow[np]));
-#pragma omp parallel for num_threads(nt()) schedule(static)
-    for (std::int64_t i = 0; i < sn; ++i) {
-      std::int64_t k = nrow[i];
-      scan(static_cast<std::size_t>(i), [&](std::int32_t j) { nnbr[k++] = j; });
-      std::sort(nnbr.begin() + nrow[i], nnbr.begin() + nrow[i + 1]);
+#pragma omp parallel for num_threads(nt()) schedule(static, 1)
+    for (std::int64_t ch = 0; ch < chunks; ++ch) {
+      const auto& buf = found[static_cast<std::size_t>(ch)];
+      std::copy(buf.begin(), buf.end(), nnbr.begin() + nrow[sn * ch / chunks]);
     }
     orow.swap(nrow);
     onbr.swap(nnbr);
@@ -838,15 +855,19 @@ struct DemSystem::Impl {
     constexpr std::int64_t kBlock = 256;  // particles per block: ~1500 pairs, ~150 kB of slots
     const int T = nt();
     balance.ensure(T, sn);
+    for (auto& list : balance.waiting) list.clear();
     double mo = 0.0, fmo = 0.0;
+    int active = T;
 #pragma omp parallel num_threads(T) reduction(max : mo, fmo)
     {
-      const int k = omp_get_thread_num();
+      const int k = omp_get_thread_num(), nth = omp_get_num_threads();
+      // fewer threads than asked (a nested region, a thread limit): equal ranges
+      if (k == 0) active = nth;
       const double start = omp_get_wtime();
-      const std::int64_t lo = balance.split[k], hi = balance.split[k + 1];
+      const std::int64_t lo = nth == T ? balance.split[k] : sn * k / nth;
+      const std::int64_t hi = nth == T ? balance.split[k + 1] : sn * (k + 1) / nth;
       auto waits = [&](std::int64_t i) { return trow[i] < trow[i + 1] && tsrc[trow[i]] < lo; };
       std::vector<std::int64_t>& waiting = balance.waiting[k];
-      waiting.clear();
       for (std::int64_t b0 = lo; b0 < hi; b0 += kBlock) {
         const std::int64_t b1 = std::min(hi, b0 + kBlock);
         mo = std::max(mo, kern(a, row[b0], row[b1]));
@@ -861,7 +882,7 @@ struct DemSystem::Impl {
       // the waiting particles of all threads, shared out evenly (each gather is independent)
       std::int64_t total = 0;
       for (const auto& list : balance.waiting) total += static_cast<std::int64_t>(list.size());
-      const std::int64_t w0 = total * k / T, w1 = total * (k + 1) / T;
+      const std::int64_t w0 = total * k / nth, w1 = total * (k + 1) / nth;
       std::int64_t base = 0;
       for (std::size_t th = 0; th < balance.waiting.size() && base < w1; ++th) {
         const auto& list = balance.waiting[th];
@@ -871,7 +892,7 @@ struct DemSystem::Impl {
         base += len;
       }
     }
-    balance.adapt();
+    if (active == T) balance.adapt();
     max_ov = mo;
     adv_max_ov = std::max(adv_max_ov, mo);
     flex_max_ov = std::max(flex_max_ov, fmo);
