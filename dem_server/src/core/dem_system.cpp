@@ -1608,6 +1608,17 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   for (std::size_t i = 0; i < n; ++i)
     if (st.material[i] < 0 || static_cast<std::size_t>(st.material[i]) >= I.nmat)
       bad("restore: particle material index out of range in '" + group + "'");
+  // the orientation update keeps unit quaternions unit (physics/integrator.hpp), it does not
+  // normalise arbitrary ones
+  if (st.qw.size() == n && st.qx.size() == n && st.qy.size() == n && st.qz.size() == n)
+    for (std::size_t i = 0; i < n; ++i) {
+      const double q2 =
+          st.qw[i] * st.qw[i] + st.qx[i] * st.qx[i] + st.qy[i] * st.qy[i] + st.qz[i] * st.qz[i];
+      if (!(std::abs(q2 - 1.0) < 1e-6))
+        bad("restore: orientation of particle " + std::to_string(i) + " in '" + group + "' of " +
+            f.path().string() + " is not a unit quaternion (|q|^2 = " + std::to_string(q2) +
+            ", accepted 1 +- 1e-6)");
+    }
   I.acc.assign(3 * n, 0.0), I.acct.assign(3 * n, 0.0);
   I.wf.assign(3 * kMaxWallContacts * n, 0.0), I.wp.assign(3 * kMaxWallContacts * n, 0.0),
       I.wb.assign(3 * kMaxWallContacts * n, 0.0), I.wtri.assign(kMaxWallContacts * n, 0);

@@ -22,13 +22,17 @@ struct Quat {
   double w, x, y, z;
 };
 
-/// r ⊗ q, normalised: orientation q turned by the rotation r.
+/// r ⊗ q, normalised: orientation q turned by the rotation r. Both are unit quaternions to
+/// rounding, so |r ⊗ q|² = 1 + ε with ε ~ 1e-16, and one Newton step for 1/sqrt about 1,
+/// (3 - |n|²) / 2 = 1 - ε/2, normalises it to O(ε²) without a square root and a division (they
+/// were the most expensive part of the orientation update). The test against the exact
+/// rotation holds |q| = 1 within 1e-13 over 1e5 steps.
 DEMFEM_HD Quat turn_normalised(Quat r, Quat q) {
   const double nw = r.w * q.w - r.x * q.x - r.y * q.y - r.z * q.z;
   const double nx = r.w * q.x + r.x * q.w + r.y * q.z - r.z * q.y;
   const double ny = r.w * q.y - r.x * q.z + r.y * q.w + r.z * q.x;
   const double nz = r.w * q.z + r.x * q.y - r.y * q.x + r.z * q.w;
-  const double inv = 1.0 / std::sqrt(nw * nw + nx * nx + ny * ny + nz * nz);
+  const double inv = 1.5 - 0.5 * (nw * nw + nx * nx + ny * ny + nz * nz);
   return {nw * inv, nx * inv, ny * inv, nz * inv};
 }
 
