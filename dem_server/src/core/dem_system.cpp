@@ -119,6 +119,16 @@ namespace {
 // skin would refilter every step or two, so the skin grows there (Impl::adapt_inner_skin()).
 constexpr double kInnerSkin = 0.1, kInnerSkinMax = 0.5;
 
+// The wall contacts of one particle, not inlined into the gather: most particles have none,
+// and inlined, their code (a 1.6 kB stack frame, many live values) made the gather's slot
+// sums spill and every particle pay its prologue.
+template <bool Friction>
+[[gnu::noinline]] void wall_contacts_apart(const phys::ParticleView& p, const phys::WallView& w,
+                                           std::int64_t i, const phys::PairConstants* pc_row,
+                                           double dt, Vec3& f, Vec3& q, double& mo, double& fmo) {
+  phys::wall_contacts<Friction>(p, w, i, pc_row, dt, f, q, mo, fmo);
+}
+
 // ---------------------------------------------------------------------------------------
 // Pair forces over a range of the flat pair list, one pair per SIMD lane: the contact law
 // (physics/pair.hpp, contact.hpp) has no data-dependent branch, so the loop vectorises.
@@ -836,9 +846,9 @@ struct DemSystem::Impl {
           if (roll) qx += sg * PR[3 * p], qy += sg * PR[3 * p + 1], qz += sg * PR[3 * p + 2];
         }
       }
-      if (walls_on) {
+      if (walls_on && (wv.prow[i] != wv.prow[i + 1] || wv.wcount[i] != 0)) {
         Vec3 f{fx, fy, fz}, q{qx, qy, qz};
-        phys::wall_contacts<Friction>(view, wv, i, pc.data() + st.material[i] * nmat, s.dt, f, q,
+        wall_contacts_apart<Friction>(view, wv, i, pc.data() + st.material[i] * nmat, s.dt, f, q,
                                       mo, fmo);
         fx = f.x, fy = f.y, fz = f.z;
         qx = q.x, qy = q.y, qz = q.z;
