@@ -133,6 +133,9 @@ TEST_CASE("a complete [dem] section is read into the settings", "[scene]") {
   CHECK(s.sensors[0].wall == 0);
   CHECK(s.sensors[1].direction == std::array<double, 3>{0, 0, -1});
   CHECK(*s.output_interval == 0.005);
+  CHECK(s.settings.list_skin == 0.0);  // adaptive unless given
+  CHECK(parse(replace(kBase, "threads = 1", "threads = 1\nlist_skin = 1.0")).settings.list_skin ==
+        1.0);
 }
 
 TEST_CASE("[dem] mistakes are errors naming file, line and key", "[scene]") {
@@ -142,6 +145,8 @@ TEST_CASE("[dem] mistakes are errors naming file, line and key", "[scene]") {
   const std::vector<Case> cases = {
       {"dt = 2e-6", "dt = -1.0", "key 'dem.dt': is -1, outside the accepted range > 0"},
       {"threads = 1", "threds = 1", "key 'dem.threds': is not a known key"},
+      {"threads = 1", "threads = 1\nlist_skin = 1.5",
+       "key 'dem.list_skin': is 1.5, outside the accepted range [0, 1]"},
       {"poisson_ratio = 0.3\ndensity", "poisson_ratio = 0.5\ndensity",
        "key 'dem.materials[0].poisson_ratio': is 0.5, outside the accepted range [0, 0.5)"},
       {"b = \"steel\"", "b = \"stel\"",
