@@ -95,7 +95,7 @@ __device__ double bits_to_double(unsigned long long b) {
 
 // track: also record the largest squared displacement since the build (moving walls).
 __global__ void k_kick_drift(Dev d, std::size_t n, double dt, double half_skin2, bool friction,
-                             bool track) {
+                             bool orientation, bool track) {
   if (*d.stop) return;  // the same for all threads: stop[0] is written by k_latch only
   const std::size_t i = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x;
   if (i == 0) *d.max_ov = 0ull;  // max overlap of this step (read after the pair kernel)
@@ -108,7 +108,8 @@ __global__ void k_kick_drift(Dev d, std::size_t n, double dt, double half_skin2,
     d.pz[i] += dt * d.vz[i];
     if (friction)
       phys::kick(d.wx[i], d.wy[i], d.wz[i], d.tx[i], d.ty[i], d.tz[i], h / d.inertia[i]);
-    phys::rotate_quaternion(d.qw[i], d.qx[i], d.qy[i], d.qz[i], d.wx[i], d.wy[i], d.wz[i], dt);
+    if (orientation)
+      phys::rotate_quaternion(d.qw[i], d.qx[i], d.qy[i], d.qz[i], d.wx[i], d.wy[i], d.wz[i], dt);
     const double dx = d.px[i] - d.bx[i], dy = d.py[i] - d.by[i], dz = d.pz[i] - d.bz[i];
     d2 = dx * dx + dy * dy + dz * dz;
     if (d2 > half_skin2) atomicExch(d.stop + 1, 1);
@@ -309,7 +310,7 @@ struct CudaBackend {
   std::size_t cap[64] = {};
   std::size_t n = 0, npairs = 0, nmat = 0;
   double dt = 0, g[3] = {0, 0, 0};
-  bool friction = false, rolling = false;
+  bool friction = false, rolling = false, orientation = true;
   cudaStream_t stream = nullptr;
   cudaGraphExec_t graph = nullptr;
   double graph_skin = -1.0;
@@ -389,6 +390,7 @@ void down(T* dst, const T* src, std::size_t n) {
 void cuda_upload_state(CudaBackend* b, const GpuHostView& v) {
   const std::size_t n = v.n;
   b->n = n, b->nmat = v.nmat, b->dt = v.dt, b->friction = v.friction, b->rolling = v.rolling;
+  b->orientation = v.orientation;  // the graph below is rebuilt after every upload
   for (int k = 0; k < 3; ++k) b->g[k] = v.gravity[k];
   std::size_t* c = b->cap;
   Dev& d = b->d;
@@ -514,7 +516,7 @@ void enqueue_step(CudaBackend* b, double skin) {
   const unsigned grid = static_cast<unsigned>((n + kBlock - 1) / kBlock);
   const double half_skin = 0.5 * skin;
   k_kick_drift<<<grid, kBlock, 0, b->stream>>>(b->d, n, b->dt, half_skin * half_skin, b->friction,
-                                               b->walls_moving);
+                                               b->orientation, b->walls_moving);
   if (b->walls_moving && b->nverts > 0) {
     const unsigned gridv = static_cast<unsigned>((b->nverts + kBlock - 1) / kBlock);
     k_walls<<<gridv, kBlock, 0, b->stream>>>(b->d, b->nverts, b->dt);

@@ -59,6 +59,7 @@ struct GpuHostView {
   double dt = 0.0;
   double gravity[3] = {0, 0, 0};
   bool friction = false, rolling = false;
+  bool orientation = true;  ///< integrate the orientation quaternion
 };
 
 bool cuda_device_present();

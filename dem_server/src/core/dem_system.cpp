@@ -228,7 +228,8 @@ struct DemSystem::Impl {
   int threads = 1;
   std::size_t nmat = 0;
   std::vector<phys::PairConstants> pc;
-  bool friction = false;  // some pair has friction or rolling resistance
+  bool friction = false;     // some pair has friction or rolling resistance
+  bool orientation = false;  // integrate the orientation (settings or a non-spherical particle)
   bool rolling = false;
   std::int64_t uniform_mat = -1;  // the material of every particle, -1 = mixed
 
@@ -952,6 +953,7 @@ struct DemSystem::Impl {
         m2 = m2 > d2 ? m2 : d2;
       }
     }
+    if (!orientation) return have_build ? std::sqrt(m2) : 1e300;
     double *qw = st.qw.data(), *qx = st.qx.data(), *qy = st.qy.data(), *qz = st.qz.data();
     if (phys::small_rotation(w2max, dt)) {
 #pragma omp parallel for simd num_threads(nt()) schedule(static)
@@ -1082,6 +1084,7 @@ struct DemSystem::Impl {
     v.dt = s.dt;
     for (int k = 0; k < 3; ++k) v.gravity[k] = s.gravity[k];
     v.friction = friction, v.rolling = rolling;
+    v.orientation = orientation;
     if (!tri_v.empty()) {
       v.nverts = vpos.size() / 3, v.ntris = tri_v.size() / 3, v.nptri = ptri.size();
       v.vpos = vpos.data(), v.vvel = vvel.data();
@@ -1164,6 +1167,9 @@ struct DemSystem::Impl {
     rmax = 0.0;
     for (double r : st.radius) rmax = std::max(rmax, r);
     skin = s.skin > 0.0 ? s.skin : 0.2 * rmax;
+    orientation = s.track_orientation;
+    for (std::uint8_t shape : st.shape)
+      orientation = orientation || shape != static_cast<std::uint8_t>(ParticleShape::sphere);
     // The CUDA backend checks the list against the whole skin on the device: one level.
     skin_in = gpu != nullptr ? skin : (s.list_skin > 0.0 ? s.list_skin : kInnerSkin) * skin;
   }

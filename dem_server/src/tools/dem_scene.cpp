@@ -121,6 +121,7 @@ DemScene read_dem_scene(const Table& dem) {
   st.gravity = dem.vec3("gravity", std::array<double, 3>{0.0, 0.0, -9.81});
   st.skin = dem.number("skin", 0.0, Range::non_negative());
   st.list_skin = dem.number("list_skin", 0.0, Range::closed(0.0, 1.0));
+  st.track_orientation = dem.boolean("track_orientation", false);
   s.settle_time = dem.number("settle_time", 0.0, Range::non_negative());
   if (dem.has("remove_above")) s.remove_above = dem.number("remove_above");
 

@@ -135,6 +135,7 @@ Incline make_incline(double theta, double mu, double rolling = 0.0, double v0 = 
                      double dt = 2e-6, double overlap = 1e-7) {
   auto s = two_material_settings(kE, kNu, kRho, 0.4, mu, dt, rolling);
   s.gravity = {0, 0, -9.81};
+  s.track_orientation = true;  // angle() reads it
   Incline in{DemSystem(s), std::cos(theta), std::sin(theta)};
   in.sys.add_wall(plane_mesh(0.12, 6, theta));
   const double r = Incline::kR, c = in.c, sn = in.sn;
@@ -437,6 +438,7 @@ TEST_CASE("A free spinning sphere's orientation follows the exact rotation", "[d
     const std::array<double, 3> axis = {0.48, -0.6, 0.64};  // unit
     auto s = two_material_settings(1e8, 0.3, 2500.0, 0.5, 0.0, 1e-5);
     s.pairs.assign(4, MaterialPair{0.5, 0.5, 0.0});  // friction: the rotation is integrated
+    s.track_orientation = true;
     DemSystem sys(s);
     sys.add_particles(std::vector<ParticleInit>{
         sphere({0, 0, 0}, 0.002, {}, {wmag * axis[0], wmag * axis[1], wmag * axis[2]})});
@@ -452,5 +454,32 @@ TEST_CASE("A free spinning sphere's orientation follows the exact rotation", "[d
     const double n2 =
         st.qw[0] * st.qw[0] + st.qx[0] * st.qx[0] + st.qy[0] * st.qy[0] + st.qz[0] * st.qz[0];
     CHECK(std::abs(n2 - 1.0) < 1e-13);
+  }
+}
+
+TEST_CASE("A sphere's orientation is integrated only when asked", "[dem][integrator]") {
+  // A sphere's orientation enters no force: without track_orientation it stays as set and
+  // everything else keeps its bits (reference: the same run with it; tolerance: none).
+  auto run = [](bool track) {
+    auto s = two_material_settings(1e8, 0.3, 2500.0, 0.5, 0.5, 1e-5);
+    s.gravity = {0, 0, -9.81};
+    s.track_orientation = track;
+    DemSystem sys(s);
+    sys.add_wall(plane_mesh(0.05, 2));
+    sys.add_particles(
+        std::vector<ParticleInit>{sphere({0, 0, 0.0019}, 0.002, {0.1, 0, 0}, {0, 40, 0}),
+                                  sphere({0.01, 0, 0.0019}, 0.002, {-0.1, 0, 0})});
+    sys.advance(3000);
+    return sys;
+  };
+  const DemSystem on = run(true), off = run(false);
+  const auto &a = on.particles(), &b = off.particles();
+  CHECK(a.qw[0] != 1.0);  // turned
+  CHECK(b.qw[0] == 1.0);
+  CHECK(b.qy[0] == 0.0);
+  for (int i = 0; i < 2; ++i) {
+    CHECK(a.px[i] == b.px[i]);
+    CHECK(a.vz[i] == b.vz[i]);
+    CHECK(a.wy[i] == b.wy[i]);
   }
 }

@@ -45,6 +45,10 @@ struct DemSettings {
   /// Skin of the pair list refiltered from the grid build's candidates, as a fraction of
   /// `skin` in (0, 1]; 0 = adaptive (docs/dem.md, contact detection); 1 = one level. CPU backend.
   double list_skin = 0.0;
+  /// Integrate the orientation quaternion of spheres too. A sphere's orientation enters no
+  /// force, so by default it is integrated only when some particle is not a sphere (and the
+  /// orientation of a sphere stays as it was set); on for rolling markers, visualisation.
+  bool track_orientation = false;
   std::string backend = "cpu";  ///< "cpu" or "cuda"
   int threads = 0;              ///< CPU threads; 0 = OpenMP default
 };
