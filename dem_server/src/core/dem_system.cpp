@@ -235,8 +235,6 @@ struct DemSystem::Impl {
 
   ParticleState st;
   std::vector<double> tx, ty, tz;  // torque of the last step
-  std::vector<double> acc;         // 3 per particle: own-row share of the pair forces
-  std::vector<double> acct;        // 3 per particle: own-row share of the torques
   double t = 0.0;
   std::int64_t steps = 0;
   double rmax = 0.0;
@@ -1232,7 +1230,6 @@ std::size_t DemSystem::add_particles(std::span<const ParticleInit> particles) {
     I.tx.push_back(0), I.ty.push_back(0), I.tz.push_back(0);
   }
   const std::size_t n = st.size();
-  I.acc.resize(3 * n), I.acct.resize(3 * n);
   I.wkey.resize(kMaxWallContacts * n, -1);
   I.wshear.resize(3 * kMaxWallContacts * n, 0.0);
   if (I.rolling) I.wroll.resize(3 * kMaxWallContacts * n, 0.0);
@@ -1292,7 +1289,6 @@ void DemSystem::remove_particles(std::span<const std::uint8_t> keep) {
     compact(*v, 1);
   compact(st.material, 1);
   compact(st.shape, 1);
-  compact(I.acc, 3), compact(I.acct, 3);
   compact(I.wkey, kMaxWallContacts), compact(I.wshear, 3 * kMaxWallContacts);
   if (!I.wroll.empty()) compact(I.wroll, 3 * kMaxWallContacts);
   compact(I.wf, 3 * kMaxWallContacts), compact(I.wp, 3 * kMaxWallContacts),
@@ -1635,7 +1631,6 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
             f.path().string() + " is not a unit quaternion (|q|^2 = " + std::to_string(q2) +
             ", accepted 1 +- 1e-6)");
     }
-  I.acc.assign(3 * n, 0.0), I.acct.assign(3 * n, 0.0);
   I.wf.assign(3 * kMaxWallContacts * n, 0.0), I.wp.assign(3 * kMaxWallContacts * n, 0.0),
       I.wb.assign(3 * kMaxWallContacts * n, 0.0), I.wtri.assign(kMaxWallContacts * n, 0);
   I.refresh_particle_derived();
