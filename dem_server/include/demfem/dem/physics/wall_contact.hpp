@@ -55,7 +55,13 @@ DEMFEM_HD void wall_contacts(const ParticleView& p, const WallView& w, std::int6
                              const PairConstants* pc_row, double dt, Vec3& f, Vec3& q, double& mo,
                              double& fmo) {
   if (w.prow[i] == w.prow[i + 1] && w.wcount[i] == 0) return;  // no wall nearby
-  ClosestPoint cp[kMaxWallCandidates];
+  // The touching candidates, one array per field: a ClosestPoint copied whole into an array
+  // of structs was stored in 8-byte pieces and read back in 16-byte ones, and each such
+  // read waited for the stores to retire (store forwarding fails): a fifth of the time of
+  // this function, measured.
+  double cpx[kMaxWallCandidates], cpy[kMaxWallCandidates], cpz[kMaxWallCandidates];
+  double cu[kMaxWallCandidates], cv[kMaxWallCandidates], cw[kMaxWallCandidates];
+  int cfeat[kMaxWallCandidates];
   std::int32_t ctri[kMaxWallCandidates];
   std::int64_t ckey[kMaxWallCandidates];
   int nc = 0;
@@ -77,7 +83,9 @@ DEMFEM_HD void wall_contacts(const ParticleView& p, const WallView& w, std::int6
       key = (std::int64_t{1} << kFeatureShift) | w.tri_e[3 * tri + c.feature - 1];
     else
       key = (std::int64_t{2} << kFeatureShift) | tv[c.feature - kVertexA];
-    cp[nc] = c;
+    cpx[nc] = c.point.x, cpy[nc] = c.point.y, cpz[nc] = c.point.z;
+    cu[nc] = c.u, cv[nc] = c.v, cw[nc] = c.w;
+    cfeat[nc] = c.feature;
     ctri[nc] = tri;
     ckey[nc] = key;
     ++nc;
@@ -99,7 +107,7 @@ DEMFEM_HD void wall_contacts(const ParticleView& p, const WallView& w, std::int6
         for (int e = 0; e < 3; ++e)
           if (w.tri_v[3 * ctri[b] + e] == fid) keep[a] = false;
       } else if (type == 2 && tb == 1) {
-        const int fe = cp[b].feature - 1;
+        const int fe = cfeat[b] - 1;
         const std::int32_t* tv = w.tri_v + 3 * ctri[b];
         if (tv[fe] == fid || tv[(fe + 1) % 3] == fid) keep[a] = false;
       }
@@ -128,9 +136,9 @@ DEMFEM_HD void wall_contacts(const ParticleView& p, const WallView& w, std::int6
     const double* vv = w.vvel;
     // wall velocity at the contact point: barycentric interpolation of the vertex velocities
     // (exact for rigid motion and for the linear velocity field of a flexible triangle)
-    const Vec3 vw = cp[a].u * Vec3{vv[3 * tv[0]], vv[3 * tv[0] + 1], vv[3 * tv[0] + 2]} +
-                    cp[a].v * Vec3{vv[3 * tv[1]], vv[3 * tv[1] + 1], vv[3 * tv[1] + 2]} +
-                    cp[a].w * Vec3{vv[3 * tv[2]], vv[3 * tv[2] + 1], vv[3 * tv[2] + 2]};
+    const Vec3 vw = cu[a] * Vec3{vv[3 * tv[0]], vv[3 * tv[0] + 1], vv[3 * tv[0] + 2]} +
+                    cv[a] * Vec3{vv[3 * tv[1]], vv[3 * tv[1] + 1], vv[3 * tv[1] + 2]} +
+                    cw[a] * Vec3{vv[3 * tv[2]], vv[3 * tv[2] + 1], vv[3 * tv[2] + 2]};
     Vec3 sh{0, 0, 0}, rh{0, 0, 0};
     if constexpr (Friction)
       for (int o = 0; o < oc; ++o)
@@ -143,8 +151,9 @@ DEMFEM_HD void wall_contacts(const ParticleView& p, const WallView& w, std::int6
     const std::int32_t wall = w.tri_wall[tri];
     const Vec3 ww =
         w.motion != nullptr && wall >= 0 ? rigid_spin(w.motion[wall], w.time) : Vec3{0, 0, 0};
-    if (!sphere_wall<Friction>(p, static_cast<int>(i), cp[a].point, vw, ww, pc_row[w.tri_mat[tri]],
-                               dt, sh, rh, r, delta))
+    const Vec3 point{cpx[a], cpy[a], cpz[a]};
+    if (!sphere_wall<Friction>(p, static_cast<int>(i), point, vw, ww, pc_row[w.tri_mat[tri]], dt,
+                               sh, rh, r, delta))
       continue;
     f = f + r.force;
     if constexpr (Friction) {
@@ -155,9 +164,8 @@ DEMFEM_HD void wall_contacts(const ParticleView& p, const WallView& w, std::int6
     key[cnt] = ckey[a];
     const std::int64_t slot = kMaxWallContacts * i + cnt;
     w.wf[3 * slot] = r.force.x, w.wf[3 * slot + 1] = r.force.y, w.wf[3 * slot + 2] = r.force.z;
-    w.wp[3 * slot] = cp[a].point.x, w.wp[3 * slot + 1] = cp[a].point.y,
-             w.wp[3 * slot + 2] = cp[a].point.z;
-    w.wb[3 * slot] = cp[a].u, w.wb[3 * slot + 1] = cp[a].v, w.wb[3 * slot + 2] = cp[a].w;
+    w.wp[3 * slot] = point.x, w.wp[3 * slot + 1] = point.y, w.wp[3 * slot + 2] = point.z;
+    w.wb[3 * slot] = cu[a], w.wb[3 * slot + 1] = cv[a], w.wb[3 * slot + 2] = cw[a];
     w.wtri[slot] = tri;
     mo = mo > delta ? mo : delta;
     if (w.tri_wall[tri] < 0) fmo = fmo > delta ? fmo : delta;
