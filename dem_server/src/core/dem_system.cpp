@@ -266,6 +266,7 @@ struct DemSystem::Impl {
   std::vector<std::int32_t> onbr;
   double skin_in = 0.0;
   double out_disp = 0.0;  // bound of the largest displacement since the build, refilters summed
+  double out_pair = 0.0;  // bound of d_i + d_j of any pair since the build, refilters summed
   std::int64_t refilters = 0;
   std::int64_t steps_at_update = -1;  // step of the last build or refilter
 
@@ -281,7 +282,7 @@ struct DemSystem::Impl {
   //  * one level: a build more than 100 steps after the last goes back to two levels.
   // It depends on step counts only, and the list's non-touching pairs do not change the
   // result, so it keeps the bits. Returns false when a refilter must be a build instead.
-  bool adapt_inner_skin(bool build, double dbuild = 0.0) {
+  bool adapt_inner_skin(bool build, double pbuild = 0.0) {
     const std::int64_t since = steps - steps_at_update;
     const bool first = steps_at_update < 0;
     if (gpu != nullptr || s.list_skin > 0.0 || first) {  // fixed; one level on the device
@@ -295,7 +296,7 @@ struct DemSystem::Impl {
       if (build) {
         skin_in = grown > kInnerSkinMax * skin ? skin : grown;
       } else {
-        if (grown > kInnerSkinMax * skin || 2.0 * dbuild > skin - grown) return false;
+        if (grown > kInnerSkinMax * skin || pbuild > skin - grown) return false;
         skin_in = grown;
       }
     } else if (since > 40) {
@@ -606,6 +607,7 @@ struct DemSystem::Impl {
     orow.swap(nrow);
     onbr.swap(nnbr);
     out_disp = 0.0;
+    out_pair = 0.0;
     adapt_inner_skin(true);
     // triangles: binned into the particle cells their AABB (grown by rmax + skin) touches
     prow.assign(np + 1, 0);
@@ -916,6 +918,38 @@ struct DemSystem::Impl {
     return v;
   }
 
+  // Sum of the two largest displacements since the last list update (bx): bounds d_i + d_j
+  // of every pair. Per-thread top two, combined in thread order (max is exact: any order
+  // gives the same value).
+  double two_largest_displacements() {
+    const std::int64_t sn = static_cast<std::int64_t>(n());
+    const int T = nt();
+    std::vector<std::array<double, 2>> top(static_cast<std::size_t>(T), {0.0, 0.0});
+#pragma omp parallel num_threads(T)
+    {
+      double a = 0.0, b = 0.0;  // a >= b, squared
+#pragma omp for schedule(static)
+      for (std::int64_t i = 0; i < sn; ++i) {
+        const double dx = st.px[i] - bx[i], dy = st.py[i] - by[i], dz = st.pz[i] - bz[i];
+        const double d2 = dx * dx + dy * dy + dz * dz;
+        if (d2 > a) {
+          b = a;
+          a = d2;
+        } else if (d2 > b) {
+          b = d2;
+        }
+      }
+      top[static_cast<std::size_t>(omp_get_thread_num())] = {a, b};
+    }
+    double a = 0.0, b = 0.0;
+    for (const auto& [ta, tb] : top) {
+      b = std::max(b, std::min(a, ta));
+      a = std::max(a, ta);
+      b = std::max(b, tb);
+    }
+    return std::sqrt(a) + std::sqrt(b);
+  }
+
   // Half kick + drift; returns the largest displacement since the last build. The
   // orientation is advanced in a second loop: with only small rotations in this step (the
   // usual case) it runs in SIMD lanes without sin/cos; the per-particle arithmetic is the
@@ -1016,16 +1050,28 @@ struct DemSystem::Impl {
       wdisp = wall_displacement();
     }
     const double t1 = omp_get_wtime();
-    // Build when the candidates may miss a pair that comes within skin_in (2 d_build >
-    // skin - skin_in) or a wall; refilter when a pair outside the list may touch (2 d > skin_in).
+    // Build when the candidates may miss a pair that comes within skin_in (d_i + d_j since
+    // the build > skin - skin_in) or a wall; refilter when a pair outside the list may touch
+    // (d_i + d_j since the last update > skin_in). d_i + d_j is bounded by twice the largest
+    // displacement, and when that bound calls for an update, by the sum of the two largest
+    // (a pass over the particles): a few fast spheres in a resting bed then use the whole
+    // skin before they call for a build, instead of half of it.
     const double dbuild = out_disp + disp;  // |x - x_build| <= sum of the refilter intervals
-    if (skin_in >= skin) {                  // one level: the list is the build's
-      if (need_rebuild || 2.0 * disp > skin || disp + wdisp > skin) rebuild();
-    } else if (need_rebuild || 2.0 * dbuild > skin - skin_in || dbuild + wdisp > skin) {
+    double pdisp = 2.0 * disp;              // d_i + d_j since the last update, any pair
+    const bool one_level = skin_in >= skin;
+    auto pair_calls = [&](double pd) {
+      return one_level ? pd > skin : out_pair + pd > skin - skin_in || pd > skin_in;
+    };
+    if (!need_rebuild && disp < 1e300 && pair_calls(pdisp)) pdisp = two_largest_displacements();
+    const double pbuild = out_pair + pdisp;  // d_i + d_j since the build, any pair
+    if (one_level) {                         // the list is the build's
+      if (need_rebuild || pdisp > skin || disp + wdisp > skin) rebuild();
+    } else if (need_rebuild || pbuild > skin - skin_in || dbuild + wdisp > skin) {
       rebuild();
-    } else if (2.0 * disp > skin_in) {
-      if (adapt_inner_skin(false, dbuild)) {
+    } else if (pdisp > skin_in) {
+      if (adapt_inner_skin(false, pbuild)) {
         out_disp += disp;
+        out_pair += pdisp;
         refilter();
       } else {
         rebuild();

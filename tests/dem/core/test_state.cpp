@@ -129,22 +129,64 @@ TEST_CASE("Save/restore mid-run continues bitwise identically", "[dem][restart]"
   std::filesystem::remove_all(dir);
 }
 
-TEST_CASE("Neighbour list is reused until particles moved half the skin", "[dem][detection]") {
-  // A still bed without gravity: one build, no rebuild; then moving particles rebuild.
+TEST_CASE("Neighbour list is reused until two particles may have closed the skin",
+          "[dem][detection]") {
+  // A still row without gravity: one build, no rebuild. Then spheres at 1 m/s (0.01 mm per
+  // step) with a one-level list (list_skin = 1, skin = 0.2 r_max = 0.4 mm): a build is due
+  // when the two largest displacements since the last build sum to more than the skin, so
+  // one moving sphere builds every 41 steps (its own displacement alone closes the skin)
+  // and two every 21 (twice the largest: what a largest-displacement rule gives for any
+  // number of moving spheres).
   auto s = two_material_settings(1e8, 0.3, 2500.0, 0.4, 0.5, 1e-5);
-  DemSystem sys(s);
-  std::vector<ParticleInit> p;
-  for (int i = 0; i < 10; ++i) p.push_back(sphere({0.005 * i, 0, 0}, 0.002));
-  sys.add_particles(p);
-  sys.advance(100);
-  CHECK(sys.neighbour_rebuilds() == 1);
-  CHECK(sys.neighbour_pairs() == 0);  // spheres 1 mm apart, skin 0.4 mm
-  std::vector<ParticleInit> q = {sphere({0.0, 0.01, 0}, 0.002, {0, 1.0, 0})};
-  sys.add_particles(q);
-  sys.advance(100);  // moves 1 mm: skin / 2 = 0.2 mm is used up about every 20 steps
-  CHECK(sys.neighbour_rebuilds() >= 5);
-  CHECK(sys.rayleigh_time_step() == Approx(3.14159265358979 * 0.002 / (0.1631 * 0.3 + 0.8766) *
+  s.list_skin = 1.0;
+  auto row = [&] {
+    DemSystem sys(s);
+    std::vector<ParticleInit> p;
+    for (int i = 0; i < 10; ++i) p.push_back(sphere({0.005 * i, 0, 0}, 0.002));
+    sys.add_particles(p);
+    sys.advance(100);
+    CHECK(sys.neighbour_rebuilds() == 1);
+    CHECK(sys.neighbour_pairs() == 0);  // spheres 1 mm apart, skin 0.4 mm
+    return sys;
+  };
+  DemSystem one = row();
+  one.add_particles(std::vector<ParticleInit>{sphere({0.0, 0.01, 0}, 0.002, {0, 1.0, 0})});
+  one.advance(200);  // 2 mm: the build at the first step (new particle), then 4 (every 41)
+  CHECK(one.neighbour_rebuilds() == 1 + 1 + 4);
+  DemSystem two = row();
+  two.add_particles(std::vector<ParticleInit>{sphere({0.0, 0.01, 0}, 0.002, {0, 1.0, 0}),
+                                              sphere({0.02, 0.01, 0}, 0.002, {0, -1.0, 0})});
+  two.advance(200);  // 9 more (every 21)
+  CHECK(two.neighbour_rebuilds() == 1 + 1 + 9);
+  CHECK(one.rayleigh_time_step() == Approx(3.14159265358979 * 0.002 / (0.1631 * 0.3 + 0.8766) *
                                            std::sqrt(2500.0 / (1e8 / 2.6))));  // eq. 2.27
+}
+
+TEST_CASE("A sphere moving alone through a resting row meets every sphere in its way",
+          "[dem][detection]") {
+  // The build rule above lets one fast sphere use the whole skin. It must still find every
+  // contact: a sphere shot along a row of resting spheres with gaps of 1 mm collides with the
+  // first, and the momentum passes down the row (Newton's cradle, e = 0.4). Reference: the same
+  // run with a list rebuilt every step (skin used up at once: a huge speed bound) must give the
+  // same bits. Tolerance: none.
+  auto s = two_material_settings(1e8, 0.3, 2500.0, 0.4, 0.0, 1e-5);
+  s.list_skin = 1.0;
+  auto run = [&](bool every_step) {
+    DemSystem sys(s);
+    std::vector<ParticleInit> p;
+    p.push_back(sphere({-0.006, 0, 0}, 0.002, {2.0, 0, 0}));
+    for (int i = 0; i < 8; ++i) p.push_back(sphere({0.005 * i, 0, 0}, 0.002));
+    sys.add_particles(p);
+    for (int k = 0; k < 3000; ++k) {
+      if (every_step) sys.add_particles(std::vector<ParticleInit>{});  // asks for a build
+      sys.advance(1);
+    }
+    return sys;
+  };
+  DemSystem lazy = run(false), eager = run(true);
+  CHECK(lazy.neighbour_rebuilds() < eager.neighbour_rebuilds());
+  CHECK(same_state(lazy.particles(), eager.particles()));
+  CHECK(lazy.particles().vx[8] > 0.0);  // the push reached the end of the row
 }
 
 TEST_CASE("The two-level pair list gives the bits of a one-level list", "[dem][detection]") {
