@@ -6,9 +6,10 @@
 //   1. per particle: half kick with the last force, drift, max displacement since the last
 //      list update
 //   2. walls: vertex positions/velocities at the new time (moving walls, flexible mesh)
-//   3. pair list: refiltered from the grid build's candidates when some particle moved half
-//      the list skin, built from the grid when the candidates may no longer hold every pair
-//      that can touch (two levels, see Impl::orow)
+//   3. pair list: refiltered from the grid build's candidates when the two largest
+//      displacements since the last update may have closed the list skin, built from the
+//      grid when the candidates may no longer hold every pair that can touch (two levels,
+//      see Impl::orow and step())
 //   4. per particle i (parallel): forces of the pairs (i, j > i) of its CSR row, written to
 //      per-pair slots
 //   5. per particle (parallel): own-row slots + transposed pair slots (fixed order) + walls +
