@@ -922,10 +922,12 @@ struct DemSystem::Impl {
   // Sum of the two largest displacements since the last list update (bx): bounds d_i + d_j
   // of every pair. Per-thread top two, combined in thread order (max is exact: any order
   // gives the same value).
+  std::vector<std::array<double, 2>> top_two;  // per thread (member: no allocation per call)
   double two_largest_displacements() {
     const std::int64_t sn = static_cast<std::int64_t>(n());
     const int T = nt();
-    std::vector<std::array<double, 2>> top(static_cast<std::size_t>(T), {0.0, 0.0});
+    std::vector<std::array<double, 2>>& top = top_two;
+    top.assign(static_cast<std::size_t>(T), {0.0, 0.0});
 #pragma omp parallel num_threads(T)
     {
       double a = 0.0, b = 0.0;  // a >= b, squared
@@ -951,7 +953,7 @@ struct DemSystem::Impl {
     return std::sqrt(a) + std::sqrt(b);
   }
 
-  // Half kick + drift; returns the largest displacement since the last build. The
+  // Half kick + drift; returns the largest displacement since the last list update. The
   // orientation is advanced in a second loop: with only small rotations in this step (the
   // usual case) it runs in SIMD lanes without sin/cos; the per-particle arithmetic is the
   // same either way.
