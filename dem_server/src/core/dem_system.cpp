@@ -274,10 +274,10 @@ struct DemSystem::Impl {
   // The list's skin adapts at each list update (build or refilter) to the steps since the
   // previous one, u:
   //  * u < 10 (a flow): skin_in grows by 1.5; beyond kInnerSkinMax x skin the list goes to one
-  //    level (skin_in = skin). In a flow the build budget (skin - skin_in) / 2, checked
-  //    against the summed refilter intervals, runs out about twice as fast as skin / 2
-  //    (measured: 96 builds and 31 refilters against 53 builds in 1500 steps of 4096 falling
-  //    spheres, 10 % slower). A refilter that may not grow the skin (the build budget) asks
+  //    level (skin_in = skin). In a flow the build budget skin - skin_in (for d_i + d_j),
+  //    checked against the summed refilter intervals, runs out about twice as fast as the
+  //    whole skin (measured with the rule of twice the largest displacement: 96 builds and
+  //    31 refilters against 53 builds in 1500 steps of 4096 falling spheres, 10 % slower). A refilter that may not grow the skin (the build budget) asks
   //    for a build;
   //  * u > 40 (a settled bed): skin_in shrinks by 1.5, to kInnerSkin x skin at least;
   //  * one level: a build more than 100 steps after the last goes back to two levels.
