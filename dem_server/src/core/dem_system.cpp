@@ -277,8 +277,8 @@ struct DemSystem::Impl {
   //    level (skin_in = skin). In a flow the build budget skin - skin_in (for d_i + d_j),
   //    checked against the summed refilter intervals, runs out about twice as fast as the
   //    whole skin (measured with the rule of twice the largest displacement: 96 builds and
-  //    31 refilters against 53 builds in 1500 steps of 4096 falling spheres, 10 % slower). A refilter that may not grow the skin (the build budget) asks
-  //    for a build;
+  //    31 refilters against 53 builds in 1500 steps of 4096 falling spheres, 10 % slower). A
+  //    refilter that may not grow the skin (the build budget) asks for a build;
   //  * u > 40 (a settled bed): skin_in shrinks by 1.5, to kInnerSkin x skin at least;
   //  * one level: a build more than 100 steps after the last goes back to two levels.
   // It depends on step counts only, and the list's non-touching pairs do not change the
@@ -926,8 +926,7 @@ struct DemSystem::Impl {
   double two_largest_displacements() {
     const std::int64_t sn = static_cast<std::int64_t>(n());
     const int T = nt();
-    std::vector<std::array<double, 2>>& top = top_two;
-    top.assign(static_cast<std::size_t>(T), {0.0, 0.0});
+    top_two.assign(static_cast<std::size_t>(T), {0.0, 0.0});
 #pragma omp parallel num_threads(T)
     {
       double a = 0.0, b = 0.0;  // a >= b, squared
@@ -942,10 +941,10 @@ struct DemSystem::Impl {
           b = d2;
         }
       }
-      top[static_cast<std::size_t>(omp_get_thread_num())] = {a, b};
+      top_two[static_cast<std::size_t>(omp_get_thread_num())] = {a, b};
     }
     double a = 0.0, b = 0.0;
-    for (const auto& [ta, tb] : top) {
+    for (const auto& [ta, tb] : top_two) {
       b = std::max(b, std::min(a, ta));
       a = std::max(a, ta);
       b = std::max(b, tb);
@@ -1059,19 +1058,21 @@ struct DemSystem::Impl {
     // displacement, and when that bound calls for an update, by the sum of the two largest
     // (a pass over the particles): a few fast spheres in a resting bed then use the whole
     // skin before they call for a build, instead of half of it.
-    const double dbuild = out_disp + disp;  // |x - x_build| <= sum of the refilter intervals
-    double pdisp = 2.0 * disp;              // d_i + d_j since the last update, any pair
-    const bool one_level = skin_in >= skin;
-    auto pair_calls = [&](double pd) {
-      return one_level ? pd > skin : out_pair + pd > skin - skin_in || pd > skin_in;
+    const double dbuild = out_disp + disp;   // |x - x_build| <= sum of the refilter intervals
+    const bool one_level = skin_in >= skin;  // the list is the build's: no refilter
+    // the pair parts of the rules, for a bound pd of d_i + d_j since the last update
+    auto build_by_pairs = [&](double pd) {
+      return one_level ? pd > skin : out_pair + pd > skin - skin_in;
     };
-    if (!need_rebuild && disp < 1e300 && pair_calls(pdisp)) pdisp = two_largest_displacements();
+    auto refilter_by_pairs = [&](double pd) { return !one_level && pd > skin_in; };
+    double pdisp = 2.0 * disp;
+    if (!need_rebuild && disp < 1e300 && (build_by_pairs(pdisp) || refilter_by_pairs(pdisp)))
+      pdisp = two_largest_displacements();
     const double pbuild = out_pair + pdisp;  // d_i + d_j since the build, any pair
-    if (one_level) {                         // the list is the build's
-      if (need_rebuild || pdisp > skin || disp + wdisp > skin) rebuild();
-    } else if (need_rebuild || pbuild > skin - skin_in || dbuild + wdisp > skin) {
+    // (one level: no refilter has added to out_disp since the build, so dbuild = disp)
+    if (need_rebuild || build_by_pairs(pdisp) || dbuild + wdisp > skin) {
       rebuild();
-    } else if (pdisp > skin_in) {
+    } else if (refilter_by_pairs(pdisp)) {
       if (adapt_inner_skin(false, pbuild)) {
         out_disp += disp;
         out_pair += pdisp;
