@@ -24,7 +24,10 @@ class LocalDem final : public protocol::SolverBackend {
       : run_(scene, out, run.seed, run.output_interval, nullptr, true), backend_(run_) {}
   ~LocalDem() override {
     try {
-      if (run_.system().step_count() > 0) run_.write_snapshot();  // the end state
+      if (run_.system().step_count() > 0) {
+        run_.write_snapshot();  // the end state
+        run_.write_state();
+      }
     } catch (const std::exception& e) {
       std::cerr << "dem: " << e.what() << "\n";
     }

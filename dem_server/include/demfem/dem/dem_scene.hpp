@@ -15,6 +15,7 @@
 
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/dem/insertion.hpp"
+#include "demfem/dem/particle_source.hpp"
 #include "demfem/dem/sensors.hpp"
 #include "demfem/scene/scene_reader.hpp"
 
@@ -65,6 +66,8 @@ struct DemScene {
   std::vector<SensorSpec> sensors;        ///< wall_force: wall = index into walls
   std::optional<double> output_interval;  ///< [dem.output] interval (else the run's)
   bool output_particles = true;
+  bool output_state = false;             ///< [dem.output] state: write dem_state.h5 at the end
+  std::optional<ParticleSource> load;    ///< [dem.load]: particles from a file, loaded first
   std::int32_t interface_material = -1;  ///< -1: not given
   std::string interface_material_where;
 };
@@ -110,8 +113,11 @@ class DemRun {
   void run_to(double end_time, const std::function<void(double)>& progress = {});
   /// Writes a particle snapshot now (no-op without output).
   void write_snapshot();
-  /// The end state: a snapshot unless the last one is of the current time.
+  /// The end state: a snapshot unless the last one is of the current time, and the state
+  /// file when [dem.output] state asks for it.
   void finish();
+  /// Writes <output>/dem_state.h5 (particle_source.hpp) when [dem.output] state asks for it.
+  void write_state() const;
   /// Sensor samples and snapshot due at the current time.
   void after_advance();
   /// Throws std::runtime_error naming the time, the largest overlap against the smallest
