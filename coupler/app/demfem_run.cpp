@@ -27,6 +27,7 @@
 #include "demfem/coupling/coupling_settings.hpp"
 #include "demfem/coupling/local_solvers.hpp"
 #include "demfem/coupling/progress.hpp"
+#include "demfem/coupling/scene_steps.hpp"
 #include "demfem/coupling/solver_link.hpp"
 #include "demfem/coupling/supervisor.hpp"
 #include "demfem/io/atomic_file.hpp"
@@ -48,6 +49,7 @@ struct Options {
   std::string output_dir;
   bool quiet = false;
   bool in_process = false;
+  bool no_post = false;
   int wait_spin_us = 0;
   bool resume = false;
   std::string resume_from;  // empty: the latest valid checkpoint
@@ -120,10 +122,13 @@ int run(const Options& opt) {
   // ---- the scene: everything is checked before any process starts -----------------------
   std::optional<scene::Document> doc;
   CouplingSettings settings;
+  std::vector<PostStep> post_steps;
+  const fs::path bin = opt.bin_dir.empty() ? self_dir() : fs::path(opt.bin_dir);
   try {
     doc = scene::Document::load(opt.scene);
     settings = read_coupling_settings(*doc);
     check_solver_sections(*doc);
+    post_steps = read_post_steps(*doc, bin);
   } catch (const scene::SceneError& e) {
     std::fprintf(stderr, "demfem run: scene error: %s\n", e.what());
     return kExitUsage;
@@ -175,13 +180,20 @@ int run(const Options& opt) {
   std::fflush(stdout);
 
   SignalGuard signals;
+  // A [dem.load] scene = ... whose state is missing or stale: that scene runs first.
+  try {
+    if (const int c = run_prepare_scenes(*doc, bin, opt.quiet, opt.in_process)) return c;
+  } catch (const scene::SceneError& e) {
+    std::fprintf(stderr, "demfem run: scene error: %s\n", e.what());
+    return kExitUsage;
+  }
+  if (SignalGuard::stop_flag().load()) return 128 + SignalGuard::signal_number();
   const bool terminal = ::isatty(STDOUT_FILENO) == 1;
   Progress progress(stdout, terminal, opt.quiet);
 
   std::unique_ptr<protocol::CouplerSession> session;
   std::unique_ptr<SolverProcess> dem_proc, fem_proc;
   std::unique_ptr<SolverLink> link;
-  const fs::path bin = opt.bin_dir.empty() ? self_dir() : fs::path(opt.bin_dir);
   int code = 0;
   std::optional<RunSummary> summary;
   try {
@@ -368,6 +380,11 @@ int run(const Options& opt) {
       if (code == 0) code = kExitFailed;
     }
   }
+  // [[post]]: plots and reports of a run that ended well.
+  if (code == 0 && summary && !opt.no_post && !post_steps.empty()) {
+    std::fflush(stdout);
+    code = run_post_steps(post_steps, out_dir, opt.scene, bin);
+  }
   std::fflush(stdout);
   return code;
 }
@@ -391,6 +408,7 @@ int main(int argc, char** argv) {
                  "microseconds the coupler spins before it blocks while waiting for a solver "
                  "(default 0: block at once)")
       ->check(CLI::Range(0, 100000));
+  app.add_flag("--no-post", opt.no_post, "skip the scene's [[post]] steps (plots, reports)");
   app.add_flag("--in-process", opt.in_process,
                "run the solvers in this process (no servers; same results on the CPU backend)");
   auto* resume = app.add_option("--resume", opt.resume_from,

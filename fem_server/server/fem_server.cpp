@@ -63,6 +63,11 @@ int main(int argc, char** argv) {
       const double interval = fem.output.interval > 0.0 ? fem.output.interval : run.output_interval;
       if (output && !resume) output->write(solver);  // reference state
       demfem::fem::FemBackend backend(solver, output.get(), interval);
+      std::unique_ptr<demfem::fem::FemMonitor> monitor;
+      if (fem.monitor.enabled) {
+        monitor = std::make_unique<demfem::fem::FemMonitor>(out_dir, fem.monitor, resume);
+        backend.set_monitor(monitor.get());
+      }
       demfem::protocol::ServeOptions options;
       options.segment = segment;
       options.remove_orphaned_segments = true;  // a killed coupler leaves nothing behind

@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "demfem/fem/fem_monitor.hpp"
 #include "demfem/fem/fem_output.hpp"
 #include "demfem/fem/fem_solver.hpp"
 #include "demfem/io/checkpoint_file.hpp"
@@ -32,6 +33,9 @@ class FemBackend final : public protocol::SolverBackend {
  public:
   explicit FemBackend(FemSolver& solver, FemOutput* output = nullptr, double output_interval = 0.0)
       : solver_(solver), output_(output), interval_(output_interval) {}
+
+  /// [fem.monitor]: sampled after every step, kept in checkpoints (may be null).
+  void set_monitor(FemMonitor* monitor) { monitor_ = monitor; }
 
   std::string name() const override { return "demfem-fem 0.1 (cpu)"; }
 
@@ -80,6 +84,7 @@ class FemBackend final : public protocol::SolverBackend {
     r.values[2] = solver_.strain_energy();
     r.values[3] = solver_.time();
     maybe_write_output();
+    if (monitor_) monitor_->sample(solver_, forces);
     return r;
   }
 
@@ -89,11 +94,14 @@ class FemBackend final : public protocol::SolverBackend {
     io::write_checkpoint_file(file, step, [this](io::H5File& h5) {
       h5.create_group("fem");
       solver_.save(h5, "fem");
+      if (monitor_) monitor_->save(h5, "fem_monitor");
     });
   }
 
   void restore_checkpoint(const std::filesystem::path& file, std::int64_t step) override {
-    solver_.restore(io::open_checkpoint_file(file, step), "fem");
+    const io::H5File h5 = io::open_checkpoint_file(file, step);
+    solver_.restore(h5, "fem");
+    if (monitor_) monitor_->restore(h5, "fem_monitor", solver_.time());
     if (interval_ > 0.0) {
       // The next multiple of the interval after the restored time, as in the original run.
       next_output_ = interval_ * (std::floor(solver_.time() / interval_ + 1e-9) + 1.0);
@@ -112,6 +120,7 @@ class FemBackend final : public protocol::SolverBackend {
 
   FemSolver& solver_;
   FemOutput* output_;
+  FemMonitor* monitor_ = nullptr;
   double interval_;
   double next_output_ = interval_;
 };

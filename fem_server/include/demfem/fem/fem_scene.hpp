@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "demfem/fem/fem_monitor.hpp"
 #include "demfem/fem/fem_problem.hpp"
 #include "demfem/scene/scene_reader.hpp"
 
@@ -33,6 +34,7 @@ struct FemScene {
   double dt = 0.0;          ///< s; 0 = not given (a coupled run takes it from the coupler)
   std::string dt_location;  ///< "file:line: key 'fem.dt'", for messages about dt
   FemOutputSettings output;
+  FemMonitorSettings monitor;  ///< [fem.monitor] (fem_monitor.hpp)
 };
 
 /// @brief Reads and checks [fem]. Throws scene::SceneError naming file, line and key for
