@@ -109,10 +109,10 @@ void FemMonitor::sample(const FemSolver& solver, std::span<const double> forces)
     csv_->row(row);
     csv_->flush();
     times_.push_back(t);
-    if (settings_.interval > 0.0) {
-      if (!started_) next_ = t;
-      while (next_ <= t + slack) next_ += settings_.interval;
-    }
+    // The next multiple of the interval after t (multiples, so that a restored run samples
+    // at the same times).
+    if (settings_.interval > 0.0)
+      next_ = settings_.interval * (std::floor(t / settings_.interval + 1e-9) + 1.0);
   }
   // The window (start, end]: each step whose end lies in it counts with its dt.
   if (settings_.mean && !mean_written_ && dt > 0.0 && t > settings_.mean_start + slack &&
