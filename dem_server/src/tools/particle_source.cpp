@@ -574,6 +574,19 @@ std::size_t load_particles(const ParticleSource& s, DemSystem& system,
   }
   const std::size_t n = system.particle_count();
   if (n == 0) data_error(s, s.file.string(), "holds no particles");
+  if (s.history) {  // a state is restored as saved: check what a CSV or snapshot is checked for
+    const auto& q = system.particles();
+    for (std::size_t i = 0; i < n; ++i) {
+      const double v[] = {q.px[i], q.py[i], q.pz[i], q.vx[i], q.vy[i],
+                          q.vz[i], q.wx[i], q.wy[i], q.wz[i], q.radius[i]};
+      for (double x : v)
+        if (!std::isfinite(x))
+          data_error(s, s.file.string() + ": particle " + std::to_string(i),
+                     "a position, velocity or radius is not finite");
+      if (!(q.radius[i] > 0))
+        data_error(s, s.file.string() + ": particle " + std::to_string(i), "radius must be > 0");
+    }
+  }
   auto name_of = [&](std::int64_t i) {
     return i < std::int64_t(origin.size()) ? origin[std::size_t(i)]
                                            : s.file.string() + ": particle " + std::to_string(i);
