@@ -2,7 +2,9 @@
 """Stability and convergence studies of the steel-sheet case (docs/verification.md).
 
 usage: tools/sheet_study.py stability   [--base cases/sheet_ci.toml] [--work DIR] [--bin DIR]
+                                        [--end-time T]
        tools/sheet_study.py convergence [--base cases/sheet_ci.toml] [--work DIR] [--bin DIR]
+                                        [--end-time T] [--window A,B]
 
 Each member is the base scene with some keys replaced (the text of the scene, first match of
 each key in its section), written next to the base scene (so that its relative paths hold)
@@ -69,9 +71,14 @@ def moving_average(v, n):
     return out
 
 
+END_TIME = None  # --end-time: replaces run.end_time of every member
+
+
 def run_member(name, text, base, work, bin_dir):
     scene = os.path.join(os.path.dirname(base), f".study_{name}.toml")
     text = set_key(text, "run", "name", f'"{name}"')
+    if END_TIME is not None:
+        text = set_key(text, "run", "end_time", repr(END_TIME))
     with open(scene, "w") as f:
         f.write(text)
     t0 = time.time()
@@ -169,7 +176,11 @@ def main(argv):
     p.add_argument("--bin", default=os.path.join(ROOT, "build", "bin"))
     p.add_argument("--rmin", type=float, default=0.0025, help="smallest grain radius, m")
     p.add_argument("--window", default="0.45,0.8", help="steady window for convergence, s")
+    p.add_argument("--end-time", type=float, default=None,
+                   help="run every member to this time instead of the base's run.end_time")
     a = p.parse_args(argv)
+    global END_TIME
+    END_TIME = a.end_time
     os.makedirs(a.work, exist_ok=True)
     base = os.path.abspath(a.base)
     if a.study == "stability":
