@@ -12,6 +12,7 @@
 #include <unordered_map>
 
 #include "demfem/dem/physics/geometry.hpp"
+#include "demfem/io/file_hash.hpp"
 #include "demfem/io/h5_file.hpp"
 
 namespace demfem::dem {
@@ -430,18 +431,9 @@ std::filesystem::path prepared_state_path(const std::filesystem::path& prepare_s
 }
 
 std::string scene_text_hash(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw std::runtime_error(file.string() + ": cannot be read");
-  std::uint64_t h = 1469598103934665603ull;
-  char buf[4096];
-  while (in.read(buf, sizeof buf) || in.gcount() > 0) {
-    for (std::streamsize k = 0; k < in.gcount(); ++k) {
-      h ^= static_cast<unsigned char>(buf[k]);
-      h *= 1099511628211ull;
-    }
-  }
   char text[17];
-  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(h));
+  std::snprintf(text, sizeof text, "%016llx",
+                static_cast<unsigned long long>(io::fnv1a64_file(file)));
   return text;
 }
 
