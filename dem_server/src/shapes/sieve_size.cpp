@@ -160,29 +160,39 @@ class SquareFit {
   mutable std::vector<Vector2d> points_, hull_, breaks_;  // scratch
 };
 
-/// Pattern search over the passage direction on the sphere: 8 tangent directions, turned by
-/// a random angle at each step so that it cannot stall on a kink.
+/// Pattern search over the passage direction on the sphere: 16 tangent directions, polled
+/// in turn from the last successful one (the first improvement is taken); after a failed
+/// poll the step halves and the pattern is turned by a random angle, so that the search
+/// cannot stall on a fixed kink of the objective.
 Passage local_search(const SquareFit& f, Passage start, double last_step, std::uint64_t seed) {
   Rng rng(seed);
   double h = kFirstStep;
   Passage cur = start;
+  Vector3d last = Vector3d::Zero();  // world direction of the last successful move
   while (h > last_step) {
     const Vector3d u = cur.frame.col(2);
-    const Vector3d t1 = cur.frame.col(0), t2 = cur.frame.col(1);
-    const double offset = rng.uniform(0.0, 2.0 * kPi / kPattern);
-    Passage best = cur;
-    for (int k = 0; k < kPattern; ++k) {
-      const double beta = offset + 2.0 * kPi * k / kPattern;
-      const Vector3d trial_u =
-          std::cos(h) * u + std::sin(h) * (std::cos(beta) * t1 + std::sin(beta) * t2);
-      const Passage trial = f(trial_u);
-      if (trial.side < best.side) best = trial;
+    Vector3d t1 = last - last.dot(u) * u;
+    if (t1.norm() < 0.5) {
+      const double a = rng.uniform(0.0, 2.0 * kPi);
+      t1 = std::cos(a) * cur.frame.col(0) + std::sin(a) * cur.frame.col(1);
     }
-    if (best.side < cur.side) {
-      cur = best;
-      h = std::min(2.0 * h, kFirstStep);
-    } else {
+    t1.normalize();
+    const Vector3d t2 = u.cross(t1);
+    const double ch = std::cos(h), sh = std::sin(h);
+    bool moved = false;
+    for (int k = 0; k < kPattern && !moved; ++k) {
+      const double beta = 2.0 * kPi * k / kPattern;
+      const Vector3d d = std::cos(beta) * t1 + std::sin(beta) * t2;
+      const Passage trial = f(ch * u + sh * d);
+      if (trial.side < cur.side) {
+        cur = trial;
+        last = d;
+        moved = true;
+      }
+    }
+    if (!moved) {
       h *= 0.5;
+      last = Vector3d::Zero();
     }
   }
   return cur;

@@ -20,15 +20,16 @@
 // of fixed antipodal pairs, concave where positive, so the minimum over the square's turn psi
 // lies at a breakpoint or where the two widths cross: O(m log m) for m hull vertices. The
 // remaining minimisation over u (2 parameters, Lipschitz, not smooth, several local minima)
-// is searched: 1024 directions on a Fibonacci hemisphere plus the face normals and the
-// principal axes, a pattern search (16 tangent directions turned at random each step, so it
-// cannot stall on a fixed kink) from the 12 best down to 1e-3 rad, and the best two refined
+// is searched: 512 directions on a Fibonacci hemisphere plus the face normals and the
+// principal axes; a pattern search (16 tangent directions, polled from the last successful
+// one; after a failed poll the step halves and the pattern turns by a random angle, so that
+// it cannot stall on a fixed kink) from the 8 best down to 1e-3 rad; the best two refined
 // down to 1e-9 rad.
 //
 // Accuracy: exact (round-off) for the cube, the regular tetrahedron and the boxes above. On
-// 200 random hulls (4 to 33 vertices) the result is within 2.5e-8 relative of a search with
-// 8x the directions and 5x the starts refined to 1e-11 rad (tools: tests/dem/shapes). Cost:
-// ~4 ms of CPU per 20-vertex shape; ShapeLibrary computes it once per unit shape.
+// 200 random hulls (4 to 33 vertices) the result is within 4.4e-10 relative of a search with
+// 16x the directions and 8x the starts refined to 1e-11 rad (bench/shape_library). Cost:
+// ~2-3 ms of CPU per 20-vertex shape, once per unit shape of a ShapeLibrary.
 
 #include "demfem/dem/shapes/convex_polyhedron.hpp"
 
@@ -43,8 +44,8 @@ struct SieveFit {
 
 /// @brief How hard to search for the global minimum over passage directions.
 struct SieveSearch {
-  int directions = 1024;     ///< candidate passage directions (Fibonacci hemisphere)
-  int local_starts = 12;     ///< coarse local searches (to 1e-3 rad) from the best candidates
+  int directions = 512;      ///< candidate passage directions (Fibonacci hemisphere)
+  int local_starts = 8;      ///< coarse local searches (to 1e-3 rad) from the best candidates
   int refined = 2;           ///< of which the best are refined further
   double final_step = 1e-9;  ///< rad: the refinement's last step
 };
