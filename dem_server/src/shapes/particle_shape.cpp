@@ -88,6 +88,9 @@ ParticleShape describe_dilated(const ConvexPolyhedron& core, double dilation_rad
     throw ShapeError("dilation radius " + format_number(dilation_radius) +
                      " m must be finite and >= 0");
   }
+  if (core.is_point() && !(dilation_radius > 0)) {
+    throw ShapeError("a point core needs a dilation radius > 0 (it is then a sphere)");
+  }
   return describe(core, dilation_radius, sieve_size(core).size);
 }
 

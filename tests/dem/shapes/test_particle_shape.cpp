@@ -152,6 +152,10 @@ TEST_CASE("a dilation radius too large for the size is refused with its value",
              Catch::Contains("fraction 0 must be > 0"));
   CHECK_THAT(error_of([&] { (void)make_particle_shape(cube, -1.0, SizeKind::sieve, 0.1, "b"); }),
              Catch::Contains("size -1 m must be > 0"));
+  CHECK_THAT(error_of([&] { (void)describe_dilated(ConvexPolyhedron::point(), 0.0); }),
+             Catch::Contains("point core needs a dilation radius > 0"));
+  CHECK_THAT(error_of([&] { (void)describe_dilated(cube, -0.1); }),
+             Catch::Contains("must be finite and >= 0"));
   // Just below one half: a tiny core, still valid.
   const auto s = make_particle_shape(cube, 0.04, SizeKind::sieve, 0.49, "b");
   CHECK(s.core.width({1, 0, 0}) == Approx(0.02 * 0.04).epsilon(1e-9));

@@ -54,6 +54,7 @@ struct ParticleShape {
 };
 
 /// The dilated body core + r_d as given (no scaling), moved into its principal frame.
+/// r_d >= 0 (> 0 for the point core).
 ParticleShape describe_dilated(const ConvexPolyhedron& core, double dilation_radius);
 
 /// The core scaled so that the dilated particle, with r_d = dilation_fraction * size, has the
