@@ -202,7 +202,12 @@ void ConvexPolyhedron::build_topology(std::string_view source) {
                        " only (or both its triangles run it the same way): the surface is not "
                        "closed and consistently oriented");
     }
-    if (e.from < e.to) edges_.push_back({e.from, e.to, e.triangle, back});
+    if (e.from < e.to) {
+      const Vec3& n1 = normals_[std::size_t(e.triangle)];
+      const Vec3& n2 = normals_[std::size_t(back)];
+      edges_.push_back(
+          {e.from, e.to, e.triangle, back, std::atan2(norm(cross(n1, n2)), dot(n1, n2))});
+    }
   }
   for (std::int32_t v = 0; v < nv; ++v)
     if (degree[std::size_t(v)] == 0) {

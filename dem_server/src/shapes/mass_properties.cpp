@@ -236,9 +236,7 @@ SteinerCoefficients steiner_coefficients(const ConvexPolyhedron& core) {
     const double len =
         (to_eigen(core.vertices()[std::size_t(e.b)]) - to_eigen(core.vertices()[std::size_t(e.a)]))
             .norm();
-    s.edge_term += 0.5 * len *
-                   angle_between(to_eigen(core.normals()[std::size_t(e.left)]),
-                                 to_eigen(core.normals()[std::size_t(e.right)]));
+    s.edge_term += 0.5 * len * e.angle;
   }
   return s;
 }

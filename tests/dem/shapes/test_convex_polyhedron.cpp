@@ -71,6 +71,14 @@ TEST_CASE("the hull of a cube's corners is 8 vertices and 12 outward triangles",
   CHECK(cube.triangles().size() == 12);
   CHECK(cube.edges().size() == 18);
   check_invariants(cube);
+  // 6 edges inside the square faces (flat), 12 cube edges at a right angle.
+  int flat = 0, right = 0;
+  for (const Edge& e : cube.edges()) {
+    flat += e.angle < 1e-15;
+    right += std::abs(e.angle - M_PI / 2) < 1e-15;
+  }
+  CHECK(flat == 6);
+  CHECK(right == 12);
   for (const Vec3& n : cube.normals()) {
     // each normal is a coordinate axis
     const double m = std::max({std::abs(n[0]), std::abs(n[1]), std::abs(n[2])});

@@ -31,10 +31,13 @@ class ShapeError : public std::runtime_error {
 };
 
 /// @brief An edge of the triangulation: a < b; `left` is the triangle that holds the directed
-/// edge a -> b, `right` the one that holds b -> a.
+/// edge a -> b, `right` the one that holds b -> a; `angle` is the exterior dihedral angle
+/// (between the two outward normals, rad): 0 up to round-off for an edge inside a facet that
+/// Qhull merged from coplanar ones and then triangulated.
 struct Edge {
   std::int32_t a, b;
   std::int32_t left, right;
+  double angle;
 };
 
 /// @brief A convex polyhedron (or a single point), validated.

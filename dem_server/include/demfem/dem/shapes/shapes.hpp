@@ -8,10 +8,10 @@
 //
 //   convex_polyhedron.hpp  ConvexPolyhedron: the core. vertices() (body frame), triangles()
 //       (counter-clockwise seen from outside), normals() (unit, outward), edges() (a < b with
-//       the triangles left/right of a -> b), neighbours(v) / vertex_triangles(v) (the fan
-//       around v, counter-clockwise seen from outside), support(d), width(d). Always valid:
-//       closed, convex, non-degenerate; or the point core (1 vertex, 0 triangles, 0 edges;
-//       is_point()), whose dilation is a sphere.
+//       the triangles left/right of a -> b and the exterior angle, 0 inside a merged facet),
+//       neighbours(v) / vertex_triangles(v) (the fan around v, counter-clockwise seen from
+//       outside), support(d), width(d). Always valid: closed, convex, non-degenerate; or the point
+//       core (1 vertex, 0 triangles, 0 edges; is_point()), whose dilation is a sphere.
 //       ConvexPolyhedron::hull(points, source)          Qhull "Qt"
 //       ConvexPolyhedron::from_triangles(v, t, source)  a given triangulation, checked
 //       ConvexPolyhedron::point(p)
