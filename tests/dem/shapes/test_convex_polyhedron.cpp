@@ -8,6 +8,7 @@
 #include <functional>
 #include <limits>
 #include <map>
+#include <numbers>
 #include <random>
 
 #include "demfem/dem/shapes/convex_polyhedron.hpp"
@@ -75,7 +76,7 @@ TEST_CASE("the hull of a cube's corners is 8 vertices and 12 outward triangles",
   int flat = 0, right = 0;
   for (const Edge& e : cube.edges()) {
     flat += e.angle < 1e-15;
-    right += std::abs(e.angle - M_PI / 2) < 1e-15;
+    right += std::abs(e.angle - std::numbers::pi / 2) < 1e-15;
   }
   CHECK(flat == 6);
   CHECK(right == 12);

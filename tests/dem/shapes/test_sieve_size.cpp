@@ -5,6 +5,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <numbers>
 #include <random>
 
 #include "demfem/dem/shapes/mass_properties.hpp"
@@ -43,8 +44,10 @@ double random_search(const ConvexPolyhedron& k, int n, std::uint64_t seed) {
   for (int i = 0; i < n; ++i) {
     const double u1 = u(gen), u2 = u(gen), u3 = u(gen);
     const double a = std::sqrt(1 - u1), b = std::sqrt(u1);
-    const double x = a * std::sin(2 * M_PI * u2), y = a * std::cos(2 * M_PI * u2),
-                 z = b * std::sin(2 * M_PI * u3), w = b * std::cos(2 * M_PI * u3);
+    const double x = a * std::sin(2 * std::numbers::pi * u2),
+                 y = a * std::cos(2 * std::numbers::pi * u2),
+                 z = b * std::sin(2 * std::numbers::pi * u3),
+                 w = b * std::cos(2 * std::numbers::pi * u3);
     const Vec3 c0{1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)};
     const Vec3 c1{2 * (x * y - w * z), 1 - 2 * (x * x + z * z), 2 * (y * z + w * x)};
     best = std::min(best, std::max(k.width(c0), k.width(c1)));
