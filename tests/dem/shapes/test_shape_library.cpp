@@ -66,11 +66,12 @@ TEST_CASE("rocks drawn from the thesis's normal distribution", "[shapes][library
   const auto dist = SizeDistribution::normal(0.04, 0.01, 0.02, 0.08);
   Rng rng(11);
   const int n = 50000;
-  double sum = 0, lo = 1, hi = 0;
+  double sum = 0, sum2 = 0, lo = 1, hi = 0;
   std::vector<int> used(lib.size(), 0);
   for (int i = 0; i < n; ++i) {
     const ScaledShape s = lib.sample(rng, dist);
     sum += s.scale;
+    sum2 += s.scale * s.scale;
     lo = std::min(lo, s.scale);
     hi = std::max(hi, s.scale);
     ++used[s.shape];
@@ -81,6 +82,11 @@ TEST_CASE("rocks drawn from the thesis's normal distribution", "[shapes][library
   // Truncated-normal mean 0.0405511 (test_size_distribution.cpp); standard error
   // 0.01 / sqrt(n) = 4.5e-5; 5 sigma.
   CHECK(std::abs(sum / n - 0.0405511) < 5 * 4.5e-5);
+  // Truncated-normal sd: sigma sqrt(1 + (a phi(a) - b phi(b)) / Z - ((phi(a) - phi(b)) / Z)^2)
+  // with a = -2, b = 4, Z = Phi(b) - Phi(a): 0.0094123. Standard error of the sample sd
+  // ~ sd / sqrt(2 n) = 3.0e-5 (the truncated normal's kurtosis is near 3); 5 sigma.
+  const double mean = sum / n;
+  CHECK(std::abs(std::sqrt(sum2 / n - mean * mean) - 0.0094123) < 5 * 3.0e-5);
   // Shapes uniform: each index n/16 = 3125 times, binomial sd sqrt(n p (1-p)) = 54; 5 sigma.
   for (int u : used) CHECK(std::abs(u - n / 16.0) < 5 * 54.0);
 }
