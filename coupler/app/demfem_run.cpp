@@ -53,6 +53,7 @@ struct Options {
   std::string resume_from;  // empty: the latest valid checkpoint
   std::string debug_kill;   // ROLE:STEP[:always], fault injection for tests
   std::vector<std::string> sets;  // --set KEY=VALUE, passed on to the solvers
+  bool check = false;             // --check: read and check the scene, start nothing
 };
 
 // --debug-kill dem:17, fem:5:always, coupler:30 (docs/reliability.md). Testing only.
@@ -130,6 +131,10 @@ int run(const Options& opt) {
   } catch (const scene::SceneError& e) {
     std::fprintf(stderr, "demfem run: scene error: %s\n", e.what());
     return kExitUsage;
+  }
+  if (opt.check) {
+    std::printf("demfem run: %s: the scene is valid\n", opt.scene.c_str());
+    return 0;
   }
   const fs::path out_dir =
       opt.output_dir.empty() ? settings.run.output_dir : fs::path(opt.output_dir);
@@ -396,6 +401,9 @@ int main(int argc, char** argv) {
                  "dotted with array indices (dem.pairs[0].friction), VALUE in TOML (0.3, "
                  "'\"cuda\"', [0, 0, -9.81]); repeatable, the last wins (docs/scenes.md)")
       ->allow_extra_args(false);
+  app.add_flag("--check", opt.check,
+               "read and check the scene (with --set) as a run would, start nothing, and exit "
+               "(0 valid, 2 not)");
   app.add_option("--wait-spin-us", opt.wait_spin_us,
                  "microseconds the coupler spins before it blocks while waiting for a solver "
                  "(default 0: block at once)")

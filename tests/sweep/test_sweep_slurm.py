@@ -1,0 +1,69 @@
+#!/usr/bin/python3
+"""ctest (under tests/sweep/slurm_cluster.sh, a real one-node Slurm): the beam example
+(2 loads x 3 repetitions) as a Slurm job array gives the same aggregate table as the local
+sweep, byte for byte. On the way: a member whose demfem_run is SIGKILLed inside its array
+task is retried there from its checkpoint; a member that keeps failing is reported
+(--status, exit 1); running the sweep again resubmits just that member as a new array.
+
+  test_sweep_slurm.py BUILD/bin/demfem_run
+"""
+
+import json
+import os
+import sys
+from pathlib import Path
+
+from sweep_testing import (FAULTS, Failure, check, check_nothing_left, read_csv, run_sweep,
+                           same_file, status)
+
+
+def case_slurm(tmp, exe):
+    check(os.environ.get("SLURM_CONF"), "SLURM_CONF is not set: run under slurm_cluster.sh")
+    ref = tmp / "reference"
+    run_sweep(ref, "--no-check", demfem_run=exe)
+    out = tmp / "slurm"
+    flag = tmp / "fail.flag"
+    flag.write_text("")
+    env = {"DEMFEM_TEST_REAL_RUN": exe, "DEMFEM_TEST_KILL": "s00_r01=demfem_run",
+           "DEMFEM_TEST_FAIL": "s01_r00", "DEMFEM_TEST_FAIL_WHILE": str(flag)}
+    slurm_args = ("--slurm", "--wait", "--poll", "0.3", "--partition", "debug", "--time", "10")
+    r = run_sweep(out, *slurm_args, demfem_run=FAULTS, env=env, expect=1)
+    jobs = json.loads((out / "slurm" / "jobs.json").read_text())["jobs"]
+    check(len(jobs) == 1 and jobs[0]["members"] == list(range(6)), f"jobs.json: {jobs}")
+    script = Path(jobs[0]["script"]).read_text()
+    for line in ("#SBATCH --cpus-per-task=1", "#SBATCH --partition=debug", "#SBATCH --time=10",
+                 "--member-task"):
+        check(line in script, f"the sbatch script lacks '{line}':\n{script}")
+    check("--gres" not in script, "a GPU was requested for CPU members")
+    check("s01_r00: failed, 3 attempt(s), last exit 1" in r.stderr, "failed member not reported")
+    st = status(out, "s01_r00")
+    check(st["state"] == "failed" and st["where"].get("slurm_job") == str(jobs[0]["job_id"]),
+          f"s01_r00 record: {st}")
+    a = status(out, "s00_r01")["attempts"]
+    check(len(a) == 2 and a[0]["exit"] == 137 and a[1]["resume"] and a[1]["exit"] == 0,
+          f"s00_r01 (killed in its array task): attempts {a}")
+    check((out / "members" / "s00_r01" / ".test_killed").read_text().strip() != "missed",
+          "the kill came too late")
+    logs = sorted((out / "slurm" / "logs").glob("*.out"))
+    check(len(logs) == 6, f"Slurm task logs: {logs}")
+    r = run_sweep(out, "--status", demfem_run=FAULTS, env=env)
+    check("5 done, 0 running, 0 queued, 1 failed" in r.stdout, "--status after the first run")
+    # The fault is gone: running the sweep again submits a new array of just that member.
+    flag.unlink()
+    r = run_sweep(out, *slurm_args, demfem_run=FAULTS, env=env)
+    jobs = json.loads((out / "slurm" / "jobs.json").read_text())["jobs"]
+    check(len(jobs) == 2 and jobs[1]["members"] == [3], f"resubmission: {jobs}")
+    check(f"submitted job {jobs[1]['job_id']}: array 3 " in r.stdout, "resubmission message")
+    check(len(status(out, "s01_r00")["attempts"]) == 4, "s01_r00 ran once more")
+    same_file(ref / "summary.csv", out / "summary.csv", "the aggregate tables (local, Slurm)")
+    same_file(ref / "series_deflection.csv", out / "series_deflection.csv",
+              "the aggregate series (local, Slurm)")
+    # Nothing left to submit.
+    r = run_sweep(out, "--slurm", demfem_run=FAULTS, env=env)
+    check("nothing to submit" in r.stdout, "a finished sweep submitted again")
+    check_nothing_left(out)
+
+
+if __name__ == "__main__":
+    from sweep_testing import main
+    sys.exit(main({"slurm": case_slurm}, ["", "slurm", sys.argv[1]]))
