@@ -42,7 +42,7 @@ def case_local(tmp, exe):
     check(head[:4] == ["member", "setting", "mass", "seed"], f"members.csv header {head}")
     check(len(rows) == 6 and all(r[head.index("status")] == "done" for r in rows),
           f"members.csv: {rows}")
-    check([r[2] for r in rows] == ["15.0"] * 3 + ["30.0"] * 3, "masses")
+    check([r[2] for r in rows] == ["10.0"] * 3 + ["20.0"] * 3, "masses")
     check([r[3] for r in rows] == ["1", "2", "3"] * 2, "seeds")
     # Each member ran the scene with its own overrides.
     for r in rows:
@@ -69,7 +69,7 @@ def case_local(tmp, exe):
     # The heavier load bends the beam more, on average, after the impact.
     li = shead.index("late_deflection_mean")
     check(float(srows[1][li]) > 1.3 * float(srows[0][li]),
-          f"late deflection {srows[1][li]} (30 kg) vs {srows[0][li]} (15 kg)")
+          f"late deflection {srows[1][li]} (20 kg) vs {srows[0][li]} (10 kg)")
     shead2, series = read_csv(out / "series_deflection.csv")
     check(shead2 == ["time", "s0_mean", "s0_sd", "s1_mean", "s1_sd"], f"series header {shead2}")
     check(len(series) == 100, f"series has {len(series)} rows, expected 100 coupling steps")
