@@ -9,6 +9,10 @@
       (a marker file in the member folder remembers it).
   DEMFEM_TEST_FAIL="s01_r00"  with DEMFEM_TEST_FAIL_WHILE=FILE
       the member exits 1 at once, without running, on every attempt while FILE exists.
+  DEMFEM_TEST_RECORD=SECONDS
+      runs nothing: writes its start and end times, CUDA_VISIBLE_DEVICES and
+      OMP_NUM_THREADS to <member>/pool_record.json around a sleep of SECONDS (for the pool's
+      CPU and GPU accounting, which needs no solver).
 """
 
 import os
@@ -24,6 +28,14 @@ if "--output-dir" not in args or "--check" in args:
     os.execv(real, [real] + args)
 out = Path(args[args.index("--output-dir") + 1])
 member = out.name
+if os.environ.get("DEMFEM_TEST_RECORD"):
+    import json
+    start = time.time()
+    time.sleep(float(os.environ["DEMFEM_TEST_RECORD"]))
+    (out / "pool_record.json").write_text(json.dumps({
+        "start": start, "end": time.time(), "gpus": os.environ.get("CUDA_VISIBLE_DEVICES"),
+        "omp": os.environ.get("OMP_NUM_THREADS")}))
+    sys.exit(0)
 
 
 def listed(var):

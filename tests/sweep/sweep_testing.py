@@ -4,7 +4,6 @@
 import csv
 import os
 import re
-import signal
 import subprocess
 import sys
 import time
@@ -122,6 +121,3 @@ def wait_for(cond, timeout, what):
             raise Failure(f"timed out after {timeout} s waiting for {what}")
         time.sleep(0.005)
 
-
-def interrupt(proc, sig=signal.SIGINT):
-    proc.send_signal(sig)

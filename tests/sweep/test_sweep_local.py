@@ -13,20 +13,20 @@
   resume  SIGINT to the sweep while members run: they stop cleanly (exit 130, nothing left);
           run again, the finished members are skipped, the others resume, and the aggregate
           equals the reference
+  pool    the pool's accounting, with a stand-in for demfem_run that only records when it
+          ran and with which CUDA_VISIBLE_DEVICES and OMP_NUM_THREADS: members with
+          dem.backend = "cuda" get one GPU each, never shared; members of dem.threads = 2
+          take two cores each
 """
 
 import json
 import math
-import os
 import subprocess
 import sys
-from pathlib import Path
 
-from sweep_testing import (FAULTS, Failure, check, check_nothing_left, env_with, main,
-                           read_csv, run_sweep, same_file, status, sweep_command, wait_for)
-
-T975 = {2: 4.302652729749464}  # t(0.975, df) = 2 / sqrt(df (1 - 2 (p - 1/2))...) for df = 2
-
+from sweep_testing import (FAULTS, SWEEP_FILE, check, check_nothing_left, env_with,
+                           main, read_csv, run_sweep, same_file, status, sweep_command,
+                           wait_for)
 
 def t975_df2():
     # Student's t with 2 degrees of freedom has the closed-form quantile
@@ -188,6 +188,50 @@ def case_resume(tmp, exe):
     same_aggregate(ref, out)
 
 
+def case_pool(tmp, exe):
+    import itertools
+    scene = (SWEEP_FILE.parent / "../beam_sweep_ci.toml").resolve().read_text()
+
+    def sweep(name, scene_text, *args):
+        (tmp / f"{name}.scene.toml").write_text(scene_text)
+        f = tmp / f"{name}.toml"
+        f.write_text(f'[sweep]\nscene = "{name}.scene.toml"\nname = "{name}"\n'
+                     "[repetitions]\ncount = 6\n")
+        out = tmp / name
+        r = subprocess.run([sys.executable, "-m", "sweep", str(f), "--output-dir", str(out),
+                            "--demfem-run", str(FAULTS), "--no-check", "--no-collect",
+                            "--progress-interval", "0", *args], capture_output=True, text=True,
+                           env=env_with({"DEMFEM_TEST_REAL_RUN": exe,
+                                         "DEMFEM_TEST_RECORD": "0.3"}))
+        print(r.stdout, r.stderr)
+        check(r.returncode == 0, f"{name}: exit {r.returncode}")
+        return [json.loads(p.read_text()) for p in sorted(out.glob("members/*/pool_record.json"))]
+
+    def most_at_once(recs):
+        return max(sum(1 for r in recs if r["start"] <= t < r["end"])
+                   for t in (r["start"] for r in recs))
+
+    gpu = sweep("gpu", scene.replace('threads = 1 ', 'backend = "cuda"\nthreads = 1 '),
+                "--gpus", "3,5", "--cpus", "8")
+    check(len(gpu) == 6, "gpu: members missing")
+    check({r["gpus"] for r in gpu} == {"3", "5"}, f"GPUs given: {[r['gpus'] for r in gpu]}")
+    for a, b in itertools.combinations(gpu, 2):
+        overlap = a["start"] < b["end"] and b["start"] < a["end"]
+        check(not (overlap and a["gpus"] == b["gpus"]), f"GPU {a['gpus']} shared: {a}, {b}")
+    check(most_at_once(gpu) == 2, f"gpu: {most_at_once(gpu)} members at once, expected 2")
+    cpu = sweep("cpu", scene.replace("threads = 1 ", "threads = 2 "), "--cpus", "4")
+    check(all(r["omp"] == "2" for r in cpu), "OMP_NUM_THREADS of dem.threads = 2 members")
+    check(most_at_once(cpu) == 2, f"cpu: {most_at_once(cpu)} members of 2 threads at once on 4 "
+          "cores, expected 2")
+    one = sweep("one", scene.replace("threads = 1 ", "threads = 2 "), "--cpus", "4", "--jobs",
+                "1")
+    check(most_at_once(one) == 1, "--jobs 1")
+    r = subprocess.run([sys.executable, "-m", "sweep", str(tmp / "gpu.toml"), "--output-dir",
+                        str(tmp / "nogpu"), "--demfem-run", str(FAULTS), "--no-check",
+                        "--gpus", ""], capture_output=True, text=True, env=env_with())
+    check(r.returncode == 2 and "no GPU was found" in r.stderr, f"no GPU: {r.stderr}")
+
+
 if __name__ == "__main__":
     sys.exit(main({"local": case_local, "kill": case_kill, "fail": case_fail,
-                   "resume": case_resume}, sys.argv))
+                   "resume": case_resume, "pool": case_pool}, sys.argv))

@@ -13,7 +13,7 @@ import os
 import sys
 from pathlib import Path
 
-from sweep_testing import (FAULTS, Failure, check, check_nothing_left, read_csv, run_sweep,
+from sweep_testing import (FAULTS, check, check_nothing_left, run_sweep,
                            same_file, status)
 
 

@@ -5,7 +5,6 @@ file reader (messages with file, line, key), the plan, the extraction of quantit
 hand-computed values, the retry classification and the sbatch script."""
 
 import math
-import os
 import sys
 import tempfile
 import textwrap

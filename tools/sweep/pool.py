@@ -14,7 +14,7 @@ import time
 
 from sweep import records
 from sweep.member import STOP_GRACE_S, Handle, run_member
-from sweep.progress import Reporter, eta_seconds, line
+from sweep.progress import eta_seconds, line
 from sweep.sweep_file import SweepError
 
 

@@ -2,9 +2,11 @@
 members submitted to Slurm what squeue (queued, running) and sacct or scontrol (how a task
 ended) say."""
 
+import sys
 from collections import Counter
 
 from sweep import records, slurm
+from sweep.sweep_file import SweepError
 
 
 def gather(plan):
@@ -12,7 +14,14 @@ def gather(plan):
     interrupted, lost (a Slurm task that ended without a final record), new."""
     jobs = slurm.load_jobs(plan)
     latest = slurm.last_job_of(jobs)
-    active = slurm.active_tasks(sorted({j["job_id"] for j in jobs})) if jobs else {}
+    try:
+        active = slurm.active_tasks(sorted({j["job_id"] for j in jobs})) if jobs else {}
+    except SweepError as e:
+        # The sweep was submitted to Slurm, but Slurm cannot be asked from here: the member
+        # records are all there is (a queued task's member shows as not started).
+        print(f"demfem sweep: warning: {e}; the states below come from the member folders "
+              "only", file=sys.stderr)
+        jobs, latest, active = [], {}, {}
     ended = None
     out = []
     for m in plan.members:
