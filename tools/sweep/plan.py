@@ -143,7 +143,7 @@ def write_identity(plan, member):
     Path(member.folder).mkdir(parents=True, exist_ok=True)
     path = Path(member.folder) / IDENTITY_FILE
     if not path.exists():
-        write_json_atomic(path, identity(plan, member))
+        write_json_atomic(path, identity(plan, member), durable=False)
 
 
 def save_plan(plan, path):

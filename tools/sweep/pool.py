@@ -82,13 +82,14 @@ class LocalPool:
             capacity = min(capacity, len(self.gpus)) if len(need_gpu) == total else capacity
         try:
             changed = True
+            freed = set()  # running members whose process has ended (record being written)
             while queued or running:
                 # Start what fits.
                 if self.stop_signal is None:
                     i = 0
-                    while i < len(queued) and len(running) < self.jobs:
+                    while i < len(queued) and len(running) - len(freed) < self.jobs:
                         m = queued[i]
-                        fits = used_cpus + m.threads <= self.cpus or not running
+                        fits = used_cpus + m.threads <= self.cpus or len(running) == len(freed)
                         if fits and (not m.gpu or free_gpus):
                             queued.pop(i)
                             gpu = free_gpus.pop(0) if m.gpu else None
@@ -111,23 +112,30 @@ class LocalPool:
                 if not running and not queued:
                     break
                 now = time.monotonic()
-                slots = min(self.jobs, capacity, len(running) + len(queued))
-                eta = eta_seconds(run_times, len(queued),
-                                  [now - r[3] for r in running.values()], slots)
+                active = [r for k, r in running.items() if k not in freed]
+                slots = min(self.jobs, capacity, len(active) + len(queued))
+                eta = eta_seconds(run_times, len(queued), [now - r[3] for r in active], slots)
                 self.reporter.show(line(self.plan.name, {
-                    "done": counts["done"], "running": len(running), "failed": counts["failed"],
+                    "done": counts["done"], "running": len(active), "failed": counts["failed"],
                     "queued": len(queued)}, total, eta), force=changed)
                 changed = False
                 try:
-                    mid, rec, err = self.events.get(timeout=0.25)
+                    kind, mid, rec, err = self.events.get(timeout=0.25)
                 except queue.Empty:
                     continue
+                if kind == "settled" or mid not in freed:
+                    # Its demfem_run has ended: the cores and the GPU are free for the next.
+                    freed.add(mid)
+                    m, _, _, _, gpu = running[mid]
+                    used_cpus -= m.threads
+                    if gpu is not None:
+                        free_gpus.append(gpu)
+                if kind == "settled":
+                    continue
                 changed = True
+                freed.discard(mid)
                 m, h, t, start, gpu = running.pop(mid)
                 t.join()
-                used_cpus -= m.threads
-                if gpu is not None:
-                    free_gpus.append(gpu)
                 if err is not None:
                     raise err
                 results[mid] = rec
@@ -157,10 +165,12 @@ class LocalPool:
         def work():
             try:
                 rec = run_member(self.plan, member, handle, env, log=self.reporter.message,
-                                 where={"gpu": gpu} if gpu is not None else None)
-                self.events.put((member.id, rec, None))
+                                 where={"gpu": gpu} if gpu is not None else None,
+                                 settled=lambda: self.events.put(("settled", member.id, None,
+                                                                  None)))
+                self.events.put(("end", member.id, rec, None))
             except BaseException as e:  # reported by the main thread
-                self.events.put((member.id, None, e))
+                self.events.put(("end", member.id, None, e))
 
         t = threading.Thread(target=work, name=member.id, daemon=True)
         t.start()

@@ -7,6 +7,7 @@ import fcntl
 import json
 import os
 import socket
+import threading
 import time
 from pathlib import Path
 
@@ -19,17 +20,22 @@ RUN_RECORD = "run.json"         # demfem_run's own run record, when it writes on
 DONE, FAILED = "done", "failed"
 
 
-def write_json_atomic(path, obj):
-    """Writes JSON under a temporary name, fsyncs, and renames it over `path`: a reader sees
-    the old file or the new one, never a part."""
+def write_json_atomic(path, obj, durable=True):
+    """Writes JSON under a temporary name and renames it over `path`: a reader sees the old
+    file or the new one, never a part. `durable`: fsync the file and the folder too, so the
+    record survives a crash of the machine (final states; a lost "running" record only makes
+    the member run again, so those skip the cost, tens of ms on a busy disk)."""
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
     with open(tmp, "w") as f:
         json.dump(obj, f, indent=1, sort_keys=True)
         f.write("\n")
         f.flush()
-        os.fsync(f.fileno())
+        if durable:
+            os.fsync(f.fileno())
     os.replace(tmp, path)
+    if not durable:
+        return
     try:
         fd = os.open(path.parent, os.O_RDONLY)
         try:
