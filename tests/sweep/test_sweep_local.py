@@ -52,7 +52,8 @@ def case_local(tmp, exe):
     import numpy as np
     shead, srows = read_csv(out / "summary.csv")
     check(len(srows) == 2, f"summary.csv has {len(srows)} settings")
-    for q in ("peak_deflection", "late_deflection", "final_force", "deflection_5ms"):
+    for q in ("peak_deflection", "late_deflection", "final_deflection", "peak_force",
+              "deflection_5ms"):
         qi = head.index(q)
         for s, srow in enumerate(srows):
             vals = np.array([float(r[qi]) for r in rows if r[1] == str(s)])
@@ -73,8 +74,8 @@ def case_local(tmp, exe):
     shead2, series = read_csv(out / "series_deflection.csv")
     check(shead2 == ["time", "s0_mean", "s0_sd", "s1_mean", "s1_sd"], f"series header {shead2}")
     check(len(series) == 100, f"series has {len(series)} rows, expected 100 coupling steps")
-    for png in ("deflection", "peak_deflection", "late_deflection", "final_force",
-                "deflection_5ms"):
+    for png in ("deflection", "peak_deflection", "late_deflection", "final_deflection",
+                "peak_force", "deflection_5ms"):
         data = (out / "plots" / f"{png}.png").read_bytes()
         check(data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10000, f"{png}.png")
     check_nothing_left(out)

@@ -234,6 +234,7 @@ class Retries(unittest.TestCase):
         self.assertEqual(classify(2, False), "give_up")   # bad input repeats
         self.assertEqual(classify(2, True), "fresh")      # no valid checkpoint: start over
         self.assertEqual(classify(3, True), "give_up")    # a blow-up repeats
+        self.assertEqual(classify(127, False), "give_up")  # no demfem_run to start
         self.assertEqual(describe_exit(137), "exit 137 (SIGKILL)")
 
 

@@ -236,7 +236,7 @@ def finish_report(plan, states):
     if bad:
         print(f"sweep {plan.name}: {len(bad)} member(s) failed:", file=sys.stderr)
         status.report(plan, [x for x in states if x[1] in (records.FAILED, "lost")],
-                      lambda t: print(t, file=sys.stderr))
+                      lambda t: print(t, file=sys.stderr), header=False)
         return EXIT_FAILED
     left = [m for (m, s, _, _) in states if s != records.DONE]
     if left:

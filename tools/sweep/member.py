@@ -14,6 +14,7 @@ from sweep.plan import check_identity, write_identity
 
 EXIT_BAD_INPUT = 2
 EXIT_BLOW_UP = 3
+EXIT_NOT_STARTED = 127  # demfem_run could not be started (as a shell reports it)
 STOP_GRACE_S = 20.0  # after SIGINT/SIGTERM, how long a member may take to stop cleanly
 
 
@@ -34,8 +35,8 @@ def classify(code, resumed):
         # After --resume: no valid checkpoint left; start over. Otherwise the scene or the
         # overrides are bad, and another attempt would only repeat the message.
         return "fresh" if resumed else "give_up"
-    if code == EXIT_BLOW_UP:
-        return "give_up"  # deterministic: the same steps blow up again
+    if code in (EXIT_BLOW_UP, EXIT_NOT_STARTED):
+        return "give_up"  # deterministic: the same steps blow up again; no program to run
     return "retry"        # 1 (failure), 4 (a solver kept dying), signals, timeouts
 
 
@@ -44,7 +45,8 @@ def describe_exit(code):
         return "no exit status"
     if code == "timeout":
         return "timeout"
-    names = {1: "failed", 2: "bad input", 3: "blow-up", 4: "a solver kept dying"}
+    names = {1: "failed", 2: "bad input", 3: "blow-up", 4: "a solver kept dying",
+             127: "demfem_run could not be started"}
     if code in names:
         return f"exit {code} ({names[code]})"
     if isinstance(code, int) and code >= 128:
@@ -187,9 +189,14 @@ def _attempt(plan, member, resume, log_path, handle, env):
                 return 128 + signal.SIGINT, start, 0.0
             # Its own session: a Ctrl-C in the sweep's terminal reaches the sweep only, which
             # stops the members itself (SIGINT to demfem_run, which stops its solvers).
-            handle.proc = subprocess.Popen(_command(plan, member, resume), cwd=member.folder,
-                                           stdout=out, stderr=subprocess.STDOUT, env=full_env,
-                                           start_new_session=True)
+            try:
+                handle.proc = subprocess.Popen(_command(plan, member, resume),
+                                               cwd=member.folder, stdout=out,
+                                               stderr=subprocess.STDOUT, env=full_env,
+                                               start_new_session=True)
+            except OSError as e:
+                out.write(f"demfem sweep: cannot start {plan.demfem_run}: {e.strerror}\n")
+                return EXIT_NOT_STARTED, start, 0.0
         proc = handle.proc
         timeout = plan.timeout if plan.timeout > 0 else None
         try:

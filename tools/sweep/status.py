@@ -56,13 +56,14 @@ def counts(states):
     return c
 
 
-def report(plan, states, out_write):
+def report(plan, states, out_write, header=True):
     c = counts(states)
     order = ("done", "running", "queued", "failed", "lost", "interrupted", "new")
     names = {"new": "not started"}
-    out_write(f"sweep {plan.name}: {len(states)} members: " +
-              ", ".join(f"{c.get(s, 0)} {names.get(s, s)}" for s in order) +
-              f"  ({plan.output_dir})")
+    if header:
+        out_write(f"sweep {plan.name}: {len(states)} members: " +
+                  ", ".join(f"{c.get(s, 0)} {names.get(s, s)}" for s in order) +
+                  f"  ({plan.output_dir})")
     for m, state, rec, detail in states:
         if state == records.DONE:
             continue
