@@ -18,7 +18,7 @@ from sweep import scene_keys, slurm, stats  # noqa: E402
 from sweep.collect import extract, interpolate  # noqa: E402
 from sweep.member import classify, describe_exit  # noqa: E402
 from sweep.plan import build_plan  # noqa: E402
-from sweep.sweep_file import Quantity, SweepError, read_sweep_file  # noqa: E402
+from sweep.sweep_file import Quantity, SlurmOptions, SweepError, read_sweep_file  # noqa: E402
 
 SCENE = """
 [run]
@@ -247,8 +247,8 @@ class Slurm(unittest.TestCase):
         class P:
             name, output_dir = "beam", "/scratch/beam"
         text = slurm.script_text(P, Path("/scratch/beam/slurm/plan.json"), 4, True,
-                                 slurm.SlurmSubmitOptions(partition="gpu", time="1:00:00",
-                                                          account="proj", extra=("--exclusive",)))
+                                 SlurmOptions(partition="gpu", time="1:00:00", account="proj",
+                                              options=["--exclusive"]))
         for line in ("#SBATCH --cpus-per-task=4", "#SBATCH --gres=gpu:1",
                      "#SBATCH --partition=gpu", "#SBATCH --time=1:00:00",
                      "#SBATCH --account=proj", "#SBATCH --exclusive",

@@ -15,7 +15,7 @@ from sweep.member import Handle, describe_exit, run_member
 from sweep.plan import build_plan, check_identity, load_plan, save_plan
 from sweep.pool import LocalPool, machine_cpus, machine_gpus
 from sweep.progress import Reporter, eta_seconds, line
-from sweep.sweep_file import EXIT_BAD_INPUT, SweepError, read_sweep_file
+from sweep.sweep_file import EXIT_BAD_INPUT, SlurmOptions, SweepError, read_sweep_file
 
 EXIT_FAILED = 1
 ROOT = Path(__file__).resolve().parents[2]
@@ -248,7 +248,7 @@ def finish_report(plan, states):
 
 def slurm_options(args, spec):
     s = spec.slurm
-    return slurm.SlurmSubmitOptions(
+    return SlurmOptions(
         partition=args.partition if args.partition is not None else s.partition,
         time=args.time if args.time is not None else s.time,
         account=args.account if args.account is not None else s.account,
@@ -256,7 +256,7 @@ def slurm_options(args, spec):
         mem=args.mem if args.mem is not None else s.mem,
         max_concurrent=(args.max_concurrent if args.max_concurrent is not None
                         else s.max_concurrent),
-        extra=tuple(s.options) + tuple(args.sbatch_option))
+        options=list(s.options) + list(args.sbatch_option))
 
 
 def run_slurm(args, spec, plan, todo):

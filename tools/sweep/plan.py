@@ -126,17 +126,16 @@ def check_identity(plan, member):
         return
     want = identity(plan, member)
     if rec.get("scene_sha256") != want["scene_sha256"]:
-        raise SweepError(
-            f"{member.folder}: this member was run with another version of the scene "
-            f"{rec.get('scene')} (its content changed since; sha256 {rec.get('scene_sha256')} "
-            f"then, {want['scene_sha256']} now). Results of two scenes would be mixed: use "
-            "another output folder (sweep.output_dir or --output-dir), or remove this one")
-    if rec.get("overrides") != want["overrides"]:
-        raise SweepError(
-            f"{member.folder}: this member was run with other settings "
-            f"({' '.join(rec.get('overrides') or [])}) than the sweep file now gives it "
-            f"({' '.join(want['overrides'])}): the parameters or seeds changed. Use another "
-            "output folder (sweep.output_dir or --output-dir), or remove this one")
+        why = (f"another version of the scene {rec.get('scene')} (its content changed since; "
+               f"sha256 {rec.get('scene_sha256')} then, {want['scene_sha256']} now)")
+    elif rec.get("overrides") != want["overrides"]:
+        why = (f"other settings ({' '.join(rec.get('overrides') or [])}) than the sweep file "
+               f"now gives it ({' '.join(want['overrides'])}): the parameters or seeds changed")
+    else:
+        return
+    raise SweepError(f"{member.folder}: this member was run with {why}. Results of two sweeps "
+                     "would be mixed: use another output folder (sweep.output_dir or "
+                     "--output-dir), or remove this one")
 
 
 def write_identity(plan, member):

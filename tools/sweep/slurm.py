@@ -10,7 +10,6 @@ import shutil
 import subprocess
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 from sweep import records
@@ -21,17 +20,6 @@ JOBS_FILE = "jobs.json"
 ACTIVE = {"PENDING": "queued", "CONFIGURING": "running", "RUNNING": "running",
           "COMPLETING": "running", "SUSPENDED": "running", "REQUEUED": "queued",
           "RESIZING": "running", "SIGNALING": "running", "STAGE_OUT": "running"}
-
-
-@dataclass
-class SlurmSubmitOptions:
-    partition: str = ""
-    time: str = ""
-    account: str = ""
-    qos: str = ""
-    mem: str = ""
-    max_concurrent: int = 0
-    extra: tuple = ()
 
 
 def slurm_dir(plan):
@@ -65,6 +53,7 @@ def load_jobs(plan):
 
 
 def script_text(plan, plan_path, threads, gpu, opt):
+    """The sbatch script of one array; `opt` is a sweep_file.SlurmOptions."""
     d = slurm_dir(plan)
     tools = Path(__file__).resolve().parent.parent
     lines = ["#!/bin/bash",
@@ -81,7 +70,7 @@ def script_text(plan, plan_path, threads, gpu, opt):
                         ("account", opt.account), ("qos", opt.qos), ("mem", opt.mem)):
         if value:
             lines.append(f"#SBATCH --{flag}={value}")
-    for o in opt.extra:
+    for o in opt.options:
         lines.append(f"#SBATCH {o}")
     lines += ["",
               f"export PYTHONPATH={shlex.quote(str(tools))}${{PYTHONPATH:+:$PYTHONPATH}}",
