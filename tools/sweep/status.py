@@ -65,8 +65,8 @@ def report(plan, states, out_write, header=True):
                   ", ".join(f"{c.get(s, 0)} {names.get(s, s)}" for s in order) +
                   f"  ({plan.output_dir})")
     for m, state, rec, detail in states:
-        if state == records.DONE:
-            continue
+        if state in (records.DONE, "new", "queued"):
+            continue  # counted above; a line each would bury the ones that need a look
         attempts = len(rec.get("attempts", []))
         text = f"  {m.id}: {state}"
         if attempts:
