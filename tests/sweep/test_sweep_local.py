@@ -23,6 +23,7 @@ import json
 import math
 import subprocess
 import sys
+import time
 
 from sweep_testing import (FAULTS, SWEEP_FILE, check, check_nothing_left, env_with,
                            main, read_csv, run_sweep, same_file, status, sweep_command,
@@ -195,19 +196,19 @@ def case_pool(tmp, exe):
     import itertools
     scene = (SWEEP_FILE.parent / "../beam_sweep_ci.toml").resolve().read_text()
 
-    def sweep(name, scene_text, *args):
+    def sweep(name, scene_text, *args, extra="", sleep="0.3", expect=0):
         (tmp / f"{name}.scene.toml").write_text(scene_text)
         f = tmp / f"{name}.toml"
         f.write_text(f'[sweep]\nscene = "{name}.scene.toml"\nname = "{name}"\n'
-                     "[repetitions]\ncount = 6\n")
+                     "[repetitions]\ncount = 6\n" + extra)
         out = tmp / name
         r = subprocess.run([sys.executable, "-m", "sweep", str(f), "--output-dir", str(out),
                             "--demfem-run", str(FAULTS), "--no-check", "--no-collect",
                             "--progress-interval", "0", *args], capture_output=True, text=True,
                            env=env_with({"DEMFEM_TEST_REAL_RUN": exe,
-                                         "DEMFEM_TEST_RECORD": "0.3"}))
+                                         "DEMFEM_TEST_RECORD": sleep}))
         print(r.stdout, r.stderr)
-        check(r.returncode == 0, f"{name}: exit {r.returncode}")
+        check(r.returncode == expect, f"{name}: exit {r.returncode}, expected {expect}")
         return [json.loads(p.read_text()) for p in sorted(out.glob("members/*/pool_record.json"))]
 
     def most_at_once(recs):
@@ -229,6 +230,14 @@ def case_pool(tmp, exe):
     one = sweep("one", scene.replace("threads = 1 ", "threads = 2 "), "--cpus", "4", "--jobs",
                 "1")
     check(most_at_once(one) == 1, "--jobs 1")
+    # execution.timeout: an attempt past it is stopped (SIGTERM) and retried; then failed.
+    t0 = time.monotonic()
+    sweep("slow", scene, "--jobs", "6", "--cpus", "6",
+          extra="[execution]\ntimeout = 0.5\nmax_retries = 1\n", sleep="30", expect=1)
+    check(time.monotonic() - t0 < 20, "the timeout did not stop the attempts")
+    st = status(tmp / "slow", "s00_r00")
+    check(st["state"] == "failed" and [a["exit"] for a in st["attempts"]] == ["timeout"] * 2 and
+          "timeout" in st["reason"], f"timed-out member: {st}")
     r = subprocess.run([sys.executable, "-m", "sweep", str(tmp / "gpu.toml"), "--output-dir",
                         str(tmp / "nogpu"), "--demfem-run", str(FAULTS), "--no-check",
                         "--gpus", ""], capture_output=True, text=True, env=env_with())
