@@ -286,7 +286,9 @@ def run_slurm(args, spec, plan, todo):
                                len(plan.members), eta))
             if not c.get("queued") and not c.get("running"):
                 break
-            time.sleep(args.poll)
+            end = time.monotonic() + args.poll
+            while not stop and time.monotonic() < end:  # Ctrl-C answered within 0.1 s
+                time.sleep(min(0.1, max(0.0, end - time.monotonic())))
     finally:
         for s, h in old.items():
             signal.signal(s, h)
