@@ -112,6 +112,8 @@ def run(args):
     check_positive("cpus", args.cpus)
     if args.max_retries is not None and not 0 <= args.max_retries <= 100:
         raise SweepError(f"--max-retries is {args.max_retries}, accepted [0, 100]")
+    if args.poll <= 0 or args.progress_interval < 0:
+        raise SweepError("--poll must be > 0 and --progress-interval >= 0 (seconds)")
     if args.wait and not args.slurm:
         raise SweepError("--wait goes with --slurm (a local run always waits)")
     out = Path(args.output_dir) if args.output_dir else spec.output_dir
