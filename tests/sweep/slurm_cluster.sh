@@ -26,6 +26,7 @@ dir="$(mktemp -d /tmp/demfem-slurm.XXXXXX)" || skip "cannot make a temporary fol
 chmod 755 "$dir"  # munged wants its socket's folders searchable by all
 conf="$dir/slurm.conf"
 started=0
+child=""
 
 pid_of() { [ -s "$1" ] && cat "$1" 2>/dev/null; }
 
@@ -41,17 +42,18 @@ stop_pid() {  # stop_pid PID NAME: SIGTERM, up to 10 s, then SIGKILL
 # Processes started under this cluster (slurmstepd, job scripts, members): they carry its
 # SLURM_CONF in their environment.
 cluster_pids() {
-  local p
-  for p in /proc/[0-9]*; do
-    p="${p#/proc/}"
-    [ "$p" = "$$" ] && continue
-    { tr '\0' '\n' <"/proc/$p/environ"; } 2>/dev/null | grep -qx "SLURM_CONF=$conf" && echo "$p"
-  done
+  grep -lzxsF "SLURM_CONF=$conf" /proc/[0-9]*/environ 2>/dev/null |
+    sed -n 's|^/proc/\([0-9]*\)/environ$|\1|p'
 }
 
 cleanup() {
   local code=$? i left
   trap - EXIT INT TERM
+  # The command first (interrupted: it is still running).
+  if [ -n "$child" ] && kill -0 "$child" 2>/dev/null; then
+    kill -TERM "$child" 2>/dev/null
+    for i in $(seq 50); do kill -0 "$child" 2>/dev/null || break; sleep 0.1; done
+  fi
   if [ "$started" = 1 ]; then
     SLURM_CONF="$conf" scancel --quiet --user="$(id -un)" 2>/dev/null
     for i in $(seq 100); do
@@ -61,10 +63,13 @@ cleanup() {
   fi
   stop_pid "$(pid_of "$dir/slurmd.pid")" slurmd
   stop_pid "$(pid_of "$dir/slurmctld.pid")" slurmctld
-  for i in $(seq 50); do
+  # What is left of the command and the jobs (SIGTERM first: a demfem_run removes its
+  # shared memory on it), then SIGKILL.
+  for i in $(seq 60); do
     left="$(cluster_pids)"
     [ -z "$left" ] && break
-    [ "$i" = 30 ] && kill -KILL $left 2>/dev/null
+    [ "$i" = 1 ] && kill -TERM $left 2>/dev/null
+    [ "$i" = 40 ] && kill -KILL $left 2>/dev/null
     sleep 0.1
   done
   [ -n "$(cluster_pids)" ] && echo "slurm_cluster: processes left: $(cluster_pids)" >&2
@@ -134,17 +139,23 @@ NodeName=localhost NodeAddr=127.0.0.1 CPUs=$(nproc) RealMemory=$mem_mb State=UNK
 PartitionName=debug Nodes=localhost Default=YES MaxTime=INFINITE State=UP
 CONF
 : >"$dir/plugstack.conf"
-export SLURM_CONF="$conf"
+# SLURM_CONF goes only to what runs under the cluster (not exported here: cluster_pids finds
+# processes by it, and would find its own grep).
 started=1
-slurmctld -f "$conf" 2>>"$dir/log/slurmctld.log" ||
+SLURM_CONF="$conf" slurmctld -f "$conf" 2>>"$dir/log/slurmctld.log" ||
   skip "slurmctld did not start: $(tail -n 3 "$dir/log/slurmctld.log")"
-slurmd -f "$conf" -N localhost 2>>"$dir/log/slurmd.log" ||
+SLURM_CONF="$conf" slurmd -f "$conf" -N localhost 2>>"$dir/log/slurmd.log" ||
   skip "slurmd did not start: $(tail -n 3 "$dir/log/slurmd.log")"
 for i in $(seq 200); do
-  state="$(sinfo -h -n localhost -o %T 2>/dev/null)"
+  state="$(SLURM_CONF="$conf" sinfo -h -n localhost -o %T 2>/dev/null)"
   [ "$state" = idle ] && break
   sleep 0.1
 done
 [ "$state" = idle ] || skip "the test node did not come up (state '$state'): $(tail -n 3 "$dir/log/slurmd.log")"
 echo "slurm_cluster: Slurm $(slurmctld -V | cut -d' ' -f2) up in $dir (user $user, $(nproc) CPUs)"
-"$@"
+# In the background: bash runs a trap only once a foreground command has ended, but `wait`
+# returns at once on a signal.
+SLURM_CONF="$conf" "$@" &
+child=$!
+wait "$child"
+exit $?
