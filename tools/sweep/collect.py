@@ -226,8 +226,14 @@ def collect(spec, plan, states, log=print, plots=True):
         written.append(path)
 
     if plots:
-        from sweep import plots as plotting
-        written += plotting.draw(spec, plan, settings, summary, series_stats, out / "plots")
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError:
+            log("demfem sweep: matplotlib is not installed (Debian: python3-matplotlib): no "
+                "plots; the tables are written")
+        else:
+            from sweep import plots as plotting
+            written += plotting.draw(spec, plan, settings, summary, series_stats, out / "plots")
     n_done = len(values)
     if n_done < len(plan.members):
         log(f"demfem sweep: {len(plan.members) - n_done} of {len(plan.members)} members are not "
