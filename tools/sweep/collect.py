@@ -14,6 +14,7 @@ n, failed, mean, sd and the Student-t 95 % interval of each scalar quantity), an
 series quantity series_<name>.csv (per setting mean and sd over time)."""
 
 import csv
+import importlib.util
 import io
 import math
 import os
@@ -226,9 +227,7 @@ def collect(spec, plan, states, log=print, plots=True):
         written.append(path)
 
     if plots:
-        try:
-            import matplotlib  # noqa: F401
-        except ImportError:
+        if importlib.util.find_spec("matplotlib") is None:
             log("demfem sweep: matplotlib is not installed (Debian: python3-matplotlib): no "
                 "plots; the tables are written")
         else:
