@@ -24,8 +24,8 @@ def check(cond, message):
         raise Failure(message)
 
 
-def sweep_command(out, *args, demfem_run):
-    return [PYTHON, "-m", "sweep", str(SWEEP_FILE), "--output-dir", str(out),
+def sweep_command(out, *args, demfem_run, sweep_file=SWEEP_FILE):
+    return [PYTHON, "-m", "sweep", str(sweep_file), "--output-dir", str(out),
             "--demfem-run", str(demfem_run), "--progress-interval", "0", *args]
 
 
@@ -36,9 +36,9 @@ def env_with(extra=None):
     return env
 
 
-def run_sweep(out, *args, demfem_run, env=None, expect=0):
-    r = subprocess.run(sweep_command(out, *args, demfem_run=demfem_run), capture_output=True,
-                       text=True, env=env_with(env))
+def run_sweep(out, *args, demfem_run, env=None, expect=0, sweep_file=SWEEP_FILE):
+    r = subprocess.run(sweep_command(out, *args, demfem_run=demfem_run, sweep_file=sweep_file),
+                       capture_output=True, text=True, env=env_with(env))
     print(f"$ demfem sweep ... {' '.join(args)} -> exit {r.returncode}")
     print(r.stdout, end="")
     print(r.stderr, end="", file=sys.stderr)

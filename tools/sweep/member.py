@@ -132,6 +132,8 @@ def run_member(plan, member, handle=None, env=None, log=print, where=None, settl
             resume = not fresh and has_checkpoint(member)
             fresh = False
             number = len(rec["attempts"]) + 1
+            while (folder / f"attempt-{number}.log").exists():
+                number += 1  # an attempt that left no record (its process was killed): kept
             log_path = folder / f"attempt-{number}.log"
             rec.update(state="running", attempt=number, updated=records.now())
             records.write_json_atomic(status_path, rec, durable=False)

@@ -34,8 +34,9 @@ def gather(plan):
                 state = active[key]
                 detail = f"Slurm job {job['job_id']}_{m.index}"
             elif state != records.FAILED and (
-                    state in ("running", "new")
+                    (rec or {}).get("state") in ("running", None)
                     or (rec or {}).get("updated", 0) < job["submitted"]):
+                # Its task ended, and no final record was written after the submission.
                 if ended is None:
                     ended = slurm.ended_tasks(sorted({j["job_id"] for j in jobs}))
                 log = slurm.slurm_dir(plan) / "logs" / f"{job['job_id']}_{m.index}.out"
