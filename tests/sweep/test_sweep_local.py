@@ -95,7 +95,7 @@ def case_local(tmp, exe):
 
 def reference(tmp, exe):
     ref = tmp / "reference"
-    run_sweep(ref, "--no-check", demfem_run=exe)
+    run_sweep(ref, "--no-check", "--no-plots", demfem_run=exe)
     return ref
 
 
@@ -136,7 +136,7 @@ def case_fail(tmp, exe):
     flag.write_text("")
     env = {"DEMFEM_TEST_REAL_RUN": exe, "DEMFEM_TEST_FAIL": "s01_r00",
            "DEMFEM_TEST_FAIL_WHILE": str(flag)}
-    r = run_sweep(out, demfem_run=FAULTS, env=env, expect=1)
+    r = run_sweep(out, "--no-plots", demfem_run=FAULTS, env=env, expect=1)
     check("s01_r00: failed, 3 attempt(s), last exit 1" in r.stderr,
           "the failing member is not reported on stderr")
     st = status(out, "s01_r00")
@@ -147,11 +147,11 @@ def case_fail(tmp, exe):
     check(srows[1][shead.index("n")] == "2" and srows[1][shead.index("failed")] == "1",
           f"summary of the setting with the failed member: {srows[1]}")
     # --skip-failed leaves it alone.
-    r = run_sweep(out, "--skip-failed", demfem_run=FAULTS, env=env, expect=1)
+    r = run_sweep(out, "--skip-failed", "--no-collect", demfem_run=FAULTS, env=env, expect=1)
     check("0 to run" in r.stdout, "--skip-failed ran something")
     # The fault is gone: running the sweep again runs that member only.
     flag.unlink()
-    r = run_sweep(out, demfem_run=FAULTS, env=env)
+    r = run_sweep(out, "--no-plots", demfem_run=FAULTS, env=env)
     check("5 done before, 1 to run" in r.stdout, "the rerun did not run just the failed member")
     check(len(status(out, "s01_r00")["attempts"]) == 4, "attempts of s01_r00")
     same_aggregate(ref, out)

@@ -28,7 +28,7 @@ SCENE = SOURCE / "cases" / "beam_sweep_ci.toml"
 def case_slurm(tmp, exe):
     check(os.environ.get("SLURM_CONF"), "SLURM_CONF is not set: run under slurm_cluster.sh")
     ref = tmp / "reference"
-    run_sweep(ref, "--no-check", demfem_run=exe)
+    run_sweep(ref, "--no-check", "--no-plots", demfem_run=exe)
     out = tmp / "slurm"
     flag = tmp / "fail.flag"
     flag.write_text("")

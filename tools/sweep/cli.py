@@ -61,6 +61,8 @@ def parser():
                      help="GPU ids for members with dem.backend = \"cuda\", e.g. 0,1 (default: "
                      "CUDA_VISIBLE_DEVICES, else nvidia-smi's list)")
     loc.add_argument("--no-collect", action="store_true", help="do not collect at the end")
+    p.add_argument("--no-plots", action="store_true",
+                   help="collect the tables only (no matplotlib; faster)")
     loc.add_argument("--progress-interval", type=float, default=10.0, metavar="S",
                      help="seconds between progress lines when not on a terminal (default 10)")
     p.add_argument("--max-retries", type=int, default=None, metavar="N",
@@ -129,7 +131,7 @@ def run(args):
             status.report(plan, states, print)
             print_eta(plan, states)
         if args.collect:
-            for path in collect(spec, plan, states):
+            for path in collect(spec, plan, states, plots=not args.no_plots):
                 print(f"wrote {path}")
         return 0
 
@@ -228,7 +230,7 @@ def run_local(args, spec, plan, todo, states):
         status.report(plan, states, print)
         return 128 + pool.stop_signal
     if not args.no_collect:
-        for path in collect(spec, plan, states):
+        for path in collect(spec, plan, states, plots=not args.no_plots):
             print(f"wrote {path}")
     return finish_report(plan, states)
 
@@ -299,7 +301,7 @@ def run_slurm(args, spec, plan, todo):
         print("demfem sweep: stopped waiting; the jobs go on (scancel them to stop them)")
         return 128 + stop[0]
     states = status.gather(plan)
-    for path in collect(spec, plan, states):
+    for path in collect(spec, plan, states, plots=not args.no_plots):
         print(f"wrote {path}")
     return finish_report(plan, states)
 
