@@ -95,8 +95,9 @@ def run_xargs(tmp, plan, pool, k):
     (out / "commands").write_text("\n".join(lines) + "\n")
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
     t0 = time.monotonic()
-    r = subprocess.run(f"xargs -d '\\n' -P {pool} -I CMD sh -c CMD < {shlex.quote(str(out / 'commands'))}",
-                       shell=True, env=env)
+    commands = shlex.quote(str(out / "commands"))
+    r = subprocess.run(f"xargs -d '\\n' -P {pool} -I CMD sh -c CMD < {commands}", shell=True,
+                       env=env)
     wall = time.monotonic() - t0
     if r.returncode != 0:
         sys.exit("sweep_overhead: the xargs reference failed")

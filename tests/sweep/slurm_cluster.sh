@@ -151,7 +151,8 @@ for i in $(seq 200); do
   [ "$state" = idle ] && break
   sleep 0.1
 done
-[ "$state" = idle ] || skip "the test node did not come up (state '$state'): $(tail -n 3 "$dir/log/slurmd.log")"
+[ "$state" = idle ] ||
+  skip "the test node did not come up (state '$state'): $(tail -n 3 "$dir/log/slurmd.log")"
 echo "slurm_cluster: Slurm $(slurmctld -V | cut -d' ' -f2) up in $dir (user $user, $(nproc) CPUs)"
 # In the background: bash runs a trap only once a foreground command has ended, but `wait`
 # returns at once on a signal.

@@ -253,7 +253,8 @@ class Slurm(unittest.TestCase):
                      "#SBATCH --partition=gpu", "#SBATCH --time=1:00:00",
                      "#SBATCH --account=proj", "#SBATCH --exclusive",
                      "#SBATCH --output=/scratch/beam/slurm/logs/%A_%a.out",
-                     "-m sweep --member-task /scratch/beam/slurm/plan.json \"$SLURM_ARRAY_TASK_ID\""):
+                     "-m sweep --member-task /scratch/beam/slurm/plan.json "
+                     "\"$SLURM_ARRAY_TASK_ID\""):
             self.assertIn(line, text)
 
 

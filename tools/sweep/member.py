@@ -168,9 +168,10 @@ def run_member(plan, member, handle=None, env=None, log=print, where=None, settl
                     "\n".join("    " + ln for ln in _tail(log_path).splitlines()))
                 return rec
             fresh = what == "fresh"
+            start_over = fresh or not has_checkpoint(member)
             log(f"member {member.id}: attempt {number} ended with {describe_exit(code)}; "
-                f"retrying ({left} left) " + ("from the start" if fresh or not has_checkpoint(member)
-                                              else "from its last checkpoint"))
+                f"retrying ({left} left) " +
+                ("from the start" if start_over else "from its last checkpoint"))
         raise AssertionError("unreachable")
     finally:
         lock.release()
