@@ -188,11 +188,12 @@ std::int64_t kill_step(int seed, int salt) {
 
 }  // namespace
 
-TEST_CASE("checkpoints: committed every 10 steps with a manifest, the last 2 kept") {
+TEST_CASE("checkpoints: committed every 10 steps and at the end with a manifest, the last 2 kept") {
   const fs::path cp = reference() / "checkpoints";
   std::set<std::string> names;
   for (const auto& e : fs::directory_iterator(cp)) names.insert(e.path().filename().string());
-  CHECK(names == std::set<std::string>{"step-000030", "step-000040"});
+  // Step 50 is the end of the run: a finished run can be continued from it.
+  CHECK(names == std::set<std::string>{"step-000040", "step-000050"});
   const std::string manifest = read_text(cp / "step-000040" / "manifest.json");
   for (const char* part : {"dem.h5", "fem.h5", "coupler.h5"}) {
     INFO(part);
@@ -337,7 +338,7 @@ TEST_CASE("a corrupt or incomplete checkpoint is skipped with a message, the pre
     TempDir d;
     fs::create_directories(d.path / "out");
     fs::copy(reference(), d.path / kOut, fs::copy_options::recursive);
-    const fs::path target = d.path / kOut / "checkpoints" / "step-000040" / c.part;
+    const fs::path target = d.path / kOut / "checkpoints" / "step-000050" / c.part;
     const std::string what = c.what;
     if (what == "truncated") {
       fs::resize_file(target, fs::file_size(target) / 2);
@@ -359,7 +360,7 @@ TEST_CASE("a corrupt or incomplete checkpoint is skipped with a message, the pre
     REQUIRE(r.status == 0);
     CHECK(r.err.find("skipping checkpoint") != std::string::npos);
     CHECK(r.err.find(c.expect) != std::string::npos);
-    CHECK(r.err.find("resumed from checkpoint " + std::string(kOut) + "/checkpoints/step-000030") !=
+    CHECK(r.err.find("resumed from checkpoint " + std::string(kOut) + "/checkpoints/step-000040") !=
           std::string::npos);
     check_same_results(reference(), d.path / kOut);
     // Given explicitly, a damaged checkpoint is refused (exit 2), naming the file.
@@ -483,14 +484,15 @@ TEST_CASE("every_sim_time: checkpoints where the simulated time passes a multipl
   std::set<std::string> names;
   for (const auto& e : fs::directory_iterator(d.path / kOut / "checkpoints"))
     names.insert(e.path().filename().string());
-  CHECK(names == std::set<std::string>{"step-000000", "step-000015", "step-000030", "step-000045"});
+  CHECK(names == std::set<std::string>{"step-000000", "step-000015", "step-000030", "step-000045",
+                                       "step-000050"});
   check_same_results(reference(), d.path / kOut);
 }
 
 TEST_CASE(
     "old checkpoints do not outlive their run: a fresh run and an older resume discard them") {
   TempDir d;
-  REQUIRE(run(d.path, {}).status == 0);  // leaves step-30 and step-40
+  REQUIRE(run(d.path, {}).status == 0);  // leaves step-40 and step-50
   const fs::path cp = d.path / kOut / "checkpoints";
   // A fresh run in the same folder, killed and recovered: it must roll back to its own
   // checkpoint, not find an older run's step-40 newer than its own.
@@ -501,7 +503,7 @@ TEST_CASE(
   check_same_results(reference(), d.path / kOut);
   // Resuming explicitly from an older checkpoint drops the newer ones, then writes its own.
   const Result e =
-      run(d.path, {"--resume", (cp / "step-000030").string(), "--debug-kill", "dem:45"});
+      run(d.path, {"--resume", (cp / "step-000040").string(), "--debug-kill", "dem:45"});
   INFO(e.out << e.err);
   REQUIRE(e.status == 0);
   CHECK(e.err.find("back at step 40") != std::string::npos);
@@ -516,11 +518,11 @@ TEST_CASE("every_wall_time: a checkpoint whenever the wall-time interval has pas
   INFO(r.out << r.err);
   REQUIRE(r.status == 0);
   CHECK(r.err.find("back at step 37") != std::string::npos);
-  CHECK(r.out.find("50 checkpoints") != std::string::npos);  // steps 0..49
+  CHECK(r.out.find("51 checkpoints") != std::string::npos);  // steps 0..49 and the end, 50
   std::set<std::string> names;
   for (const auto& e : fs::directory_iterator(d.path / kOut / "checkpoints"))
     names.insert(e.path().filename().string());
-  CHECK(names == std::set<std::string>{"step-000048", "step-000049"});
+  CHECK(names == std::set<std::string>{"step-000049", "step-000050"});
   check_same_results(reference(), d.path / kOut);
 }
 
