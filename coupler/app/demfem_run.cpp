@@ -201,6 +201,23 @@ std::optional<int> prepare_resume(const fs::path& checkpoint, const CouplingSett
         }
       }
     }
+    if (settings.has_fem) {
+      const io::H5File fem(checkpoint / "fem.h5", io::H5File::Mode::read);
+      if (fem.has_attribute("fem", "mesh_nodes")) {
+        const auto nodes = fem.attribute_int64("fem", "mesh_nodes");
+        const auto elements = fem.attribute_int64("fem", "mesh_elements");
+        if (nodes != static_cast<std::int64_t>(sections.fem_nodes) ||
+            elements != static_cast<std::int64_t>(sections.fem_elements)) {
+          return refuse((checkpoint / "fem.h5").string() + ": the checkpoint's FEM mesh has " +
+                        std::to_string(nodes) + " nodes and " + std::to_string(elements) +
+                        " elements, the mesh of " + settings.scene_file.string() + " has " +
+                        std::to_string(sections.fem_nodes) + " and " +
+                        std::to_string(sections.fem_elements) +
+                        " ([fem.mesh] changed); its state cannot be continued on another mesh: "
+                        "resume with the scene it was taken with, or start afresh");
+        }
+      }
+    }
   } catch (const std::exception& e) {
     return refuse(std::string("checkpoint ") + checkpoint.string() + " cannot be read: " +
                   e.what());
@@ -391,6 +408,8 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
       return *code;
     }
     record.resumed_from = fs::absolute(*control.resume_from).string();
+    const std::string folder = control.resume_from->filename().string();
+    if (folder.rfind("step-", 0) == 0) record.resumed_step = std::atoll(folder.c_str() + 5);
   } else {
     // A fresh start: files of an earlier run with other output settings would stay and look
     // like this run's.
@@ -578,9 +597,10 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     } else if (p && p->running()) {
       p->signal(SIGKILL);
       const int c = p->stop(std::chrono::milliseconds(1000));
+      char limit[32];
+      std::snprintf(limit, sizeof(limit), "%g", opt.hello_timeout);
       failed(kExitFailed, "the " + p->label() + " (" + name + ", pid " +
-                              std::to_string(p->pid()) + ") did not attach within " +
-                              std::to_string(opt.hello_timeout) +
+                              std::to_string(p->pid()) + ") did not attach within " + limit +
                               " s (--hello-timeout); it was killed (status " + std::to_string(c) +
                               "). " + e.what());
     } else if (p) {

@@ -232,7 +232,7 @@ RunSummary CouplingRun::run() {
   };
 
   RunSummary sum;
-  const auto run_start = Clock::now();
+  auto run_start = Clock::now();  // set again when the steps begin (see below)
   sum.mesh = link_.start();
   const std::size_t n3 = 3 * sum.mesh.node_count();
   const bool coupled = s.has_dem && s.has_fem;
@@ -444,11 +444,13 @@ RunSummary CouplingRun::run() {
   // history and the CSV rows. Returns the step to continue from.
   auto restore_from = [&](const std::filesystem::path& folder, bool resume) {
     const CheckpointManifest m = verify_checkpoint(folder, parts);
+    // The coupler's part first: its interface check names a changed mesh more plainly than
+    // the solvers' own refusals would.
+    load_coupler(folder / "coupler.h5", m.step, resume);
     for (Role role : {Role::dem, Role::fem}) {
       if (!link_.has(role)) continue;
       link_.restore(role, folder / (role == Role::dem ? "dem.h5" : "fem.h5"), m.step);
     }
-    load_coupler(folder / "coupler.h5", m.step, resume);
     csv.reset();
     csv.emplace(output_dir_ / "coupling.csv", static_cast<std::size_t>(csv_rows));
     last_cp = folder;
@@ -692,6 +694,7 @@ RunSummary CouplingRun::run() {
     }
   };
 
+  run_start = Clock::now();  // wall_total: from the first step (or restore) to the last
   try {
     std::int64_t i = 0;
     if (control_.resume_from) {

@@ -108,7 +108,11 @@ SolverSections check_solver_sections(const scene::Document& scene, std::uint64_t
   SolverSections out;
   const scene::Table root = scene.root();
   const auto fem = root.table("fem");
-  if (fem) (void)fem::read_fem_scene(*fem);
+  if (fem) {
+    const fem::FemScene fs = fem::read_fem_scene(*fem);
+    out.fem_nodes = fs.problem.mesh.nodes.size();
+    out.fem_elements = fs.problem.mesh.elements.size();
+  }
   if (auto dem = root.table("dem")) {
     const dem::DemScene ds = dem::read_dem_scene(*dem);
     // The DEM adapter needs it only when the mesh arrives; say so before anything starts.

@@ -547,3 +547,78 @@ TEST_CASE("one-way static: a FEM killed in its static solve recovers to the same
   check_same_results(ref.path / "out/beam_fixed_ci", d.path / "out/beam_fixed_ci", 8);
   check_nothing_left({r1.out});
 }
+
+TEST_CASE("a finished run is continued to a later end_time and equals the run straight to it") {
+  // Issue 19, defect 17: no checkpoint was taken at the end, so a run that ended could not be
+  // continued. The run to 4 ms ends with a checkpoint of its end state (step 40); --resume
+  // with the scene's end_time of 5 ms continues it, equal to the uninterrupted run to 5 ms
+  // (4 ms is a multiple of the output interval, so the first run wrote no extra output).
+  TempDir d;
+  const fs::path t1 = variant(d.path, {{"end_time = 0.005 ", "end_time = 0.004 "}});
+  const Result first = run(d.path, {}, t1);
+  INFO(first.out << first.err);
+  REQUIRE(first.status == 0);
+  REQUIRE(fs::exists(d.path / kOut / "checkpoints" / "step-000040" / "manifest.json"));
+  const Result second = run(d.path, {"--resume"});
+  INFO(second.out << second.err);
+  REQUIRE(second.status == 0);
+  CHECK(second.err.find("resumed from checkpoint " + std::string(kOut) +
+                        "/checkpoints/step-000040 (step 40") != std::string::npos);
+  CHECK(second.err.find("the scene differs from the one checkpoint") != std::string::npos);
+  check_same_results(reference(), d.path / kOut);
+  // Resumed at its end, a finished run has nothing left to do and stays as it is.
+  const Result again = run(d.path, {"--resume"});
+  INFO(again.out << again.err);
+  REQUIRE(again.status == 0);
+  CHECK(again.err.find("step-000050 (step 50") != std::string::npos);
+  check_same_results(reference(), d.path / kOut);
+}
+
+TEST_CASE("resume into a new output folder continues the series of the checkpoint's run") {
+  // Issue 19, defect 17: "coupling.csv: cannot read the series to continue" until the old
+  // coupling.csv was copied by hand. The checkpoint records its run's output folder; the
+  // new folder takes over that run's series and continues them.
+  TempDir d;
+  const fs::path cp40 = reference() / "checkpoints" / "step-000040";
+  const fs::path fresh = d.path / "continued";
+  const Result r = run(d.path, {"--resume", cp40.string(), "--output-dir", fresh.string()});
+  INFO(r.out << r.err);
+  REQUIRE(r.status == 0);
+  CHECK(r.err.find("took over the series of " + fs::absolute(reference()).string()) !=
+        std::string::npos);
+  check_same_results(reference(), fresh);
+  // The folder the series came from is gone: refused with what to do (exit 2).
+  TempDir gone_run;
+  REQUIRE(run(gone_run.path, {}).status == 0);
+  const fs::path kept = d.path / "kept-step-000040";
+  fs::copy(gone_run.path / kOut / "checkpoints" / "step-000040", kept);
+  fs::remove_all(gone_run.path / kOut);
+  const Result e = run(d.path, {"--resume", kept.string(), "--output-dir", (d.path / "x").string()});
+  INFO(e.out << e.err);
+  CHECK(e.status == 2);
+  CHECK(e.err.find("whose series (coupling.csv) are not there any more") != std::string::npos);
+  CHECK(started_pids(e.out).empty());
+}
+
+TEST_CASE("after a resume the wall-time shares are of the same wall time") {
+  // Issue 19, defect 12: the restored DEM total was divided by this session's wall time
+  // ("DEM 716 %").
+  // Resumed at the end of a finished run, this session computes nothing, so the old sum was
+  // the whole run's DEM time over a few milliseconds.
+  TempDir d;
+  REQUIRE(run(d.path, {}).status == 0);
+  const Result r = run(d.path, {"--resume"});
+  INFO(r.out << r.err);
+  REQUIRE(r.status == 0);
+  REQUIRE(r.err.find("step-000050 (step 50") != std::string::npos);
+  auto shares = [&](const std::string& label) {
+    const std::regex re(label + ": total ([0-9.]+) s; DEM [0-9.]+ s \\(([0-9.]+) %\\), FEM [0-9.]+ "
+                                "s \\(([0-9.]+) %\\), coupling [0-9.]+ s \\(([0-9.]+) %\\)");
+    std::smatch m;
+    REQUIRE(std::regex_search(r.out, m, re));
+    return std::stod(m[2]) + std::stod(m[3]) + std::stod(m[4]);
+  };
+  CHECK(shares("wall time of this session") <= 100.5);
+  CHECK(shares("wall time of the whole run \\(earlier sessions up to the checkpoint, and this "
+               "one\\)") <= 100.5);
+}

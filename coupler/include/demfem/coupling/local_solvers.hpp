@@ -17,6 +17,8 @@ struct SolverSections {
   std::string dem_backend;               ///< "" without [dem]
   int dem_threads = 0;                   ///< the DEM's CPU threads (dem.threads or OpenMP's)
   std::size_t dem_setup_particles = 0;   ///< particles of the DEM's set-up (DemRun)
+  std::size_t fem_nodes = 0;             ///< nodes and elements of the FEM mesh
+  std::size_t fem_elements = 0;
 };
 
 /// @brief Reads [dem] and [fem] with the solvers' own readers and makes the checks the solvers
