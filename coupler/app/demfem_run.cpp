@@ -219,8 +219,8 @@ std::optional<int> prepare_resume(const fs::path& checkpoint, const CouplingSett
       }
     }
   } catch (const std::exception& e) {
-    return refuse(std::string("checkpoint ") + checkpoint.string() + " cannot be read: " +
-                  e.what());
+    return refuse(std::string("checkpoint ") + checkpoint.string() +
+                  " cannot be read: " + e.what());
   }
   // Resuming into another folder than the one the checkpoint's run wrote: its series
   // (coupling.csv, the FEM's and the DEM's files) are copied here first, and the run
@@ -228,7 +228,8 @@ std::optional<int> prepare_resume(const fs::path& checkpoint, const CouplingSett
   if (!origin.empty() && !same_folder(origin, out_dir)) {
     if (!fs::exists(fs::path(origin) / "coupling.csv")) {
       return refuse("checkpoint " + checkpoint.string() + " was taken by a run writing to " +
-                    origin + ", whose series (coupling.csv) are not there any more; resume into "
+                    origin +
+                    ", whose series (coupling.csv) are not there any more; resume into "
                     "that folder with its output, or copy the output back there");
     }
     try {
@@ -384,8 +385,8 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
       try {
         (void)verify_checkpoint(from, parts);
       } catch (const std::exception& e) {
-        std::fprintf(stderr, "demfem run: --resume %s: not a valid checkpoint: %s\n",
-                     from.c_str(), e.what());
+        std::fprintf(stderr, "demfem run: --resume %s: not a valid checkpoint: %s\n", from.c_str(),
+                     e.what());
         return kExitUsage;
       }
       control.resume_from = from;
@@ -591,16 +592,16 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     SolverProcess* p = e.role() == protocol::Role::dem ? dem_proc.get() : fem_proc.get();
     const std::string name = e.role() == protocol::Role::dem ? "dem_server" : "fem_server";
     if (SignalGuard::stop_flag().load()) {
-      failed(128 + SignalGuard::signal_number(),
-             "stopped by signal " + std::to_string(SignalGuard::signal_number()) + " (" +
-                 e.what() + ")");
+      failed(128 + SignalGuard::signal_number(), "stopped by signal " +
+                                                     std::to_string(SignalGuard::signal_number()) +
+                                                     " (" + e.what() + ")");
     } else if (p && p->running()) {
       p->signal(SIGKILL);
       const int c = p->stop(std::chrono::milliseconds(1000));
       char limit[32];
       std::snprintf(limit, sizeof(limit), "%g", opt.hello_timeout);
-      failed(kExitFailed, "the " + p->label() + " (" + name + ", pid " +
-                              std::to_string(p->pid()) + ") did not attach within " + limit +
+      failed(kExitFailed, "the " + p->label() + " (" + name + ", pid " + std::to_string(p->pid()) +
+                              ") did not attach within " + limit +
                               " s (--hello-timeout); it was killed (status " + std::to_string(c) +
                               "). " + e.what());
     } else if (p) {
@@ -614,9 +615,9 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     }
   } catch (const std::exception& e) {
     if (SignalGuard::stop_flag().load()) {
-      failed(128 + SignalGuard::signal_number(),
-             "stopped by signal " + std::to_string(SignalGuard::signal_number()) + " (" +
-                 e.what() + ")");
+      failed(128 + SignalGuard::signal_number(), "stopped by signal " +
+                                                     std::to_string(SignalGuard::signal_number()) +
+                                                     " (" + e.what() + ")");
     } else {
       failed(kExitFailed, e.what());
     }

@@ -148,8 +148,7 @@ class SeriesFile {
 }  // namespace
 
 bool is_blow_up_report(const std::string& text) {
-  return text.find("not finite") != std::string::npos ||
-         text.find("blew up") != std::string::npos;
+  return text.find("not finite") != std::string::npos || text.find("blew up") != std::string::npos;
 }
 
 BlowUp::BlowUp(std::int64_t step, double time, std::string quantity, double value, double bound,
@@ -309,8 +308,7 @@ RunSummary CouplingRun::run() {
       h5.set_attribute("/", "wall_dem", sum.earlier.dem + sum.wall_dem);
       h5.set_attribute("/", "wall_fem", sum.earlier.fem + sum.wall_fem);
       h5.set_attribute("/", "wall_coupling", sum.earlier.coupling + sum.wall_coupling);
-      if (!control_.scene_hash.empty())
-        h5.set_attribute("/", "scene_hash", control_.scene_hash);
+      if (!control_.scene_hash.empty()) h5.set_attribute("/", "scene_hash", control_.scene_hash);
       h5.set_attribute("/", "output_dir", std::filesystem::absolute(output_dir_).string());
       const auto last = row_of(sum.last);
       h5.write("last_diagnostics", std::span<const double>(last), {last.size()});
@@ -343,8 +341,9 @@ RunSummary CouplingRun::run() {
     };
     need(h5.attribute_string("/", "scheme") == scheme_name(s.scheme),
          "attribute 'scheme' is '" + h5.attribute_string("/", "scheme") + "', the scene's is '" +
-             scheme_name(s.scheme) + "' (coupling.scheme changed: the scheme's history cannot "
-                                     "be carried over; resume with the scheme it was taken with)");
+             scheme_name(s.scheme) +
+             "' (coupling.scheme changed: the scheme's history cannot "
+             "be carried over; resume with the scheme it was taken with)");
     const std::int64_t nodes = h5.attribute_int64("/", "node_count");
     need(nodes == static_cast<std::int64_t>(n3 / 3),
          "the checkpoint's interface has " + std::to_string(nodes) + " nodes, this scene's " +
@@ -703,13 +702,13 @@ RunSummary CouplingRun::run() {
       } catch (const protocol::PeerDied&) {
         throw;  // a solver died while restoring: not the checkpoint's fault
       } catch (const protocol::SolverError& e) {
-        throw ResumeRefused("checkpoint " + control_.resume_from->string() + " cannot be resumed: " +
-                            e.what());
+        throw ResumeRefused("checkpoint " + control_.resume_from->string() +
+                            " cannot be resumed: " + e.what());
       } catch (const protocol::ProtocolError&) {
         throw;
       } catch (const std::exception& e) {
-        throw ResumeRefused("checkpoint " + control_.resume_from->string() + " cannot be resumed: " +
-                            e.what());
+        throw ResumeRefused("checkpoint " + control_.resume_from->string() +
+                            " cannot be resumed: " + e.what());
       }
       stats_.resumed_from = i;
       if (cps.enabled) discard_checkpoints_after(cp_dir, i);

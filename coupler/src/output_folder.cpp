@@ -45,9 +45,9 @@ std::vector<fs::path> owned_files(const fs::path& dir) {
 bool is_owned_output(const std::string& file_name) {
   std::string name = file_name;
   if (ends_with(name, ".part")) name.resize(name.size() - 5);
-  static const char* const kNames[] = {"coupling.csv",   "coupling.h5",    "timing.csv",
-                                       "beam_check.csv", "coupling.png",   "fem.xdmf",
-                                       "fem_series.csv", "fem_mesh.h5",    "particles.xdmf"};
+  static const char* const kNames[] = {"coupling.csv",   "coupling.h5",  "timing.csv",
+                                       "beam_check.csv", "coupling.png", "fem.xdmf",
+                                       "fem_series.csv", "fem_mesh.h5",  "particles.xdmf"};
   for (const char* n : kNames)
     if (name == n) return true;
   if (numbered_h5(name, "fem") || numbered_h5(name, "particles")) return true;
@@ -59,8 +59,9 @@ std::vector<std::string> clear_owned_outputs(const fs::path& dir) {
   for (const auto& f : owned_files(dir)) {
     std::error_code ec;
     fs::remove(f, ec);
-    if (ec) throw std::runtime_error(f.string() + ": cannot remove (a file of an earlier run): " +
-                                     ec.message());
+    if (ec)
+      throw std::runtime_error(f.string() +
+                               ": cannot remove (a file of an earlier run): " + ec.message());
     names.push_back(f.filename().string());
   }
   return names;

@@ -108,8 +108,7 @@ std::string to_json(const RunRecord& r) {
     << "  \"end_time\": " << opt_text(r.end_time) << ",\n"
     << "  \"run_end_time\": " << number(r.end_time_simulated) << ",\n"
     << "  \"step_count\": " << r.step_count << ",\n"
-    << "  \"steps_done\": " << (r.steps_done < 0 ? "null" : std::to_string(r.steps_done))
-    << ",\n"
+    << "  \"steps_done\": " << (r.steps_done < 0 ? "null" : std::to_string(r.steps_done)) << ",\n"
     << "  \"time_reached\": " << (r.time_reached < 0 ? "null" : number(r.time_reached)) << "\n"
     << "}\n";
   return j.str();

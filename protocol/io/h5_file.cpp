@@ -130,7 +130,9 @@ H5File::H5File(const std::filesystem::path& path, Mode mode) : path_(path) {
   id_ = id;
 }
 
-H5File::~H5File() { close_quietly(); }
+H5File::~H5File() {
+  close_quietly();
+}
 
 H5File::H5File(H5File&& other) noexcept : path_(std::move(other.path_)), id_(other.id_) {
   other.id_ = -1;

@@ -5,8 +5,8 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
-#include <fstream>
 #include <cstring>
+#include <fstream>
 #include <sstream>
 
 namespace demfem::scene {

@@ -77,8 +77,8 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 // Waits until the run is inside coupling step 0: its step-0 checkpoint is committed right
 // before the step is sent.
 void wait_inside_first_step(const fs::path& out) {
-  REQUIRE(eventually([&] { return fs::exists(out / "checkpoints/step-000000/manifest.json"); },
-                     30s));
+  REQUIRE(
+      eventually([&] { return fs::exists(out / "checkpoints/step-000000/manifest.json"); }, 30s));
   std::this_thread::sleep_for(300ms);
 }
 
@@ -225,16 +225,16 @@ TEST_CASE("a solver that starts but never attaches is killed after --hello-timeo
   std::ofstream(bin / "dem_server") << "#!/bin/sh\nexec sleep 60\n";
   fs::permissions(bin / "dem_server", fs::perms::owner_all);
   const auto t0 = std::chrono::steady_clock::now();
-  const Ended r = demfem::test::wait_for(demfem::test::launch(
-      d.path, {(kBin / "demfem_run").string(), "--bin-dir", bin.string(), "--quiet",
-               "--hello-timeout", "1", kCase.string()}));
+  const Ended r = demfem::test::wait_for(
+      demfem::test::launch(d.path, {(kBin / "demfem_run").string(), "--bin-dir", bin.string(),
+                                    "--quiet", "--hello-timeout", "1", kCase.string()}));
   INFO(r.out << r.err);
   CHECK(r.status == 1);
   CHECK(seconds_since(t0) < 8.0);
   const auto pids = started_pids(r.out);
   REQUIRE(pids.size() == 2);
-  CHECK_THAT(r.err, Catch::Contains("the DEM solver (dem_server, pid " +
-                                    std::to_string(pids[1]) + ") did not attach within 1") &&
+  CHECK_THAT(r.err, Catch::Contains("the DEM solver (dem_server, pid " + std::to_string(pids[1]) +
+                                    ") did not attach within 1") &&
                         Catch::Contains("it was killed"));
   check_nothing_left(r.out, 3s);
   CHECK(record_field(d.path / kOut, "status") == "failed");
@@ -250,17 +250,20 @@ TEST_CASE("bad input is refused with exit 2 before any process starts and names 
     const char* expect;
   };
   const Case cases[] = {
-      {"end_time = 1e300", {{"end_time = 0.005 ", "end_time = 1e300 "}},
+      {"end_time = 1e300",
+       {{"end_time = 0.005 ", "end_time = 1e300 "}},
        "key 'run.end_time' = 1e+300 s"},
       {"dem.dt = 1e-20", {{"dt = 2e-6  ", "dt = 1e-20  "}}, "DEM substeps per coupling step"},
       {"dt above the Rayleigh time step",
        {{"dt = 2e-6  ", "dt = 1e-4  "}},
        "key 'dem.dt': dt = 0.0001 s exceeds the Rayleigh time step"},
       {"a missing STL file",
-       {{"[[dem.sensors]]", "[[dem.walls]]\nstl = \"missing.stl\"\nmaterial = \"steel\"\n\n"
-                            "[[dem.sensors]]"}},
+       {{"[[dem.sensors]]",
+         "[[dem.walls]]\nstl = \"missing.stl\"\nmaterial = \"steel\"\n\n"
+         "[[dem.sensors]]"}},
        "missing.stl"},
-      {"run.name = ../../x", {{"name = \"beam_checkpoint_ci\"", "name = \"../../x\""}},
+      {"run.name = ../../x",
+       {{"name = \"beam_checkpoint_ci\"", "name = \"../../x\""}},
        "key 'run.name': '../../x' starts with '.'"},
   };
   for (const auto& c : cases) {
@@ -349,8 +352,8 @@ TEST_CASE("run.json tells how a run ended and a fresh start clears only demfem's
   const fs::path out = d.path / kOut;
   fs::create_directories(out);
   // An earlier run with other output settings, and a file of the user's.
-  for (const char* stale : {"particles_000099.h5", "sensor_old.csv", "fem_000123.h5",
-                            "coupling.h5.part"}) {
+  for (const char* stale :
+       {"particles_000099.h5", "sensor_old.csv", "fem_000123.h5", "coupling.h5.part"}) {
     std::ofstream(out / stale) << "old";
   }
   std::ofstream(out / "notes.txt") << "mine";
@@ -358,8 +361,8 @@ TEST_CASE("run.json tells how a run ended and a fresh start clears only demfem's
   INFO(r.out << r.err);
   REQUIRE(r.status == 0);
   CHECK_THAT(r.err, Catch::Contains("removed 4 files of an earlier run"));
-  for (const char* stale : {"particles_000099.h5", "sensor_old.csv", "fem_000123.h5",
-                            "coupling.h5.part"}) {
+  for (const char* stale :
+       {"particles_000099.h5", "sensor_old.csv", "fem_000123.h5", "coupling.h5.part"}) {
     INFO(stale);
     CHECK_FALSE(fs::exists(out / stale));
   }
@@ -369,13 +372,12 @@ TEST_CASE("run.json tells how a run ended and a fresh start clears only demfem's
   CHECK(record_field(out, "exit_code") == "0");
   CHECK(record_field(out, "reason") == "null");
   CHECK(record_field(out, "scene") == kCase.string());
-  CHECK(record_field(out, "scene_hash") ==
-        [] {
-          char h[17];
-          std::snprintf(h, sizeof h, "%016llx",
-                        static_cast<unsigned long long>(demfem::coupling::fnv1a64_file(kCase)));
-          return std::string(h);
-        }());
+  CHECK(record_field(out, "scene_hash") == [] {
+    char h[17];
+    std::snprintf(h, sizeof h, "%016llx",
+                  static_cast<unsigned long long>(demfem::coupling::fnv1a64_file(kCase)));
+    return std::string(h);
+  }());
   CHECK(record_field(out, "steps_done") == "50");
   CHECK(record_field(out, "step_count") == "50");
   CHECK(std::regex_match(record_field(out, "git_commit"), std::regex("[0-9a-f]{40}|unknown")));
@@ -425,12 +427,15 @@ TEST_CASE("resume refuses a checkpoint whose state or scene cannot be continued 
     const Ended r = run(d.path, {kCase.string(), "--resume", cp.string()});
     INFO(r.out << r.err);
     CHECK(r.status == 2);
-    CHECK_THAT(r.err, Catch::Contains("inf_fem/fem.h5") && Catch::Contains("fem/v[30] is not finite"));
+    CHECK_THAT(r.err,
+               Catch::Contains("inf_fem/fem.h5") && Catch::Contains("fem/v[30] is not finite"));
   }
   {
     INFO("a changed particle count: refused before any process starts");
-    const fs::path scene = variant(d.path, "fewer.toml", {{"hi = [1.0, 0.1, 0.1245]", "hi = [0.5, 0.1, 0.1245]"}});
-    const Ended r = run(d.path, {scene.string(), "--resume", cp40.string(), "--output-dir", (d.path / kOut).string()});
+    const fs::path scene =
+        variant(d.path, "fewer.toml", {{"hi = [1.0, 0.1, 0.1245]", "hi = [0.5, 0.1, 0.1245]"}});
+    const Ended r = run(d.path, {scene.string(), "--resume", cp40.string(), "--output-dir",
+                                 (d.path / kOut).string()});
     INFO(r.out << r.err);
     CHECK(r.status == 2);
     CHECK_THAT(r.err, Catch::Contains("made 160 particles at set-up") &&
@@ -439,8 +444,10 @@ TEST_CASE("resume refuses a checkpoint whose state or scene cannot be continued 
   }
   {
     INFO("a changed mesh");
-    const fs::path scene = variant(d.path, "coarser.toml", {{"cells = [20, 2, 2]", "cells = [10, 2, 2]"}});
-    const Ended r = run(d.path, {scene.string(), "--resume", cp40.string(), "--output-dir", (d.path / kOut).string()});
+    const fs::path scene =
+        variant(d.path, "coarser.toml", {{"cells = [20, 2, 2]", "cells = [10, 2, 2]"}});
+    const Ended r = run(d.path, {scene.string(), "--resume", cp40.string(), "--output-dir",
+                                 (d.path / kOut).string()});
     INFO(r.out << r.err);
     CHECK(r.status == 2);
     CHECK_THAT(r.err, Catch::Contains("the checkpoint's FEM mesh has 189 nodes and 80 elements") &&
@@ -449,9 +456,9 @@ TEST_CASE("resume refuses a checkpoint whose state or scene cannot be continued 
   }
   {
     INFO("another interface surface (same mesh): refused by the coupler's own check");
-    const fs::path scene = variant(d.path, "surface.toml",
-                                   {{"interface_surface = \"z >= 0.1\"",
-                                     "interface_surface = \"z >= 0.05\""}});
+    const fs::path scene =
+        variant(d.path, "surface.toml",
+                {{"interface_surface = \"z >= 0.1\"", "interface_surface = \"z >= 0.05\""}});
     const Ended r = run(d.path, {scene.string(), "--resume", cp40.string(), "--output-dir",
                                  (d.path / kOut).string()});
     INFO(r.out << r.err);

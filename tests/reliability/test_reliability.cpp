@@ -593,7 +593,8 @@ TEST_CASE("resume into a new output folder continues the series of the checkpoin
   const fs::path kept = d.path / "kept-step-000040";
   fs::copy(gone_run.path / kOut / "checkpoints" / "step-000040", kept);
   fs::remove_all(gone_run.path / kOut);
-  const Result e = run(d.path, {"--resume", kept.string(), "--output-dir", (d.path / "x").string()});
+  const Result e =
+      run(d.path, {"--resume", kept.string(), "--output-dir", (d.path / "x").string()});
   INFO(e.out << e.err);
   CHECK(e.status == 2);
   CHECK(e.err.find("whose series (coupling.csv) are not there any more") != std::string::npos);
@@ -612,8 +613,9 @@ TEST_CASE("after a resume the wall-time shares are of the same wall time") {
   REQUIRE(r.status == 0);
   REQUIRE(r.err.find("step-000050 (step 50") != std::string::npos);
   auto shares = [&](const std::string& label) {
-    const std::regex re(label + ": total ([0-9.]+) s; DEM [0-9.]+ s \\(([0-9.]+) %\\), FEM [0-9.]+ "
-                                "s \\(([0-9.]+) %\\), coupling [0-9.]+ s \\(([0-9.]+) %\\)");
+    const std::regex re(label +
+                        ": total ([0-9.]+) s; DEM [0-9.]+ s \\(([0-9.]+) %\\), FEM [0-9.]+ "
+                        "s \\(([0-9.]+) %\\), coupling [0-9.]+ s \\(([0-9.]+) %\\)");
     std::smatch m;
     REQUIRE(std::regex_search(r.out, m, re));
     return std::stod(m[2]) + std::stod(m[3]) + std::stod(m[4]);

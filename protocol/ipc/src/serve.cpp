@@ -259,8 +259,8 @@ class Server {
     slot.detached.store(0);
     attached_ = true;
     heartbeat_ = std::make_unique<shm::Heartbeat>(slot);
-    watchdog_ = std::make_unique<CouplerWatchdog>(&seg_->coupler, coupler_pid_,
-                                                  options_.peer_timeout);
+    watchdog_ =
+        std::make_unique<CouplerWatchdog>(&seg_->coupler, coupler_pid_, options_.peer_timeout);
   }
 
   struct VersionMismatchExit {

@@ -14,10 +14,10 @@ namespace demfem::coupling {
 
 /// @brief What check_solver_sections() found out about the solvers of a scene.
 struct SolverSections {
-  std::string dem_backend;               ///< "" without [dem]
-  int dem_threads = 0;                   ///< the DEM's CPU threads (dem.threads or OpenMP's)
-  std::size_t dem_setup_particles = 0;   ///< particles of the DEM's set-up (DemRun)
-  std::size_t fem_nodes = 0;             ///< nodes and elements of the FEM mesh
+  std::string dem_backend;              ///< "" without [dem]
+  int dem_threads = 0;                  ///< the DEM's CPU threads (dem.threads or OpenMP's)
+  std::size_t dem_setup_particles = 0;  ///< particles of the DEM's set-up (DemRun)
+  std::size_t fem_nodes = 0;            ///< nodes and elements of the FEM mesh
   std::size_t fem_elements = 0;
 };
 

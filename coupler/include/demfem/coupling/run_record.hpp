@@ -17,16 +17,16 @@ namespace demfem::coupling {
 
 /// @brief What run.json holds.
 struct RunRecord {
-  std::string status = "running";  ///< running | completed | failed | interrupted
-  int exit_code = -1;              ///< the launcher's exit status (-1 while running)
-  int signal = 0;                  ///< interrupted: the signal number
-  std::string reason;              ///< failed / interrupted: the message printed
-  std::filesystem::path scene;     ///< absolute path of the scene file
-  std::string scene_hash;          ///< scene_hash() of the scene and its overrides
-  std::vector<std::string> overrides;  ///< command-line overrides of scene keys (KEY=VALUE)
-  std::filesystem::path output_dir;    ///< absolute
+  std::string status = "running";        ///< running | completed | failed | interrupted
+  int exit_code = -1;                    ///< the launcher's exit status (-1 while running)
+  int signal = 0;                        ///< interrupted: the signal number
+  std::string reason;                    ///< failed / interrupted: the message printed
+  std::filesystem::path scene;           ///< absolute path of the scene file
+  std::string scene_hash;                ///< scene_hash() of the scene and its overrides
+  std::vector<std::string> overrides;    ///< command-line overrides of scene keys (KEY=VALUE)
+  std::filesystem::path output_dir;      ///< absolute
   std::filesystem::path checkpoint_dir;  ///< absolute; empty without [checkpoint]
-  std::string resumed_from;            ///< checkpoint folder of --resume ("" = fresh start)
+  std::string resumed_from;              ///< checkpoint folder of --resume ("" = fresh start)
   std::int64_t resumed_step = -1;
   std::vector<std::string> cleared;  ///< files of an earlier run removed at a fresh start
   std::string copied_from;           ///< resume into a new folder: the series' origin
@@ -34,12 +34,12 @@ struct RunRecord {
   std::vector<std::string> command_line;
   std::string host;
   pid_t pid = 0;
-  std::string dem_backend;  ///< "" = no DEM
-  int dem_threads = 0;      ///< threads of the DEM's CPU backend (dem.threads or OpenMP's)
+  std::string dem_backend;      ///< "" = no DEM
+  int dem_threads = 0;          ///< threads of the DEM's CPU backend (dem.threads or OpenMP's)
   std::string omp_num_threads;  ///< the OMP_NUM_THREADS environment variable ("" = unset)
   unsigned hardware_threads = 0;
-  std::string start_time;  ///< ISO 8601, UTC
-  std::string end_time;    ///< ISO 8601, UTC ("" while running)
+  std::string start_time;           ///< ISO 8601, UTC
+  std::string end_time;             ///< ISO 8601, UTC ("" while running)
   double end_time_simulated = 0.0;  ///< run.end_time, s
   std::int64_t step_count = 0;      ///< coupling steps to reach it
   std::int64_t steps_done = -1;     ///< coupling steps done at the end (-1 = not known)

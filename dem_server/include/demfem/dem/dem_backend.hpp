@@ -77,8 +77,8 @@ class DemBackend final : public protocol::SolverBackend {
       run_.advance(cmd.substeps, cmd.force_mode);
     } catch (const Unstable& e) {
       // A blow-up, reported as one (the coupler exits with status 3, docs/coupling.md).
-      throw std::runtime_error("dem: step " + std::to_string(cmd.step) + ": the DEM blew up: " +
-                               e.what());
+      throw std::runtime_error("dem: step " + std::to_string(cmd.step) +
+                               ": the DEM blew up: " + e.what());
     }
     protocol::StepResult r;
     if (coupled) {
