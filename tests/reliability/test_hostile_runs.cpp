@@ -138,6 +138,15 @@ TEST_CASE("two runs into one output folder: the second is refused naming the fir
     }
   }
   {
+    INFO("a solver run alone (no coupler) into the same folder");
+    const Ended alone = demfem::test::wait_for(demfem::test::launch(
+        d.path, {(kBin / "dem_server").string(), "--scene", scene.string(), "--output-dir",
+                 (d.path / kOut).string(), "--quiet"}));
+    INFO(alone.out << alone.err);
+    CHECK(alone.status == 2);
+    CHECK_THAT(alone.err, Catch::Contains("is in use by process " + pid));
+  }
+  {
     INFO("another output folder, but the same checkpoint.directory");
     const Ended other = run(d.path, {scene.string(), "--output-dir", "out/other"});
     INFO(other.out << other.err);

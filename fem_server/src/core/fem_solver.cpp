@@ -408,10 +408,10 @@ void FemSolver::restore(const io::H5File& file, const std::string& group) {
       file.attribute_int64(group, "free_dof_count") !=
           static_cast<std::int64_t>(s.dofs.free.size()))
     throw std::runtime_error(
-        "FemSolver::restore: " + where + " was saved from a model with " +
-        std::to_string(file.attribute_int64(group, "dof_count")) + " DOFs (" +
-        std::to_string(file.attribute_int64(group, "free_dof_count")) + " free), this model has " +
-        std::to_string(s.dofs.total) + " (" + std::to_string(s.dofs.free.size()) +
+        "FemSolver::restore: " + where + " was saved from a model with a different DOF count (" +
+        std::to_string(file.attribute_int64(group, "dof_count")) + ", " +
+        std::to_string(file.attribute_int64(group, "free_dof_count")) + " free; this model has " +
+        std::to_string(s.dofs.total) + ", " + std::to_string(s.dofs.free.size()) +
         " free): the mesh or the clamps changed; the state cannot be continued with this scene");
   auto read = [&](const std::string& name, VectorXd& x) {
     const auto d = file.read_doubles(group + "/" + name);
