@@ -17,6 +17,7 @@
 #include "demfem/io/h5_file.hpp"
 #include "demfem_test/launch.hpp"
 #include "demfem_test/run_output.hpp"
+#include "demfem_test/scene_variant.hpp"
 #include "demfem_test/temp_dir.hpp"
 #include "hdf5_patch.hpp"
 
@@ -38,18 +39,10 @@ const fs::path kBin = fs::path(DEMFEM_BINARY_DIR) / "bin";
 const fs::path kCase = fs::path(DEMFEM_SOURCE_DIR) / "cases" / "beam_checkpoint_ci.toml";
 constexpr const char* kOut = "out/beam_checkpoint_ci";
 
-// The CI case with some `key = value` texts replaced (each must occur once at least).
+// The CI case with some `key = value` texts replaced (each must occur).
 fs::path variant(const fs::path& dir, const std::string& name,
                  const std::vector<std::pair<std::string, std::string>>& subs) {
-  std::string text = read_text(kCase);
-  for (const auto& [from, to] : subs) {
-    const auto at = text.find(from);
-    REQUIRE(at != std::string::npos);
-    text.replace(at, from.size(), to);
-  }
-  const fs::path p = dir / name;
-  std::ofstream(p) << text;
-  return p;
+  return demfem::test::write_variant(kCase, dir / name, subs);
 }
 
 // One coupling step of 10^6 DEM substeps (dem.dt = 1e-10 s): tens of seconds here, so that a

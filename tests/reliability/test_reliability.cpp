@@ -9,9 +9,7 @@
 // the file, and the previous checkpoint is used.
 #include <catch2/catch.hpp>
 
-#include <fcntl.h>
 #include <signal.h>
-#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -27,7 +25,9 @@
 #include <vector>
 
 #include "demfem/io/h5_file.hpp"
+#include "demfem_test/launch.hpp"
 #include "demfem_test/run_output.hpp"
+#include "demfem_test/scene_variant.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 namespace fs = std::filesystem;
@@ -50,33 +50,13 @@ struct Result {
   std::string out, err;
 };
 
-// demfem_run in `dir` (relative output paths land there), stdout/stderr appended to files.
+// demfem_run in `dir` (relative output paths land there), stdout/stderr to files there.
 Result run(const fs::path& dir, std::vector<std::string> args, const fs::path& scene = kScene) {
-  std::vector<std::string> argv_s = {(kBin / "demfem_run").string(), "--bin-dir", kBin.string(),
-                                     scene.string(), "--quiet"};
-  argv_s.insert(argv_s.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (auto& a : argv_s) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  const std::string out = (dir / "stdout.txt").string(), err = (dir / "stderr.txt").string();
-  posix_spawn_file_actions_addopen(&fa, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_addopen(&fa, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  const fs::path old = fs::current_path();
-  fs::current_path(dir);
-  pid_t pid = -1;
-  const int rc = posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ);
-  fs::current_path(old);
-  posix_spawn_file_actions_destroy(&fa);
-  REQUIRE(rc == 0);
-  int st = 0;
-  REQUIRE(waitpid(pid, &st, 0) == pid);
-  Result r;
-  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
-  r.out = read_text(dir / "stdout.txt");
-  r.err = read_text(dir / "stderr.txt");
-  return r;
+  std::vector<std::string> argv = {(kBin / "demfem_run").string(), "--bin-dir", kBin.string(),
+                                   scene.string(), "--quiet"};
+  argv.insert(argv.end(), args.begin(), args.end());
+  const auto ended = demfem::test::wait_for(demfem::test::launch(dir, argv));
+  return Result{ended.status, ended.out, ended.err};
 }
 
 // Every solver process of these outputs has ended (a solver whose coupler died leaves within
@@ -416,34 +396,28 @@ TEST_CASE("a hung (SIGSTOP) dem_server is found by its stale heartbeat, killed a
 // The case with some `key = value` texts replaced (each must occur).
 fs::path variant(const fs::path& dir,
                  const std::vector<std::pair<std::string, std::string>>& subs) {
-  std::string text = read_text(kScene);
-  for (const auto& [from, to] : subs) {
-    const auto at = text.find(from);
-    REQUIRE(at != std::string::npos);
-    text.replace(at, from.size(), to);
-  }
-  const fs::path p = dir / "variant.toml";
-  std::ofstream(p) << text;
-  return p;
+  return demfem::test::write_variant(kScene, dir / "variant.toml", subs);
 }
 
 TEST_CASE("a solver that hangs inside a step (heartbeat alive) is killed after reply_timeout") {
-  // The DEM time step 1000 times smaller makes one coupling step take 50,000 substeps (about
-  // a second here) while the heartbeat goes on; checkpoint.reply_timeout = 0.1 s gives up on
-  // it, kills and restarts it, rolls back to the step-0 checkpoint, and after max_retries = 1
-  // stops with exit 4, naming the timeout. The run must end within seconds (not hang) and
-  // leave no process or segment behind.
+  // The DEM time step 2000 times smaller makes one coupling step take 100,000 substeps
+  // (about two seconds here) while the heartbeat goes on; checkpoint.reply_timeout = 0.5 s
+  // gives up on it, kills and restarts it, rolls back to the step-0 checkpoint, and after
+  // max_retries = 1 stops with exit 4, naming the timeout. The run must end within seconds
+  // (not hang) and leave no process or segment behind. (With 0.1 s, the step-0 checkpoint
+  // itself, which starts the DEM's output, sometimes took longer on the loaded 2-core machine:
+  // the run then stopped with exit 1 before it had a checkpoint to recover to.)
   TempDir d;
   const fs::path scene = variant(
       d.path,
-      {{"max_retries = 3", "max_retries = 1\nreply_timeout = 0.1"},
-       {"dt = 2e-6                  # s; Rayleigh", "dt = 2e-9                  # s; Rayleigh"}});
+      {{"max_retries = 3", "max_retries = 1\nreply_timeout = 0.5"},
+       {"dt = 2e-6                  # s; Rayleigh", "dt = 1e-9                  # s; Rayleigh"}});
   const auto t0 = std::chrono::steady_clock::now();
   const Result r = run(d.path, {}, scene);
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   INFO(r.out << r.err);
   CHECK(r.status == 4);
-  CHECK(r.err.find("no reply within reply_timeout (100 ms)") != std::string::npos);
+  CHECK(r.err.find("no reply within reply_timeout (500 ms)") != std::string::npos);
   CHECK(r.err.find("kept failing: 1 restarts from checkpoint") != std::string::npos);
   CHECK(secs < 30.0);
   check_nothing_left({r.out});

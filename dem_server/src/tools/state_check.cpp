@@ -8,28 +8,34 @@ namespace demfem::dem {
 
 void check_particle_state(const ParticleState& st, const std::string& where) {
   const std::size_t n = st.size();
-  const std::pair<const char*, const std::vector<double>*> arrays[] = {
-      {"position y", &st.py},
-      {"position z", &st.pz},
-      {"velocity x", &st.vx},
-      {"velocity y", &st.vy},
-      {"velocity z", &st.vz},
-      {"angular velocity x", &st.wx},
-      {"angular velocity y", &st.wy},
-      {"angular velocity z", &st.wz},
-      {"orientation w", &st.qw},
-      {"orientation x", &st.qx},
-      {"orientation y", &st.qy},
-      {"orientation z", &st.qz},
-      {"force x", &st.fx},
-      {"force y", &st.fy},
-      {"force z", &st.fz},
-      {"radius", &st.radius},
-      {"mass", &st.mass},
-      {"moment of inertia", &st.inertia}};
-  for (const auto& [what, v] : arrays) {
-    if (v->size() != n) {
-      throw std::runtime_error(where + ": " + what + " has " + std::to_string(v->size()) +
+  // Every per-particle number, and what a scene would give it: finite, or finite and > 0.
+  struct Quantity {
+    const char* what;
+    const std::vector<double>* values;
+    bool positive;
+  };
+  const Quantity quantities[] = {{"position x", &st.px, false},
+                                 {"position y", &st.py, false},
+                                 {"position z", &st.pz, false},
+                                 {"velocity x", &st.vx, false},
+                                 {"velocity y", &st.vy, false},
+                                 {"velocity z", &st.vz, false},
+                                 {"angular velocity x", &st.wx, false},
+                                 {"angular velocity y", &st.wy, false},
+                                 {"angular velocity z", &st.wz, false},
+                                 {"orientation w", &st.qw, false},
+                                 {"orientation x", &st.qx, false},
+                                 {"orientation y", &st.qy, false},
+                                 {"orientation z", &st.qz, false},
+                                 {"force x", &st.fx, false},
+                                 {"force y", &st.fy, false},
+                                 {"force z", &st.fz, false},
+                                 {"radius", &st.radius, true},
+                                 {"mass", &st.mass, true},
+                                 {"moment of inertia", &st.inertia, true}};
+  for (const auto& q : quantities) {
+    if (q.values->size() != n) {
+      throw std::runtime_error(where + ": " + q.what + " has " + std::to_string(q.values->size()) +
                                " entries for " + std::to_string(n) + " particles");
     }
   }
@@ -43,27 +49,12 @@ void check_particle_state(const ParticleState& st, const std::string& where) {
       << "); the state cannot be continued: resume from an earlier checkpoint";
     throw std::runtime_error(m.str());
   };
-  const std::pair<const char*, const std::vector<double>*> finite[] = {
-      {"position x", &st.px},
-      {"position y", &st.py},
-      {"position z", &st.pz},
-      {"velocity x", &st.vx},
-      {"velocity y", &st.vy},
-      {"velocity z", &st.vz},
-      {"angular velocity x", &st.wx},
-      {"angular velocity y", &st.wy},
-      {"angular velocity z", &st.wz},
-      {"force x", &st.fx},
-      {"force y", &st.fy},
-      {"force z", &st.fz}};
   for (std::size_t i = 0; i < n; ++i) {
-    for (const auto& [what, v] : finite) {
-      if (!std::isfinite((*v)[i])) bad(i, what, (*v)[i], "must be finite");
-    }
-    const std::pair<const char*, double> positive[] = {
-        {"radius", st.radius[i]}, {"mass", st.mass[i]}, {"moment of inertia", st.inertia[i]}};
-    for (const auto& [what, v] : positive) {
-      if (!(std::isfinite(v) && v > 0.0)) bad(i, what, v, "must be finite and > 0");
+    for (const auto& q : quantities) {
+      const double v = (*q.values)[i];
+      if (!std::isfinite(v))
+        bad(i, q.what, v, q.positive ? "must be finite and > 0" : "must be finite");
+      if (q.positive && !(v > 0.0)) bad(i, q.what, v, "must be finite and > 0");
     }
     const double q2 =
         st.qw[i] * st.qw[i] + st.qx[i] * st.qx[i] + st.qy[i] * st.qy[i] + st.qz[i] * st.qz[i];
