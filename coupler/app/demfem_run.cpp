@@ -425,6 +425,8 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
                    record.cleared.size(), out_dir.c_str());
     }
   }
+  // From here on a signal ends the run through its handler (and is written into run.json).
+  SignalGuard signals;
   try {
     write_run_record(out_dir, record);
   } catch (const std::exception& e) {
@@ -439,7 +441,6 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
       settings.run.end_time, remote ? "" : " (in process)");
   std::fflush(stdout);
 
-  SignalGuard signals;
   const bool terminal = ::isatty(STDOUT_FILENO) == 1;
   Progress progress(stdout, terminal, opt.quiet);
 

@@ -9,7 +9,9 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cerrno>
 #include <filesystem>
+#include <fstream>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -71,9 +73,16 @@ inline Ended wait_for(const Launched& l) {
   return e;
 }
 
-/// True once `pid` no longer exists (reaped, or not our child and ended).
+/// True once `pid` has ended: it no longer exists, or it is a zombie (ended, not yet reaped
+/// by its parent; an orphan's new parent, init, may take seconds to reap it).
 inline bool gone(pid_t pid) {
-  return ::kill(pid, 0) != 0 && errno == ESRCH;
+  if (::kill(pid, 0) != 0) return errno == ESRCH;
+  std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
+  std::string line;
+  if (!std::getline(stat, line)) return true;
+  const auto paren = line.rfind(')');
+  return paren != std::string::npos && paren + 2 < line.size() &&
+         (line[paren + 2] == 'Z' || line[paren + 2] == 'X');
 }
 
 /// Polls `ready` every 10 ms for at most `limit`; returns whether it became true.
