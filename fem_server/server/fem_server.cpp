@@ -17,6 +17,7 @@
 #include "demfem/fem/fem_output.hpp"
 #include "demfem/fem/fem_scene.hpp"
 #include "demfem/fem/fem_solver.hpp"
+#include "demfem/io/folder_lock.hpp"
 #include "demfem/protocol/protocol.hpp"
 #include "demfem/scene/scene_reader.hpp"
 #include "demfem/scene/solver_command_line.hpp"
@@ -75,11 +76,16 @@ int main(int argc, char** argv) {
       }
       return code;
     }
+    // Alone, this process owns the output folder (served, the coupler holds its lock).
+    const demfem::io::FolderLock lock(out_dir, "fem_server --scene " + cl.scene_file);
     demfem::fem::run_fem_standalone(fem, run.end_time, run.output_interval, out_dir, "fem",
                                     quiet ? nullptr : &std::cout);
     return 0;
   } catch (const demfem::scene::SceneError& e) {
     std::cerr << e.what() << "\n";
+    return kExitBadInput;
+  } catch (const demfem::io::FolderBusy& e) {
+    std::cerr << "fem_server: " << e.what() << "; give this run another --output-dir\n";
     return kExitBadInput;
   } catch (const std::exception& e) {
     std::cerr << "fem_server: " << e.what() << "\n";

@@ -1,9 +1,11 @@
 #include "demfem/scene/scene_reader.hpp"
 
 #include <toml++/toml.h>
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 
@@ -487,12 +489,39 @@ Table Document::root() const {
   return Table(tree_.get(), std::make_shared<const std::string>(file_.string()), "", overrides_);
 }
 
+namespace {
+
+// run.name becomes a folder (out/<name>) and part of file names: one path component of
+// ordinary characters, so that "../../x" or "a/b" cannot write outside out/.
+void check_run_name(const Table& run, const std::string& name) {
+  constexpr std::size_t kMaxLength = 128;
+  const char* rule =
+      " (accepted: 1 to 128 letters, digits and . _ - + = , @, not starting with '.' or '-'; "
+      "to write elsewhere set run.output_dir or --output-dir)";
+  if (name.size() > kMaxLength) run.fail("name", "is longer than 128 bytes" + std::string(rule));
+  if (name.front() == '.' || name.front() == '-') {
+    run.fail("name", "'" + name + "' starts with '" + name.substr(0, 1) + "'" + rule);
+  }
+  for (const char ch : name) {
+    const auto c = static_cast<unsigned char>(ch);
+    const bool ok = c >= 0x80 || std::isalnum(c) != 0 || std::strchr("._-+=,@", c) != nullptr;
+    if (!ok) {
+      std::string shown = c >= 0x20 && c < 0x7f ? std::string("'") + ch + "'" : "a control code";
+      if (c == '/' || c == '\\') shown += " (a path separator)";
+      run.fail("name", "'" + name + "' contains " + shown + rule);
+    }
+  }
+}
+
+}  // namespace
+
 RunSettings read_run_settings(const Document& scene) {
   Table root = scene.root();
   Table run = root.required_table("run");
   RunSettings s;
   s.name = run.string("name", scene.file().stem().string());
   if (s.name.empty()) run.fail("name", "must not be empty");
+  if (run.has("name")) check_run_name(run, s.name);
   s.end_time = run.number("end_time", Range::positive());
   s.output_dir = run.has("output_dir") ? std::filesystem::path(run.string("output_dir"))
                                        : std::filesystem::path("out") / s.name;

@@ -73,3 +73,31 @@ TEST_CASE("scene reader guards toml++ against code points it mishandles", "[scen
   auto cjk = Document::parse("[run]\nname = \"\xe6\xa2\x81\"\n", "c.toml");
   CHECK(cjk.root().required_table("run").string("name") == "\xe6\xa2\x81");
 }
+
+TEST_CASE("run.name is one folder name: path separators, '..' and odd characters refused",
+          "[scene]") {
+  // run.name = "../../x" used to write outside out/ (issue 19, defect 13).
+  auto name_error = [](const std::string& name) {
+    try {
+      demfem::scene::read_run_settings(
+          Document::parse("[run]\nend_time = 1\nname = \"" + name + "\"\n", "n.toml"));
+    } catch (const demfem::scene::SceneError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  CHECK_THAT(name_error("../../x"), Contains("n.toml:3:8: key 'run.name'") &&
+                                        Contains("starts with '.'") && Contains("run.output_dir"));
+  CHECK_THAT(name_error("a/b"), Contains("'/' (a path separator)"));
+  CHECK_THAT(name_error("a\\\\b"), Contains("(a path separator)"));
+  CHECK_THAT(name_error(".."), Contains("key 'run.name'"));
+  CHECK_THAT(name_error("-rf"), Contains("starts with '-'"));
+  CHECK_THAT(name_error("a b"), Contains("contains ' '"));
+  CHECK_THAT(name_error("x\\ty"), Contains("a control code"));
+  CHECK_THAT(name_error(std::string(129, 'a')), Contains("longer than 128"));
+  CHECK_THAT(name_error(""), Contains("must not be empty"));
+  for (const char* ok : {"beam", "beam_1.2-a+b=c,d@e", "a..b", "\xe6\xa2\x81"}) {
+    INFO(ok);
+    CHECK(name_error(ok).empty());
+  }
+}

@@ -1,4 +1,5 @@
 #include "demfem/dem/dem_scene.hpp"
+#include "demfem/dem/state_check.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -334,6 +335,15 @@ DemScene read_dem_scene(const Table& dem) {
 
 DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, std::uint64_t seed,
                double run_output_interval, std::ostream* log, bool defer_output)
+    : DemRun(scene, output_dir, seed, run_output_interval, log, defer_output, false) {}
+
+std::size_t DemRun::check_setup(const DemScene& scene, std::uint64_t seed) {
+  const DemRun setup(scene, {}, seed, 0.0, nullptr, true, true);
+  return setup.setup_particles_;
+}
+
+DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, std::uint64_t seed,
+               double run_output_interval, std::ostream* log, bool defer_output, bool setup_only)
     : scene_(scene), output_dir_(output_dir), run_output_interval_(run_output_interval) {
   try {
     system_ = std::make_unique<DemSystem>(scene_.settings);
@@ -378,6 +388,7 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
   seed_ = seed;
   repeats_.assign(scene_.inserts.size(), 0);
   pour();  // every insertion once at t = 0
+  setup_particles_ = system_->particle_count();
   if (system_->particle_count() > 0) {
     const double tr = system_->rayleigh_time_step();
     const double dt = scene_.settings.dt;
@@ -399,6 +410,7 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
            << "; collisions faster than ~0.1 m/s need a smaller dt\n";
     }
   }
+  if (setup_only) return;  // check_setup(): no settling, no output
   if (scene_.settle_time > 0) {
     const auto steps =
         static_cast<std::int64_t>(std::ceil(scene_.settle_time / scene_.settings.dt));
@@ -513,7 +525,7 @@ void DemRun::check_stable() const {
   m << ". dt = " << scene_.settings.dt << " s against a Rayleigh time step of "
     << system_->rayleigh_time_step() << " s; reduce dt (" << scene_.dt_where
     << ") or the velocities and loads of the scene. The output holds the states before it.";
-  throw std::runtime_error(m.str());
+  throw Unstable(m.str());
 }
 
 void DemRun::after_advance() {
@@ -588,6 +600,7 @@ void DemRun::save(io::H5File& file, const std::string& group) const {
     }
   }
   file.set_attribute(g, "next_id", next_id_);
+  file.set_attribute(g, "setup_particles", static_cast<std::int64_t>(setup_particles_));
   file.set_attribute(g, "snapshots", static_cast<std::int64_t>(output_ ? output_->count() : 0));
   file.set_attribute(g, "next_output", next_output_);
   std::vector<std::int64_t> reps = repeats_;
@@ -596,8 +609,22 @@ void DemRun::save(io::H5File& file, const std::string& group) const {
 }
 
 void DemRun::restore(const io::H5File& file, const std::string& group) {
-  system_->restore(file, group);
   const std::string g = group + "_tools";
+  // The scene must be the one the checkpoint was taken with, as far as the particles go: a
+  // changed lattice or insertion would be silently replaced by the checkpoint's particles.
+  if (file.exists(g) && file.has_attribute(g, "setup_particles")) {
+    const auto saved = file.attribute_int64(g, "setup_particles");
+    if (saved != static_cast<std::int64_t>(setup_particles_)) {
+      throw std::runtime_error(
+          file.path().string() + ": the checkpoint's scene made " + std::to_string(saved) +
+          " particles at set-up, this scene (" + scene_.file + ") makes " +
+          std::to_string(setup_particles_) +
+          " ([[dem.lattice]], [[dem.insert]] or run.seed changed); its state cannot be "
+          "continued with this scene: resume with the scene it was taken with, or start afresh");
+    }
+  }
+  system_->restore(file, group);
+  check_particle_state(system_->particles(), file.path().string() + ":/" + group);
   ids_ = file.read_int64(g + "/ids");
   if (ids_.size() != system_->particle_count()) {
     throw std::runtime_error(file.path().string() + ": " + g + "/ids has " +

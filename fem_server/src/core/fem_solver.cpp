@@ -407,14 +407,26 @@ void FemSolver::restore(const io::H5File& file, const std::string& group) {
   if (file.attribute_int64(group, "dof_count") != s.dofs.total ||
       file.attribute_int64(group, "free_dof_count") !=
           static_cast<std::int64_t>(s.dofs.free.size()))
-    throw std::runtime_error("FemSolver::restore: " + where +
-                             " was saved from a model with a different DOF count");
+    throw std::runtime_error(
+        "FemSolver::restore: " + where + " was saved from a model with a different DOF count (" +
+        std::to_string(file.attribute_int64(group, "dof_count")) + ", " +
+        std::to_string(file.attribute_int64(group, "free_dof_count")) + " free; this model has " +
+        std::to_string(s.dofs.total) + ", " + std::to_string(s.dofs.free.size()) +
+        " free): the mesh or the clamps changed; the state cannot be continued with this scene");
   auto read = [&](const std::string& name, VectorXd& x) {
     const auto d = file.read_doubles(group + "/" + name);
     if (d.size() != static_cast<std::size_t>(x.size()))
       throw std::runtime_error("FemSolver::restore: " + where + "/" + name + " has " +
                                std::to_string(d.size()) + " values, expected " +
                                std::to_string(x.size()));
+    // As strict as a scene: a checkpoint that matches its manifest may still hold a state
+    // saved just before a blow-up.
+    for (std::size_t k = 0; k < d.size(); ++k)
+      if (!std::isfinite(d[k]))
+        throw std::runtime_error("FemSolver::restore: " + where + "/" + name + "[" +
+                                 std::to_string(k) + "] is not finite (" + std::to_string(d[k]) +
+                                 "); the state cannot be continued: resume from an earlier "
+                                 "checkpoint");
     x = Eigen::Map<const VectorXd>(d.data(), x.size());
   };
   read("u", s.u);
@@ -427,6 +439,9 @@ void FemSolver::restore(const io::H5File& file, const std::string& group) {
   s.iface_forces = f;
   s.time = file.attribute_double(group, "time");
   s.step = file.attribute_int64(group, "step");
+  if (!std::isfinite(s.time) || s.time < 0.0 || s.step < 0)
+    throw std::runtime_error("FemSolver::restore: " + where + ": time " + std::to_string(s.time) +
+                             " or step " + std::to_string(s.step) + " is not a valid state");
   s.accel_ready = file.attribute_int64(group, "acceleration_ready") != 0;
   // The factorisation is rebuilt for the saved dt on the next step (deterministic, so the
   // continuation is bitwise identical).

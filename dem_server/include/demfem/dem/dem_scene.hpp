@@ -3,6 +3,7 @@
 // DemSystem from it (walls, lattice fills, random insertion, settling, removal above a
 // height) and carries the sensors and particle output along as the system advances.
 
+#include <atomic>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -10,6 +11,7 @@
 #include <memory>
 #include <optional>
 #include <span>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -82,6 +84,12 @@ inline constexpr double kRayleighWarnFraction = 0.2;
 /// spheres pass through each other.
 inline constexpr double kMaxStableOverlap = 0.5;
 
+/// @brief The run became unstable (DemRun::check_stable): a blow-up, not a failure.
+class Unstable : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 class DemRun {
  public:
   /// Builds the system: walls, lattice fills, random insertions (seed: the entry's seed, or
@@ -94,6 +102,19 @@ class DemRun {
   DemRun(const DemScene& scene, const std::filesystem::path& output_dir, std::uint64_t seed,
          double run_output_interval, std::ostream* log, bool defer_output = false);
   ~DemRun();
+
+  /// The checks dem_server makes when it starts, without running anything: builds the
+  /// backend, the walls (reading their STL files), the lattice fills and the insertions at
+  /// t = 0 and checks dem.dt against the Rayleigh time step, then drops it all (no settling,
+  /// no file). For a launcher that checks a whole scene before any process starts. Throws
+  /// SceneError naming file, line and key. Returns the particle count of that set-up.
+  static std::size_t check_setup(const DemScene& scene, std::uint64_t seed);
+  /// Particles the scene's set-up made (lattices and insertions at t = 0, before settling and
+  /// removal). Saved in checkpoints: restore() refuses a checkpoint of a scene that made
+  /// another number (a changed [[dem.lattice]] or [[dem.insert]]).
+  std::size_t setup_particles() const { return setup_particles_; }
+  /// DemSystem::set_cancel_flag of the system.
+  void set_cancel_flag(const std::atomic<bool>* flag) { system_->set_cancel_flag(flag); }
 
   DemSystem& system() { return *system_; }
   const DemSystem& system() const { return *system_; }
@@ -114,7 +135,7 @@ class DemRun {
   void finish();
   /// Sensor samples and snapshot due at the current time.
   void after_advance();
-  /// Throws std::runtime_error naming the time, the largest overlap against the smallest
+  /// Throws Unstable naming the time, the largest overlap against the smallest
   /// radius, dt and the Rayleigh time step when the state is not finite or two bodies
   /// overlap by more than kMaxStableOverlap of the smallest radius (the soft-sphere contact
   /// no longer resolves them: dt too large for the stiffness, or loads beyond it). Called by
@@ -127,11 +148,18 @@ class DemRun {
   /// Checkpoint: the system (DemSystem::save into `group`) and the tools' state (ids, output
   /// and sensor row counts) into `group` + "_tools".
   void save(io::H5File& file, const std::string& group) const;
+  /// Restores a checkpoint of save(); refuses (std::runtime_error naming the file) a state
+  /// that fails check_particle_state (state_check.hpp) or whose scene made another number of
+  /// particles at set-up.
   void restore(const io::H5File& file, const std::string& group);
 
  private:
+  DemRun(const DemScene& scene, const std::filesystem::path& output_dir, std::uint64_t seed,
+         double run_output_interval, std::ostream* log, bool defer_output, bool setup_only);
+
   DemScene scene_;
   std::unique_ptr<DemSystem> system_;
+  std::size_t setup_particles_ = 0;
   std::vector<std::int64_t> ids_;
   std::int64_t next_id_ = 0;
   std::unique_ptr<SensorSet> sensors_;

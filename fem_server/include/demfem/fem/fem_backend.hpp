@@ -89,6 +89,11 @@ class FemBackend final : public protocol::SolverBackend {
     io::write_checkpoint_file(file, step, [this](io::H5File& h5) {
       h5.create_group("fem");
       solver_.save(h5, "fem");
+      // The mesh the state belongs to, so that a resume with a changed mesh is refused before
+      // any process starts (demfem_run).
+      const auto& mesh = solver_.problem().mesh;
+      h5.set_attribute("fem", "mesh_nodes", static_cast<std::int64_t>(mesh.nodes.size()));
+      h5.set_attribute("fem", "mesh_elements", static_cast<std::int64_t>(mesh.elements.size()));
     });
   }
 
