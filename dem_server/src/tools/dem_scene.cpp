@@ -474,7 +474,9 @@ void DemRun::start_output(bool resume) {
   if (!output_dir_.empty() && scene_.output_particles) {
     output_ = std::make_unique<ParticleOutput>(output_dir_);
   }
-  next_output_ = system_->time();
+  schedule_ = io::OutputSchedule(output_interval_);
+  // Outputs due before the output starts (during settle_time) are not taken.
+  schedule_.skip_to_after(output_clock() - 0.5 * double(chunk_steps_) * scene_.settings.dt);
   if (!resume) after_advance();  // the initial state: first sensor samples and snapshot
 }
 
@@ -488,12 +490,22 @@ void DemRun::add(std::span<const ParticleInit> particles) {
   for (std::size_t i = 0; i < particles.size(); ++i) ids_.push_back(next_id_++);
 }
 
+double DemRun::output_clock() const {
+  return static_cast<double>(system_->step_count()) * scene_.settings.dt;
+}
+
+void DemRun::write_snapshot(double label) {
+  if (!output_) return;
+  output_->write(system_->particles(), ids_, label, system_->time());
+  last_snapshot_step_ = system_->step_count();
+}
+
 void DemRun::write_snapshot() {
-  if (output_) output_->write(system_->particles(), ids_, system_->time());
+  write_snapshot(schedule_.label(output_clock(), double(chunk_steps_) * scene_.settings.dt));
 }
 
 void DemRun::finish() {
-  if (output_ && output_->last_time() != system_->time()) write_snapshot();
+  if (output_ && last_snapshot_step_ != system_->step_count()) write_snapshot();
 }
 
 void DemRun::check_stable() const {
@@ -523,15 +535,13 @@ void DemRun::after_advance() {
     start_output(false);  // samples the current state itself
     return;
   }
-  const double t = system_->time();
-  const double eps = 0.1 * scene_.settings.dt;
   sensors_->sample(*system_, ids_);
-  if (output_ && output_interval_ > 0 && t + eps >= next_output_) {
-    write_snapshot();
-    while (next_output_ <= t + eps) next_output_ += output_interval_;
-  } else if (output_ && output_interval_ == 0 && output_->count() == 0) {
-    write_snapshot();  // interval 0: the initial and the final state only
-  }
+  if (!output_) return;
+  // Output k is the state at the step end nearest to k * interval (io::OutputSchedule); the
+  // first snapshot is the initial state, also with interval 0 (then only it and the end).
+  const double t = output_clock();
+  const double step = double(chunk_steps_) * scene_.settings.dt;
+  if (output_->count() == 0 || schedule_.due(t, step)) write_snapshot(schedule_.take(t, step));
 }
 
 void DemRun::start_deferred_output() {
@@ -541,6 +551,7 @@ void DemRun::start_deferred_output() {
 void DemRun::advance(std::int64_t substeps, ForceMode mode) {
   start_deferred_output();
   system_->advance(substeps, mode);
+  chunk_steps_ = std::max<std::int64_t>(substeps, 1);  // a coupling step, when coupled
   after_advance();
 }
 
@@ -549,10 +560,12 @@ void DemRun::run_to(double end_time, const std::function<void(double)>& progress
   const double dt = scene_.settings.dt;
   while (system_->time() + 0.5 * dt < end_time) {
     double target = std::min({end_time, sensors_->next_time(), next_pour_time()});
-    if (output_ && output_interval_ > 0) target = std::min(target, next_output_);
+    if (output_ && schedule_.active())
+      target = std::min(target, schedule_.nominal(schedule_.next()));
     auto steps = static_cast<std::int64_t>(std::llround((target - system_->time()) / dt));
     steps = std::max<std::int64_t>(steps, 1);
     system_->advance(steps);
+    chunk_steps_ = 1;  // any step end can take an output: pieces end on the output times
     after_advance();
     if (progress) progress(system_->time());
   }
@@ -589,7 +602,10 @@ void DemRun::save(io::H5File& file, const std::string& group) const {
   }
   file.set_attribute(g, "next_id", next_id_);
   file.set_attribute(g, "snapshots", static_cast<std::int64_t>(output_ ? output_->count() : 0));
-  file.set_attribute(g, "next_output", next_output_);
+  // The output schedule: the next output index and the step of the last snapshot, so that a
+  // restored run takes the same states with the same labels.
+  const std::vector<std::int64_t> sched_out{schedule_.next(), last_snapshot_step_, chunk_steps_};
+  file.write(g + "/output_schedule", std::span<const std::int64_t>(sched_out));
   std::vector<std::int64_t> reps = repeats_;
   reps.push_back(0);  // never empty
   file.write(g + "/insert_repeats", std::span<const std::int64_t>(reps));
@@ -638,7 +654,18 @@ void DemRun::restore(const io::H5File& file, const std::string& group) {
     sensors_->restore_counter_states(states);
   }
   if (output_) output_->resume(static_cast<std::size_t>(file.attribute_int64(g, "snapshots")));
-  next_output_ = file.attribute_double(g, "next_output");
+  if (file.exists(g + "/output_schedule")) {
+    const auto o = file.read_int64(g + "/output_schedule");
+    if (o.size() != 3)
+      throw std::runtime_error(file.path().string() + ": " + g +
+                               "/output_schedule must have 3 entries");
+    schedule_.set_next(o[0]);
+    last_snapshot_step_ = o[1];
+    chunk_steps_ = std::max<std::int64_t>(o[2], 1);
+  } else {  // a checkpoint of an older version: outputs up to the restored time were taken
+    schedule_.skip_to_after(output_clock());
+    last_snapshot_step_ = -1;
+  }
   auto reps = file.read_int64(g + "/insert_repeats");
   reps.pop_back();
   if (reps.size() != repeats_.size()) {

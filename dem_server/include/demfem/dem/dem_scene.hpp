@@ -16,6 +16,7 @@
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/dem/insertion.hpp"
 #include "demfem/dem/sensors.hpp"
+#include "demfem/io/output_schedule.hpp"
 #include "demfem/scene/scene_reader.hpp"
 
 namespace demfem::dem {
@@ -108,7 +109,8 @@ class DemRun {
   /// Advances to `end_time` in pieces that end on the sensor and output times;
   /// `progress(time)` is called after each piece.
   void run_to(double end_time, const std::function<void(double)>& progress = {});
-  /// Writes a particle snapshot now (no-op without output).
+  /// Writes a particle snapshot of the current state now (no-op without output), labelled as
+  /// io::OutputSchedule::label says.
   void write_snapshot();
   /// The end state: a snapshot unless the last one is of the current time.
   void finish();
@@ -137,7 +139,13 @@ class DemRun {
   std::unique_ptr<SensorSet> sensors_;
   std::unique_ptr<class ParticleOutput> output_;
   double output_interval_ = 0.0;
-  double next_output_ = 0.0;
+  io::OutputSchedule schedule_;           ///< particle snapshots at k * output_interval_
+  std::int64_t last_snapshot_step_ = -1;  ///< DemSystem::step_count() of the last snapshot
+  std::int64_t chunk_steps_ = 1;          ///< steps between the chances to take an output
+
+  /// The DEM clock for output: step count x dt (not the running sum of dt).
+  double output_clock() const;
+  void write_snapshot(double label);
 
   void add(std::span<const ParticleInit> particles);
   void start_output(bool resume);
