@@ -102,6 +102,9 @@ class Table {
  private:
   const toml::node* get(std::string_view key) const;
   const toml::node& require(std::string_view key) const;
+  /// Throws "is required but missing", naming a present key that nothing has read and whose
+  /// spelling is close to `key` (a misspelling of it), when there is one.
+  [[noreturn]] void fail_missing(std::string_view key) const;
   std::string full_key(std::string_view key) const;
   double as_finite(std::string_view key, const toml::node& n, Range range) const;
 
@@ -109,7 +112,18 @@ class Table {
   std::shared_ptr<const std::string> file_;
   std::string path_;
   mutable std::shared_ptr<std::set<std::string, std::less<>>> used_;
+  /// Every key a reader asked for, present or not: the known keys, for suggestions.
+  mutable std::shared_ptr<std::set<std::string, std::less<>>> asked_;
 };
+
+/// @brief Edit distance of two keys (optimal string alignment: insertions, deletions,
+/// substitutions and transpositions of neighbours each count 1; case is ignored).
+std::size_t key_distance(std::string_view a, std::string_view b);
+
+/// @brief Whether `written` is plausibly a misspelling of `known`: a distance of at most 1
+/// for keys up to 5 characters, 2 up to 9, 3 beyond; keys of 1 or 2 characters only match
+/// a written key that contains them (so that 'a' does not suggest 'b').
+bool is_misspelling(std::string_view written, std::string_view known);
 
 /// @brief A parsed scene file; keeps the TOML tree alive for its Tables.
 class Document {
