@@ -266,7 +266,7 @@ const toml::node& Table::require(std::string_view key) const {
   return *n;
 }
 
-void Table::fail_missing(std::string_view key) const {
+void Table::fail_missing(std::string_view key, const std::string& hint) const {
   // A present key that no reader has asked for and that is spelt like the missing one is
   // almost surely it, misspelt: name both, so the user need not guess.
   std::string best;
@@ -278,6 +278,7 @@ void Table::fail_missing(std::string_view key) const {
     if (best.empty() || d < best_distance) best = name, best_distance = d;
   }
   std::string message = "is required but missing";
+  if (!hint.empty()) message += " (" + hint + ")";
   if (!best.empty()) {
     const auto line = table_->get(best)->source().begin.line;
     message += "; this table has '" + best + "'" +

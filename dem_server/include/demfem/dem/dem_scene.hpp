@@ -16,6 +16,7 @@
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/dem/insertion.hpp"
 #include "demfem/dem/sensors.hpp"
+#include "demfem/dem/wall_clearance.hpp"
 #include "demfem/io/output_schedule.hpp"
 #include "demfem/scene/scene_reader.hpp"
 
@@ -49,8 +50,18 @@ struct InsertSpec {
 /// @brief One [[dem.lattice]] entry.
 struct LatticeSpec {
   LatticeFill request;
+  bool has_seed = false;  ///< false: seed = run seed + kLatticeSeedOffset + entry index
   std::string where;
 };
+
+/// @brief Default seed of lattice entry i: run.seed + kLatticeSeedOffset + i (a prime offset,
+/// so no lattice shares the stream of an insertion: those are run.seed + i + 1000003 k).
+inline constexpr std::uint64_t kLatticeSeedOffset = 500009;
+
+/// @brief Memory a DEM particle takes, for the up-front size check: 1.57 kB were measured
+/// per sphere of a settled lattice bed (CPU backend, neighbour lists and contact histories
+/// included; docs/scene_dem.md); 2 kB leaves room for denser random packings.
+inline constexpr double kBytesPerParticle = 2048.0;
 
 /// @brief Everything [dem] says.
 struct DemScene {
@@ -72,7 +83,14 @@ struct DemScene {
 
 /// @brief Reads and checks [dem] (a Table from the scene's root: root.required_table("dem")).
 /// Every table's finish() is called; errors are scene::SceneError naming file, line, key.
+/// A scene that asks for more particles than a DEM system holds (kMaxParticles) or than this
+/// machine's memory holds at kBytesPerParticle each is refused here, naming the entry that
+/// asks for the most, before anything is allocated.
 DemScene read_dem_scene(const scene::Table& dem);
+
+/// @brief The particle count a [dem] section asks for up front (lattices, insertions with
+/// their repetitions; an insertion by mass counts its mass over the mean particle mass).
+double estimated_particle_count(const DemScene& scene);
 
 /// @brief Rayleigh time-step check (eq. 2.27): error above 1, warning above this fraction.
 inline constexpr double kRayleighWarnFraction = 0.2;
@@ -85,8 +103,14 @@ inline constexpr double kMaxStableOverlap = 0.5;
 
 class DemRun {
  public:
-  /// Builds the system: walls, lattice fills, random insertions (seed: the entry's seed, or
-  /// `seed` + entry index), settle_time of settling, remove_above. Prints the Rayleigh time
+  /// Builds the system: walls, lattice fills (seed: the entry's, or `seed` +
+  /// kLatticeSeedOffset + entry index), random insertions (seed: the entry's seed, or `seed` +
+  /// entry index), settle_time of settling, remove_above. The particles placed are checked
+  /// against the walls (WallClearance): a lattice sphere that overlaps a wall or another
+  /// particle is a SceneError naming the entry; so is a lattice sphere or an insertion region
+  /// corner that falls past every wall (under gravity; only a warning in a scene with an
+  /// interface material, whose structure may catch it); random insertion avoids the walls.
+  /// Prints the Rayleigh time
   /// step to `log` (may be nullptr) and warns when dt > 0.2 of it; throws SceneError (naming
   /// dem.dt) when dt exceeds it. `output_dir` empty = no files. With `defer_output` no file
   /// is touched until the first advance() (then created afresh, with the initial state) or
@@ -157,6 +181,13 @@ class DemRun {
 
   /// Repeated insertions due at the current time.
   void pour();
+  std::ostream* log_ = nullptr;
+  std::vector<WallClearance::Wall> wall_shapes_;  ///< the walls as added (names, triangles)
+  /// The walls where they are now (they may move), for checking placed particles.
+  WallClearance wall_clearance() const;
+  /// Throws SceneError (or warns, in a coupled scene) when a placed particle falls past every
+  /// wall: `what` names it, `where` the scene entry.
+  void check_falls_past(const std::string& what, const std::string& where) const;
   double next_pour_time() const;
 };
 

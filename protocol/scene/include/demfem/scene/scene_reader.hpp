@@ -95,6 +95,9 @@ class Table {
   /// "file:line:col: key 'a.b.c'" for messages about a key of this table.
   std::string where(std::string_view key) const;
   [[noreturn]] void fail(std::string_view key, const std::string& message) const;
+  /// Throws "is required but missing" (+ " (" hint ")"), naming a present key that nothing
+  /// has read and whose spelling is close to `key` (a misspelling of it), when there is one.
+  [[noreturn]] void fail_missing(std::string_view key, const std::string& hint = {}) const;
 
   const std::string& file() const { return *file_; }
   const std::string& dotted_path() const { return path_; }
@@ -102,9 +105,6 @@ class Table {
  private:
   const toml::node* get(std::string_view key) const;
   const toml::node& require(std::string_view key) const;
-  /// Throws "is required but missing", naming a present key that nothing has read and whose
-  /// spelling is close to `key` (a misspelling of it), when there is one.
-  [[noreturn]] void fail_missing(std::string_view key) const;
   std::string full_key(std::string_view key) const;
   double as_finite(std::string_view key, const toml::node& n, Range range) const;
 
