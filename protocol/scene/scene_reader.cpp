@@ -208,6 +208,10 @@ std::size_t key_distance(std::string_view a, std::string_view b) {
 
 bool is_misspelling(std::string_view written, std::string_view known) {
   if (written == known) return false;
+  // No key is this long, and the distance table is quadratic in the lengths (a fuzzed key).
+  if (written.size() > 64 || known.size() > 64) return false;
+  const std::size_t longer = std::max(written.size(), known.size());
+  if (longer - std::min(written.size(), known.size()) > 3) return false;
   const std::size_t dist = key_distance(written, known);
   if (known.size() <= 2) {
     // Too short for a distance to mean anything ('a' and 'b'): only a key that contains it,

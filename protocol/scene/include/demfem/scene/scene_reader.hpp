@@ -122,7 +122,8 @@ std::size_t key_distance(std::string_view a, std::string_view b);
 
 /// @brief Whether `written` is plausibly a misspelling of `known`: a distance of at most 1
 /// for keys up to 5 characters, 2 up to 9, 3 beyond; keys of 1 or 2 characters only match
-/// a written key that contains them (so that 'a' does not suggest 'b').
+/// a written key that contains them (so that 'a' does not suggest 'b'); keys longer than 64
+/// characters never match.
 bool is_misspelling(std::string_view written, std::string_view known);
 
 /// @brief A parsed scene file; keeps the TOML tree alive for its Tables.
