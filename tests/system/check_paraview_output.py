@@ -9,7 +9,7 @@ ParaView's largest eigenvalue of the FEM strain tensor equals the solver's own
 max_principal_strain in every cell.
 
 Usage: check_paraview_output.py DEMFEM_RUN SOURCE_DIR. Exit 77 (ctest: skipped) when pvpython
-is not installed.
+is not installed (or DEMFEM_PVPYTHON names none).
 """
 
 import json
@@ -35,10 +35,11 @@ def close(a, b, rel):
 
 def main():
     demfem_run, source = sys.argv[1], sys.argv[2]
-    pvpython = shutil.which("pvpython") or ("/usr/bin/pvpython" if os.path.exists(
-        "/usr/bin/pvpython") else None)
-    if not pvpython:
-        print("pvpython not found (Debian: python3-paraview): skipped")
+    # DEMFEM_PVPYTHON names another ParaView's pvpython (e.g. a Kitware binary in /opt).
+    pvpython = os.environ.get("DEMFEM_PVPYTHON") or shutil.which("pvpython") or "/usr/bin/pvpython"
+    if not (os.path.isfile(pvpython) and os.access(pvpython, os.X_OK)):
+        print(f"pvpython not found ({pvpython}; Debian: python3-paraview, or set "
+              "DEMFEM_PVPYTHON): skipped")
         return 77
     scene = os.path.join(source, "tests", "system", "paraview_output.toml")
     tool = os.path.join(source, "tools", "inspect_output.py")

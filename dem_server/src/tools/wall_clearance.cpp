@@ -119,7 +119,8 @@ double WallClearance::overlap(const std::array<double, 3>& c, double r, std::siz
 
 bool WallClearance::falls_past(const std::array<double, 3>& p,
                                const std::array<double, 3>& gravity) const {
-  if (tris_.empty()) return false;
+  // Without walls or without gravity nothing says where a particle should land.
+  if (tris_.empty() || (gravity[0] == 0.0 && gravity[1] == 0.0 && gravity[2] == 0.0)) return false;
   double diag = 0.0;
   for (std::size_t k = 0; k < 3; ++k) diag += (hi_[k] - lo_[k]) * (hi_[k] - lo_[k]);
   const double pad = 1e-9 * std::sqrt(diag);

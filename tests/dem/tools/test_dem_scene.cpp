@@ -386,6 +386,14 @@ TEST_CASE("particles placed outside or inside the walls are refused, naming the 
     DemRun run(parse(coupled), "", 1, 0.0, &log);
     CHECK_THAT(log.str(), Catch::Contains("warning") && Catch::Contains("dem.lattice[0]"));
   }
+  SECTION("without gravity nothing says where particles belong: beside the box is accepted") {
+    const std::string text = with_lattice(
+        replace(replace(kJittered, "lo = [0.0, 0.0, 0.0]", "lo = [0.05, 0.0, 0.0]"),
+                "hi = [0.04, 0.04, 0.04]", "hi = [0.09, 0.04, 0.04]"));
+    DemRun run(parse(replace(text, "gravity = [0.0, 0.0, -9.81]", "gravity = [0.0, 0.0, 0.0]")),
+               "", 1, 0.0, nullptr);
+    CHECK(run.system().particle_count() == 8 * 8 * 8);
+  }
   SECTION("above an open box the lattice falls in: accepted") {
     const DemScene s = parse(
         with_lattice(replace(replace(kJittered, "lo = [0.0, 0.0, 0.0]", "lo = [0.0, 0.0, 0.1]"),

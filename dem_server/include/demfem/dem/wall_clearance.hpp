@@ -27,8 +27,9 @@ class WallClearance {
   /// Largest overlap (m) of the sphere (centre c, radius r) with a wall triangle, 0 when it
   /// touches none; `wall` (may be null) gets the index of that wall.
   double overlap(const std::array<double, 3>& c, double r, std::size_t* wall = nullptr) const;
-  /// Whether a point carried from `p` along `gravity` (not zero) for ever misses the bounding
-  /// box of all walls (enlarged by 1e-9 of its diagonal): it can never land on a wall.
+  /// Whether a point carried from `p` along `gravity` for ever misses the bounding box of all
+  /// walls (enlarged by 1e-9 of its diagonal): it can never land on a wall. False without
+  /// walls or without gravity (then nothing says where a particle should land).
   bool falls_past(const std::array<double, 3>& p, const std::array<double, 3>& gravity) const;
   const std::string& name(std::size_t wall) const { return names_[wall]; }
   const std::array<double, 3>& lo() const { return lo_; }
