@@ -59,7 +59,7 @@ struct LatticeSpec {
 inline constexpr std::uint64_t kLatticeSeedOffset = 500009;
 
 /// @brief Memory a DEM particle takes, for the up-front size check: 1.57 kB were measured
-/// per sphere of a settled lattice bed (CPU backend, neighbour lists and contact histories
+/// per sphere of a lattice bed in a box (CPU backend, neighbour lists and contact histories
 /// included; docs/scene_dem.md); 2 kB leaves room for denser random packings.
 inline constexpr double kBytesPerParticle = 2048.0;
 
