@@ -26,9 +26,9 @@ class LocalDem final : public protocol::SolverBackend {
       : run_(scene, out, run.seed, run.output_interval, nullptr, true), backend_(run_) {}
   ~LocalDem() override {
     try {
-      // The end state; not after a step was cancelled half-way (a stop signal): dem_server
-      // writes none then either, and that state lies between two coupling steps.
-      if (run_.system().step_count() > 0 && !cancelled_) run_.write_snapshot();
+      // The end state, as dem_server; not after a step was cancelled half-way (a stop signal):
+      // dem_server writes none then either, and that state lies between two coupling steps.
+      if (run_.system().step_count() > 0 && !cancelled_) run_.finish();
     } catch (const std::exception& e) {
       std::cerr << "dem: " << e.what() << "\n";
     }
@@ -67,18 +67,15 @@ class LocalFem final : public protocol::SolverBackend {
       output_ = std::make_unique<fem::FemOutput>(
           out, "fem", solver_.problem().mesh, scene.output,
           resume ? fem::OutputMode::resume : fem::OutputMode::replace);
-      if (!resume) output_->write(solver_);  // reference state
     }
     const double interval =
         scene.output.interval > 0.0 ? scene.output.interval : run.output_interval;
     backend_ = std::make_unique<fem::FemBackend>(solver_, output_.get(), interval);
+    if (!resume) backend_->write_initial_output();  // reference state
   }
   ~LocalFem() override {
     try {
-      if (output_ && solver_.step_count() > 0 &&
-          (output_->steps() == 0 || output_->last_time() != solver_.time())) {
-        output_->write(solver_);  // the end state
-      }
+      backend_->write_final_output();  // the end state
     } catch (const std::exception& e) {
       std::cerr << "fem: " << e.what() << "\n";
     }

@@ -62,18 +62,14 @@ int main(int argc, char** argv) {
             resume ? demfem::fem::OutputMode::resume : demfem::fem::OutputMode::replace);
       }
       const double interval = fem.output.interval > 0.0 ? fem.output.interval : run.output_interval;
-      if (output && !resume) output->write(solver);  // reference state
       demfem::fem::FemBackend backend(solver, output.get(), interval);
+      if (!resume) backend.write_initial_output();  // reference state
       demfem::protocol::ServeOptions options;
       options.segment = segment;
       options.remove_orphaned_segments = true;  // a killed coupler leaves nothing behind
       options.role = demfem::protocol::Role::fem;
       const int code = demfem::protocol::serve(backend, options);
-      // The end state, unless the last step was just written by the backend.
-      if (code == demfem::protocol::kExitOk && output && solver.step_count() > 0 &&
-          (output->steps() == 0 || output->last_time() != solver.time())) {
-        output->write(solver);
-      }
+      if (code == demfem::protocol::kExitOk) backend.write_final_output();  // the end state
       return code;
     }
     // Alone, this process owns the output folder (served, the coupler holds its lock).

@@ -101,3 +101,55 @@ TEST_CASE("run.name is one folder name: path separators, '..' and odd characters
     CHECK(name_error(ok).empty());
   }
 }
+
+TEST_CASE("a missing required key names the misspelt key beside it", "[scene]") {
+  auto doc = Document::parse(R"([dem]
+dt = 1e-5
+[[dem.lattice]]
+material = "steel"
+lo = [0, 0, 0]
+hi = [1, 1, 1]
+diamter = 0.024
+velocity = [0, 0, 0]
+)",
+                             "typo.toml");
+  auto dem = doc.root().required_table("dem");
+  auto lattice = dem.tables("lattice").at(0);
+  CHECK(lattice.string("material") == "steel");
+  // 'velocity' is present and not read yet, but it is no misspelling of 'diameter'; the
+  // unknown 'diamter' is, and the message names it with its line.
+  CHECK_THROWS_WITH(lattice.number("diameter", Range::positive()),
+                    Contains("typo.toml:") && Contains("key 'dem.lattice[0].diameter'") &&
+                        Contains("is required but missing") && Contains("'diamter' (line 7)") &&
+                        Contains("not a known key here") && Contains("did you mean 'diameter'?"));
+  // Without a look-alike, the plain message.
+  CHECK_THROWS_WITH(lattice.number("spacing"), Contains("is required but missing") &&
+                                                   !Contains("did you mean"));
+  // A key asked for before is known, not a misspelling ('lo' then a missing 'l0' style).
+  auto doc2 = Document::parse("[t]\nd_max = 2\n", "short.toml");
+  auto t = doc2.root().required_table("t");
+  CHECK_THROWS_WITH(t.number("d_min"), !Contains("did you mean"));  // 2 substitutions apart
+  auto doc3 = Document::parse("[p]\nb = \"x\"\ndtt = 1\n", "p.toml");
+  auto p = doc3.root().required_table("p");
+  CHECK_THROWS_WITH(p.string("a"), !Contains("did you mean"));  // 'b' is no misspelling of 'a'
+  CHECK_THROWS_WITH(p.number("dt"), Contains("'dtt' (line 3)") && Contains("did you mean 'dt'?"));
+  // A misspelt required table ([rnu] for [run]).
+  auto doc4 = Document::parse("[rnu]\nend_time = 1\n", "r.toml");
+  CHECK_THROWS_WITH(demfem::scene::read_run_settings(doc4),
+                    Contains("key 'run'") && Contains("'rnu' (line 1)") &&
+                        Contains("did you mean 'run'?"));
+}
+
+TEST_CASE("an unknown key suggests the closest key the section knows", "[scene]") {
+  auto doc = Document::parse("[c]\nscheme = \"x\"\nforce_averagin = true\nzzz = 1\n", "c.toml");
+  auto c = doc.root().required_table("c");
+  CHECK(c.string("scheme") == "x");
+  CHECK_FALSE(c.boolean("force_averaging", false));  // absent under its right name
+  CHECK_THROWS_WITH(c.finish(), Contains("c.toml:3") && Contains("'c.force_averagin'") &&
+                                    Contains("did you mean 'force_averaging'?"));
+  CHECK(demfem::scene::key_distance("diamter", "diameter") == 1);
+  CHECK(demfem::scene::key_distance("DT", "dt") == 0);
+  CHECK(demfem::scene::key_distance("restitution", "restituiton") == 1);  // transposition
+  CHECK(demfem::scene::is_misspelling("youngs_modulos", "youngs_modulus"));
+  CHECK_FALSE(demfem::scene::is_misspelling("hi", "lo"));
+}
