@@ -143,7 +143,12 @@ class FemBackend final : public protocol::SolverBackend {
       last_output_step_ = -1;
     }
     // Output of states after the checkpoint is rewritten by the continuation.
-    if (output_) output_->rollback(solver_.time());
+    if (output_) {
+      output_->rollback(solver_.time());
+      // The series may keep an output of the restored state itself (the end state of a
+      // finished run, written after its final checkpoint): it is not written again.
+      if (output_->last_state_time() == solver_.time()) last_output_step_ = solver_.step_count();
+    }
   }
 
  private:

@@ -29,6 +29,7 @@
 #include <iosfwd>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -93,6 +94,10 @@ class FemOutput {
   /// files are deleted, the index rewritten and the CSV cut back, so the continuation writes
   /// anew.
   void rollback(double time);
+  /// Time of the state of the last output in the series (nullopt: none).
+  std::optional<double> last_state_time() const {
+    return state_times_.empty() ? std::nullopt : std::optional<double>(state_times_.back());
+  }
 
   std::size_t steps() const { return times_.size(); }
   /// Time of the last step written (0 before any).
