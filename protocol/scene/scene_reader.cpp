@@ -4,8 +4,9 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
-#include <fstream>
 #include <sstream>
+
+#include "demfem/io/input_file.hpp"
 
 namespace demfem::scene {
 
@@ -413,11 +414,13 @@ void Table::finish() const {
 }
 
 Document Document::load(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw SceneError(file.string() + ": cannot open scene file");
-  std::stringstream buf;
-  buf << in.rdbuf();
-  Document d = parse(buf.str(), file.string());
+  std::string text;
+  try {
+    text = io::read_regular_file(file, io::kSceneFileLimit, "a scene file (TOML)");
+  } catch (const io::InputFileError& e) {
+    throw SceneError(e.what());
+  }
+  Document d = parse(text, file.string());
   d.file_ = file;
   return d;
 }

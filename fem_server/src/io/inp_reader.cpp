@@ -10,6 +10,8 @@
 #include <sstream>
 #include <unordered_map>
 
+#include "demfem/io/input_file.hpp"
+
 namespace demfem::fem {
 
 namespace {
@@ -599,11 +601,13 @@ InpModel parse_inp(const std::string& text, const std::string& name) {
 }
 
 InpModel read_inp_model(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw InpError(file.string() + ": cannot open mesh file");
-  std::stringstream buf;
-  buf << in.rdbuf();
-  return parse_inp(buf.str(), file.string());
+  std::string text;
+  try {
+    text = io::read_regular_file(file, io::kMeshFileLimit, "an Abaqus input file (.inp)");
+  } catch (const io::InputFileError& e) {
+    throw InpError(e.what());
+  }
+  return parse_inp(text, file.string());
 }
 
 Mesh read_inp(const std::filesystem::path& file) {

@@ -196,7 +196,7 @@ TEST_CASE("fem_server executable: --help, standalone run, bad scene exits 2 nami
 
   CHECK(run_command(exe + " --scene " + (tmp.path / "missing.toml").string() + " > " +
                     log.string() + " 2>&1") == 2);
-  CHECK_THAT(read_text(log), Catch::Contains("missing.toml: cannot open scene file"));
+  CHECK_THAT(read_text(log), Catch::Contains("missing.toml: cannot open: no such file; expected a scene file"));
 }
 
 TEST_CASE("standalone static runs of a shell .inp and a tet box write their topologies") {

@@ -144,7 +144,14 @@ density = 1000
   // Missing mesh file: the scene key and the file.
   CHECK_THAT(error_of("[fem]\nmesh = { file = \"no_such_beam.inp\" }\n"),
              Catch::Contains("test_scene.toml:2:") && Catch::Contains("'fem.mesh.file'") &&
-                 Catch::Contains("no_such_beam.inp: cannot open mesh file"));
+                 Catch::Contains("no_such_beam.inp: cannot open: no such file"));
+  // Issue 19: a directory said "has no elements", /dev/zero grew to 4 GB.
+  CHECK_THAT(error_of("[fem]\nmesh = { file = \".\" }\n"),
+             Catch::Contains("'fem.mesh.file'") &&
+                 Catch::Contains("is a directory, not a regular file; expected an Abaqus input "
+                                 "file (.inp)"));
+  CHECK_THAT(error_of("[fem]\nmesh = { file = \"/dev/zero\" }\n"),
+             Catch::Contains("/dev/zero: is a character device, not a regular file"));
   // A malformed mesh file: both the scene key and the .inp line.
   CHECK_THAT(error_of("[fem]\nmesh = { file = \"malformed_missing_node.inp\" }\n"),
              Catch::Contains("test_scene.toml:2:") && Catch::Contains("'fem.mesh.file'") &&
