@@ -13,6 +13,7 @@
 #include "demfem/fem/mesher.hpp"
 #include "demfem/fem/node_selector.hpp"
 #include "demfem/fem/time_function.hpp"
+#include "inp_mapping.hpp"
 
 namespace demfem::fem {
 
@@ -66,7 +67,7 @@ void check_cells(const Table& t, std::string_view key, const std::vector<double>
 }
 
 /// The mesh, and the materials and sections of a .inp file when it has them.
-InpModel read_mesh(const Table& fem) {
+InpModel read_mesh(const Table& fem, bool& deck_loads) {
   const Table mesh = fem.required_table("mesh");
   const int kinds = int(mesh.has("file")) + int(mesh.has("box")) + int(mesh.has("plate"));
   if (kinds != 1) {
@@ -75,8 +76,15 @@ InpModel read_mesh(const Table& fem) {
   InpModel model;
   if (mesh.has("file")) {
     const auto path = mesh.path("file");
+    InpOptions options;
+    if (mesh.has("c3d8r_as")) {
+      options.c3d8r_as = mesh.choice("c3d8r_as", {"C3D8I", "C3D8"}) == "C3D8I"
+                             ? SolidFormulation::incompatible_modes
+                             : SolidFormulation::selective_reduced;
+    }
+    deck_loads = mesh.boolean("deck_loads", true);
     try {
-      model = read_inp_model(path);
+      model = read_inp_model(path, options);
     } catch (const InpError& e) {
       mesh.fail("file", e.what());
     }
@@ -307,7 +315,7 @@ void read_loads(const Table& fem, FemProblem& p) {
 [[noreturn]] void fail_material(const Table& fem, const MaterialOrigin& o, std::string_view key,
                                 const std::string& message) {
   if (o.table) o.table->fail(key, message);
-  fem.fail("mesh", o.inp + ": " + message);
+  fem.fail("mesh", o.inp + ": " + std::string(key) + " " + message);
 }
 
 /// Checks of the whole model that need more than one key: materials against the analysis
@@ -423,21 +431,22 @@ TimeFunction read_time_function(const Table& a) {
 
 FemScene read_fem_scene(const Table& fem) {
   FemScene s;
+  const bool analysis_given = fem.has("analysis");
   s.analysis = fem.choice("analysis", "dynamic", {"static", "dynamic"}) == "static"
                    ? Analysis::static_analysis
                    : Analysis::dynamic;
   s.dt = fem.number("dt", 0.0, Range::open_closed(0.0, 1e6));
   s.dt_location = fem.where("dt");
 
-  InpModel inp = read_mesh(fem);
+  bool deck_loads = true;
+  InpModel inp = read_mesh(fem, deck_loads);
   FemProblem& p = s.problem;
   p.mesh = std::move(inp.mesh);
   p.materials = inp.materials;
+  s.notes = inp.notes;
   std::vector<MaterialOrigin> origin;
-  for (const auto& m : inp.materials) {
-    origin.push_back(
-        {std::nullopt, fem.table("mesh")->where("file") + ": " +
-                           (m.name.empty() ? std::string("a material") : "material " + m.name)});
+  for (std::size_t i = 0; i < inp.materials.size(); ++i) {
+    origin.push_back({std::nullopt, inp.material_where[i] + ": material " + inp.materials[i].name});
   }
   read_materials(fem, p, origin);
   read_sections(fem, inp, p);
@@ -451,6 +460,19 @@ FemScene read_fem_scene(const Table& fem) {
   read_loads(fem, p);
 
   p.gravity = fem.vec3("gravity", std::array<double, 3>{0.0, 0.0, 0.0});
+  if (fem.table("mesh")->has("file")) {
+    const Table mesh = *fem.table("mesh");
+    const bool history = inp.step.present || !inp.boundaries.empty() ||
+                         !inp.concentrated_loads.empty() || !inp.pressures.empty() ||
+                         !inp.gravity.empty();
+    if (deck_loads) {
+      apply_inp_history(inp, fem, mesh, analysis_given, s);
+    } else if (history) {
+      s.notes.push_back(mesh.where("deck_loads") +
+                        ": the deck's steps, boundary conditions and loads are not used "
+                        "(fem.mesh.deck_loads = false)");
+    }
+  }
   p.mass = fem.choice("mass", "consistent", {"consistent", "lumped"}) == "lumped"
                ? MassLumping::lumped
                : MassLumping::consistent;
