@@ -59,6 +59,12 @@ bool looks_numeric(const std::string& token) {
          (std::isdigit(static_cast<unsigned char>(token[0])) || token[0] == '-' || token[0] == '+');
 }
 
+bool is_label_token(const std::string& token) {
+  if (looks_numeric(token)) return true;
+  const auto dot = token.rfind('.');
+  return dot != std::string::npos && looks_numeric(token.substr(dot + 1));
+}
+
 Deck::Deck(const std::string& text, const std::string& name, bool allow_include)
     : allow_include_(allow_include) {
   files_.push_back(name);

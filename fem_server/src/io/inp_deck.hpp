@@ -44,6 +44,8 @@ bool ends_with_comma(std::string_view line);
 bool is_keyword(const std::string& trimmed_line);
 /// A token that is a label (digits, sign) rather than a name.
 bool looks_numeric(const std::string& token);
+/// A label, plain ("17") or qualified by an instance ("PART-1-1.17"), rather than a set name.
+bool is_label_token(const std::string& token);
 
 class Deck {
  public:

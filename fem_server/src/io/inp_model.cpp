@@ -289,14 +289,15 @@ void Parser::read_elements(const Keyword& kw, std::size_t begin, std::size_t end
     info = {ElementType::hex8, SolidFormulation::incompatible_modes, 8, 1};
   } else if (abaqus == "C3D8R") {
     if (!options_.c3d8r_as) {
-      deck_.fail(kw.loc,
-                 "element type C3D8R (one integration point with hourglass control) is not "
-                 "available: demfem has no hourglass-controlled hexahedron, and solving C3D8R as "
-                 "another formulation changes the results (on Abaqus' coarse cantilever C3D8R "
-                 "is 32 % too soft, C3D8 75 % too stiff, C3D8I within 0.1 %; "
-                 "docs/verification.md). Change the type in the deck to C3D8I (incompatible "
-                 "modes) or C3D8 (B-bar), or set fem.mesh.c3d8r_as = \"C3D8I\" or \"C3D8\" in "
-                 "the scene to accept that mapping");
+      deck_.fail(
+          kw.loc,
+          "element type C3D8R (one integration point with hourglass control) is not "
+          "available: demfem has no hourglass-controlled hexahedron, and solving C3D8R as "
+          "another formulation changes the results (on the 2x12 mesh of Abaqus' Getting "
+          "Started cantilever C3D8R is 32 % too soft, C3D8 75 % too stiff, C3D8I "
+          "within 0.1 %; docs/verification.md). Change the type in the deck to C3D8I (incompatible "
+          "modes) or C3D8 (B-bar), or set fem.mesh.c3d8r_as = \"C3D8I\" or \"C3D8\" in "
+          "the scene to accept that mapping");
     }
     info = {ElementType::hex8, *options_.c3d8r_as, 8, 2};
   } else if (abaqus == "C3D4") {
@@ -572,10 +573,7 @@ std::vector<std::int32_t> Parser::resolve_set(const SetOp& op, int scope_id,
     }
   } else {
     for (const auto& e : op.entries) {
-      const bool qualified_label = !looks_numeric(e.token) &&
-                                   e.token.rfind('.') != std::string::npos &&
-                                   looks_numeric(e.token.substr(e.token.rfind('.') + 1));
-      if (looks_numeric(e.token) || qualified_label) {
+      if (is_label_token(e.token)) {
         add_label(e.token, e.loc);
         continue;
       }
@@ -597,10 +595,7 @@ std::vector<Face> Parser::resolve_surface(const SetOp& op, int scope_id,
   std::vector<Face> faces;
   for (const auto& e : op.entries) {
     std::vector<std::int32_t> elems;
-    const bool qualified_label = !looks_numeric(e.token) &&
-                                 e.token.rfind('.') != std::string::npos &&
-                                 looks_numeric(e.token.substr(e.token.rfind('.') + 1));
-    if (looks_numeric(e.token) || qualified_label) {
+    if (is_label_token(e.token)) {
       const auto idx = find_label(false, e.token, scope_id, e.loc);
       if (!idx) {
         deck_.fail(e.loc, "surface " + op.name + " references element " + e.token +

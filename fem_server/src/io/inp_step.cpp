@@ -317,9 +317,7 @@ void Parser::read_amplitude(const Keyword& kw, std::size_t begin, std::size_t en
 // ---- resolution ---------------------------------------------------------------------------
 
 std::vector<std::int32_t> Parser::history_nodes(const std::string& token, Loc loc) const {
-  const bool qualified_label = !looks_numeric(token) && token.rfind('.') != std::string::npos &&
-                               looks_numeric(token.substr(token.rfind('.') + 1));
-  if (looks_numeric(token) || qualified_label) {
+  if (is_label_token(token)) {
     const auto idx = find_label(true, token, 0, loc);
     if (!idx) deck_.fail(loc, "node " + token + " is not defined");
     return {*idx};
@@ -335,9 +333,7 @@ std::vector<std::int32_t> Parser::history_elements(const std::string& token, Loc
     for (std::size_t i = 0; i < all.size(); ++i) all[i] = static_cast<std::int32_t>(i);
     return all;
   }
-  const bool qualified_label = !looks_numeric(token) && token.rfind('.') != std::string::npos &&
-                               looks_numeric(token.substr(token.rfind('.') + 1));
-  if (looks_numeric(token) || qualified_label) {
+  if (is_label_token(token)) {
     const auto idx = find_label(false, token, 0, loc);
     if (!idx) deck_.fail(loc, "element " + token + " is not defined");
     return {*idx};
