@@ -63,6 +63,7 @@ class LocalFem final : public protocol::SolverBackend {
   LocalFem(fem::FemScene scene, const scene::RunSettings& run, const std::filesystem::path& out,
            bool resume)
       : solver_(std::move(scene.problem)) {
+    for (const auto& note : scene.notes) std::cerr << "fem: note: " << note << "\n";
     if (scene.output.enabled) {
       output_ = std::make_unique<fem::FemOutput>(
           out, "fem", solver_.problem().mesh, scene.output,

@@ -2,8 +2,9 @@
 //   fem_server --scene FILE --segment NAME   serve a coupler over shared memory
 //   fem_server --scene FILE                  run the scene's [fem] alone (static solve or
 //                                            dynamic steps to run.end_time)
-// Exit codes: 0 success; 1 a failure while running (solver, I/O); 2 a bad command line or
-// scene (the message names file, line and key); with --segment, serve()'s codes.
+// Exit codes: 0 success; 1 a failure while running (I/O); 2 a bad command line, scene or
+// model (the message names file, line and key, or the nodes of a mechanism); with --segment,
+// serve()'s codes.
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
@@ -51,6 +52,9 @@ int main(int argc, char** argv) {
   const std::filesystem::path out_dir = cl.output_folder(run);
   const std::string& segment = cl.segment;
   const bool quiet = cl.quiet;
+  // Notes (orphan nodes left out, .inp element formulations, keywords accepted with a
+  // caveat) go to stderr even with --quiet: they can change how results must be read.
+  for (const auto& note : fem.notes) std::cerr << "fem: note: " << note << "\n";
 
   try {
     if (!segment.empty()) {
@@ -82,6 +86,10 @@ int main(int argc, char** argv) {
     return kExitBadInput;
   } catch (const demfem::io::FolderBusy& e) {
     std::cerr << "fem_server: " << e.what() << "; give this run another --output-dir\n";
+    return kExitBadInput;
+  } catch (const demfem::fem::FemModelError& e) {
+    // A defect of the model found by the solver (mechanism, massless dynamics): bad input.
+    std::cerr << "fem_server: " << e.what() << "\n";
     return kExitBadInput;
   } catch (const std::exception& e) {
     std::cerr << "fem_server: " << e.what() << "\n";

@@ -7,9 +7,9 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
-#include <fstream>
 #include <sstream>
 
+#include "demfem/io/input_file.hpp"
 #include "scene_override.hpp"
 
 namespace demfem::scene {
@@ -516,11 +516,13 @@ void Table::finish() const {
 }
 
 Document Document::load(const std::filesystem::path& file, const std::vector<Override>& overrides) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw SceneError(file.string() + ": cannot open scene file");
-  std::stringstream buf;
-  buf << in.rdbuf();
-  Document d = parse(buf.str(), file.string(), overrides);
+  std::string text;
+  try {
+    text = io::read_regular_file(file, io::kSceneFileLimit, "a scene file (TOML)");
+  } catch (const io::InputFileError& e) {
+    throw SceneError(e.what());
+  }
+  Document d = parse(text, file.string(), overrides);
   d.file_ = file;
   return d;
 }

@@ -45,6 +45,12 @@ TEST_CASE("scene reader reports syntax errors and missing files", "[scene]") {
   CHECK_THROWS_WITH(Document::parse("[dem\n", "syn.toml"), Contains("syn.toml:1"));
   CHECK_THROWS_WITH(Document::load("/nonexistent/scene.toml"),
                     Contains("/nonexistent/scene.toml") && Contains("cannot open"));
+  // Issue 19: a directory said "key 'run' is required"; /dev/zero grew to 4 GB.
+  CHECK_THROWS_WITH(Document::load(DEMFEM_SOURCE_DIR "/cases"),
+                    Contains("/cases: is a directory, not a regular file; expected a scene file"));
+  CHECK_THROWS_AS(Document::load("/dev/zero"), demfem::scene::SceneError);
+  CHECK_THROWS_WITH(Document::load("/dev/zero"),
+                    Contains("/dev/zero: is a character device, not a regular file"));
 }
 
 TEST_CASE("run settings: defaults, ranges and unknown sections", "[scene]") {

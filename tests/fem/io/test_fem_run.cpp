@@ -199,9 +199,26 @@ TEST_CASE("fem_server executable: --help, standalone run, bad scene exits 2 nami
                     (tmp.path / "out2").string() + " > " + log.string() + " 2>&1") == 2);
   CHECK_THAT(read_text(log), Catch::Contains("key 'fem.dt'") && Catch::Contains("is required"));
 
+  // Issue 19: density 0 in a dynamic run crashed fem_server (SIGSEGV) and, run in process,
+  // the launcher (exit 139). Both now refuse the scene before any step: exit 2, key named.
+  const auto massless = tmp.path / "massless.toml";
+  std::ofstream(massless) << std::regex_replace(kTinyDynamic, std::regex("density = 7850"),
+                                                "density = 0");
+  CHECK(run_command(exe + " --scene " + massless.string() + " --output-dir " +
+                    (tmp.path / "out3").string() + " > " + log.string() + " 2>&1") == 2);
+  CHECK_THAT(read_text(log),
+             Catch::Contains("key 'fem.materials[0].density'") && Catch::Contains("needs mass"));
+  const std::string launcher = std::string(DEMFEM_BINARY_DIR) + "/bin/demfem_run";
+  if (std::filesystem::exists(launcher)) {
+    CHECK(run_command(launcher + " --in-process --quiet --output-dir " +
+                      (tmp.path / "out4").string() + " " + massless.string() + " > " +
+                      log.string() + " 2>&1") == 2);
+    CHECK_THAT(read_text(log), Catch::Contains("key 'fem.materials[0].density'"));
+  }
+
   CHECK(run_command(exe + " --scene " + (tmp.path / "missing.toml").string() + " > " +
                     log.string() + " 2>&1") == 2);
-  CHECK_THAT(read_text(log), Catch::Contains("missing.toml: cannot open scene file"));
+  CHECK_THAT(read_text(log), Catch::Contains("missing.toml: cannot open: no such file; expected a scene file"));
 }
 
 TEST_CASE("standalone static runs of a shell .inp and a tet box write their topologies") {
