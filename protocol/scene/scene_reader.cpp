@@ -1,11 +1,16 @@
 #include "demfem/scene/scene_reader.hpp"
 
 #include <toml++/toml.h>
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
-#include <fstream>
+#include <cstring>
 #include <sstream>
+
+#include "demfem/io/input_file.hpp"
+#include "scene_override.hpp"
 
 namespace demfem::scene {
 
@@ -185,23 +190,88 @@ std::string Range::describe() const {
          (max_open ? ")" : "]");
 }
 
-Table::Table(const toml::table* table, std::shared_ptr<const std::string> file, std::string path)
+std::size_t key_distance(std::string_view a, std::string_view b) {
+  auto lower = [](char c) { return static_cast<char>(std::tolower(static_cast<unsigned char>(c))); };
+  const std::size_t n = a.size(), m = b.size();
+  std::vector<std::vector<std::size_t>> d(n + 1, std::vector<std::size_t>(m + 1, 0));
+  for (std::size_t i = 0; i <= n; ++i) d[i][0] = i;
+  for (std::size_t j = 0; j <= m; ++j) d[0][j] = j;
+  for (std::size_t i = 1; i <= n; ++i) {
+    for (std::size_t j = 1; j <= m; ++j) {
+      const std::size_t cost = lower(a[i - 1]) == lower(b[j - 1]) ? 0 : 1;
+      d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + cost});
+      if (i > 1 && j > 1 && lower(a[i - 1]) == lower(b[j - 2]) &&
+          lower(a[i - 2]) == lower(b[j - 1])) {
+        d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+      }
+    }
+  }
+  return d[n][m];
+}
+
+bool is_misspelling(std::string_view written, std::string_view known) {
+  if (written == known) return false;
+  // No key is this long, and the distance table is quadratic in the lengths (a fuzzed key).
+  if (written.size() > 64 || known.size() > 64) return false;
+  const std::size_t longer = std::max(written.size(), known.size());
+  if (longer - std::min(written.size(), known.size()) > 3) return false;
+  const std::size_t dist = key_distance(written, known);
+  if (known.size() <= 2) {
+    // Too short for a distance to mean anything ('a' and 'b'): only a key that contains it,
+    // in any case ('dtt', 'DT'), counts.
+    auto lower = [](std::string_view s) {
+      std::string l(s);
+      for (char& c : l) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+      return l;
+    };
+    return dist <= 1 && lower(written).find(lower(known)) != std::string::npos;
+  }
+  const std::size_t limit = known.size() <= 5 ? 1 : known.size() <= 9 ? 2 : 3;
+  return dist <= limit;
+}
+
+Table::Table(const toml::table* table, std::shared_ptr<const std::string> file, std::string path,
+             std::shared_ptr<const std::vector<Override>> overrides)
     : table_(table),
       file_(std::move(file)),
       path_(std::move(path)),
-      used_(std::make_shared<std::set<std::string, std::less<>>>()) {}
+      used_(std::make_shared<std::set<std::string, std::less<>>>()),
+      overrides_(std::move(overrides)),
+      asked_(std::make_shared<std::set<std::string, std::less<>>>()) {}
 
 std::string Table::full_key(std::string_view key) const {
   return path_.empty() ? std::string(key) : path_ + "." + std::string(key);
 }
 
+const Override* Table::override_of(const std::string& full) const {
+  if (!overrides_) return nullptr;
+  auto within = [](const std::string& inner, const std::string& outer) {
+    return inner.size() > outer.size() && inner.compare(0, outer.size(), outer) == 0 &&
+           (inner[outer.size()] == '.' || inner[outer.size()] == '[');
+  };
+  // The last override of a key is the one in effect.
+  for (auto o = overrides_->rbegin(); o != overrides_->rend(); ++o) {
+    if (o->key == full || within(full, o->key)) return &*o;
+    if (o->key.size() > full.size() && o->key.compare(0, full.size(), full) == 0 &&
+        o->key[full.size()] == '[') {
+      return &*o;  // an entry of this array was set
+    }
+  }
+  return nullptr;
+}
+
 std::string Table::where(std::string_view key) const {
+  const std::string full = full_key(key);
+  if (const Override* o = override_of(full)) {
+    // Its line would be that of the override's text, not of the file.
+    return *file_ + ": key '" + full + "' (from " + o->text() + ")";
+  }
   const toml::node* n = table_ ? table_->get(key) : nullptr;
   const auto& src = n ? n->source() : table_->source();
   std::ostringstream s;
   s << *file_;
   if (src.begin.line > 0) s << ":" << src.begin.line << ":" << src.begin.column;
-  s << ": key '" << full_key(key) << "'";
+  s << ": key '" << full << "'";
   return s.str();
 }
 
@@ -210,10 +280,12 @@ void Table::fail(std::string_view key, const std::string& message) const {
 }
 
 bool Table::has(std::string_view key) const {
+  asked_->emplace(key);
   return table_->contains(key);
 }
 
 const toml::node* Table::get(std::string_view key) const {
+  asked_->emplace(key);
   const toml::node* n = table_->get(key);
   if (n) used_->emplace(key);
   return n;
@@ -221,8 +293,30 @@ const toml::node* Table::get(std::string_view key) const {
 
 const toml::node& Table::require(std::string_view key) const {
   const toml::node* n = get(key);
-  if (!n) fail(key, "is required but missing");
+  if (!n) fail_missing(key);
   return *n;
+}
+
+void Table::fail_missing(std::string_view key, const std::string& hint) const {
+  // A present key that no reader has asked for and that is spelt like the missing one is
+  // almost surely it, misspelt: name both, so the user need not guess.
+  std::string best;
+  std::size_t best_distance = 0;
+  for (const auto& [k, v] : *table_) {
+    const std::string name(k.str());
+    if (asked_->contains(name) || !is_misspelling(name, key)) continue;
+    const std::size_t d = key_distance(name, key);
+    if (best.empty() || d < best_distance) best = name, best_distance = d;
+  }
+  std::string message = "is required but missing";
+  if (!hint.empty()) message += " (" + hint + ")";
+  if (!best.empty()) {
+    const auto line = table_->get(best)->source().begin.line;
+    message += "; this table has '" + best + "'" +
+               (line > 0 ? " (line " + std::to_string(line) + ")" : std::string()) +
+               ", which is not a known key here: did you mean '" + std::string(key) + "'?";
+  }
+  fail(key, message);
 }
 
 double Table::as_finite(std::string_view key, const toml::node& n, Range range) const {
@@ -377,12 +471,12 @@ std::optional<Table> Table::table(std::string_view key) const {
   if (!n) return std::nullopt;
   const toml::table* t = n->as_table();
   if (!t) fail(key, "must be a table, found " + type_name(*n));
-  return Table(t, file_, full_key(key));
+  return Table(t, file_, full_key(key), overrides_);
 }
 
 Table Table::required_table(std::string_view key) const {
   auto t = table(key);
-  if (!t) fail(key, "is required but missing");
+  if (!t) fail_missing(key);
   return *t;
 }
 
@@ -395,34 +489,46 @@ std::vector<Table> Table::tables(std::string_view key) const {
   for (std::size_t i = 0; i < a->size(); ++i) {
     const toml::table* t = a->get(i)->as_table();
     if (!t) fail(key, "entry " + std::to_string(i) + " must be a table");
-    out.emplace_back(t, file_, full_key(key) + "[" + std::to_string(i) + "]");
+    out.emplace_back(t, file_, full_key(key) + "[" + std::to_string(i) + "]", overrides_);
   }
   return out;
 }
 
 void Table::skip(std::string_view key) const {
+  asked_->emplace(key);
   if (table_->contains(key)) used_->emplace(key);
 }
 
 void Table::finish() const {
   for (const auto& [k, v] : *table_) {
-    if (!used_->contains(k.str())) {
-      fail(k.str(), "is not a known key here (misspelt, or not accepted in this section)");
+    if (used_->contains(k.str())) continue;
+    // The closest key the reader asked for, when the unknown one looks like a misspelling.
+    std::string best;
+    std::size_t best_distance = 0;
+    for (const auto& known : *asked_) {
+      if (!is_misspelling(k.str(), known)) continue;
+      const std::size_t d = key_distance(k.str(), known);
+      if (best.empty() || d < best_distance) best = known, best_distance = d;
     }
+    fail(k.str(), "is not a known key here (misspelt, or not accepted in this section)" +
+                      (best.empty() ? std::string() : ": did you mean '" + best + "'?"));
   }
 }
 
-Document Document::load(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw SceneError(file.string() + ": cannot open scene file");
-  std::stringstream buf;
-  buf << in.rdbuf();
-  Document d = parse(buf.str(), file.string());
+Document Document::load(const std::filesystem::path& file, const std::vector<Override>& overrides) {
+  std::string text;
+  try {
+    text = io::read_regular_file(file, io::kSceneFileLimit, "a scene file (TOML)");
+  } catch (const io::InputFileError& e) {
+    throw SceneError(e.what());
+  }
+  Document d = parse(text, file.string(), overrides);
   d.file_ = file;
   return d;
 }
 
-Document Document::parse(std::string_view text, const std::string& name) {
+Document Document::parse(std::string_view text, const std::string& name,
+                         const std::vector<Override>& overrides) {
   Document d;
   d.file_ = name;
   try {
@@ -434,12 +540,57 @@ Document Document::parse(std::string_view text, const std::string& name) {
       << ": TOML syntax error: " << e.description();
     throw SceneError(s.str());
   }
+  // Overrides go in here, before anyone reads a table, so that every reader of every process
+  // sees the same scene.
+  for (const Override& o : overrides) {
+    toml::table value;
+    try {
+      value = toml::parse(sanitise_for_toml("value = " + o.value, o.text()), o.text());
+    } catch (const toml::parse_error& e) {
+      throw SceneError(name + ": " + o.text() + ": VALUE is not a TOML value (" +
+                       std::string(e.description()) +
+                       "); strings need quotes, e.g. --set dem.backend='\"cuda\"'");
+    } catch (const SceneError& e) {
+      throw SceneError(name + ": " + e.what());
+    }
+    if (value.size() != 1 || !value.contains("value")) {
+      throw SceneError(name + ": " + o.text() + ": VALUE must be one TOML value");
+    }
+    detail::assign_override(*d.tree_, o, std::move(*value.get("value")), name);
+  }
+  d.overrides_ = std::make_shared<const std::vector<Override>>(overrides);
   return d;
 }
 
 Table Document::root() const {
-  return Table(tree_.get(), std::make_shared<const std::string>(file_.string()), "");
+  return Table(tree_.get(), std::make_shared<const std::string>(file_.string()), "", overrides_);
 }
+
+namespace {
+
+// run.name becomes a folder (out/<name>) and part of file names: one path component of
+// ordinary characters, so that "../../x" or "a/b" cannot write outside out/.
+void check_run_name(const Table& run, const std::string& name) {
+  constexpr std::size_t kMaxLength = 128;
+  const char* rule =
+      " (accepted: 1 to 128 letters, digits and . _ - + = , @, not starting with '.' or '-'; "
+      "to write elsewhere set run.output_dir or --output-dir)";
+  if (name.size() > kMaxLength) run.fail("name", "is longer than 128 bytes" + std::string(rule));
+  if (name.front() == '.' || name.front() == '-') {
+    run.fail("name", "'" + name + "' starts with '" + name.substr(0, 1) + "'" + rule);
+  }
+  for (const char ch : name) {
+    const auto c = static_cast<unsigned char>(ch);
+    const bool ok = c >= 0x80 || std::isalnum(c) != 0 || std::strchr("._-+=,@", c) != nullptr;
+    if (!ok) {
+      std::string shown = c >= 0x20 && c < 0x7f ? std::string("'") + ch + "'" : "a control code";
+      if (c == '/' || c == '\\') shown += " (a path separator)";
+      run.fail("name", "'" + name + "' contains " + shown + rule);
+    }
+  }
+}
+
+}  // namespace
 
 RunSettings read_run_settings(const Document& scene) {
   Table root = scene.root();
@@ -447,6 +598,7 @@ RunSettings read_run_settings(const Document& scene) {
   RunSettings s;
   s.name = run.string("name", scene.file().stem().string());
   if (s.name.empty()) run.fail("name", "must not be empty");
+  if (run.has("name")) check_run_name(run, s.name);
   s.end_time = run.number("end_time", Range::positive());
   s.output_dir = run.has("output_dir") ? std::filesystem::path(run.string("output_dir"))
                                        : std::filesystem::path("out") / s.name;

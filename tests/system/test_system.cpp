@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "demfem/io/h5_file.hpp"
+#include "demfem_test/launch.hpp"
 #include "demfem_test/run_output.hpp"
 #include "demfem_test/temp_dir.hpp"
 
@@ -43,31 +44,9 @@ struct Result {
 
 // Starts demfem_run in `dir` (own process group when `group`), stdout/stderr to files.
 pid_t spawn_run(const fs::path& dir, const std::vector<std::string>& args, bool group) {
-  std::vector<std::string> argv_s = {(kBin / "demfem_run").string(), "--bin-dir", kBin.string()};
-  argv_s.insert(argv_s.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (auto& a : argv_s) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  const std::string out = (dir / "stdout.txt").string(), err = (dir / "stderr.txt").string();
-  posix_spawn_file_actions_addopen(&fa, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_addopen(&fa, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawnattr_t attr;
-  posix_spawnattr_init(&attr);
-  if (group) {
-    posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETPGROUP);
-    posix_spawnattr_setpgroup(&attr, 0);
-  }
-  const fs::path old = fs::current_path();
-  fs::current_path(dir);  // the child inherits it
-  pid_t pid = -1;
-  const int rc = posix_spawn(&pid, argv[0], &fa, &attr, argv.data(), environ);
-  fs::current_path(old);
-  posix_spawn_file_actions_destroy(&fa);
-  posix_spawnattr_destroy(&attr);
-  REQUIRE(rc == 0);
-  return pid;
+  std::vector<std::string> argv = {(kBin / "demfem_run").string(), "--bin-dir", kBin.string()};
+  argv.insert(argv.end(), args.begin(), args.end());
+  return demfem::test::launch(dir, argv, group).pid;
 }
 
 Result wait_run(const fs::path& dir, pid_t pid) {
@@ -371,4 +350,44 @@ TEST_CASE("two-way dynamic beam settles to the static deflection within 0.5 %") 
       CHECK(std::stod(timing[1][6]) < 0.5);  // coupling share recorded (a fraction)
     }
   }
+}
+
+TEST_CASE("scene overrides (--set) reach every process and change the run's result") {
+  TempDir base, half, bad;
+  const std::string scene = (kCases / "beam_fixed_ci.toml").string();
+  Result r = run(base.path, {scene, "--quiet"});
+  INFO(r.out << r.err);
+  REQUIRE(r.status == 0);
+  // Half the sphere density (read by dem_server) and half the check's load mass (read by the
+  // coupler): the weight on the beam and its deflection halve. The base run is not changed.
+  r = run(half.path, {scene, "--quiet", "--set", "dem.materials[0].density=22018.50612436703",
+                      "--set", "coupling.beam_check.load_mass=25.5"});
+  INFO(r.out << r.err);
+  REQUIRE(r.status == 0);
+  const auto b = read_csv(base.path / "out/beam_fixed_ci/beam_check.csv");
+  const auto h = read_csv(half.path / "out/beam_fixed_ci/beam_check.csv");
+  REQUIRE(b.size() == 2);
+  REQUIRE(h.size() == 2);
+  CHECK(std::stod(b[1][0]) == 51.0);
+  CHECK(std::stod(h[1][0]) == 25.5);
+  // coupled_load (column 4), N: the spheres' weight as the DEM delivered it to the beam, at
+  // rest within the 1e-3 of the static case's bound; and the coupled deflection (column 1).
+  const double load_b = std::stod(b[1][4]), load_h = std::stod(h[1][4]);
+  CHECK(std::abs(load_b - 51.0 * 9.81) / (51.0 * 9.81) < 1e-3);
+  CHECK(std::abs(load_h - 25.5 * 9.81) / (25.5 * 9.81) < 1e-3);
+  CHECK(std::abs(std::stod(h[1][1]) / std::stod(b[1][1]) - 0.5) < 1e-3);
+  // A bad override: exit 2 before any process starts, the message names the override.
+  r = run(bad.path, {scene, "--quiet", "--set", "dem.pairs[0].restitution=1.5"});
+  CHECK(r.status == 2);
+  CHECK_THAT(r.err, Catch::Contains("key 'dem.pairs[0].restitution' (from --set "
+                                    "dem.pairs[0].restitution=1.5)"));
+  CHECK(started_pids(r.out).empty());
+  r = run(bad.path, {scene, "--quiet", "--set", "dem.pairs[7].friction=0.1"});
+  CHECK(r.status == 2);
+  CHECK_THAT(r.err, Catch::Contains("--set dem.pairs[7].friction=0.1: the scene has no "
+                                    "'dem.pairs[7]'"));
+  r = run(bad.path, {scene, "--quiet", "--set", "dem.backend=cuda"});
+  CHECK(r.status == 2);
+  CHECK_THAT(r.err, Catch::Contains("VALUE is not a TOML value"));
+  CHECK(started_pids(r.out).empty());
 }
