@@ -273,8 +273,13 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     for (const auto& s : opt.sets) overrides.push_back(scene::Override::parse(s));
     doc = scene::Document::load(opt.scene, overrides);
     settings = read_coupling_settings(*doc);
-    sections = check_solver_sections(*doc, settings.run.seed);
     post_steps = read_post_steps(*doc, bin);
+    // A [dem.load] scene = ... whose state is missing or stale: that scene runs first, so
+    // that the check of the solver sections (which builds the particles) finds the state.
+    if (!opt.check) {
+      if (const int c = run_prepare_scenes(*doc, bin, opt.quiet, opt.in_process)) return c;
+    }
+    sections = check_solver_sections(*doc, settings.run.seed);
   } catch (const scene::SceneError& e) {
     std::fprintf(stderr, "demfem run: scene error: %s\n", e.what());
     return kExitUsage;
@@ -455,14 +460,6 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
       settings.run.end_time, remote ? "" : " (in process)");
   std::fflush(stdout);
 
-  // A [dem.load] scene = ... whose state is missing or stale: that scene runs first.
-  try {
-    if (const int c = run_prepare_scenes(*doc, bin, opt.quiet, opt.in_process)) return c;
-  } catch (const scene::SceneError& e) {
-    std::fprintf(stderr, "demfem run: scene error: %s\n", e.what());
-    return kExitUsage;
-  }
-  if (SignalGuard::stop_flag().load()) return 128 + SignalGuard::signal_number();
   const bool terminal = ::isatty(STDOUT_FILENO) == 1;
   Progress progress(stdout, terminal, opt.quiet);
 
