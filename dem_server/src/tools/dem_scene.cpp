@@ -154,6 +154,12 @@ void check_particle_budget(const DemScene& s, const std::vector<std::string>& ke
   if (!too_many && !too_big) return;
   std::ostringstream m;
   m.precision(3);
+  if (!std::isfinite(total)) {
+    m << keys[largest]
+      << ": the scene asks for more particles than can be counted (spheres so small that their "
+         "volume is 0 in double precision); use larger particles";
+    throw SceneError(m.str());
+  }
   m << keys[largest] << ": the scene asks for about " << total << " particles (" << counts[largest]
     << " from this entry), ";
   if (too_many) {

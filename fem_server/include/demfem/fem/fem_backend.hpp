@@ -77,19 +77,26 @@ class FemBackend final : public protocol::SolverBackend {
     const auto forces = buffers.forces(cmd.buffer);
     for (double f : forces) {
       if (!std::isfinite(f)) {
-        throw std::runtime_error("fem: step " + std::to_string(cmd.step) +
-                                 ": interface force is not finite");
+        throw protocol::BackendError(
+            protocol::ErrorKind::blow_up,
+            "fem: step " + std::to_string(cmd.step) + ": interface force is not finite");
       }
     }
     solver_.set_interface_forces(forces);
-    if (cmd.flags & protocol::kStepStatic) {
-      solver_.solve_static();
-    } else {
-      if (!(cmd.dt > 0.0) || !std::isfinite(cmd.dt)) {
-        throw std::runtime_error("fem: step " + std::to_string(cmd.step) + ": dt must be > 0");
+    if (!(cmd.flags & protocol::kStepStatic) && (!(cmd.dt > 0.0) || !std::isfinite(cmd.dt))) {
+      throw std::runtime_error("fem: step " + std::to_string(cmd.step) + ": dt must be > 0");
+    }
+    try {
+      if (cmd.flags & protocol::kStepStatic) {
+        solver_.solve_static();
+      } else {
+        solver_.advance(cmd.dt);
+        step_dt_ = cmd.dt;
       }
-      solver_.advance(cmd.dt);
-      step_dt_ = cmd.dt;
+    } catch (const FemModelError& e) {
+      // A model the solver cannot solve (a mechanism, a displacement larger than the model):
+      // bad input found late, not a failure of the run (the coupler exits with status 2).
+      throw protocol::BackendError(protocol::ErrorKind::bad_input, e.what());
     }
     solver_.interface_kinematics(buffers.positions(cmd.buffer), buffers.velocities(cmd.buffer),
                                  buffers.accelerations(cmd.buffer));
@@ -99,8 +106,9 @@ class FemBackend final : public protocol::SolverBackend {
       umax = std::max(umax, std::sqrt(u[i] * u[i] + u[i + 1] * u[i + 1] + u[i + 2] * u[i + 2]));
     }
     if (!std::isfinite(umax)) {
-      throw std::runtime_error("fem: step " + std::to_string(cmd.step) +
-                               ": displacement is not finite (the structure blew up)");
+      throw protocol::BackendError(protocol::ErrorKind::blow_up,
+                                   "fem: step " + std::to_string(cmd.step) +
+                                       ": displacement is not finite (the structure blew up)");
     }
     protocol::StepResult r;
     r.values[0] = umax;
