@@ -320,7 +320,6 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   }
   // The solver executables, before the output folder is touched: one that cannot be started
   // is reported now, not after the other solver has started and set up.
-  const fs::path bin = opt.bin_dir.empty() ? self_dir() : fs::path(opt.bin_dir);
   if (remote) {
     for (const auto& [needed, name] :
          {std::pair{settings.has_fem, "fem_server"}, std::pair{settings.has_dem, "dem_server"}}) {
