@@ -1,0 +1,445 @@
+#pragma once
+// Narrow phase of the dilated convex polyhedra (thesis eq. 2.5): the distance Δ between two
+// convex cores, the contact normal, the closest core points and the contact point, shared by
+// both backends.
+//
+//  * Distance: GJK (Gilbert, Johnson & Keerthi 1988) on the Minkowski difference A ⊖ B with the
+//    closest point of each simplex found by Ericson's Voronoi-region walks (Real-Time Collision
+//    Detection §5.1), started from the centre difference (so that the result depends on the
+//    configuration only, not on earlier steps: the bits of a run do not depend on which
+//    non-touching pairs the neighbour list held). For polytopes GJK ends exactly: when the new
+//    support point is one the simplex has (same vertex pair) the simplex holds the closest
+//    features. Stops early when a separating axis proves Δ > margin (no contact).
+//  * Cores that intersect (Δ = 0: the overlap is deeper than r_i + r_j) fall back to the
+//    separating-axis test over the face normals of both cores and the cross products of their
+//    edges (the normals of the faces of A ⊖ B): the smallest overlap along them is the exact
+//    penetration depth, its axis the normal; Δ is then minus that depth, so the force keeps its
+//    sign and stays finite however deep the overlap.
+//  * Contact point: the midpoint between the two dilated surfaces, (p_A + r_A n + p_B − r_B n)/2,
+//    placed, when the normal is the normal of a face of A or B (face–face, edge–face and
+//    vertex–face contacts), at the centroid of the touching region weighted by the local
+//    overlap o(x) = r_A + r_B − g(x) (g the local separation of the two faces along the
+//    normal): the face best aligned with the normal (reference) clips the opposite body's face
+//    most opposed to it (incident) by its side planes, the result is clipped to o ≥ 0, and
+//    ∫ o dA, ∫ x o dA over it give the centroid. For a flat face on a flat face this is the
+//    middle of the touching region, and a tilt θ shifts it continuously (by θ a² / (12 δ) on a
+//    face of width a at overlap δ), like the pressure centre of an elastic foundation: a single
+//    contact point at a face's vertex would make a cube resting on a face rock (measured,
+//    docs/dem.md). Edge–edge and vertex–edge contacts keep the midpoint of the closest points.
+
+#include "demfem/dem/physics/shape_table.hpp"
+
+namespace demfem::dem::phys {
+
+/// Contact of two dilated cores A (radius ra) and B (radius rb).
+struct ConvexContact {
+  bool separated;  ///< proven farther apart than the margin asked for: only `axis` is valid
+  double dist;     ///< Δ: distance of the cores; minus the penetration depth when they intersect
+  Vec3 n;          ///< unit normal from A towards B
+  Vec3 pa, pb;     ///< closest core points (deepest points when the cores intersect)
+  Vec3 point;      ///< contact point (see the file comment)
+  double weight;   ///< ∫ o dA of the touching region, m³ (0: point contact)
+  Vec3 moment;     ///< ∫ x o dA (world), m⁴
+  Vec3 axis;       ///< a separating direction A → B (for the next step's quick test)
+  int ref_side;    ///< 0: the region's reference face is A's, 1: B's, -1: no region
+  int ref_face;    ///< the reference face index
+};
+
+namespace detail {
+
+struct Simplex {
+  int n;
+  Vec3 w[4], a[4], b[4];  // A ⊖ B point, its A and B support points
+  int ia[4], ib[4];
+  double lam[4];
+};
+
+// Keeps the vertices k of s whose flag is set, in order.
+DEMFEM_HD void simplex_keep(Simplex& s, const bool* keep, const double* lam) {
+  int m = 0;
+  for (int k = 0; k < s.n; ++k)
+    if (keep[k]) {
+      s.w[m] = s.w[k], s.a[m] = s.a[k], s.b[m] = s.b[k];
+      s.ia[m] = s.ia[k], s.ib[m] = s.ib[k];
+      s.lam[m] = lam[k];
+      ++m;
+    }
+  s.n = m;
+}
+
+// Closest point of a triangle to the origin, reducing the simplex (3 points) to its feature.
+DEMFEM_HD Vec3 simplex_triangle(Simplex& s, const int* idx) {
+  const ClosestPoint c =
+      closest_point_triangle(Vec3{0, 0, 0}, s.w[idx[0]], s.w[idx[1]], s.w[idx[2]]);
+  bool keep[4] = {false, false, false, false};
+  double lam[4] = {0, 0, 0, 0};
+  const double bw[3] = {c.u, c.v, c.w};
+  for (int k = 0; k < 3; ++k)
+    if (bw[k] > 0.0) keep[idx[k]] = true, lam[idx[k]] = bw[k];
+  if (!keep[idx[0]] && !keep[idx[1]] && !keep[idx[2]]) keep[idx[0]] = true, lam[idx[0]] = 1.0;
+  simplex_keep(s, keep, lam);
+  return c.point;
+}
+
+// Closest point of the simplex to the origin; reduces it to the smallest sub-simplex holding
+// that point. Returns false when the origin lies inside a (non-degenerate) tetrahedron.
+DEMFEM_HD bool simplex_closest(Simplex& s, Vec3& v) {
+  if (s.n == 1) {
+    s.lam[0] = 1.0;
+    v = s.w[0];
+    return true;
+  }
+  if (s.n == 2) {
+    const Vec3 e = s.w[1] - s.w[0];
+    const double ee = norm2(e);
+    const double t = ee > 0.0 ? -dot(s.w[0], e) / ee : 0.0;
+    if (t <= 0.0) {
+      bool keep[4] = {true, false, false, false};
+      double lam[4] = {1, 0, 0, 0};
+      simplex_keep(s, keep, lam);
+      v = s.w[0];
+    } else if (t >= 1.0) {
+      bool keep[4] = {false, true, false, false};
+      double lam[4] = {0, 1, 0, 0};
+      simplex_keep(s, keep, lam);
+      v = s.w[0];
+    } else {
+      s.lam[0] = 1.0 - t, s.lam[1] = t;
+      v = s.w[0] + t * e;
+    }
+    return true;
+  }
+  if (s.n == 3) {
+    const int idx[3] = {0, 1, 2};
+    v = simplex_triangle(s, idx);
+    return true;
+  }
+  // tetrahedron: origin inside when the four sub-volumes have the sign of the whole
+  const Vec3 a = s.w[0], b = s.w[1], c = s.w[2], d = s.w[3];
+  const double vol = dot(b - a, cross(c - a, d - a));
+  const Vec3 o{0, 0, 0};
+  const double v0 = dot(b - o, cross(c - o, d - o));  // o replaces a
+  const double v1 = dot(o - a, cross(c - a, d - a));  // o replaces b
+  const double v2 = dot(b - a, cross(o - a, d - a));  // o replaces c
+  const double v3 = dot(b - a, cross(c - a, o - a));  // o replaces d
+  const double scale = norm2(b - a) + norm2(c - a) + norm2(d - a);
+  const bool solid = vol * vol > 1e-24 * scale * scale * scale;
+  if (solid && (vol > 0.0 ? (v0 >= 0.0 && v1 >= 0.0 && v2 >= 0.0 && v3 >= 0.0)
+                          : (v0 <= 0.0 && v1 <= 0.0 && v2 <= 0.0 && v3 <= 0.0))) {
+    const double inv = 1.0 / vol;
+    s.lam[0] = v0 * inv, s.lam[1] = v1 * inv, s.lam[2] = v2 * inv, s.lam[3] = v3 * inv;
+    v = Vec3{0, 0, 0};
+    return false;
+  }
+  // otherwise the closest point lies on a face: the nearest of the four
+  const int faces[4][3] = {{0, 1, 2}, {0, 1, 3}, {0, 2, 3}, {1, 2, 3}};
+  int best = 0;
+  double bd = 1e300;
+  for (int f = 0; f < 4; ++f) {
+    const ClosestPoint cp =
+        closest_point_triangle(o, s.w[faces[f][0]], s.w[faces[f][1]], s.w[faces[f][2]]);
+    const double dd = norm2(cp.point);
+    if (dd < bd) bd = dd, best = f;
+  }
+  v = simplex_triangle(s, faces[best]);
+  return true;
+}
+
+// Support of A ⊖ B in direction d: s_A(d) - s_B(-d).
+DEMFEM_HD void cso_support(const Core& A, const Core& B, Vec3 d, Vec3& w, Vec3& a, Vec3& b, int& ia,
+                           int& ib) {
+  a = support(A, d, ia);
+  b = support(B, -d, ib);
+  w = a - b;
+}
+
+}  // namespace detail
+
+/// Result of gjk_distance().
+struct GjkResult {
+  int status;  ///< 0: separated by more than the margin; 1: distance found; 2: cores intersect
+  double dist;
+  Vec3 v;       ///< p_A - p_B (status 1), a separating direction B → A (status 0)
+  Vec3 pa, pb;  ///< closest points (status 1)
+};
+
+/// GJK distance of cores A and B, stopping early when a separating axis shows Δ > margin.
+DEMFEM_HD GjkResult gjk_distance(const Core& A, const Core& B, double margin) {
+  GjkResult r{};
+  detail::Simplex s{};
+  // start along the centre difference (deterministic: the result depends on the poses only)
+  Vec3 d = core_vertex(A, 0) - core_vertex(B, 0);
+  if (A.kind != Core::kTriangle)
+    d = A.x - (B.kind == Core::kTriangle ? (1.0 / 3.0) * (B.t[0] + B.t[1] + B.t[2]) : B.x);
+  if (!(norm2(d) > 0.0)) d = Vec3{1, 0, 0};
+  detail::cso_support(A, B, -1.0 * d, s.w[0], s.a[0], s.b[0], s.ia[0], s.ib[0]);
+  s.n = 1;
+  s.lam[0] = 1.0;
+  Vec3 v = s.w[0];
+  double vv = norm2(v);
+  // scale of the coordinates, for the termination tolerances
+  const double tiny = 1e-30;
+  for (int iter = 0; iter < 64; ++iter) {
+    if (vv <= tiny) break;  // the cores touch or intersect
+    Vec3 w, a, b;
+    int ia, ib;
+    detail::cso_support(A, B, -1.0 * v, w, a, b, ia, ib);
+    const double vw = dot(v, w);
+    if (vw > 0.0 && vw * vw > margin * margin * vv) {  // Δ ≥ v·w/|v| > margin
+      r.status = 0;
+      r.v = v;
+      r.dist = vw / std::sqrt(vv);
+      return r;
+    }
+    bool seen = false;
+    for (int k = 0; k < s.n; ++k) seen = seen || (s.ia[k] == ia && s.ib[k] == ib);
+    if (seen || vv - vw <= 1e-14 * vv) break;  // no better support point: converged
+    s.w[s.n] = w, s.a[s.n] = a, s.b[s.n] = b, s.ia[s.n] = ia, s.ib[s.n] = ib;
+    ++s.n;
+    Vec3 nv;
+    if (!detail::simplex_closest(s, nv)) {  // origin inside A ⊖ B
+      vv = 0.0;
+      break;
+    }
+    const double nvv = norm2(nv);
+    if (nvv >= vv) break;  // no progress (rounding): keep the last
+    v = nv;
+    vv = nvv;
+  }
+  if (vv <= tiny * 1e2 || s.n == 4) {
+    r.status = 2;
+    r.dist = 0.0;
+    return r;
+  }
+  Vec3 pa{0, 0, 0}, pb{0, 0, 0};
+  double lsum = 0.0;
+  for (int k = 0; k < s.n; ++k) lsum += s.lam[k];
+  for (int k = 0; k < s.n; ++k) {
+    const double l = s.lam[k] / lsum;
+    pa = pa + l * s.a[k];
+    pb = pb + l * s.b[k];
+  }
+  r.status = 1;
+  r.pa = pa, r.pb = pb;
+  r.v = pa - pb;
+  r.dist = std::sqrt(norm2(r.v));
+  return r;
+}
+
+/// Penetration of two intersecting cores by the separating-axis test over the face normals of
+/// both and the cross products of their edges: returns the depth (≥ 0) and the axis n (A → B)
+/// along which the overlap max_A n·x − min_B n·x is smallest.
+DEMFEM_HD double sat_penetration(const Core& A, const Core& B, Vec3& n) {
+  double best = 1e300;
+  n = Vec3{0, 0, 1};
+  auto test = [&](Vec3 d) {
+    const double l2 = norm2(d);
+    if (!(l2 > 1e-24)) return;
+    const Vec3 u = (1.0 / std::sqrt(l2)) * d;
+    int ia, ib;
+    const double o = dot(support(A, u, ia), u) - dot(support(B, -1.0 * u, ib), u);
+    if (o < best) best = o, n = u;
+  };
+  const int fa = core_face_count(A), fb = core_face_count(B);
+  for (int f = 0; f < fa; ++f) test(core_face_normal(A, f));
+  for (int f = 0; f < fb; ++f) test(-1.0 * core_face_normal(B, f));
+  const int ea = core_edge_count(A), eb = core_edge_count(B);
+  for (int i = 0; i < ea; ++i) {
+    Vec3 a0, a1;
+    core_edge(A, i, a0, a1);
+    for (int j = 0; j < eb; ++j) {
+      Vec3 b0, b1;
+      core_edge(B, j, b0, b1);
+      const Vec3 c = cross(a1 - a0, b1 - b0);
+      test(c);
+      test(-1.0 * c);
+    }
+  }
+  // cores without faces (points, segments): the perpendiculars from their vertices to the
+  // other's edges, and the centre line (point–point)
+  if (fa == 0 || fb == 0) {
+    const Core& P = fa == 0 ? A : B;
+    const Core& Q = fa == 0 ? B : A;
+    const double sign = fa == 0 ? 1.0 : -1.0;  // the axis points from A to B
+    const int eq = core_edge_count(Q);
+    for (int k = 0; k < P.nv; ++k) {
+      const Vec3 p = core_vertex(P, k);
+      for (int j = 0; j < eq; ++j) {
+        Vec3 q0, q1;
+        core_edge(Q, j, q0, q1);
+        const Vec3 e = q1 - q0;
+        const Vec3 perp = cross(e, cross(q0 - p, e));
+        test(sign * perp);
+      }
+    }
+    test(B.x - A.x);
+  }
+  if (best == 1e300) best = 0.0;
+  return best;
+}
+
+namespace detail {
+
+// Sutherland–Hodgman: keeps the part of polygon p (n vertices) where f(x) = dot(k, x) - c ≥ 0.
+DEMFEM_HD int clip_polygon(const Vec3* p, int n, Vec3 k, double c, Vec3* out) {
+  int m = 0;
+  for (int i = 0; i < n; ++i) {
+    const Vec3 a = p[i], b = p[(i + 1) % n];
+    const double fa = dot(k, a) - c, fb = dot(k, b) - c;
+    if (fa >= 0.0) out[m++] = a;
+    if ((fa >= 0.0) != (fb >= 0.0)) {
+      const double t = fa / (fa - fb);
+      out[m++] = a + t * (b - a);
+    }
+  }
+  return m;
+}
+
+}  // namespace detail
+
+/// ∫ o dA and ∫ x o dA over the touching region of reference face `ref` (polygon r, outward
+/// unit normal nr) and incident polygon `inc` (ni vertices), for o(x) = rsum − g(x), g the
+/// distance of the incident face above the reference plane (see the file comment). The
+/// integrals are taken over the projection on the reference plane. Returns the largest o on
+/// the region (−1e300 when it is empty).
+DEMFEM_HD double touching_region(const Vec3* r, int nr_, Vec3 nr, const Vec3* inc, int ni,
+                                 double rsum, double& weight, Vec3& moment) {
+  Vec3 buf0[2 * kMaxFaceVertices + 2], buf1[2 * kMaxFaceVertices + 2];
+  weight = 0.0;
+  moment = Vec3{0, 0, 0};
+  int n = ni;
+  for (int k = 0; k < ni; ++k) buf0[k] = inc[k];
+  Vec3* cur = buf0;
+  Vec3* nxt = buf1;
+  for (int e = 0; e < nr_ && n > 0; ++e) {
+    const Vec3 a = r[e], b = r[(e + 1) % nr_];
+    const Vec3 k = cross(nr, b - a);  // inward side normal (loop CCW about nr)
+    n = detail::clip_polygon(cur, n, k, dot(k, a), nxt);
+    Vec3* t = cur;
+    cur = nxt;
+    nxt = t;
+  }
+  if (n == 0) return -1e300;
+  // o ≥ 0  ⇔  nr·x ≤ nr·r0 + rsum
+  const double plane = dot(nr, r[0]);
+  n = detail::clip_polygon(cur, n, -1.0 * nr, -(plane + rsum), nxt);
+  if (n < 3) return -1e300;
+  double omax = -1e300;
+  Vec3 q[2 * kMaxFaceVertices + 2];
+  double o[2 * kMaxFaceVertices + 2];
+  for (int k = 0; k < n; ++k) {
+    const double g = dot(nr, nxt[k]) - plane;
+    o[k] = rsum - g;
+    q[k] = nxt[k] - g * nr;  // projected onto the reference plane
+    omax = o[k] > omax ? o[k] : omax;
+  }
+  for (int k = 1; k + 1 < n; ++k) {
+    const double area = 0.5 * dot(cross(q[k] - q[0], q[k + 1] - q[0]), nr);
+    const double os = o[0] + o[k] + o[k + 1];
+    weight += area * os * (1.0 / 3.0);
+    const Vec3 xs = q[0] + q[k] + q[k + 1];
+    const Vec3 xo = o[0] * q[0] + o[k] * q[k] + o[k + 1] * q[k + 1];
+    moment = moment + (area / 12.0) * (os * xs + xo);
+  }
+  // the incident loop runs clockwise about nr (its outward normal opposes nr): all fan
+  // triangles of the convex polygon have the same sign
+  if (weight < 0.0) weight = -weight, moment = -1.0 * moment;
+  return omax;
+}
+
+/// Cosine above which the contact normal counts as the normal of a face (1e-3 rad).
+constexpr double kFaceAlign = 1.0 - 5e-7;
+
+/// The touching region of the contact (A, B) with normal n (A → B) and overlap delta =
+/// rsum − Δ, when n is the normal of a face of A or B: fills weight/moment and returns the
+/// side of the reference face (0: A, 1: B) or -1 (point contact). A region whose deepest point
+/// is not as deep as the contact (the incident face does not hold the closest feature) is
+/// dropped.
+DEMFEM_HD int contact_region(const Core& A, const Core& B, Vec3 n, double rsum, double delta,
+                             double& weight, Vec3& moment, int& ref_face) {
+  weight = 0.0;
+  moment = Vec3{0, 0, 0};
+  ref_face = -1;
+  if (A.kind == Core::kPoint || B.kind == Core::kPoint) return -1;
+  double aa, ab;
+  const int fa = core_best_face(A, n, aa);
+  const int fb = core_best_face(B, -1.0 * n, ab);
+  if (fa < 0 || fb < 0) return -1;
+  const bool a_ref = aa >= kFaceAlign && aa >= ab;
+  const bool b_ref = !a_ref && ab >= kFaceAlign;
+  if (!a_ref && !b_ref) return -1;
+  Vec3 rp[kMaxFaceVertices], ip[kMaxFaceVertices];
+  const Core& R = a_ref ? A : B;
+  const Core& I = a_ref ? B : A;
+  const int rf = a_ref ? fa : fb, inf = a_ref ? fb : fa;
+  const int nr = core_face_polygon(R, rf, rp);
+  const int ni = core_face_polygon(I, inf, ip);
+  if (nr < 3 || ni < 1) return -1;
+  const Vec3 nrm = core_face_normal(R, rf);
+  double w;
+  Vec3 m;
+  const double omax = touching_region(rp, nr, nrm, ip, ni, rsum, w, m);
+  if (!(w > 0.0) || omax < delta - 1e-9 * rsum) return -1;
+  weight = w;
+  moment = m;
+  ref_face = rf;
+  return a_ref ? 0 : 1;
+}
+
+/// Contact of the dilated cores A (dilation ra) and B (rb): distance, normal, closest points and
+/// contact point, or `separated` when Δ > ra + rb + margin is proven (margin ≥ 0). `axis`
+/// (unit, A → B, or zero) is tried first: when it separates the cores by more than the
+/// margin, nothing else is computed.
+DEMFEM_HD ConvexContact convex_contact(const Core& A, double ra, const Core& B, double rb,
+                                       double margin, Vec3 axis) {
+  ConvexContact c{};
+  c.ref_side = -1;
+  c.ref_face = -1;
+  const double rsum = ra + rb;
+  const double limit = rsum + margin;
+  if (norm2(axis) > 0.0) {
+    int ia, ib;
+    const double gap = dot(support(B, -1.0 * axis, ib), axis) - dot(support(A, axis, ia), axis);
+    if (gap > limit) {
+      c.separated = true;
+      c.axis = axis;
+      c.dist = gap;
+      return c;
+    }
+  }
+  const GjkResult g = gjk_distance(A, B, limit);
+  if (g.status == 0) {
+    c.separated = true;
+    c.axis = (-1.0 / std::sqrt(norm2(g.v))) * g.v;
+    c.dist = g.dist;
+    return c;
+  }
+  c.separated = false;
+  if (g.status == 1) {
+    c.dist = g.dist;
+    c.n = (-1.0 / g.dist) * g.v;
+    c.pa = g.pa, c.pb = g.pb;
+  } else {
+    Vec3 n;
+    const double depth = sat_penetration(A, B, n);
+    c.dist = -depth;
+    c.n = n;
+    int ia, ib;
+    c.pa = support(A, n, ia);
+    c.pb = support(B, -1.0 * n, ib);
+  }
+  c.axis = c.n;
+  const Vec3 mid = 0.5 * (c.pa + ra * c.n + c.pb - rb * c.n);
+  c.point = mid;
+  const double delta = rsum - c.dist;
+  if (delta > 0.0) {
+    c.ref_side = contact_region(A, B, c.n, rsum, delta, c.weight, c.moment, c.ref_face);
+    if (c.ref_side >= 0) {
+      const Vec3 cen = (1.0 / c.weight) * c.moment;
+      c.point = cen + dot(c.n, mid - cen) * c.n;
+    }
+  }
+  return c;
+}
+
+}  // namespace demfem::dem::phys
