@@ -67,7 +67,7 @@ inline PolyhedronShape box_shape(double a, double b, double c, double rd) {
   // faces as quads (outward, CCW), split into two triangles each
   const int quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
                        {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
-  for (const auto& f : q)
+  for (const auto& f : quads)
     s.triangles.insert(s.triangles.end(), {f[0], f[1], f[2], f[0], f[2], f[3]});
   s.dilation = rd;
   // dilated box (Steiner): core, 6 face slabs, 12 quarter cylinders, 8 eighth spheres

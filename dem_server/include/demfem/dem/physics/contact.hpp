@@ -75,10 +75,13 @@ DEMFEM_HD Vec3 rotate_into_tangent_plane(Vec3 v, Vec3 n) {
 
 /// Result of one contact evaluation: the force on body i (the other body gets -force).
 struct ContactResult {
-  Vec3 force;   ///< total contact force on i, N
-  Vec3 torque;  ///< n × F_t: torque on i is a_i (n × F_t) with lever a_i (n points i → j)
-  Vec3 roll;    ///< rolling-resistance torque on i (j gets -roll), N m
-  double fn;    ///< magnitude of the normal force (≥ 0 or damped), N
+  Vec3 force;      ///< total contact force on i, N
+  Vec3 torque;     ///< n × F_t: torque on i is a_i (n × F_t) with lever a_i (n points i → j)
+  Vec3 roll;       ///< rolling-resistance torque on i (j gets -roll), N m
+  double fn;       ///< magnitude of the normal force (≥ 0 or damped), N
+  double gamma_n;  ///< normal damping coefficient γ_n of this contact, N s/m
+  double gamma_t;  ///< tangential damping coefficient γ_t (Friction only), N s/m
+  double sn;       ///< tangent normal stiffness S_n = dF_n/dδ, N/m
 };
 
 /// Evaluates the contact law.
@@ -113,6 +116,8 @@ DEMFEM_HD ContactResult hertz_mindlin(const PairConstants& c, Vec3 n, double del
   const double gamma_n = damp == 0.0 ? 0.0 : gamma_any;
   const double fn = kn * delta + gamma_n * vn;  // magnitude pushing i along -n
   out.fn = fn;
+  out.gamma_n = gamma_n;
+  out.sn = sn;
   out.force = (-fn) * n;
   out.torque = Vec3{0, 0, 0};
   out.roll = Vec3{0, 0, 0};
@@ -122,6 +127,7 @@ DEMFEM_HD ContactResult hertz_mindlin(const PairConstants& c, Vec3 n, double del
     s = s + dt * vt;
     const double st = 8.0 * c.g_star * sqrt_rd;
     const double gamma_t = gamma_n * c.t_over_n;
+    out.gamma_t = gamma_t;
     Vec3 ft = (-st) * s - gamma_t * vt;
     const double ft2 = norm2(ft);
     const double fmax = c.friction * (fn > 0.0 ? fn : -fn);

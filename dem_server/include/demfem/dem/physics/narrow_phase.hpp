@@ -33,16 +33,17 @@ namespace demfem::dem::phys {
 
 /// Contact of two dilated cores A (radius ra) and B (radius rb).
 struct ConvexContact {
-  bool separated;  ///< proven farther apart than the margin asked for: only `axis` is valid
-  double dist;     ///< Δ: distance of the cores; minus the penetration depth when they intersect
-  Vec3 n;          ///< unit normal from A towards B
-  Vec3 pa, pb;     ///< closest core points (deepest points when the cores intersect)
-  Vec3 point;      ///< contact point (see the file comment)
-  double weight;   ///< ∫ o dA of the touching region, m³ (0: point contact)
-  Vec3 moment;     ///< ∫ x o dA (world), m⁴
-  Vec3 axis;       ///< a separating direction A → B (for the next step's quick test)
-  int ref_side;    ///< 0: the region's reference face is A's, 1: B's, -1: no region
-  int ref_face;    ///< the reference face index
+  bool separated;    ///< proven farther apart than the margin asked for: only `axis` is valid
+  double dist;       ///< Δ: distance of the cores; minus the penetration depth when they intersect
+  Vec3 n;            ///< unit normal from A towards B
+  Vec3 pa, pb;       ///< closest core points (deepest points when the cores intersect)
+  Vec3 point;        ///< contact point (see the file comment)
+  double weight;     ///< ∫ o dA of the touching region, m³ (0: point contact)
+  Vec3 moment;       ///< ∫ x o dA (world), m⁴
+  double second[6];  ///< ∫ o u uᵀ dA, u = x − A's centre: xx, yy, zz, xy, xz, yz, m⁵
+  Vec3 axis;         ///< a separating direction A → B (for the next step's quick test)
+  int ref_side;      ///< 0: the region's reference face is A's, 1: B's, -1: no region
+  int ref_face;      ///< the reference face index
 };
 
 namespace detail {
@@ -297,16 +298,19 @@ DEMFEM_HD int clip_polygon(const Vec3* p, int n, Vec3 k, double c, Vec3* out) {
 
 }  // namespace detail
 
-/// ∫ o dA and ∫ x o dA over the touching region of reference face `ref` (polygon r, outward
-/// unit normal nr) and incident polygon `inc` (ni vertices), for o(x) = rsum − g(x), g the
-/// distance of the incident face above the reference plane (see the file comment). The
-/// integrals are taken over the projection on the reference plane. Returns the largest o on
-/// the region (−1e300 when it is empty).
+/// ∫ o dA, ∫ x o dA and ∫ o u uᵀ dA (u = x − p0) over the touching region of reference face
+/// `ref` (polygon r, outward unit normal nr) and incident polygon `inc` (ni vertices), for
+/// o(x) = rsum − g(x), g the distance of the incident face above the reference plane (see the
+/// file comment). The integrals are taken over the projection on the reference plane (o is
+/// linear there: exact fan-triangle formulas). Returns the largest o on the region (−1e300
+/// when it is empty).
 DEMFEM_HD double touching_region(const Vec3* r, int nr_, Vec3 nr, const Vec3* inc, int ni,
-                                 double rsum, double& weight, Vec3& moment) {
+                                 double rsum, Vec3 p0, double& weight, Vec3& moment,
+                                 double* second) {
   Vec3 buf0[2 * kMaxFaceVertices + 2], buf1[2 * kMaxFaceVertices + 2];
   weight = 0.0;
   moment = Vec3{0, 0, 0};
+  for (int k = 0; k < 6; ++k) second[k] = 0.0;
   int n = ni;
   for (int k = 0; k < ni; ++k) buf0[k] = inc[k];
   Vec3* cur = buf0;
@@ -340,48 +344,113 @@ DEMFEM_HD double touching_region(const Vec3* r, int nr_, Vec3 nr, const Vec3* in
     const Vec3 xs = q[0] + q[k] + q[k + 1];
     const Vec3 xo = o[0] * q[0] + o[k] * q[k] + o[k + 1] * q[k + 1];
     moment = moment + (area / 12.0) * (os * xs + xo);
+    // ∫ o u uᵀ over a triangle with linear o (values f_i at corners u_i), from
+    // ∫ λ_i λ_j λ_k dA = A (1 + δ_ij + δ_jk + δ_ik + 2 δ_ijk) / 60:
+    // A/60 (F X Xᵀ + Y Xᵀ + X Yᵀ + F Σ u_i u_iᵀ + 2 Σ f_i u_i u_iᵀ), F = Σ f_i, X = Σ u_i,
+    // Y = Σ f_i u_i
+    const Vec3 u0 = q[0] - p0, u1 = q[k] - p0, u2 = q[k + 1] - p0;
+    const Vec3 X = u0 + u1 + u2;
+    const Vec3 Y = o[0] * u0 + o[k] * u1 + o[k + 1] * u2;
+    const double f[3] = {o[0], o[k], o[k + 1]};
+    const Vec3 U[3] = {u0, u1, u2};
+    const double a60 = area / 60.0;
+    double t[6];
+    t[0] = os * X.x * X.x + 2 * Y.x * X.x;
+    t[1] = os * X.y * X.y + 2 * Y.y * X.y;
+    t[2] = os * X.z * X.z + 2 * Y.z * X.z;
+    t[3] = os * X.x * X.y + Y.x * X.y + X.x * Y.y;
+    t[4] = os * X.x * X.z + Y.x * X.z + X.x * Y.z;
+    t[5] = os * X.y * X.z + Y.y * X.z + X.y * Y.z;
+    for (int m = 0; m < 3; ++m) {
+      const double w2 = os + 2 * f[m];
+      const Vec3 v = U[m];
+      t[0] += w2 * v.x * v.x, t[1] += w2 * v.y * v.y, t[2] += w2 * v.z * v.z;
+      t[3] += w2 * v.x * v.y, t[4] += w2 * v.x * v.z, t[5] += w2 * v.y * v.z;
+    }
+    for (int m = 0; m < 6; ++m) second[m] += a60 * t[m];
   }
   // the incident loop runs clockwise about nr (its outward normal opposes nr): all fan
   // triangles of the convex polygon have the same sign
-  if (weight < 0.0) weight = -weight, moment = -1.0 * moment;
+  if (weight < 0.0) {
+    weight = -weight, moment = -1.0 * moment;
+    for (int m = 0; m < 6; ++m) second[m] = -second[m];
+  }
   return omax;
 }
 
 /// Cosine above which the contact normal counts as the normal of a face (1e-3 rad).
 constexpr double kFaceAlign = 1.0 - 5e-7;
 
-/// The touching region of the contact (A, B) with normal n (A → B) and overlap delta =
-/// rsum − Δ, when n is the normal of a face of A or B: fills weight/moment and returns the
-/// side of the reference face (0: A, 1: B) or -1 (point contact). A region whose deepest point
-/// is not as deep as the contact (the incident face does not hold the closest feature) is
-/// dropped.
-DEMFEM_HD int contact_region(const Core& A, const Core& B, Vec3 n, double rsum, double delta,
-                             double& weight, Vec3& moment, int& ref_face) {
+/// Largest vertex count of a core whose touching region is computed (larger hulls, e.g. of a
+/// finely scanned rock: point contacts).
+constexpr int kMaxRegionVertices = 128;
+
+/// The touching region of the contact (A, B) with normal n (A → B): fills weight, moment and
+/// second and returns the side of the reference face (0: A, 1: B) or -1 (a point contact).
+/// The reference is the face of A or B whose normal is n (to kFaceAlign; A's when both are),
+/// or with ref_b B's face towards A whatever the alignment (a wall triangle); the incident
+/// region is summed over every face of the other body that faces the reference: their bands
+/// o ≥ 0 partition the overlap of its lower envelope, so the region changes continuously
+/// with the pose (no choice of one incident face).
+DEMFEM_HD int contact_region(const Core& A, const Core& B, Vec3 n, double rsum, Vec3 p0, bool ref_b,
+                             double& weight, Vec3& moment, double* second, int& ref_face) {
   weight = 0.0;
   moment = Vec3{0, 0, 0};
+  for (int k = 0; k < 6; ++k) second[k] = 0.0;
   ref_face = -1;
   if (A.kind == Core::kPoint || B.kind == Core::kPoint) return -1;
   double aa, ab;
   const int fa = core_best_face(A, n, aa);
   const int fb = core_best_face(B, -1.0 * n, ab);
   if (fa < 0 || fb < 0) return -1;
-  const bool a_ref = aa >= kFaceAlign && aa >= ab;
-  const bool b_ref = !a_ref && ab >= kFaceAlign;
+  const bool a_ref = !ref_b && aa >= kFaceAlign && aa >= ab;
+  const bool b_ref = ref_b || (!a_ref && ab >= kFaceAlign);
   if (!a_ref && !b_ref) return -1;
-  Vec3 rp[kMaxFaceVertices], ip[kMaxFaceVertices];
   const Core& R = a_ref ? A : B;
   const Core& I = a_ref ? B : A;
-  const int rf = a_ref ? fa : fb, inf = a_ref ? fb : fa;
+  const int rf = a_ref ? fa : fb;
+  Vec3 rp[kMaxFaceVertices];
   const int nr = core_face_polygon(R, rf, rp);
-  const int ni = core_face_polygon(I, inf, ip);
-  if (nr < 3 || ni < 1) return -1;
+  if (nr < 3 || I.nv > kMaxRegionVertices) return -1;
   const Vec3 nrm = core_face_normal(R, rf);
-  double w;
-  Vec3 m;
-  const double omax = touching_region(rp, nr, nrm, ip, ni, rsum, w, m);
-  if (!(w > 0.0) || omax < delta - 1e-9 * rsum) return -1;
-  weight = w;
-  moment = m;
+  const double plane = dot(nrm, rp[0]);
+  // the incident body's vertices once, and their heights above the reference plane
+  Vec3 wv[kMaxRegionVertices];
+  double hv[kMaxRegionVertices];
+  for (int k = 0; k < I.nv; ++k) {
+    wv[k] = core_vertex(I, k);
+    hv[k] = dot(nrm, wv[k]) - plane;
+  }
+  const int nfi = core_face_count(I);
+  for (int g = 0; g < nfi; ++g) {
+    if (!(dot(core_face_normal(I, g), nrm) < 0.0)) continue;  // faces the reference only
+    Vec3 ip[kMaxFaceVertices];
+    int ni;
+    double hmin = 1e300;
+    if (I.kind == Core::kTriangle) {
+      ni = core_face_polygon(I, g, ip);
+      for (int k = 0; k < 3; ++k) hmin = hv[k] < hmin ? hv[k] : hmin;
+    } else {
+      const int gi = I.table->fbase[I.shape] + g;
+      ni = I.table->flen[gi];
+      if (ni > kMaxFaceVertices) continue;
+      const std::int32_t* lp = I.table->fvert + I.table->floop[gi];
+      for (int k = 0; k < ni; ++k) {
+        ip[k] = wv[lp[k]];
+        hmin = hv[lp[k]] < hmin ? hv[lp[k]] : hmin;
+      }
+    }
+    if (hmin >= rsum) continue;  // the whole face is above the band
+    double w;
+    Vec3 m;
+    double s2[6];
+    touching_region(rp, nr, nrm, ip, ni, rsum, p0, w, m, s2);
+    if (!(w > 0.0)) continue;
+    weight += w;
+    moment = moment + m;
+    for (int k = 0; k < 6; ++k) second[k] += s2[k];
+  }
+  if (!(weight > 0.0)) return -1;
   ref_face = rf;
   return a_ref ? 0 : 1;
 }
@@ -391,7 +460,7 @@ DEMFEM_HD int contact_region(const Core& A, const Core& B, Vec3 n, double rsum, 
 /// (unit, A → B, or zero) is tried first: when it separates the cores by more than the
 /// margin, nothing else is computed.
 DEMFEM_HD ConvexContact convex_contact(const Core& A, double ra, const Core& B, double rb,
-                                       double margin, Vec3 axis) {
+                                       double margin, Vec3 axis, bool ref_b = false) {
   ConvexContact c{};
   c.ref_side = -1;
   c.ref_face = -1;
@@ -433,7 +502,8 @@ DEMFEM_HD ConvexContact convex_contact(const Core& A, double ra, const Core& B, 
   c.point = mid;
   const double delta = rsum - c.dist;
   if (delta > 0.0) {
-    c.ref_side = contact_region(A, B, c.n, rsum, delta, c.weight, c.moment, c.ref_face);
+    c.ref_side =
+        contact_region(A, B, c.n, rsum, A.x, ref_b, c.weight, c.moment, c.second, c.ref_face);
     if (c.ref_side >= 0) {
       const Vec3 cen = (1.0 / c.weight) * c.moment;
       c.point = cen + dot(c.n, mid - cen) * c.n;

@@ -87,13 +87,52 @@ struct DilatedResult {
   double fn;      ///< normal force magnitude (damped), N
 };
 
+/// The touching region of a contact for the distributed dashpot: its weight W = ∫ o dA and
+/// second moment ∫ o u uᵀ dA about body i's centre (xx, yy, zz, xy, xz, yz); W = 0: a point.
+struct Region {
+  double weight;
+  double second[6];
+};
+
+/// In-plane mean moment of inertia of a body about its centre for axes perpendicular to n:
+/// (tr I − n·I n) / 2.
+DEMFEM_HD double in_plane_inertia(const BodyState& b, Vec3 n) {
+  const Vec3 nb = to_body(b.r, n);
+  const double tr = b.inertia.x + b.inertia.y + b.inertia.z;
+  const double nn =
+      b.inertia.x * nb.x * nb.x + b.inertia.y * nb.y * nb.y + b.inertia.z * nb.z * nb.z;
+  return 0.5 * (tr - nn);
+}
+
 /// Evaluates the contact law at a contact (normal n from i to j, overlap delta, point c,
-/// effective radius reff) between bodies i and j (j may be a wall: mj = nullptr, velocity vj
-/// at c). `shear` is the tangential spring (history, contact frame), updated when Friction.
+/// effective radius reff) between bodies i and j (j may be a wall: bj = nullptr, velocity
+/// vwall at c, spin wwall). `shear` is the tangential spring (history, contact frame),
+/// updated when Friction.
+///
+/// Rocking. At a face contact the force acts at the overlap-weighted centre of the touching
+/// region (narrow_phase.hpp), which a tilt θ shifts by about θ a² / (12 δ): a restoring couple
+/// like the pressure centre of an elastic foundation, so that a cube resting on a face does
+/// not rock (with the closest point instead, the force jumps from edge to edge and a cube on
+/// an incline chatters and creeps: measured, docs/dem.md). The law's magnitude is Hertz's of
+/// the deepest overlap, so this couple is not the gradient of the contact's energy: the
+/// normal and the rocking motion are coupled unsymmetrically, and a cube sliding on a face
+/// fluttered (the normal force swinging between 0.1 and 1.5 of its weight, a = 0.60 instead
+/// of 0.66 m/s², measured) unless the rocking is damped. The dashpot of the law is therefore
+/// spread over the region, with a couple against the relative rocking rate ω_⊥ that damps the
+/// contact's rocking mode critically: −(C / j) n × (J (ω_rel × n)), J = ∫ o u uᵀ dA about c,
+/// j = its mean in-plane moment, C = 2 √(K_r I_r), with the rocking stiffness K_r = S_n j / W of
+/// an elastic foundation carrying S_n over the region and I_r the bodies' in-plane moment of
+/// inertia about their centres (combined harmonically for two bodies). (Spread with the
+/// weight of the elastic part alone, the dashpot damps the rocking by a ratio of only 0.03
+/// to 0.07: not enough.) With e = 1 there is no dashpot and no such couple. The tangential
+/// dashpot is spread alike: a couple −(γ_t / W) J_p (ω_rel·n) n against the twist about n
+/// (J_p = ∫ o |u|² dA), at most the Coulomb couple μ |F_n| √(J_p / W), since a single point has
+/// no resistance to twisting. For a point contact (W = 0) the law is the single-point law.
 template <bool Friction>
 DEMFEM_HD DilatedResult dilated_law(const PairConstants& pc, Vec3 n, double delta, Vec3 c,
                                     double reff, const BodyState& bi, const BodyState* bj,
-                                    Vec3 vwall, Vec3& shear, double dt) {
+                                    Vec3 vwall, Vec3 wwall, const Region& reg, Vec3& shear,
+                                    double dt) {
   DilatedResult out{};
   const Vec3 ai = c - bi.x;
   double inv_m = normal_inverse_mass(bi, ai, n);
@@ -114,6 +153,44 @@ DEMFEM_HD DilatedResult dilated_law(const PairConstants& pc, Vec3 n, double delt
   out.delta = delta;
   out.torque_i = cross(ai, r.force);
   out.torque_j = cross(aj, -1.0 * r.force);
+  if (reg.weight > 0.0 && r.gamma_n != 0.0) {
+    // second moment about c (parallel axes; its components along n do not act below)
+    const double* s0 = reg.second;
+    const double W = reg.weight;
+    const Vec3 d = ai;
+    const double sxx = s0[0] - W * d.x * d.x, syy = s0[1] - W * d.y * d.y,
+                 szz = s0[2] - W * d.z * d.z, sxy = s0[3] - W * d.x * d.y,
+                 sxz = s0[4] - W * d.x * d.z, syz = s0[5] - W * d.y * d.z;
+    const double trace = sxx + syy + szz;
+    const double snn = n.x * (sxx * n.x + sxy * n.y + sxz * n.z) +
+                       n.y * (sxy * n.x + syy * n.y + syz * n.z) +
+                       n.z * (sxz * n.x + syz * n.y + szz * n.z);
+    const double jp = trace - snn > 0.0 ? trace - snn : 0.0;  // in-plane polar moment
+    const double jm = 0.5 * jp;                               // mean in-plane moment
+    const Vec3 wrel = bi.w - (bj != nullptr ? bj->w : wwall);
+    Vec3 td{0, 0, 0};
+    if (jm > 0.0) {
+      double ir = in_plane_inertia(bi, n);
+      if (bj != nullptr) {
+        const double ij = in_plane_inertia(*bj, n);
+        ir = ir * ij / (ir + ij);
+      }
+      const double kr = r.sn * jm / W;
+      const double cr = 2.0 * std::sqrt(kr * ir);
+      const Vec3 a = cross(wrel, n);
+      const Vec3 sa{sxx * a.x + sxy * a.y + sxz * a.z, sxy * a.x + syy * a.y + syz * a.z,
+                    sxz * a.x + syz * a.y + szz * a.z};
+      td = (-cr / jm) * cross(n, sa);
+    }
+    if constexpr (Friction) {
+      double tw = -(r.gamma_t / W) * jp * dot(wrel, n);
+      const double cap = pc.friction * (r.fn > 0.0 ? r.fn : -r.fn) * std::sqrt(jp / W);
+      tw = tw > cap ? cap : (tw < -cap ? -cap : tw);
+      td = td + tw * n;
+    }
+    out.torque_i = out.torque_i + td;
+    out.torque_j = out.torque_j - td;
+  }
   return out;
 }
 
@@ -133,7 +210,10 @@ DEMFEM_HD bool dilated_pair(const Core& ci, double ri, const BodyState& bi, cons
     return false;
   }
   const double reff = ri * rj / (ri + rj);
-  out = dilated_law<Friction>(pc, k.n, delta, k.point, reff, bi, &bj, Vec3{0, 0, 0}, shear, dt);
+  Region reg{k.ref_side >= 0 ? k.weight : 0.0, {}};
+  for (int m = 0; m < 6; ++m) reg.second[m] = k.second[m];
+  out = dilated_law<Friction>(pc, k.n, delta, k.point, reff, bi, &bj, Vec3{0, 0, 0}, Vec3{0, 0, 0},
+                              reg, shear, dt);
   return true;
 }
 
@@ -152,11 +232,12 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
                                   const PairConstants* pc_row, double dt, Vec3& f, Vec3& q,
                                   double& mo, double& fmo) {
   if (w.prow[i] == w.prow[i + 1] && w.wcount[i] == 0) return;
-  // the touching candidates
+  // the touching triangles: overlap, normal, point, touching region (the triangle as the
+  // reference face), and the triangle's feature the contact is at
   std::int32_t ctri[kMaxPolyWallCandidates];
-  std::int64_t ckey[kMaxPolyWallCandidates];
   int cfeat[kMaxPolyWallCandidates];  // 0 face, 1..3 edge ab/bc/ca, 4..6 vertex a/b/c
   double cdelta[kMaxPolyWallCandidates], cw[kMaxPolyWallCandidates];
+  double cs[kMaxPolyWallCandidates][6];
   Vec3 cn[kMaxPolyWallCandidates], cpt[kMaxPolyWallCandidates], cm[kMaxPolyWallCandidates];
   int nc = 0;
   const double* v = w.vpos;
@@ -167,7 +248,7 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
     const Vec3 b{v[3 * tv[1]], v[3 * tv[1] + 1], v[3 * tv[1] + 2]};
     const Vec3 c{v[3 * tv[2]], v[3 * tv[2] + 1], v[3 * tv[2] + 2]};
     const Core t = triangle_core(a, b, c);
-    const ConvexContact k2 = convex_contact(p.core, p.r, t, 0.0, 0.0, Vec3{0, 0, 0});
+    const ConvexContact k2 = convex_contact(p.core, p.r, t, 0.0, 0.0, Vec3{0, 0, 0}, true);
     const double delta = p.r - k2.dist;
     if (k2.separated || !(delta > 0.0)) continue;
     // the triangle's feature: its face when n is its normal, else its support feature
@@ -180,8 +261,7 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
     } else {
       const double h[3] = {-dot(a, k2.n), -dot(b, k2.n), -dot(c, k2.n)};
       const double hm = h[0] > h[1] ? (h[0] > h[2] ? h[0] : h[2]) : (h[1] > h[2] ? h[1] : h[2]);
-      const double size = norm2(b - a) + norm2(c - a);
-      const double tol = 1e-9 * std::sqrt(size);
+      const double tol = 1e-9 * std::sqrt(norm2(b - a) + norm2(c - a));
       const bool top[3] = {h[0] >= hm - tol, h[1] >= hm - tol, h[2] >= hm - tol};
       const int ntop = int(top[0]) + int(top[1]) + int(top[2]);
       if (ntop >= 3)
@@ -191,61 +271,30 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
       else
         feat = top[0] ? kVertexA : (top[1] ? kVertexB : kVertexC);
     }
-    std::int64_t key;
-    if (feat == kFace)
-      key = tri;
-    else if (feat <= kEdgeCA)
-      key = (std::int64_t{1} << kFeatureShift) | w.tri_e[3 * tri + feat - 1];
-    else
-      key = (std::int64_t{2} << kFeatureShift) | tv[feat - kVertexA];
     ctri[nc] = tri;
-    ckey[nc] = key;
     cfeat[nc] = feat;
     cdelta[nc] = delta;
     cn[nc] = k2.n;
     cpt[nc] = k2.point;
-    cw[nc] = k2.weight;
+    cw[nc] = k2.ref_side >= 0 ? k2.weight : 0.0;
     cm[nc] = k2.moment;
+    for (int m = 0; m < 6; ++m) cs[nc][m] = k2.second[m];
     ++nc;
   }
-  // edge and vertex contacts: the sphere rules (count once, and not beside a face contact)
-  bool keep[kMaxPolyWallCandidates];
-  for (int a = 0; a < nc; ++a) {
-    keep[a] = true;
-    const std::int64_t type = ckey[a] >> kFeatureShift;
-    if (type == 0) continue;
-    const std::int64_t fid = ckey[a] & ((std::int64_t{1} << kFeatureShift) - 1);
-    for (int b = 0; b < nc && keep[a]; ++b) {
-      if (b == a) continue;
-      const std::int64_t tb = ckey[b] >> kFeatureShift;
-      if (ckey[b] == ckey[a] && b < a) keep[a] = false;
-      if (type == 1 && tb == 0) {
-        for (int e = 0; e < 3; ++e)
-          if (w.tri_e[3 * ctri[b] + e] == fid) keep[a] = false;
-      } else if (type == 2 && tb == 0) {
-        for (int e = 0; e < 3; ++e)
-          if (w.tri_v[3 * ctri[b] + e] == fid) keep[a] = false;
-      } else if (type == 2 && tb == 1) {
-        const int fe = cfeat[b] - 1;
-        const std::int32_t* tv = w.tri_v + 3 * ctri[b];
-        if (tv[fe] == fid || tv[(fe + 1) % 3] == fid) keep[a] = false;
-      }
-    }
-  }
-  // face contacts of adjacent, nearly coplanar triangles: one group (label = smallest member)
+  // groups: triangles sharing a vertex (transitively) whose contact normals differ by less
+  // than kMergeAngle are one contact (label = smallest member); their touching regions
+  // partition the overlap (each is clipped to its own triangle)
   int group[kMaxPolyWallCandidates];
   for (int a = 0; a < nc; ++a) group[a] = a;
   for (bool changed = true; changed;) {
     changed = false;
-    for (int a = 0; a < nc; ++a) {
-      if (!keep[a] || cfeat[a] != kFace) continue;
+    for (int a = 0; a < nc; ++a)
       for (int b = a + 1; b < nc; ++b) {
-        if (!keep[b] || cfeat[b] != kFace || group[a] == group[b]) continue;
-        if (dot(cn[a], cn[b]) < kMergeCos) continue;
+        if (group[a] == group[b] || dot(cn[a], cn[b]) < kMergeCos) continue;
         bool adjacent = false;
         for (int e = 0; e < 3; ++e)
           for (int g = 0; g < 3; ++g)
-            adjacent = adjacent || w.tri_e[3 * ctri[a] + e] == w.tri_e[3 * ctri[b] + g];
+            adjacent = adjacent || w.tri_v[3 * ctri[a] + e] == w.tri_v[3 * ctri[b] + g];
         if (!adjacent) continue;
         const int lo = group[a] < group[b] ? group[a] : group[b];
         const int hi = group[a] < group[b] ? group[b] : group[a];
@@ -253,7 +302,39 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
           if (group[k] == hi) group[k] = lo;
         changed = true;
       }
+  }
+  // a group of edge and vertex contacts only is dropped when one of its edges or vertices
+  // belongs to a triangle touching with its face in another group (the sphere rule: the face
+  // contact is that contact)
+  bool keep[kMaxPolyWallCandidates];
+  for (int a = 0; a < nc; ++a) keep[a] = true;
+  for (int a = 0; a < nc; ++a) {
+    if (group[a] != a) continue;
+    bool has_face = false;
+    for (int b = a; b < nc; ++b) has_face = has_face || (group[b] == a && cfeat[b] == kFace);
+    if (has_face) continue;
+    bool shadowed = false;
+    for (int b = a; b < nc && !shadowed; ++b) {
+      if (group[b] != a) continue;
+      const std::int32_t* tb = w.tri_v + 3 * ctri[b];
+      for (int o = 0; o < nc && !shadowed; ++o) {
+        if (group[o] == a || cfeat[o] != kFace) continue;
+        const std::int32_t* to = w.tri_v + 3 * ctri[o];
+        if (cfeat[b] <= kEdgeCA) {  // the edge's two vertices both on the face triangle
+          const int e0 = cfeat[b] - 1;
+          const std::int32_t u0 = tb[e0], u1 = tb[(e0 + 1) % 3];
+          int hits = 0;
+          for (int g = 0; g < 3; ++g) hits += (to[g] == u0) + (to[g] == u1);
+          shadowed = hits == 2;
+        } else {
+          const std::int32_t u = tb[cfeat[b] - kVertexA];
+          for (int g = 0; g < 3; ++g) shadowed = shadowed || to[g] == u;
+        }
+      }
     }
+    if (shadowed)
+      for (int b = a; b < nc; ++b)
+        if (group[b] == a) keep[b] = false;
   }
   std::int64_t* key = w.wkey + kMaxWallContacts * i;
   double* shr = w.wshear + 3 * kMaxWallContacts * i;
@@ -269,22 +350,23 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
   int cnt = 0;
   for (int a = 0; a < nc && cnt < kMaxWallContacts; ++a) {
     if (!keep[a] || group[a] != a) continue;  // each group once, at its first member
-    // the group's deepest member, weight, normal and centroid
     int deep = a;
-    double wsum = 0.0;
+    Region reg{0.0, {0, 0, 0, 0, 0, 0}};
     Vec3 nsum{0, 0, 0}, msum{0, 0, 0};
     for (int b = a; b < nc; ++b) {
-      if (!keep[b] || group[b] != a) continue;
+      if (group[b] != a) continue;
       if (cdelta[b] > cdelta[deep]) deep = b;
-      wsum += cw[b];
+      reg.weight += cw[b];
       nsum = nsum + cw[b] * cn[b];
       msum = msum + cm[b];
+      if (cw[b] > 0.0)
+        for (int m = 0; m < 6; ++m) reg.second[m] += cs[b][m];
     }
     Vec3 n = cn[deep];
     Vec3 c = cpt[deep];
-    if (wsum > 0.0) {
+    if (reg.weight > 0.0) {
       n = (1.0 / std::sqrt(norm2(nsum))) * nsum;
-      const Vec3 cen = (1.0 / wsum) * msum;
+      const Vec3 cen = (1.0 / reg.weight) * msum;
       c = cen + dot(n, cpt[deep] - cen) * n;
     }
     const double delta = cdelta[deep];
@@ -293,7 +375,7 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
     ClosestPoint cpc{};
     double best = 1e300;
     for (int b = a; b < nc; ++b) {
-      if (!keep[b] || group[b] != a) continue;
+      if (group[b] != a) continue;
       const std::int32_t* tv = w.tri_v + 3 * ctri[b];
       const ClosestPoint cp =
           closest_point_triangle(c, Vec3{v[3 * tv[0]], v[3 * tv[0] + 1], v[3 * tv[0] + 2]},
@@ -307,27 +389,27 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
     const Vec3 vw = cpc.u * Vec3{vv[3 * tv[0]], vv[3 * tv[0] + 1], vv[3 * tv[0] + 2]} +
                     cpc.v * Vec3{vv[3 * tv[1]], vv[3 * tv[1] + 1], vv[3 * tv[1] + 2]} +
                     cpc.w * Vec3{vv[3 * tv[2]], vv[3 * tv[2] + 1], vv[3 * tv[2] + 2]};
-    // the spring of an old slot whose key is any member's
+    // the spring: of the old slot keyed by any member triangle (a group is keyed by its
+    // deepest member)
     Vec3 sh{0, 0, 0};
-    std::int64_t gkey = ckey[a];
     if constexpr (Friction) {
       bool found = false;
       for (int o = 0; o < oc && !found; ++o)
         for (int b = a; b < nc && !found; ++b) {
-          if (!keep[b] || group[b] != a || okey[o] != ckey[b]) continue;
+          if (group[b] != a || okey[o] != ctri[b]) continue;
           sh = Vec3{osh[3 * o], osh[3 * o + 1], osh[3 * o + 2]};
           found = true;
         }
     }
-    // a face group is keyed by its carrier triangle: the next step's group finds this spring
-    // while the carrier is one of its members
-    if (cfeat[a] == kFace) gkey = tri;
+    const std::int32_t wall = w.tri_wall[tri];
+    const Vec3 ww =
+        w.motion != nullptr && wall >= 0 ? rigid_spin(w.motion[wall], w.time) : Vec3{0, 0, 0};
     const DilatedResult r = dilated_law<Friction>(pc_row[w.tri_mat[tri]], n, delta, c, p.r, p.body,
-                                                  nullptr, vw, sh, dt);
+                                                  nullptr, vw, ww, reg, sh, dt);
     f = f + r.force;
     q = q + r.torque_i;
     if constexpr (Friction) shr[3 * cnt] = sh.x, shr[3 * cnt + 1] = sh.y, shr[3 * cnt + 2] = sh.z;
-    key[cnt] = gkey;
+    key[cnt] = ctri[deep];
     const std::int64_t slot = kMaxWallContacts * i + cnt;
     w.wf[3 * slot] = r.force.x, w.wf[3 * slot + 1] = r.force.y, w.wf[3 * slot + 2] = r.force.z;
     w.wp[3 * slot] = c.x, w.wp[3 * slot + 1] = c.y, w.wp[3 * slot + 2] = c.z;
