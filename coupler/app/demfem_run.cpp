@@ -52,6 +52,8 @@ struct Options {
   bool resume = false;
   std::string resume_from;  // empty: the latest valid checkpoint
   std::string debug_kill;   // ROLE:STEP[:always], fault injection for tests
+  std::vector<std::string> sets;  // --set KEY=VALUE, passed on to the solvers
+  bool check = false;             // --check: read and check the scene, start nothing
 };
 
 // --debug-kill dem:17, fem:5:always, coupler:30 (docs/reliability.md). Testing only.
@@ -121,12 +123,18 @@ int run(const Options& opt) {
   std::optional<scene::Document> doc;
   CouplingSettings settings;
   try {
-    doc = scene::Document::load(opt.scene);
+    std::vector<scene::Override> overrides;
+    for (const auto& s : opt.sets) overrides.push_back(scene::Override::parse(s));
+    doc = scene::Document::load(opt.scene, overrides);
     settings = read_coupling_settings(*doc);
     check_solver_sections(*doc);
   } catch (const scene::SceneError& e) {
     std::fprintf(stderr, "demfem run: scene error: %s\n", e.what());
     return kExitUsage;
+  }
+  if (opt.check) {
+    std::printf("demfem run: %s: the scene is valid\n", opt.scene.c_str());
+    return 0;
   }
   const fs::path out_dir =
       opt.output_dir.empty() ? settings.run.output_dir : fs::path(opt.output_dir);
@@ -195,6 +203,7 @@ int run(const Options& opt) {
           static_cast<std::int64_t>(std::ceil(1000.0 * settings.checkpoint.reply_timeout)));
       session = std::make_unique<protocol::CouplerSession>(copt);
       std::vector<std::string> args = {"--scene", opt.scene, "--segment", session->segment_name()};
+      for (const auto& s : opt.sets) args.insert(args.end(), {"--set", s});
       if (!opt.output_dir.empty()) {
         args.push_back("--output-dir");
         args.push_back(opt.output_dir);
@@ -387,6 +396,14 @@ int main(int argc, char** argv) {
   app.add_option("--output-dir", opt.output_dir,
                  "folder for the coupler's output (default: run.output_dir of the scene)");
   app.add_flag("--quiet", opt.quiet, "no progress display");
+  app.add_option("--set", opt.sets,
+                 "KEY=VALUE: set a scene key after reading the scene, in every process; KEY "
+                 "dotted with array indices (dem.pairs[0].friction), VALUE in TOML (0.3, "
+                 "'\"cuda\"', [0, 0, -9.81]); repeatable, the last wins (docs/scenes.md)")
+      ->allow_extra_args(false);
+  app.add_flag("--check", opt.check,
+               "read and check the scene (with --set) as a run would, start nothing, and exit "
+               "(0 valid, 2 not)");
   app.add_option("--wait-spin-us", opt.wait_spin_us,
                  "microseconds the coupler spins before it blocks while waiting for a solver "
                  "(default 0: block at once)")

@@ -38,7 +38,7 @@ int main(int argc, char** argv) {
   demfem::scene::RunSettings run;
   demfem::dem::DemScene dem;
   if (const auto code = demfem::scene::load_solver_scene(
-          cl.scene_file, "dem", "dem_server", run,
+          cl, "dem", "dem_server", run,
           [&](const auto& t) { dem = demfem::dem::read_dem_scene(t); }))
     return *code;
   const std::filesystem::path out_dir = cl.output_folder(run);

@@ -44,7 +44,7 @@ int main(int argc, char** argv) {
   demfem::scene::RunSettings run;
   demfem::fem::FemScene fem;
   if (const auto code = demfem::scene::load_solver_scene(
-          cl.scene_file, "fem", "fem_server", run,
+          cl, "fem", "fem_server", run,
           [&](const auto& t) { fem = demfem::fem::read_fem_scene(t); }))
     return *code;
   const std::filesystem::path out_dir = cl.output_folder(run);

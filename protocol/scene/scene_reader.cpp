@@ -7,6 +7,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "scene_override.hpp"
+
 namespace demfem::scene {
 
 namespace {
@@ -185,23 +187,47 @@ std::string Range::describe() const {
          (max_open ? ")" : "]");
 }
 
-Table::Table(const toml::table* table, std::shared_ptr<const std::string> file, std::string path)
+Table::Table(const toml::table* table, std::shared_ptr<const std::string> file, std::string path,
+             std::shared_ptr<const std::vector<Override>> overrides)
     : table_(table),
       file_(std::move(file)),
       path_(std::move(path)),
-      used_(std::make_shared<std::set<std::string, std::less<>>>()) {}
+      used_(std::make_shared<std::set<std::string, std::less<>>>()),
+      overrides_(std::move(overrides)) {}
 
 std::string Table::full_key(std::string_view key) const {
   return path_.empty() ? std::string(key) : path_ + "." + std::string(key);
 }
 
+const Override* Table::override_of(const std::string& full) const {
+  if (!overrides_) return nullptr;
+  auto within = [](const std::string& inner, const std::string& outer) {
+    return inner.size() > outer.size() && inner.compare(0, outer.size(), outer) == 0 &&
+           (inner[outer.size()] == '.' || inner[outer.size()] == '[');
+  };
+  // The last override of a key is the one in effect.
+  for (auto o = overrides_->rbegin(); o != overrides_->rend(); ++o) {
+    if (o->key == full || within(full, o->key)) return &*o;
+    if (o->key.size() > full.size() && o->key.compare(0, full.size(), full) == 0 &&
+        o->key[full.size()] == '[') {
+      return &*o;  // an entry of this array was set
+    }
+  }
+  return nullptr;
+}
+
 std::string Table::where(std::string_view key) const {
+  const std::string full = full_key(key);
+  if (const Override* o = override_of(full)) {
+    // Its line would be that of the override's text, not of the file.
+    return *file_ + ": key '" + full + "' (from " + o->text() + ")";
+  }
   const toml::node* n = table_ ? table_->get(key) : nullptr;
   const auto& src = n ? n->source() : table_->source();
   std::ostringstream s;
   s << *file_;
   if (src.begin.line > 0) s << ":" << src.begin.line << ":" << src.begin.column;
-  s << ": key '" << full_key(key) << "'";
+  s << ": key '" << full << "'";
   return s.str();
 }
 
@@ -377,7 +403,7 @@ std::optional<Table> Table::table(std::string_view key) const {
   if (!n) return std::nullopt;
   const toml::table* t = n->as_table();
   if (!t) fail(key, "must be a table, found " + type_name(*n));
-  return Table(t, file_, full_key(key));
+  return Table(t, file_, full_key(key), overrides_);
 }
 
 Table Table::required_table(std::string_view key) const {
@@ -395,7 +421,7 @@ std::vector<Table> Table::tables(std::string_view key) const {
   for (std::size_t i = 0; i < a->size(); ++i) {
     const toml::table* t = a->get(i)->as_table();
     if (!t) fail(key, "entry " + std::to_string(i) + " must be a table");
-    out.emplace_back(t, file_, full_key(key) + "[" + std::to_string(i) + "]");
+    out.emplace_back(t, file_, full_key(key) + "[" + std::to_string(i) + "]", overrides_);
   }
   return out;
 }
@@ -412,17 +438,18 @@ void Table::finish() const {
   }
 }
 
-Document Document::load(const std::filesystem::path& file) {
+Document Document::load(const std::filesystem::path& file, const std::vector<Override>& overrides) {
   std::ifstream in(file, std::ios::binary);
   if (!in) throw SceneError(file.string() + ": cannot open scene file");
   std::stringstream buf;
   buf << in.rdbuf();
-  Document d = parse(buf.str(), file.string());
+  Document d = parse(buf.str(), file.string(), overrides);
   d.file_ = file;
   return d;
 }
 
-Document Document::parse(std::string_view text, const std::string& name) {
+Document Document::parse(std::string_view text, const std::string& name,
+                         const std::vector<Override>& overrides) {
   Document d;
   d.file_ = name;
   try {
@@ -434,11 +461,30 @@ Document Document::parse(std::string_view text, const std::string& name) {
       << ": TOML syntax error: " << e.description();
     throw SceneError(s.str());
   }
+  // Overrides go in here, before anyone reads a table, so that every reader of every process
+  // sees the same scene.
+  for (const Override& o : overrides) {
+    toml::table value;
+    try {
+      value = toml::parse(sanitise_for_toml("value = " + o.value, o.text()), o.text());
+    } catch (const toml::parse_error& e) {
+      throw SceneError(name + ": " + o.text() + ": VALUE is not a TOML value (" +
+                       std::string(e.description()) +
+                       "); strings need quotes, e.g. --set dem.backend='\"cuda\"'");
+    } catch (const SceneError& e) {
+      throw SceneError(name + ": " + e.what());
+    }
+    if (value.size() != 1 || !value.contains("value")) {
+      throw SceneError(name + ": " + o.text() + ": VALUE must be one TOML value");
+    }
+    detail::assign_override(*d.tree_, o, std::move(*value.get("value")), name);
+  }
+  d.overrides_ = std::make_shared<const std::vector<Override>>(overrides);
   return d;
 }
 
 Table Document::root() const {
-  return Table(tree_.get(), std::make_shared<const std::string>(file_.string()), "");
+  return Table(tree_.get(), std::make_shared<const std::string>(file_.string()), "", overrides_);
 }
 
 RunSettings read_run_settings(const Document& scene) {

@@ -372,3 +372,43 @@ TEST_CASE("two-way dynamic beam settles to the static deflection within 0.5 %") 
     }
   }
 }
+
+TEST_CASE("scene overrides (--set) reach every process and change the run's result") {
+  TempDir base, half, bad;
+  const std::string scene = (kCases / "beam_fixed_ci.toml").string();
+  Result r = run(base.path, {scene, "--quiet"});
+  INFO(r.out << r.err);
+  REQUIRE(r.status == 0);
+  // Half the sphere density (read by dem_server) and half the check's load mass (read by the
+  // coupler): the weight on the beam and its deflection halve. The base run is not changed.
+  r = run(half.path, {scene, "--quiet", "--set", "dem.materials[0].density=22018.50612436703",
+                      "--set", "coupling.beam_check.load_mass=25.5"});
+  INFO(r.out << r.err);
+  REQUIRE(r.status == 0);
+  const auto b = read_csv(base.path / "out/beam_fixed_ci/beam_check.csv");
+  const auto h = read_csv(half.path / "out/beam_fixed_ci/beam_check.csv");
+  REQUIRE(b.size() == 2);
+  REQUIRE(h.size() == 2);
+  CHECK(std::stod(b[1][0]) == 51.0);
+  CHECK(std::stod(h[1][0]) == 25.5);
+  // coupled_load (column 4), N: the spheres' weight as the DEM delivered it to the beam, at
+  // rest within the 1e-3 of the static case's bound; and the coupled deflection (column 1).
+  const double load_b = std::stod(b[1][4]), load_h = std::stod(h[1][4]);
+  CHECK(std::abs(load_b - 51.0 * 9.81) / (51.0 * 9.81) < 1e-3);
+  CHECK(std::abs(load_h - 25.5 * 9.81) / (25.5 * 9.81) < 1e-3);
+  CHECK(std::abs(std::stod(h[1][1]) / std::stod(b[1][1]) - 0.5) < 1e-3);
+  // A bad override: exit 2 before any process starts, the message names the override.
+  r = run(bad.path, {scene, "--quiet", "--set", "dem.pairs[0].restitution=1.5"});
+  CHECK(r.status == 2);
+  CHECK_THAT(r.err, Catch::Contains("key 'dem.pairs[0].restitution' (from --set "
+                                    "dem.pairs[0].restitution=1.5)"));
+  CHECK(started_pids(r.out).empty());
+  r = run(bad.path, {scene, "--quiet", "--set", "dem.pairs[7].friction=0.1"});
+  CHECK(r.status == 2);
+  CHECK_THAT(r.err, Catch::Contains("--set dem.pairs[7].friction=0.1: the scene has no "
+                                    "'dem.pairs[7]'"));
+  r = run(bad.path, {scene, "--quiet", "--set", "dem.backend=cuda"});
+  CHECK(r.status == 2);
+  CHECK_THAT(r.err, Catch::Contains("VALUE is not a TOML value"));
+  CHECK(started_pids(r.out).empty());
+}

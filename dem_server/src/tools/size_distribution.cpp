@@ -1,6 +1,7 @@
 #include "demfem/dem/size_distribution.hpp"
 
 #include <cmath>
+#include <cstdio>
 #include <numeric>
 #include <sstream>
 #include <stdexcept>
@@ -106,8 +107,13 @@ void SizeDistribution::validate() const {
         if (!(f >= 0)) bad("mass fractions must be >= 0");
         sum += f;
       }
-      if (std::abs(sum - 1.0) > 1e-6)
-        bad("mass fractions must sum to 1, they sum to " + std::to_string(sum));
+      // 1e-9: decimal fractions as typed (0.1 + 0.2 + 0.7) sum to 1 within 1e-15; a table
+      // that misses by more is a typo, not round-off.
+      if (std::abs(sum - 1.0) > 1e-9) {
+        char buf[64];
+        std::snprintf(buf, sizeof buf, "%.12g", sum);  // resolves 1e-9
+        bad("mass_fractions must sum to 1 (within 1e-9), they sum to " + std::string(buf));
+      }
       break;
     }
   }

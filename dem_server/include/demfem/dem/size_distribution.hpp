@@ -36,7 +36,9 @@ struct SizeDistribution {
   double mean = 0.0;    ///< normal: mean of the untruncated normal
   double stddev = 0.0;  ///< normal: standard deviation of the untruncated normal
   /// gradation: sieve sizes d_0 < d_1 < ... < d_k (m) and the mass fraction of each of the k
-  /// classes [d_i, d_{i+1}) (sum 1). Within a class diameters are uniform by number.
+  /// classes [d_i, d_{i+1}) (sum 1 within 1e-9). Within a class diameters are uniform by
+  /// number. For polyhedra "diameter" is the particle size (shapes::SizeKind): see
+  /// shapes/shape_library.hpp.
   std::vector<double> sieves;
   std::vector<double> mass_fractions;
 

@@ -46,11 +46,27 @@ struct Range {
   std::string describe() const;
 };
 
+/// @brief A scene key set from the command line (`demfem run --set KEY=VALUE`, passed on to
+/// the solvers): KEY is a dotted scene key whose segments may carry array indices
+/// (`dem.pairs[0].friction`, `dem.gravity[2]`), VALUE a TOML value (`0.3`, `"cuda"`, `true`,
+/// `[0, 0, -9.81]`, `{ kind = "constant", diameter = 0.02 }`). docs/scenes.md, "Overriding keys".
+struct Override {
+  std::string key;
+  std::string value;
+
+  /// Splits "KEY=VALUE" at the first '='; throws SceneError naming the text when there is
+  /// none or either side is empty.
+  static Override parse(std::string_view assignment);
+  /// "--set KEY=VALUE", as messages name it.
+  std::string text() const { return "--set " + key + "=" + value; }
+};
+
 /// @brief One TOML table of a scene, with its file and dotted path, that tracks which keys
 /// were read so that finish() can reject unknown ones.
 class Table {
  public:
-  Table(const toml::table* table, std::shared_ptr<const std::string> file, std::string path);
+  Table(const toml::table* table, std::shared_ptr<const std::string> file, std::string path,
+        std::shared_ptr<const std::vector<Override>> overrides = nullptr);
 
   bool has(std::string_view key) const;
 
@@ -104,27 +120,38 @@ class Table {
   const toml::node& require(std::string_view key) const;
   std::string full_key(std::string_view key) const;
   double as_finite(std::string_view key, const toml::node& n, Range range) const;
+  /// The override that set this key, or set a value containing it, or an element of it.
+  const Override* override_of(const std::string& full) const;
 
   const toml::table* table_;
   std::shared_ptr<const std::string> file_;
   std::string path_;
   mutable std::shared_ptr<std::set<std::string, std::less<>>> used_;
+  std::shared_ptr<const std::vector<Override>> overrides_;
 };
 
 /// @brief A parsed scene file; keeps the TOML tree alive for its Tables.
 class Document {
  public:
-  /// Parses `file`; throws SceneError naming the file and line on a syntax error or when the
-  /// file cannot be read.
-  static Document load(const std::filesystem::path& file);
-  static Document parse(std::string_view text, const std::string& name);
+  /// Parses `file`, then applies `overrides` in order (a later one wins) before any table
+  /// is read; throws SceneError naming the file and line on a syntax error or when the file
+  /// cannot be read, and naming the override when one is malformed or names a table or array
+  /// entry the scene does not have (an override may add a key to an existing table, never
+  /// create a table). Messages about an overridden key say "(from --set KEY=VALUE)".
+  static Document load(const std::filesystem::path& file,
+                       const std::vector<Override>& overrides = {});
+  static Document parse(std::string_view text, const std::string& name,
+                        const std::vector<Override>& overrides = {});
 
   Table root() const;
   const std::filesystem::path& file() const { return file_; }
+  const std::vector<Override>& overrides() const { return *overrides_; }
 
  private:
   std::filesystem::path file_;
   std::shared_ptr<toml::table> tree_;
+  std::shared_ptr<const std::vector<Override>> overrides_ =
+      std::make_shared<const std::vector<Override>>();
 };
 
 /// @brief The [run] section every process reads: what the run is called, how long it runs

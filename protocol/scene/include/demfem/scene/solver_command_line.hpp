@@ -1,7 +1,7 @@
 #pragma once
 // The command line and scene loading that every solver process shares (dem_server,
 // fem_server, and any other engine that attaches through the protocol):
-//   <solver> --scene FILE [--segment NAME] [--output-dir DIR] [--quiet]
+//   <solver> --scene FILE [--set KEY=VALUE]... [--segment NAME] [--output-dir DIR] [--quiet]
 // with the exit codes 0 ok, 1 failure while running, 2 bad command line or scene.
 // Header-only; the program links CLI11 and demfem::scene.
 
@@ -11,6 +11,7 @@
 #include <iostream>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "demfem/scene/scene_reader.hpp"
 
@@ -25,6 +26,7 @@ struct SolverCommandLine {
   std::string segment;     ///< empty: run the scene alone
   std::string output_dir;  ///< empty: run.output_dir
   bool quiet = false;
+  std::vector<std::string> overrides;  ///< --set KEY=VALUE, in order (Document::load)
 
   /// Adds --scene, --segment, --output-dir and --quiet; `section` is the scene table the
   /// solver reads ("dem", "fem"), `engine` how the help names it ("the DEM").
@@ -37,6 +39,11 @@ struct SolverCommandLine {
                        engine + " alone");
     app.add_option("--output-dir", output_dir, "Output folder (default: run.output_dir)");
     app.add_flag("--quiet", quiet, "No progress lines");
+    app.add_option("--set", overrides,
+                   "KEY=VALUE: set a scene key (dotted, with array indices, e.g. "
+                   "dem.pairs[0].friction=0.3; VALUE in TOML) after reading the scene; "
+                   "repeatable")
+        ->allow_extra_args(false);
   }
 
   /// The output folder: --output-dir, else run.output_dir of the scene.
@@ -59,15 +66,18 @@ inline std::optional<int> parse_solver_command_line(CLI::App& app, int argc, cha
   return std::nullopt;
 }
 
-/// Loads the scene file: its [run] settings into `run`, then `read(table)` on its
-/// [`section`] (which may throw SceneError). nullopt on success, else kExitBadInput after
-/// printing the reason (a missing section, or the SceneError naming file, line and key) to
-/// stderr; `solver` names the program in the message.
+/// Loads the scene file with the --set overrides: its [run] settings into `run`, then
+/// `read(table)` on its [`section`] (which may throw SceneError). nullopt on success, else
+/// kExitBadInput after printing the reason (a missing section, or the SceneError naming file,
+/// line and key) to stderr; `solver` names the program in the message.
 template <class Read>
-std::optional<int> load_solver_scene(const std::string& scene_file, const std::string& section,
+std::optional<int> load_solver_scene(const SolverCommandLine& cl, const std::string& section,
                                      const std::string& solver, RunSettings& run, Read&& read) {
+  const std::string& scene_file = cl.scene_file;
   try {
-    const auto doc = Document::load(scene_file);
+    std::vector<Override> overrides;
+    for (const auto& o : cl.overrides) overrides.push_back(Override::parse(o));
+    const auto doc = Document::load(scene_file, overrides);
     run = read_run_settings(doc);
     const auto root = doc.root();
     auto table = root.table(section);

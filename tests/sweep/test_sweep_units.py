@@ -1,0 +1,262 @@
+#!/usr/bin/python3
+"""ctest: the pieces of tools/sweep without running members: the Student-t quantile against
+closed forms and published table values, scene keys and their TOML text, the strict sweep
+file reader (messages with file, line, key), the plan, the extraction of quantities against
+hand-computed values, the retry classification and the sbatch script."""
+
+import math
+import sys
+import tempfile
+import textwrap
+import tomllib
+import unittest
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tools"))
+
+from sweep import scene_keys, slurm, stats  # noqa: E402
+from sweep.collect import extract, interpolate  # noqa: E402
+from sweep.member import classify, describe_exit  # noqa: E402
+from sweep.plan import build_plan  # noqa: E402
+from sweep.sweep_file import Quantity, SlurmOptions, SweepError, read_sweep_file  # noqa: E402
+
+SCENE = """
+[run]
+end_time = 0.01
+[dem]
+dt = 2e-6
+[[dem.pairs]]
+friction = 0.3
+[[dem.insert]]
+mass = 30.0
+[checkpoint]
+every_steps = 10
+"""
+
+
+class StudentT(unittest.TestCase):
+    def test_closed_forms(self):
+        # df = 1 is Cauchy: t_p = tan(pi (p - 1/2)); df = 2: t_p = (2p - 1) / sqrt(2 p (1 - p)).
+        for p in (0.9, 0.95, 0.975, 0.995):
+            self.assertAlmostEqual(stats.student_t_quantile(p, 1), math.tan(math.pi * (p - 0.5)),
+                                   delta=1e-12 * math.tan(math.pi * (p - 0.5)))
+            t2 = (2 * p - 1) / math.sqrt(2 * p * (1 - p))
+            self.assertAlmostEqual(stats.student_t_quantile(p, 2), t2, delta=1e-12 * t2)
+
+    def test_table(self):
+        # Published two-sided 95 % values (e.g. NIST/SEMATECH e-Handbook, table 1.3.6.7.2),
+        # given to 3 decimals.
+        for df, t in ((3, 3.182), (4, 2.776), (5, 2.571), (9, 2.262), (10, 2.228), (20, 2.086),
+                      (30, 2.042), (100, 1.984)):
+            self.assertAlmostEqual(stats.student_t_quantile(0.975, df), t, delta=5e-4)
+
+    def test_summarise(self):
+        n, mean, sd, lo, hi = stats.summarise([1.0, 2.0, 3.0, 4.0])
+        self.assertEqual((n, mean), (4, 2.5))
+        self.assertAlmostEqual(sd, math.sqrt(5.0 / 3.0), delta=1e-15)
+        self.assertAlmostEqual(hi - mean, 3.182446305284263 * sd / 2.0, delta=1e-5)
+        self.assertTrue(math.isnan(stats.summarise([1.0])[2]))
+        self.assertEqual(stats.summarise([])[0], 0)
+
+
+class SceneKeys(unittest.TestCase):
+    def test_parse_and_assign(self):
+        scene = tomllib.loads(SCENE)
+        scene_keys.assign(scene, "dem.pairs[0].friction", 0.5)
+        scene_keys.assign(scene, "dem.threads", 2)  # added to an existing table
+        self.assertEqual(scene["dem"]["pairs"][0]["friction"], 0.5)
+        self.assertEqual(scene_keys.get(scene, "dem.threads"), 2)
+        self.assertIsNone(scene_keys.get(scene, "dem.walls[0].stl"))
+        for key, why in (("dem.walls[0].stl", "no array 'dem.walls'"),
+                         ("dem.pairs[1].friction", "'dem.pairs' has 1 entries"),
+                         ("fem.dt", "no table 'fem'"), ("dem.dt.x", "'dem.dt' is not a table"),
+                         ("dem..dt", "not a dotted scene key"), ("dem.pairs[x]", "not a dotted")):
+            with self.assertRaisesRegex(scene_keys.KeyError_, why.replace("[", r"\[")):
+                scene_keys.assign(tomllib.loads(SCENE), key, 1)
+
+    def test_toml_text_reads_back(self):
+        for v in (0.1, 1e-5, 2.0, 210e9, -3, True, "cuda", 'a "q" \\ é', [1, 2.5, "x"],
+                  {"kind": "constant", "diameter": 0.024}, [[0.0, 1.0], [2.0, 3.0]]):
+            text = scene_keys.toml_value(v)
+            self.assertEqual(tomllib.loads(f"v = {text}")["v"], v, text)
+
+
+def write(tmp, name, text):
+    p = Path(tmp) / name
+    p.write_text(textwrap.dedent(text))
+    return p
+
+
+SWEEP = """\
+[sweep]
+scene = "scene.toml"
+name = "t"
+
+[[parameter]]
+name = "mass"
+unit = "kg"
+[parameter.keys]
+"dem.insert[0].mass" = [10.0, 20.0]
+
+[[parameter]]
+[parameter.keys]
+"dem.pairs[0].friction" = [0.1, 0.2, 0.3]
+
+[repetitions]
+count = 2
+first_seed = 5
+
+[[quantity]]
+name = "q"
+file = "coupling.csv"
+column = "x"
+reduce = "max"
+"""
+
+
+class SweepFile(unittest.TestCase):
+    def setUp(self):
+        self.tmp = tempfile.TemporaryDirectory()
+        write(self.tmp.name, "scene.toml", SCENE)
+
+    def tearDown(self):
+        self.tmp.cleanup()
+
+    def read(self, text):
+        return read_sweep_file(write(self.tmp.name, "s.toml", text))
+
+    def refused(self, text, *parts):
+        with self.assertRaises(SweepError) as c:
+            self.read(text)
+        for p in parts:
+            self.assertIn(p, str(c.exception))
+        return str(c.exception)
+
+    def test_plan(self):
+        spec = self.read(SWEEP)
+        plan = build_plan(spec, Path(self.tmp.name) / "out", "/bin/true")
+        self.assertEqual(len(plan.members), 2 * 3 * 2)
+        m = plan.members[7]  # setting 3 = (mass index 1, friction index 0), repetition 1
+        self.assertEqual((m.id, m.setting, m.repetition, m.seed), ("s03_r01", 3, 1, 6))
+        self.assertEqual(m.values, {"mass": 20.0, "dem.pairs[0].friction": 0.1})
+        # dem.threads is 0 in the scene: members get execution.threads (1), said by --set.
+        self.assertEqual(m.overrides, ["dem.insert[0].mass=20.0", "dem.pairs[0].friction=0.1",
+                                       "run.seed=6", "dem.threads=1"])
+        self.assertEqual((m.threads, m.gpu, m.checkpoints), (1, False, "checkpoints"))
+
+    def test_zipped_keys(self):
+        spec = self.read(SWEEP.replace('"dem.insert[0].mass" = [10.0, 20.0]',
+                                       '"dem.insert[0].mass" = [10.0, 20.0]\n'
+                                       '"dem.dt" = [1e-6, 2e-6]'))
+        plan = build_plan(spec, Path(self.tmp.name) / "out", "/bin/true")
+        self.assertEqual(plan.members[-1].overrides[:2],
+                         ["dem.insert[0].mass=20.0", "dem.dt=2e-06"])
+
+    def test_errors_name_file_line_key(self):
+        f = str(Path(self.tmp.name) / "s.toml")
+        self.refused(SWEEP + "typo = 1\n", f"{f}:24: key 'quantity[0].typo'", "not a known key")
+        self.refused("typo = 1\n" + SWEEP, f"{f}:1: key 'typo'", "not a known key")
+        self.refused(SWEEP.replace("count = 2", "count = 0"), f"{f}:16: key 'repetitions.count'",
+                     "[1, 100000]")
+        self.refused(SWEEP.replace("[0.1, 0.2, 0.3]", "[0.1, 0.2]").replace(
+            '"dem.insert[0].mass" = [10.0, 20.0]',
+            '"dem.insert[0].mass" = [10.0, 20.0]\n"dem.dt" = [1e-6]'),
+            "key 'parameter[0].keys.\"dem.dt\"'", "zipped")
+        self.refused(SWEEP.replace('"dem.pairs[0].friction"', '"dem.pairs[4].friction"'),
+                     f"{f}:13:", "'dem.pairs' has 1 entries")
+        self.refused(SWEEP.replace('reduce = "max"', 'reduce = "median"'),
+                     "quantity[0].reduce", '"final", "max", "min", "mean", "series"')
+        self.refused(SWEEP.replace('reduce = "max"', 'reduce = "max"\nat = 0.1'), "exactly one")
+        self.refused(SWEEP.replace('reduce = "max"', 'reduce = "mean"\nwindow = [2, 1]'),
+                     "t0 < t1")
+        self.refused(SWEEP.replace("first_seed = 5", "seeds = [1, 1]"), "a seed twice")
+        self.refused(SWEEP.replace('scene = "scene.toml"', 'scene = "nope.toml"'),
+                     "key 'sweep.scene'", "cannot read")
+        self.refused(SWEEP.replace('name = "q"', 'name = "mass"'), "already a column")
+        self.refused(SWEEP + "[execution]\nargs = [\"--resume\"]\n", "set by the sweep itself")
+        self.refused(SWEEP + "[slurm]\ntime = \"ten minutes\"\n", "a Slurm time")
+        self.refused(SWEEP.replace("first_seed = 5", 'key = "dem.pairs[0].friction"'),
+                     "is also a parameter")
+
+    def test_absolute_checkpoint_folder_is_refused(self):
+        write(self.tmp.name, "scene.toml", SCENE + 'directory = "/tmp/ck"\n')
+        spec = self.read(SWEEP)
+        with self.assertRaisesRegex(SweepError, "checkpoint.directory"):
+            build_plan(spec, Path(self.tmp.name) / "out", "/bin/true")
+
+
+class Extraction(unittest.TestCase):
+    T = [0.0, 1.0, 2.0, 4.0]
+    V = [0.0, 2.0, 1.0, 5.0]
+
+    def q(self, **kw):
+        base = dict(name="q", file="f.csv", column="v", time_column="time", unit="", kind="final")
+        base.update(kw)
+        return Quantity(**base)
+
+    def value(self, **kw):
+        return extract(self.q(**kw), self.T, self.V, "w", "m")
+
+    def test_values(self):
+        self.assertEqual(self.value(kind="final"), 5.0)
+        self.assertEqual(self.value(kind="max"), 5.0)
+        self.assertEqual(self.value(kind="min", window=(0.5, 3.0)), 1.0)
+        self.assertEqual(self.value(kind="at", at=1.5), 1.5)   # (2 + 1) / 2
+        self.assertEqual(self.value(kind="at", at=3.0), 3.0)   # 1 + (5 - 1) / 2
+        self.assertEqual(self.value(kind="at", at=1.0), 2.0)
+        self.assertEqual(self.value(kind="at", at=1.4, method="nearest"), 2.0)
+        self.assertEqual(self.value(kind="at", at=1.5, method="nearest"), 2.0)  # tie: earlier
+        # Trapezoid over [0, 4]: 1 + 1.5 + 6 = 8.5, / 4.
+        self.assertEqual(self.value(kind="mean"), 8.5 / 4)
+        # Over [0.5, 3]: ends interpolated (1 at 0.5, 3 at 3): 0.75 + 1.5 + 2 = 4.25, / 2.5.
+        self.assertAlmostEqual(self.value(kind="mean", window=(0.5, 3.0)), 4.25 / 2.5,
+                               delta=1e-15)
+        t, v = self.value(kind="series", window=(1.0, 2.0))
+        self.assertEqual((t, v), ([1.0, 2.0], [2.0, 1.0]))
+        self.assertEqual(interpolate(self.T, self.V, -1.0), 0.0)
+
+    def test_errors(self):
+        with self.assertRaisesRegex(SweepError, "outside member m's series"):
+            self.value(kind="at", at=5.0)
+        with self.assertRaisesRegex(SweepError, "no row"):
+            self.value(kind="max", window=(2.5, 3.5))
+        with self.assertRaisesRegex(SweepError, "do not overlap"):
+            self.value(kind="mean", window=(5.0, 6.0))
+
+
+class Retries(unittest.TestCase):
+    def test_classify(self):
+        self.assertEqual(classify(0, False), "done")
+        self.assertEqual(classify(1, False), "retry")
+        self.assertEqual(classify(4, True), "retry")
+        self.assertEqual(classify(137, False), "retry")
+        self.assertEqual(classify("timeout", False), "retry")
+        self.assertEqual(classify(2, False), "give_up")   # bad input repeats
+        self.assertEqual(classify(2, True), "fresh")      # no valid checkpoint: start over
+        self.assertEqual(classify(3, True), "give_up")    # a blow-up repeats
+        self.assertEqual(classify(127, False), "give_up")  # no demfem_run to start
+        self.assertEqual(describe_exit(137), "exit 137 (SIGKILL)")
+
+
+class Slurm(unittest.TestCase):
+    def test_array_spec(self):
+        self.assertEqual(slurm.array_spec([5, 0, 1, 2, 7, 8]), "0-2,5,7-8")
+        self.assertEqual(slurm.array_spec([3]), "3")
+
+    def test_script(self):
+        class P:
+            name, output_dir = "beam", "/scratch/beam"
+        text = slurm.script_text(P, Path("/scratch/beam/slurm/plan.json"), 4, True,
+                                 SlurmOptions(partition="gpu", time="1:00:00", account="proj",
+                                              options=["--exclusive"]))
+        for line in ("#SBATCH --cpus-per-task=4", "#SBATCH --gres=gpu:1",
+                     "#SBATCH --partition=gpu", "#SBATCH --time=1:00:00",
+                     "#SBATCH --account=proj", "#SBATCH --exclusive",
+                     "#SBATCH --output=/scratch/beam/slurm/logs/%A_%a.out",
+                     "-m sweep --member-task /scratch/beam/slurm/plan.json "
+                     "\"$SLURM_ARRAY_TASK_ID\""):
+            self.assertIn(line, text)
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=1)

@@ -1,0 +1,403 @@
+"""Reading a sweep file (TOML) strictly: every key is checked for its type and range, an
+unknown key is an error, and every message names the file, the line and the key, as the
+scene reader does (docs/sweeps.md lists the keys)."""
+
+import copy
+import math
+import os
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from sweep import scene_keys
+from sweep.toml_lines import key_lines
+
+EXIT_BAD_INPUT = 2
+REQUIRED = object()
+_NAME = re.compile(r"[A-Za-z0-9_.-]+")
+_PARAMETER_NAME = re.compile(r"[A-Za-z0-9_.\[\]-]+")  # a scene key is a good default
+REDUCTIONS = ("final", "max", "min", "mean", "series")
+
+
+class SweepError(Exception):
+    """Bad input (sweep file, scene, command line): exit status 2."""
+
+
+def _show(path):
+    out = ""
+    for p in path:
+        if isinstance(p, int):
+            out += f"[{p}]"
+        else:
+            q = p if re.fullmatch(r"[A-Za-z0-9_-]+", p) else f'"{p}"'
+            out += ("." if out else "") + q
+    return out
+
+
+class Table:
+    """One table of the sweep file; remembers which keys were read so finish() can refuse
+    the others."""
+
+    def __init__(self, data, path, file, lines):
+        self.data, self.path, self.file, self.lines = data, path, file, lines
+        self.used = set()
+
+    def where(self, key=None):
+        path = self.path + ((key,) if key is not None else ())
+        line = self.lines.get(path) or self.lines.get(self.path)
+        loc = f"{self.file}:{line}" if line else str(self.file)
+        return f"{loc}: key '{_show(path)}'" if path else loc
+
+    def fail(self, key, message):
+        raise SweepError(f"{self.where(key)}: {message}")
+
+    def has(self, key):
+        return key in self.data
+
+    def _get(self, key, default):
+        self.used.add(key)
+        if key not in self.data:
+            if default is REQUIRED:
+                self.fail(key, "is required but missing")
+            return default, False
+        return self.data[key], True
+
+    def number(self, key, default=REQUIRED, lo=-math.inf, hi=math.inf, lo_open=False):
+        v, found = self._get(key, default)
+        if not found:
+            return v
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            self.fail(key, f"must be a number, found {_type(v)}")
+        v = float(v)
+        if not math.isfinite(v):
+            self.fail(key, f"must be finite, found {v}")
+        if v < lo or v > hi or (lo_open and v == lo):
+            self.fail(key, f"is {v:g}, outside the accepted range {_range(lo, hi, lo_open)}")
+        return v
+
+    def integer(self, key, default=REQUIRED, lo=-(2**63), hi=2**63 - 1):
+        v, found = self._get(key, default)
+        if not found:
+            return v
+        if isinstance(v, bool) or not isinstance(v, int):
+            self.fail(key, f"must be an integer, found {_type(v)}")
+        if v < lo or v > hi:
+            self.fail(key, f"is {v}, outside the accepted range [{lo}, {hi}]")
+        return v
+
+    def boolean(self, key, default=REQUIRED):
+        v, found = self._get(key, default)
+        if found and not isinstance(v, bool):
+            self.fail(key, f"must be true or false, found {_type(v)}")
+        return v
+
+    def string(self, key, default=REQUIRED, choices=None, allow_empty=False):
+        v, found = self._get(key, default)
+        if not found:
+            return v
+        if not isinstance(v, str):
+            self.fail(key, f"must be a string, found {_type(v)}")
+        if not allow_empty and not v:
+            self.fail(key, "must not be empty")
+        if choices and v not in choices:
+            self.fail(key, f'is "{v}", accepted: ' + ", ".join(f'"{c}"' for c in choices))
+        return v
+
+    def strings(self, key, default=REQUIRED):
+        v, found = self._get(key, default)
+        if not found:
+            return v
+        if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
+            self.fail(key, f"must be an array of strings, found {_type(v)}")
+        return list(v)
+
+    def table(self, key):
+        v, found = self._get(key, None)
+        if not found:
+            return None
+        if not isinstance(v, dict):
+            self.fail(key, f"must be a table, found {_type(v)}")
+        return Table(v, self.path + (key,), self.file, self.lines)
+
+    def tables(self, key):
+        v, found = self._get(key, None)
+        if not found:
+            return []
+        if not isinstance(v, list) or not all(isinstance(x, dict) for x in v):
+            self.fail(key, f"must be an array of tables ([[{_show(self.path + (key,))}]])")
+        return [Table(x, self.path + (key, i), self.file, self.lines) for i, x in enumerate(v)]
+
+    def finish(self):
+        for k in self.data:
+            if k not in self.used:
+                self.fail(k, "is not a known key here (misspelt, or not accepted in this "
+                          "section; docs/sweeps.md lists the keys)")
+
+
+def _type(v):
+    return {bool: "a boolean", int: "an integer", float: "a number", str: "a string",
+            list: "an array", dict: "a table"}.get(type(v), "a date/time")
+
+
+def _range(lo, hi, lo_open):
+    if hi == math.inf:
+        return f"{'>' if lo_open else '>='} {lo:g}"
+    return f"[{lo:g}, {hi:g}]"
+
+
+@dataclass
+class Parameter:
+    name: str
+    unit: str
+    keys: list          # scene keys, zipped
+    values: list        # values[k] = the list of values of keys[k]
+
+    @property
+    def count(self):
+        return len(self.values[0])
+
+
+@dataclass
+class Quantity:
+    name: str
+    file: str           # relative to the member's output folder
+    column: str
+    time_column: str
+    unit: str
+    kind: str           # "at" or one of REDUCTIONS
+    at: float = math.nan
+    method: str = "linear"
+    window: tuple = (-math.inf, math.inf)
+    where: str = ""     # "file:line: key 'quantity[i]'" for messages at collection
+
+
+@dataclass
+class Repetitions:
+    count: int
+    seeds: list
+    key: str
+
+
+@dataclass
+class Execution:
+    threads: int = 1
+    max_retries: int = 2
+    timeout: float = 0.0
+    jobs: int = 0
+    args: list = field(default_factory=list)
+
+
+@dataclass
+class SlurmOptions:
+    partition: str = ""
+    time: str = ""
+    account: str = ""
+    qos: str = ""
+    mem: str = ""
+    max_concurrent: int = 0
+    options: list = field(default_factory=list)
+
+
+@dataclass
+class Spec:
+    file: Path
+    name: str
+    scene: Path
+    scene_data: dict
+    output_dir: Path
+    parameters: list
+    repetitions: Repetitions
+    execution: Execution
+    slurm: SlurmOptions
+    quantities: list
+
+
+def _scene_value_ok(v):
+    if isinstance(v, float):
+        return math.isfinite(v)
+    if isinstance(v, list):
+        return all(_scene_value_ok(x) for x in v)
+    if isinstance(v, dict):
+        return all(_scene_value_ok(x) for x in v.values())
+    return isinstance(v, (bool, int, str))
+
+
+def read_sweep_file(path):
+    """Reads and checks a sweep file; raises SweepError (exit 2) naming file, line and key."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as e:
+        raise SweepError(f"{path}: cannot read the sweep file ({e.strerror})")
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise SweepError(f"{path}: TOML syntax error: {e}")
+    root = Table(data, (), path, key_lines(text))
+
+    sw = root.table("sweep")
+    if sw is None:
+        root.fail("sweep", "is required but missing (the [sweep] table names the base scene)")
+    scene_text = sw.string("scene")
+    scene = Path(scene_text)
+    if not scene.is_absolute():
+        scene = path.parent / scene
+    scene = Path(os.path.abspath(scene))
+    name = sw.string("name", path.stem)
+    if not _NAME.fullmatch(name):
+        sw.fail("name", "must be letters, digits, '_', '.' or '-' (it names folders and jobs)")
+    output_dir = Path(sw.string("output_dir", str(Path("out") / "sweeps" / name)))
+    sw.finish()
+    try:
+        scene_data = tomllib.loads(scene.read_text())
+    except OSError as e:
+        sw.fail("scene", f"cannot read the scene {scene} ({e.strerror})")
+    except tomllib.TOMLDecodeError as e:
+        sw.fail("scene", f"the scene {scene} is not valid TOML: {e}")
+
+    parameters = []
+    seen_keys = {}
+    for t in root.tables("parameter"):
+        keys_t = t.table("keys")
+        if keys_t is None or not keys_t.data:
+            t.fail("keys", "is required: a table of scene keys, each with an array of values")
+        keys, values = [], []
+        for k, v in keys_t.data.items():
+            keys_t.used.add(k)
+            if not isinstance(v, list) or not v:
+                keys_t.fail(k, "must be a non-empty array of values")
+            for x in v:
+                if not _scene_value_ok(x):
+                    keys_t.fail(k, f"has a value that is not a finite scene value: {x!r}")
+            if values and len(v) != len(values[0]):
+                keys_t.fail(k, f"has {len(v)} values, '{keys[0]}' of the same [[parameter]] has "
+                            f"{len(values[0])} (the keys of one parameter are zipped: equal "
+                            "lengths)")
+            if k in seen_keys:
+                keys_t.fail(k, f"is already set by {seen_keys[k]}")
+            try:
+                probe = copy.deepcopy(scene_data)
+                scene_keys.assign(probe, k, v[0])
+            except scene_keys.KeyError_ as e:
+                keys_t.fail(k, f"{e} (scene {scene})")
+            seen_keys[k] = keys_t.where(k)
+            keys.append(k)
+            values.append(list(v))
+        pname = t.string("name", keys[0])
+        if not _PARAMETER_NAME.fullmatch(pname):
+            t.fail("name", "must be letters, digits and '_.-[]' (it names a CSV column)")
+        unit = t.string("unit", "", allow_empty=True)
+        t.finish()
+        parameters.append(Parameter(pname, unit, keys, values))
+
+    rt = root.table("repetitions")
+    if rt is None:
+        rep = Repetitions(1, [scene_keys.get(scene_data, "run.seed", 1)], "run.seed")
+    else:
+        count = rt.integer("count", 1, 1, 100000)
+        key = rt.string("key", "run.seed")
+        if rt.has("seeds"):
+            seeds = rt.data["seeds"]
+            rt.used.add("seeds")
+            if (not isinstance(seeds, list) or
+                    not all(isinstance(s, int) and not isinstance(s, bool) and s >= 0
+                            for s in seeds)):
+                rt.fail("seeds", "must be an array of integers >= 0")
+            if rt.has("count") and len(seeds) != count:
+                rt.fail("seeds", f"has {len(seeds)} seeds, repetitions.count is {count}")
+            if len(set(seeds)) != len(seeds):
+                rt.fail("seeds", "has a seed twice (repetitions would be identical)")
+            if rt.has("first_seed"):
+                rt.fail("first_seed", "cannot be given with seeds")
+            count = len(seeds)
+            if count == 0:
+                rt.fail("seeds", "must not be empty")
+        else:
+            first = rt.integer("first_seed", 1, 0, 2**63 - 1 - count)
+            seeds = [first + i for i in range(count)]
+        if key in seen_keys:
+            rt.fail("key", f"'{key}' is also a parameter ({seen_keys[key]})")
+        try:
+            scene_keys.assign(copy.deepcopy(scene_data), key, seeds[0])
+        except scene_keys.KeyError_ as e:
+            rt.fail("key", f"{e} (scene {scene})")
+        rt.finish()
+        rep = Repetitions(count, seeds, key)
+
+    ex = Execution()
+    et = root.table("execution")
+    if et is not None:
+        ex.threads = et.integer("threads", 1, 1, 4096)
+        ex.max_retries = et.integer("max_retries", 2, 0, 100)
+        ex.timeout = et.number("timeout", 0.0, 0.0)
+        ex.jobs = et.integer("jobs", 0, 0, 100000)
+        ex.args = et.strings("args", [])
+        for a in ex.args:
+            if a in ("--output-dir", "--resume", "--set", "--check", "--bin-dir") or \
+                    a.startswith(("--output-dir=", "--resume=", "--set=")):
+                et.fail("args", f"'{a}' is set by the sweep itself for each member")
+        et.finish()
+
+    sl = SlurmOptions()
+    st = root.table("slurm")
+    if st is not None:
+        sl.partition = st.string("partition", "")
+        sl.time = st.string("time", "")
+        if sl.time and not re.fullmatch(r"(\d+-)?\d+(:\d+){0,2}", sl.time):
+            st.fail("time", f'is "{sl.time}", expected a Slurm time such as "30", "2:00:00" or '
+                    '"1-12:00:00"')
+        sl.account = st.string("account", "")
+        sl.qos = st.string("qos", "")
+        sl.mem = st.string("mem", "")
+        sl.max_concurrent = st.integer("max_concurrent", 0, 0, 1000000)
+        sl.options = st.strings("options", [])
+        for o in sl.options:
+            if not o.startswith("-"):
+                st.fail("options", f"'{o}' is not an sbatch option (they start with '-')")
+        st.finish()
+
+    quantities = []
+    names = {p.name for p in parameters}
+    for t in root.tables("quantity"):
+        qname = t.string("name")
+        if not _NAME.fullmatch(qname):
+            t.fail("name", "must be letters, digits, '_', '.' or '-' (it names a CSV column)")
+        if qname in names or qname in ("member", "setting", "seed", "status", "attempts",
+                                       "run_time"):
+            t.fail("name", f"'{qname}' is already a column (a parameter, another quantity or "
+                   "one of member, setting, seed, status, attempts, run_time)")
+        names.add(qname)
+        qfile = t.string("file")
+        if Path(qfile).is_absolute() or ".." in Path(qfile).parts:
+            t.fail("file", "must be a path inside the member's output folder (e.g. "
+                   '"coupling.csv", "sensor_ke.csv")')
+        q = Quantity(qname, qfile, t.string("column"), t.string("time_column", "time"),
+                     t.string("unit", "", allow_empty=True), "", where=t.where())
+        has_at, has_reduce = t.has("at"), t.has("reduce")
+        if has_at == has_reduce:
+            t.fail("at" if has_at else "reduce", "exactly one of 'at' (a time) and 'reduce' ("
+                   + ", ".join(f'"{r}"' for r in REDUCTIONS) + ") must be given")
+        if has_at:
+            q.kind = "at"
+            q.at = t.number("at")
+            q.method = t.string("method", "linear", choices=("linear", "nearest"))
+        else:
+            q.kind = t.string("reduce", choices=REDUCTIONS)
+            if t.has("method"):
+                t.fail("method", "applies to 'at' only")
+        if t.has("window"):
+            if q.kind in ("at", "final"):
+                t.fail("window", f"does not apply to {q.kind!r}")
+            w = t.data["window"]
+            t.used.add("window")
+            if (not isinstance(w, list) or len(w) != 2 or
+                    not all(isinstance(x, (int, float)) and not isinstance(x, bool) and
+                            math.isfinite(x) for x in w) or not w[0] < w[1]):
+                t.fail("window", "must be [t0, t1] in s with t0 < t1")
+            q.window = (float(w[0]), float(w[1]))
+        t.finish()
+        quantities.append(q)
+
+    root.finish()
+    return Spec(path, name, scene, scene_data, output_dir, parameters, rep, ex, sl, quantities)
