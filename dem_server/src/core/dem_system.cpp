@@ -242,6 +242,7 @@ struct DemSystem::Impl {
   bool poly = false;
   std::vector<double> ptj;    // 3 per pair: torque on j (poly systems; pt is the torque on i)
   std::vector<double> paxis;  // 3 per pair: separating-axis cache of the narrow phase
+  std::vector<std::int32_t> pfeat;  // 6 per pair: closest-feature cache (GJK warm start)
 
   ParticleState st;
   std::vector<double> tx, ty, tz;  // torque of the last step
@@ -726,11 +727,14 @@ struct DemSystem::Impl {
     // carry the tangential springs over (merge of the sorted old and new rows)
     const std::size_t npair = nnbr.size();
     std::vector<double> nshear, nrhist, naxis;
+    std::vector<std::int32_t> nfeat;
     if (rolling) nrhist.assign(3 * npair, 0.0);  // carried with the springs
-    if (poly) naxis.assign(3 * npair, 0.0);      // and the narrow phase's axis cache
+    if (poly) naxis.assign(3 * npair, 0.0);      // and the narrow phase's caches
+    if (poly) nfeat.assign(6 * npair, -1);
     if (friction) nshear.assign(3 * npair, 0.0);
     if ((friction || poly) && row.size() == np + 1) {
-      const bool carry_axis = poly && paxis.size() == 3 * nbr.size();
+      const bool carry_axis =
+          poly && paxis.size() == 3 * nbr.size() && pfeat.size() == 6 * nbr.size();
 #pragma omp parallel for num_threads(nt()) schedule(static)
       for (std::int64_t i = 0; i < sn; ++i) {
         std::int64_t a = row[i], b = nrow[i];
@@ -744,8 +748,10 @@ struct DemSystem::Impl {
               for (int d = 0; d < 3; ++d) nshear[3 * b + d] = shear[3 * a + d];
             if (friction && rolling && rhist.size() == shear.size())
               for (int d = 0; d < 3; ++d) nrhist[3 * b + d] = rhist[3 * a + d];
-            if (carry_axis)
+            if (carry_axis) {
               for (int d = 0; d < 3; ++d) naxis[3 * b + d] = paxis[3 * a + d];
+              for (int d = 0; d < 6; ++d) nfeat[6 * b + d] = pfeat[6 * a + d];
+            }
             ++a, ++b;
           }
         }
@@ -756,6 +762,7 @@ struct DemSystem::Impl {
     shear.swap(nshear);
     rhist.swap(nrhist);
     paxis.swap(naxis);
+    pfeat.swap(nfeat);
     pown.resize(npair);
 #pragma omp parallel for num_threads(nt()) schedule(static)
     for (std::int64_t i = 0; i < sn; ++i)
@@ -850,7 +857,8 @@ struct DemSystem::Impl {
       pp = poly_particles(a.view);
       pa = detail::PolyPairs{pown.data(), nbr.data(), st.material.data(), pc.data(), nmat,
                              s.dt,        Friction,   rolling,            shear.data(), rhist.data(),
-                             pf.data(),   pt.data(),  ptj.data(),         paxis.data()};
+                             pf.data(),   pt.data(),  ptj.data(),         paxis.data(),
+                             pfeat.data()};
     }
 
     const double h = 0.5 * s.dt;
@@ -1470,6 +1478,7 @@ void DemSystem::remove_particles(std::span<const std::uint8_t> keep) {
     std::vector<std::int64_t> nrow(static_cast<std::size_t>(m) + 1, 0);
     std::vector<std::int32_t> nnbr;
     std::vector<double> nsh, nrh, nax;
+    std::vector<std::int32_t> nft;
     for (std::size_t i = 0; i < n; ++i) {
       if (!keep[i]) continue;
       for (std::int64_t p = I.row[i]; p < I.row[i + 1]; ++p) {
@@ -1481,11 +1490,14 @@ void DemSystem::remove_particles(std::span<const std::uint8_t> keep) {
           for (int d = 0; d < 3; ++d) nrh.push_back(I.rhist[3 * p + d]);
         if (!I.paxis.empty())
           for (int d = 0; d < 3; ++d) nax.push_back(I.paxis[3 * p + d]);
+        if (!I.pfeat.empty())
+          for (int d = 0; d < 6; ++d) nft.push_back(I.pfeat[6 * p + d]);
       }
       nrow[map[i] + 1] = static_cast<std::int64_t>(nnbr.size());
     }
     I.row.swap(nrow), I.nbr.swap(nnbr), I.shear.swap(nsh), I.rhist.swap(nrh);
     I.paxis.swap(nax);
+    I.pfeat.swap(nft);
   }
   auto& st = I.st;
   for (auto* v : {&st.px,     &st.py,   &st.pz,      &st.vx, &st.vy, &st.vz, &st.wx, &st.wy,
@@ -1738,6 +1750,28 @@ std::size_t DemSystem::contact_count() const {
   for (std::size_t p = 0; p + 2 < pf.size(); p += 3)
     if (pf[p] != 0.0 || pf[p + 1] != 0.0 || pf[p + 2] != 0.0) ++c;
   return c;
+}
+
+std::size_t DemSystem::state_bytes() const {
+  const auto& I = *impl_;
+  const auto& st = I.st;
+  std::size_t b = 0;
+  auto add = [&b](const auto& v) { b += v.size() * sizeof(v[0]); };
+  for (const auto* v : {&st.px, &st.py, &st.pz, &st.vx, &st.vy, &st.vz, &st.wx, &st.wy, &st.wz,
+                        &st.qw, &st.qx, &st.qy, &st.qz, &st.fx, &st.fy, &st.fz, &st.radius,
+                        &st.mass, &st.inertia, &st.scale, &st.ix, &st.iy, &st.iz, &I.tx, &I.ty,
+                        &I.tz, &I.bx, &I.by, &I.bz})
+    add(*v);
+  add(st.material), add(st.shape), add(st.shape_id);
+  add(I.row), add(I.nbr), add(I.pown), add(I.trow), add(I.tpair), add(I.tsrc);
+  add(I.gather_row), add(I.gather_pair), add(I.gather_sign), add(I.shear), add(I.rhist);
+  add(I.pf), add(I.pt), add(I.pr), add(I.ptj), add(I.paxis), add(I.pfeat), add(I.orow),
+      add(I.onbr);
+  add(I.prow), add(I.ptri), add(I.wkey), add(I.wshear), add(I.wroll), add(I.wf), add(I.wp);
+  add(I.wb), add(I.wtri), add(I.wcount);
+  const auto& a = I.shapes.arrays();
+  add(a.vert), add(a.fnormal), add(a.fvert), add(a.edge), add(a.floop), add(a.flen);
+  return b;
 }
 
 // ---------------------------------------------------------------------------------------

@@ -84,7 +84,7 @@ double pair_range(const PolyParticles& p, const PolyPairs& a, std::int64_t begin
         phys::DilatedResult r;
         if (phys::dilated_pair<Friction>(ci, contact_radius(p, i), body_of(p, i, ci), cj,
                                          contact_radius(p, j), body_of(p, j, cj), c, a.dt, sh, axis,
-                                         r)) {
+                                         a.pfeat + 6 * k, r)) {
           force = r.force, ti = r.torque_i, tj = r.torque_j, delta = r.delta;
         }
         a.paxis[3 * k] = axis.x, a.paxis[3 * k + 1] = axis.y, a.paxis[3 * k + 2] = axis.z;

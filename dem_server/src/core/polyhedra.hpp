@@ -33,12 +33,13 @@ struct PolyPairs {
   std::size_t nmat;
   double dt;
   bool friction, rolling;
-  double* shear;  ///< 3 per pair (friction)
-  double* rhist;  ///< 3 per pair (rolling, sphere pairs only)
-  double* pf;     ///< 3 per pair: force on i
-  double* pt;     ///< 3 per pair: torque on i
-  double* ptj;    ///< 3 per pair: torque on j
-  double* paxis;  ///< 3 per pair: separating-axis cache (unit, i -> j, or zero)
+  double* shear;        ///< 3 per pair (friction)
+  double* rhist;        ///< 3 per pair (rolling, sphere pairs only)
+  double* pf;           ///< 3 per pair: force on i
+  double* pt;           ///< 3 per pair: torque on i
+  double* ptj;          ///< 3 per pair: torque on j
+  double* paxis;        ///< 3 per pair: separating-axis cache (unit, i -> j, or zero)
+  std::int32_t* pfeat;  ///< 6 per pair: closest-feature cache (GJK warm start)
 };
 
 /// Forces of the pairs [begin, end) into their slots; returns the largest overlap.

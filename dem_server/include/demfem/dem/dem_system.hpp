@@ -217,6 +217,9 @@ class DemSystem {
   std::size_t neighbour_pairs() const;
   /// Number of particle-particle pairs in contact in the last step.
   std::size_t contact_count() const;
+  /// Bytes held by the host state: particle arrays, pair list with its histories and
+  /// slots, wall-contact slots, shape table (for benchmarks).
+  std::size_t state_bytes() const;
 
   /// Complete state, contact history included, for a bitwise-identical continuation.
   void save(io::H5File& file, const std::string& group) const;

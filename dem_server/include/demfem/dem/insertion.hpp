@@ -11,6 +11,11 @@
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/dem/size_distribution.hpp"
 
+namespace demfem::dem::shapes {
+class ShapeLibrary;
+struct ParticleShape;
+}  // namespace demfem::dem::shapes
+
 namespace demfem::dem {
 
 /// @brief An axis-aligned box, m.
@@ -38,6 +43,13 @@ struct RandomInsertion {
   std::array<double, 3> velocity{};
   std::uint64_t seed = 1;
   std::int64_t max_attempts = 2000;  ///< random positions tried per particle before giving up
+  /// Dilated polyhedra instead of spheres: each particle takes a shape of the library
+  /// (uniform index) at the size drawn from `sizes` (the library's size definition), a
+  /// uniformly random orientation, and the engine shape id shape_base + index (the order in
+  /// which add_library_shapes() added them). Bounding spheres do not overlap; `mass` counts
+  /// the particles' real masses.
+  const shapes::ShapeLibrary* library = nullptr;
+  std::int32_t shape_base = 0;
 };
 
 /// @brief Solid fraction above which random sequential insertion is refused up front. Random
@@ -57,14 +69,19 @@ std::vector<ParticleInit> insert_random(const RandomInsertion& request,
                                         const ParticleState* existing = nullptr);
 
 /// @brief Lattice fill: spheres of one diameter on a simple cubic lattice of the given
-/// spacing (>= diameter) filling the box, lowest layer first.
+/// spacing (>= diameter) filling the box, lowest layer first. With a shape library: polyhedra
+/// of that size (`diameter` is the size), shapes drawn uniformly and orientations at random
+/// from Rng(seed); the spacing must then be at least the largest bounding diameter.
 struct LatticeFill {
   Box region;
   double diameter = 0.0;
-  double spacing = 0.0;  ///< centre distance, m; 0 = 1.001 * diameter
+  double spacing = 0.0;  ///< centre distance, m; 0 = 1.001 * diameter (bounding diameter)
   std::int32_t material = 0;
   std::array<double, 3> velocity{};
   std::int64_t max_count = 0;  ///< 0 = as many as fit
+  const shapes::ShapeLibrary* library = nullptr;
+  std::int32_t shape_base = 0;
+  std::uint64_t seed = 1;
 };
 
 /// @brief Particles of a lattice fill; throws InsertionError when not one fits.
@@ -78,5 +95,18 @@ std::size_t remove_above(DemSystem& system, double height);
 
 /// @brief Mass of a sphere of diameter d and density rho, kg.
 double sphere_mass(double diameter, double density);
+
+/// @brief The engine's description of a shape of the shape library (its core, r_d, volume
+/// and principal moments at the shape's own size).
+PolyhedronShape engine_shape(const shapes::ParticleShape& shape, std::string name);
+
+/// @brief Adds the library's unit shapes to the system's shape table, in order; returns the
+/// engine id of the first (RandomInsertion::shape_base).
+std::int32_t add_library_shapes(DemSystem& system, const shapes::ShapeLibrary& library,
+                                const std::string& name);
+
+/// @brief A uniformly distributed random rotation (unit quaternion w, x, y, z; Shoemake's
+/// method, from three uniforms of rng).
+std::array<double, 4> random_orientation(Rng& rng);
 
 }  // namespace demfem::dem

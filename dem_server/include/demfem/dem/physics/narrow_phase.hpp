@@ -132,11 +132,12 @@ DEMFEM_HD bool simplex_closest(Simplex& s, Vec3& v) {
     v = Vec3{0, 0, 0};
     return false;
   }
-  // otherwise the closest point lies on a face: the nearest of the four
-  const int faces[4][3] = {{0, 1, 2}, {0, 1, 3}, {0, 2, 3}, {1, 2, 3}};
+  // otherwise the closest point lies on a face holding the newest point w[3] (the origin
+  // lies beyond the previous triangle 0, 1, 2 towards w[3]): the nearest of those three
+  const int faces[3][3] = {{0, 1, 3}, {0, 2, 3}, {1, 2, 3}};
   int best = 0;
   double bd = 1e300;
-  for (int f = 0; f < 4; ++f) {
+  for (int f = 0; f < 3; ++f) {
     const ClosestPoint cp =
         closest_point_triangle(o, s.w[faces[f][0]], s.w[faces[f][1]], s.w[faces[f][2]]);
     const double dd = norm2(cp.point);
@@ -162,21 +163,149 @@ struct GjkResult {
   double dist;
   Vec3 v;       ///< p_A - p_B (status 1), a separating direction B → A (status 0)
   Vec3 pa, pb;  ///< closest points (status 1)
+  int n;        ///< final simplex (status 1): its vertex pairs (ia, ib)
+  int ia[3], ib[3];
 };
 
+namespace detail {
+
+// Closest points of segments p1 q1 and p2 q2 (Ericson §5.1.9, the parallel case clamped).
+DEMFEM_HD void closest_segments(Vec3 p1, Vec3 q1, Vec3 p2, Vec3 q2, Vec3& c1, Vec3& c2) {
+  const Vec3 d1 = q1 - p1, d2 = q2 - p2, r = p1 - p2;
+  const double a = norm2(d1), e = norm2(d2), f = dot(d2, r);
+  double sp, t;
+  if (!(a > 0.0) && !(e > 0.0)) {
+    sp = t = 0.0;
+  } else if (!(a > 0.0)) {
+    sp = 0.0;
+    t = f / e;
+    t = t < 0.0 ? 0.0 : (t > 1.0 ? 1.0 : t);
+  } else {
+    const double c = dot(d1, r);
+    if (!(e > 0.0)) {
+      t = 0.0;
+      sp = -c / a;
+      sp = sp < 0.0 ? 0.0 : (sp > 1.0 ? 1.0 : sp);
+    } else {
+      const double b = dot(d1, d2);
+      const double den = a * e - b * b;
+      sp = den > 0.0 ? (b * f - c * e) / den : 0.0;
+      sp = sp < 0.0 ? 0.0 : (sp > 1.0 ? 1.0 : sp);
+      t = (b * sp + f) / e;
+      if (t < 0.0) {
+        t = 0.0;
+        sp = -c / a;
+        sp = sp < 0.0 ? 0.0 : (sp > 1.0 ? 1.0 : sp);
+      } else if (t > 1.0) {
+        t = 1.0;
+        sp = (b - c) / a;
+        sp = sp < 0.0 ? 0.0 : (sp > 1.0 ? 1.0 : sp);
+      }
+    }
+  }
+  c1 = p1 + sp * d1;
+  c2 = p2 + t * d2;
+}
+
+// Closest point of segment a b to p.
+DEMFEM_HD Vec3 closest_on_segment(Vec3 p, Vec3 a, Vec3 b) {
+  const Vec3 e = b - a;
+  const double ee = norm2(e);
+  double t = ee > 0.0 ? dot(p - a, e) / ee : 0.0;
+  t = t < 0.0 ? 0.0 : (t > 1.0 ? 1.0 : t);
+  return a + t * e;
+}
+
+// The closest points recomputed from the closest features alone (A's vertices sa, B's sb,
+// ascending), so that they do not depend on the path GJK took: vertex–face, edge–edge,
+// vertex–edge and vertex–vertex. Returns false for other (degenerate) feature pairs.
+DEMFEM_HD bool canonical_points(const Core& A, const int* sa, int na, const Core& B, const int* sb,
+                                int nb, Vec3& pa, Vec3& pb) {
+  if (na == 1 && nb == 1) {
+    pa = core_vertex(A, sa[0]);
+    pb = core_vertex(B, sb[0]);
+  } else if (na == 1 && nb == 2) {
+    pa = core_vertex(A, sa[0]);
+    pb = closest_on_segment(pa, core_vertex(B, sb[0]), core_vertex(B, sb[1]));
+  } else if (na == 2 && nb == 1) {
+    pb = core_vertex(B, sb[0]);
+    pa = closest_on_segment(pb, core_vertex(A, sa[0]), core_vertex(A, sa[1]));
+  } else if (na == 1 && nb == 3) {
+    pa = core_vertex(A, sa[0]);
+    pb = closest_point_triangle(pa, core_vertex(B, sb[0]), core_vertex(B, sb[1]),
+                                core_vertex(B, sb[2]))
+             .point;
+  } else if (na == 3 && nb == 1) {
+    pb = core_vertex(B, sb[0]);
+    pa = closest_point_triangle(pb, core_vertex(A, sa[0]), core_vertex(A, sa[1]),
+                                core_vertex(A, sa[2]))
+             .point;
+  } else if (na == 2 && nb == 2) {
+    closest_segments(core_vertex(A, sa[0]), core_vertex(A, sa[1]), core_vertex(B, sb[0]),
+                     core_vertex(B, sb[1]), pa, pb);
+  } else {
+    return false;
+  }
+  return true;
+}
+
+// The distinct values of v[0..n), ascending.
+DEMFEM_HD int sorted_unique(const int* v, int n, int* out) {
+  int m = 0;
+  for (int k = 0; k < n; ++k) {
+    bool dup = false;
+    for (int j = 0; j < m; ++j) dup = dup || out[j] == v[k];
+    if (!dup) out[m++] = v[k];
+  }
+  for (int i = 1; i < m; ++i)
+    for (int j = i; j > 0 && out[j - 1] > out[j]; --j) {
+      const int t = out[j];
+      out[j] = out[j - 1];
+      out[j - 1] = t;
+    }
+  return m;
+}
+
+}  // namespace detail
+
 /// GJK distance of cores A and B, stopping early when a separating axis shows Δ > margin.
-DEMFEM_HD GjkResult gjk_distance(const Core& A, const Core& B, double margin) {
+/// Warm start: `seed` (3 vertex pairs ia, ib; -1 unused; may be null), the closest features
+/// of an earlier call, seeds the simplex; else `dir` (A → B, may be zero) gives the first
+/// direction; else the centre difference. The closest points returned are recomputed from
+/// the closest features (detail::canonical_points), so that they do not depend on the start
+/// wherever those features are unique.
+DEMFEM_HD GjkResult gjk_distance(const Core& A, const Core& B, double margin,
+                                 const int* seed = nullptr, Vec3 dir = Vec3{0, 0, 0}) {
   GjkResult r{};
   detail::Simplex s{};
-  // start along the centre difference (deterministic: the result depends on the poses only)
-  Vec3 d = core_vertex(A, 0) - core_vertex(B, 0);
-  if (A.kind != Core::kTriangle)
-    d = A.x - (B.kind == Core::kTriangle ? (1.0 / 3.0) * (B.t[0] + B.t[1] + B.t[2]) : B.x);
-  if (!(norm2(d) > 0.0)) d = Vec3{1, 0, 0};
-  detail::cso_support(A, B, -1.0 * d, s.w[0], s.a[0], s.b[0], s.ia[0], s.ib[0]);
-  s.n = 1;
-  s.lam[0] = 1.0;
-  Vec3 v = s.w[0];
+  s.n = 0;
+  if (seed != nullptr)
+    for (int k = 0; k < 3; ++k) {
+      const int ia = seed[2 * k], ib = seed[2 * k + 1];
+      if (ia < 0 || ib < 0 || ia >= A.nv || ib >= B.nv) continue;
+      bool dup = false;
+      for (int j = 0; j < s.n; ++j) dup = dup || (s.ia[j] == ia && s.ib[j] == ib);
+      if (dup) continue;
+      s.a[s.n] = core_vertex(A, ia), s.b[s.n] = core_vertex(B, ib);
+      s.w[s.n] = s.a[s.n] - s.b[s.n], s.ia[s.n] = ia, s.ib[s.n] = ib;
+      ++s.n;
+    }
+  Vec3 v;
+  if (s.n > 0) {
+    detail::simplex_closest(s, v);  // at most 3 points: never "inside"
+  } else {
+    Vec3 d = -1.0 * dir;
+    if (!(norm2(d) > 0.0)) {
+      d = core_vertex(A, 0) - core_vertex(B, 0);
+      if (A.kind != Core::kTriangle)
+        d = A.x - (B.kind == Core::kTriangle ? (1.0 / 3.0) * (B.t[0] + B.t[1] + B.t[2]) : B.x);
+    }
+    if (!(norm2(d) > 0.0)) d = Vec3{1, 0, 0};
+    detail::cso_support(A, B, -1.0 * d, s.w[0], s.a[0], s.b[0], s.ia[0], s.ib[0]);
+    s.n = 1;
+    s.lam[0] = 1.0;
+    v = s.w[0];
+  }
   double vv = norm2(v);
   // scale of the coordinates, for the termination tolerances
   const double tiny = 1e-30;
@@ -213,13 +342,19 @@ DEMFEM_HD GjkResult gjk_distance(const Core& A, const Core& B, double margin) {
     return r;
   }
   Vec3 pa{0, 0, 0}, pb{0, 0, 0};
-  double lsum = 0.0;
-  for (int k = 0; k < s.n; ++k) lsum += s.lam[k];
-  for (int k = 0; k < s.n; ++k) {
-    const double l = s.lam[k] / lsum;
-    pa = pa + l * s.a[k];
-    pb = pb + l * s.b[k];
+  int sa[3], sb[3];
+  const int na = detail::sorted_unique(s.ia, s.n, sa), nb = detail::sorted_unique(s.ib, s.n, sb);
+  if (!detail::canonical_points(A, sa, na, B, sb, nb, pa, pb)) {
+    double lsum = 0.0;
+    for (int k = 0; k < s.n; ++k) lsum += s.lam[k];
+    for (int k = 0; k < s.n; ++k) {
+      const double l = s.lam[k] / lsum;
+      pa = pa + l * s.a[k];
+      pb = pb + l * s.b[k];
+    }
   }
+  r.n = s.n;
+  for (int k = 0; k < 3; ++k) r.ia[k] = k < s.n ? s.ia[k] : -1, r.ib[k] = k < s.n ? s.ib[k] : -1;
   r.status = 1;
   r.pa = pa, r.pb = pb;
   r.v = pa - pb;
@@ -381,6 +516,14 @@ DEMFEM_HD double touching_region(const Vec3* r, int nr_, Vec3 nr, const Vec3* in
 /// Cosine above which the contact normal counts as the normal of a face (1e-3 rad).
 constexpr double kFaceAlign = 1.0 - 5e-7;
 
+/// An incident face tilted against the reference by more than kRegionTilt (15°) is left out of
+/// the touching region: its part of the band o > 0 is a cap that reaches less than
+/// δ / tan 15° ≈ 4 δ from its deepest vertex, so leaving it out moves the contact point by a
+/// few overlaps at most (and spares clipping the faces around every vertex contact: they
+/// were most of the narrow phase's time). Nearly parallel faces, whose band can span the
+/// face, are always in.
+constexpr double kRegionCos = 0.96592582628906828675;  // cos 15°
+
 /// Largest vertex count of a core whose touching region is computed (larger hulls, e.g. of a
 /// finely scanned rock: point contacts).
 constexpr int kMaxRegionVertices = 128;
@@ -392,8 +535,16 @@ constexpr int kMaxRegionVertices = 128;
 /// region is summed over every face of the other body that faces the reference: their bands
 /// o ≥ 0 partition the overlap of its lower envelope, so the region changes continuously
 /// with the pose (no choice of one incident face).
+/// When the reference face's normal is the contact normal (to kFaceAlign), `canon` is set and
+/// dist_c, n_c, mid_c give the distance (the incident body's lowest vertex above the reference
+/// plane), the normal (A → B) and the position along it of the midpoint between the dilated
+/// surfaces, computed from the faces alone: they do not depend on the path GJK took (a face
+/// resting on a face has non-unique closest points).
 DEMFEM_HD int contact_region(const Core& A, const Core& B, Vec3 n, double rsum, Vec3 p0, bool ref_b,
-                             double& weight, Vec3& moment, double* second, int& ref_face) {
+                             double& weight, Vec3& moment, double* second, int& ref_face,
+                             bool& canon, double& dist_c, Vec3& n_c, double& mid_c, double ra,
+                             double rb) {
+  canon = false;
   weight = 0.0;
   moment = Vec3{0, 0, 0};
   for (int k = 0; k < 6; ++k) second[k] = 0.0;
@@ -406,6 +557,7 @@ DEMFEM_HD int contact_region(const Core& A, const Core& B, Vec3 n, double rsum, 
   const bool a_ref = !ref_b && aa >= kFaceAlign && aa >= ab;
   const bool b_ref = ref_b || (!a_ref && ab >= kFaceAlign);
   if (!a_ref && !b_ref) return -1;
+  const bool aligned = a_ref || ab >= kFaceAlign;
   const Core& R = a_ref ? A : B;
   const Core& I = a_ref ? B : A;
   const int rf = a_ref ? fa : fb;
@@ -414,33 +566,44 @@ DEMFEM_HD int contact_region(const Core& A, const Core& B, Vec3 n, double rsum, 
   if (nr < 3 || I.nv > kMaxRegionVertices) return -1;
   const Vec3 nrm = core_face_normal(R, rf);
   const double plane = dot(nrm, rp[0]);
-  // the incident body's vertices once, and their heights above the reference plane
-  Vec3 wv[kMaxRegionVertices];
+  // heights of the incident body's vertices above the reference plane, from the body frame
+  // (one rotation, not one per vertex); world positions only for the faces in the band
   double hv[kMaxRegionVertices];
-  for (int k = 0; k < I.nv; ++k) {
-    wv[k] = core_vertex(I, k);
-    hv[k] = dot(nrm, wv[k]) - plane;
+  Vec3 nb = nrm;  // the reference normal in I's frame (triangle: world)
+  double h0 = -plane;
+  if (I.kind == Core::kTriangle) {
+    for (int k = 0; k < 3; ++k) hv[k] = dot(nrm, I.t[k]) - plane;
+  } else {
+    nb = to_body(I.r, nrm);
+    h0 = dot(nrm, I.x) - plane;
+    for (int k = 0; k < I.nv; ++k) {
+      const double* p = I.v + 3 * k;
+      hv[k] = h0 + I.s * (nb.x * p[0] + nb.y * p[1] + nb.z * p[2]);
+    }
   }
   const int nfi = core_face_count(I);
+  const double* fn =
+      I.kind == Core::kTriangle ? nullptr : I.table->fnormal + 3 * I.table->fbase[I.shape];
   for (int g = 0; g < nfi; ++g) {
-    if (!(dot(core_face_normal(I, g), nrm) < 0.0)) continue;  // faces the reference only
     Vec3 ip[kMaxFaceVertices];
     int ni;
     double hmin = 1e300;
     if (I.kind == Core::kTriangle) {
+      if (!(dot(core_face_normal(I, g), nrm) < -kRegionCos)) continue;
       ni = core_face_polygon(I, g, ip);
       for (int k = 0; k < 3; ++k) hmin = hv[k] < hmin ? hv[k] : hmin;
+      if (hmin >= rsum) continue;
     } else {
+      // faces the reference within kRegionTilt only (see there)
+      if (!(fn[3 * g] * nb.x + fn[3 * g + 1] * nb.y + fn[3 * g + 2] * nb.z < -kRegionCos)) continue;
       const int gi = I.table->fbase[I.shape] + g;
       ni = I.table->flen[gi];
       if (ni > kMaxFaceVertices) continue;
       const std::int32_t* lp = I.table->fvert + I.table->floop[gi];
-      for (int k = 0; k < ni; ++k) {
-        ip[k] = wv[lp[k]];
-        hmin = hv[lp[k]] < hmin ? hv[lp[k]] : hmin;
-      }
+      for (int k = 0; k < ni; ++k) hmin = hv[lp[k]] < hmin ? hv[lp[k]] : hmin;
+      if (hmin >= rsum) continue;  // the whole face is above the band
+      for (int k = 0; k < ni; ++k) ip[k] = core_vertex(I, lp[k]);
     }
-    if (hmin >= rsum) continue;  // the whole face is above the band
     double w;
     Vec3 m;
     double s2[6];
@@ -452,6 +615,15 @@ DEMFEM_HD int contact_region(const Core& A, const Core& B, Vec3 n, double rsum, 
   }
   if (!(weight > 0.0)) return -1;
   ref_face = rf;
+  if (aligned) {
+    double hmin = 1e300;
+    const int nvi = I.kind == Core::kTriangle ? 3 : I.nv;
+    for (int k = 0; k < nvi; ++k) hmin = hv[k] < hmin ? hv[k] : hmin;
+    canon = true;
+    dist_c = hmin;
+    n_c = a_ref ? nrm : -1.0 * nrm;
+    mid_c = a_ref ? plane + 0.5 * (ra + hmin - rb) : -plane + 0.5 * (ra - hmin - rb);
+  }
   return a_ref ? 0 : 1;
 }
 
@@ -460,7 +632,8 @@ DEMFEM_HD int contact_region(const Core& A, const Core& B, Vec3 n, double rsum, 
 /// (unit, A → B, or zero) is tried first: when it separates the cores by more than the
 /// margin, nothing else is computed.
 DEMFEM_HD ConvexContact convex_contact(const Core& A, double ra, const Core& B, double rb,
-                                       double margin, Vec3 axis, bool ref_b = false) {
+                                       double margin, Vec3 axis, bool ref_b = false,
+                                       int* feat = nullptr) {
   ConvexContact c{};
   c.ref_side = -1;
   c.ref_face = -1;
@@ -473,10 +646,17 @@ DEMFEM_HD ConvexContact convex_contact(const Core& A, double ra, const Core& B, 
       c.separated = true;
       c.axis = axis;
       c.dist = gap;
+      if (feat != nullptr)
+        for (int k = 0; k < 6; ++k) feat[k] = -1;
       return c;
     }
   }
-  const GjkResult g = gjk_distance(A, B, limit);
+  const GjkResult g = gjk_distance(A, B, limit, feat, axis);
+  if (feat != nullptr)
+    for (int k = 0; k < 3; ++k) {
+      feat[2 * k] = g.status == 1 ? g.ia[k] : -1;
+      feat[2 * k + 1] = g.status == 1 ? g.ib[k] : -1;
+    }
   if (g.status == 0) {
     c.separated = true;
     c.axis = (-1.0 / std::sqrt(norm2(g.v))) * g.v;
@@ -500,13 +680,24 @@ DEMFEM_HD ConvexContact convex_contact(const Core& A, double ra, const Core& B, 
   c.axis = c.n;
   const Vec3 mid = 0.5 * (c.pa + ra * c.n + c.pb - rb * c.n);
   c.point = mid;
-  const double delta = rsum - c.dist;
-  if (delta > 0.0) {
-    c.ref_side =
-        contact_region(A, B, c.n, rsum, A.x, ref_b, c.weight, c.moment, c.second, c.ref_face);
+  if (rsum - c.dist > 0.0) {
+    bool canon;
+    double dist_c, mid_c;
+    Vec3 n_c;
+    c.ref_side = contact_region(A, B, c.n, rsum, A.x, ref_b, c.weight, c.moment, c.second,
+                                c.ref_face, canon, dist_c, n_c, mid_c, ra, rb);
     if (c.ref_side >= 0) {
       const Vec3 cen = (1.0 / c.weight) * c.moment;
-      c.point = cen + dot(c.n, mid - cen) * c.n;
+      // the faces' distance replaces GJK's only where they agree (the normal is the face's
+      // up to rounding, not just within kFaceAlign: a nearly parallel edge is not a face)
+      if (canon && g.status == 1 && std::abs(dist_c - c.dist) <= 1e-9 * (rsum + std::abs(c.dist))) {
+        c.dist = dist_c;
+        c.n = n_c;
+        c.axis = n_c;
+        c.point = cen + (mid_c - dot(n_c, cen)) * n_c;
+      } else {
+        c.point = cen + dot(c.n, mid - cen) * c.n;
+      }
     }
   }
   return c;

@@ -195,13 +195,15 @@ DEMFEM_HD DilatedResult dilated_law(const PairConstants& pc, Vec3 n, double delt
 }
 
 /// Contact of two bodies with dilated cores (polyhedron–polyhedron, polyhedron–sphere: a
-/// sphere is a point core of radius r). `axis` is the per-pair separating-axis cache (unit,
-/// i → j, or zero), updated. Returns false (out zero, shear reset) when they do not touch.
+/// sphere is a point core of radius r). `axis` (unit, i → j, or zero) and `feat` (6 ints, the
+/// closest features) are the pair's narrow-phase cache, updated (warm start; the result does
+/// not depend on them, see gjk_distance). Returns false (out zero, shear reset) when they do
+/// not touch.
 template <bool Friction>
 DEMFEM_HD bool dilated_pair(const Core& ci, double ri, const BodyState& bi, const Core& cj,
                             double rj, const BodyState& bj, const PairConstants& pc, double dt,
-                            Vec3& shear, Vec3& axis, DilatedResult& out) {
-  const ConvexContact k = convex_contact(ci, ri, cj, rj, 0.0, axis);
+                            Vec3& shear, Vec3& axis, int* feat, DilatedResult& out) {
+  const ConvexContact k = convex_contact(ci, ri, cj, rj, 0.0, axis, false, feat);
   axis = k.axis;
   const double delta = ri + rj - k.dist;
   if (k.separated || !(delta > 0.0)) {
@@ -248,7 +250,12 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
     const Vec3 b{v[3 * tv[1]], v[3 * tv[1] + 1], v[3 * tv[1] + 2]};
     const Vec3 c{v[3 * tv[2]], v[3 * tv[2] + 1], v[3 * tv[2] + 2]};
     const Core t = triangle_core(a, b, c);
-    const ConvexContact k2 = convex_contact(p.core, p.r, t, 0.0, 0.0, Vec3{0, 0, 0}, true);
+    // the triangle's normal towards the particle's centre, turned to point from the particle
+    // to the triangle, is the first axis tried: it rejects a triangle whose plane the
+    // particle's lowest point is more than r_d above, and it starts GJK at the lowest point
+    Vec3 nt0 = cross(b - a, c - a);
+    nt0 = (dot(nt0, p.core.x - a) > 0.0 ? -1.0 : 1.0) / std::sqrt(norm2(nt0)) * nt0;
+    const ConvexContact k2 = convex_contact(p.core, p.r, t, 0.0, 0.0, nt0, true);
     const double delta = p.r - k2.dist;
     if (k2.separated || !(delta > 0.0)) continue;
     // the triangle's feature: its face when n is its normal, else its support feature
