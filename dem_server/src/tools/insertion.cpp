@@ -272,7 +272,7 @@ std::vector<ParticleInit> lattice_fill(const LatticeFill& q) {
   }
   if (n[0] * n[1] * n[2] == 0) {
     throw InsertionError("lattice fill of " + q.region.describe() + " with diameter " +
-                         std::to_string(bd) + " m: not one particle fits");
+                         std::to_string(bd) + " m: not one " + (q.library ? "particle" : "sphere") + " fits");
   }
   std::vector<ParticleInit> out;
   for (std::int64_t k = 0; k < n[2]; ++k)
