@@ -1234,6 +1234,21 @@ struct DemSystem::Impl {
     for (int k = 0; k < 3; ++k) v.gravity[k] = s.gravity[k];
     v.friction = friction, v.rolling = rolling;
     v.orientation = orientation;
+    if (poly) {
+      const auto& a = shapes.arrays();
+      v.poly = true;
+      v.nshapes = a.nv.size(), v.nshape_verts = a.vert.size() / 3;
+      v.nshape_faces = a.flen.size(), v.nshape_fverts = a.fvert.size();
+      v.nshape_edges = a.edge.size() / 2;
+      v.vbase = a.vbase.data(), v.snv = a.nv.data(), v.fbase = a.fbase.data(), v.snf = a.nf.data();
+      v.floop = a.floop.data(), v.flen = a.flen.data(), v.fvert = a.fvert.data();
+      v.ebase = a.ebase.data(), v.sne = a.ne.data(), v.edge = a.edge.data();
+      v.vert = a.vert.data(), v.fnormal = a.fnormal.data(), v.dilation = a.dilation.data();
+      v.bound = a.bound.data();
+      v.shape_id = st.shape_id.data(), v.scale = st.scale.data();
+      v.ix = st.ix.data(), v.iy = st.iy.data(), v.iz = st.iz.data();
+      v.ptj = ptj.data(), v.paxis = paxis.data(), v.pfeat = pfeat.data();
+    }
     if (!tri_v.empty()) {
       v.nverts = vpos.size() / 3, v.ntris = tri_v.size() / 3, v.nptri = ptri.size();
       v.vpos = vpos.data(), v.vvel = vvel.data();
@@ -1321,9 +1336,6 @@ struct DemSystem::Impl {
     for (std::uint8_t shape : st.shape)
       poly = poly || shape != static_cast<std::uint8_t>(ParticleShape::sphere);
     orientation = orientation || poly;
-    if (poly && gpu != nullptr)
-      throw std::runtime_error(
-          "DemSystem: dilated polyhedra are not on the CUDA backend yet; use backend = 'cpu'");
     // The CUDA backend checks the list against the whole skin on the device: one level.
     skin_in = gpu != nullptr ? skin : (s.list_skin > 0.0 ? s.list_skin : kInnerSkin) * skin;
   }

@@ -16,38 +16,6 @@ using phys::Vec3;
 
 namespace {
 
-bool is_poly(const PolyParticles& p, std::int64_t i) {
-  return p.shape_id[i] >= 0;
-}
-
-phys::Core core_of(const PolyParticles& p, std::int64_t i) {
-  const Vec3 x{p.view.px[i], p.view.py[i], p.view.pz[i]};
-  if (!is_poly(p, i)) return phys::point_core(x);
-  return phys::polyhedron_core(p.table, p.shape_id[i], x, p.qw[i], p.qx[i], p.qy[i], p.qz[i],
-                               p.scale[i]);
-}
-
-// contact radius: a sphere's radius, a polyhedron's dilation
-double contact_radius(const PolyParticles& p, std::int64_t i) {
-  return is_poly(p, i) ? p.scale[i] * p.table.dilation[p.shape_id[i]] : p.view.radius[i];
-}
-
-phys::BodyState body_of(const PolyParticles& p, std::int64_t i, const phys::Core& c) {
-  phys::BodyState b;
-  b.x = Vec3{p.view.px[i], p.view.py[i], p.view.pz[i]};
-  b.v = Vec3{p.view.vx[i], p.view.vy[i], p.view.vz[i]};
-  b.w = Vec3{p.view.wx[i], p.view.wy[i], p.view.wz[i]};
-  b.m = p.view.mass[i];
-  if (is_poly(p, i)) {
-    b.r = c.r;
-    b.inertia = Vec3{p.ix[i], p.iy[i], p.iz[i]};
-  } else {
-    b.r = phys::Rot{{1, 0, 0, 0, 1, 0, 0, 0, 1}};
-    b.inertia = Vec3{p.inertia[i], p.inertia[i], p.inertia[i]};
-  }
-  return b;
-}
-
 template <bool Friction>
 double pair_range(const PolyParticles& p, const PolyPairs& a, std::int64_t begin,
                   std::int64_t end) {
@@ -56,48 +24,21 @@ double pair_range(const PolyParticles& p, const PolyPairs& a, std::int64_t begin
     const std::int32_t i = a.pi[k], j = a.pj[k];
     const phys::PairConstants& c =
         a.pc[static_cast<std::size_t>(a.material[i]) * a.nmat + a.material[j]];
-    Vec3 sh{0, 0, 0};
+    Vec3 sh{0, 0, 0}, rh{0, 0, 0};
     if constexpr (Friction) sh = Vec3{a.shear[3 * k], a.shear[3 * k + 1], a.shear[3 * k + 2]};
-    Vec3 force{0, 0, 0}, ti{0, 0, 0}, tj{0, 0, 0};
-    double delta = 0.0;
-    if (!is_poly(p, i) && !is_poly(p, j)) {
-      // two spheres: the sphere law (rolling resistance acts here only)
-      Vec3 rh{0, 0, 0};
-      if (a.rolling) rh = Vec3{a.rhist[3 * k], a.rhist[3 * k + 1], a.rhist[3 * k + 2]};
-      phys::ContactResult r;
-      if (a.rolling)
-        phys::sphere_sphere_select<Friction, true>(p.view, i, j, c, a.dt, sh, rh, r, delta);
-      else
-        phys::sphere_sphere_select<Friction, false>(p.view, i, j, c, a.dt, sh, rh, r, delta);
-      force = r.force;
-      ti = p.view.radius[i] * r.torque + r.roll;
-      tj = p.view.radius[j] * r.torque - 1.0 * r.roll;
-      if (a.rolling) a.rhist[3 * k] = rh.x, a.rhist[3 * k + 1] = rh.y, a.rhist[3 * k + 2] = rh.z;
-    } else {
-      // bounding spheres first (the list holds pairs within the skin)
-      const double dx = p.view.px[j] - p.view.px[i], dy = p.view.py[j] - p.view.py[i],
-                   dz = p.view.pz[j] - p.view.pz[i];
-      const double rs = p.view.radius[i] + p.view.radius[j];
-      if (dx * dx + dy * dy + dz * dz < rs * rs) {
-        const phys::Core ci = core_of(p, i), cj = core_of(p, j);
-        Vec3 axis{a.paxis[3 * k], a.paxis[3 * k + 1], a.paxis[3 * k + 2]};
-        phys::DilatedResult r;
-        if (phys::dilated_pair<Friction>(ci, contact_radius(p, i), body_of(p, i, ci), cj,
-                                         contact_radius(p, j), body_of(p, j, cj), c, a.dt, sh, axis,
-                                         a.pfeat + 6 * k, r)) {
-          force = r.force, ti = r.torque_i, tj = r.torque_j, delta = r.delta;
-        }
-        a.paxis[3 * k] = axis.x, a.paxis[3 * k + 1] = axis.y, a.paxis[3 * k + 2] = axis.z;
-      } else {
-        sh = Vec3{0, 0, 0};
-      }
-    }
+    if (a.rolling) rh = Vec3{a.rhist[3 * k], a.rhist[3 * k + 1], a.rhist[3 * k + 2]};
+    Vec3 axis{a.paxis[3 * k], a.paxis[3 * k + 1], a.paxis[3 * k + 2]};
+    Vec3 force, ti, tj;
+    const double delta = phys::mixed_pair<Friction>(p, i, j, c, a.dt, a.rolling, sh, rh, axis,
+                                                    a.pfeat + 6 * k, force, ti, tj);
     mo = mo > delta ? mo : delta;
     a.pf[3 * k] = force.x, a.pf[3 * k + 1] = force.y, a.pf[3 * k + 2] = force.z;
     a.pt[3 * k] = ti.x, a.pt[3 * k + 1] = ti.y, a.pt[3 * k + 2] = ti.z;
     a.ptj[3 * k] = tj.x, a.ptj[3 * k + 1] = tj.y, a.ptj[3 * k + 2] = tj.z;
+    a.paxis[3 * k] = axis.x, a.paxis[3 * k + 1] = axis.y, a.paxis[3 * k + 2] = axis.z;
     if constexpr (Friction)
       a.shear[3 * k] = sh.x, a.shear[3 * k + 1] = sh.y, a.shear[3 * k + 2] = sh.z;
+    if (a.rolling) a.rhist[3 * k] = rh.x, a.rhist[3 * k + 1] = rh.y, a.rhist[3 * k + 2] = rh.z;
   }
   return mo;
 }
@@ -112,10 +53,7 @@ double poly_pair_forces(const PolyParticles& p, const PolyPairs& a, std::int64_t
 void poly_wall_contacts(const PolyParticles& p, const phys::WallView& w, std::int64_t i,
                         const phys::PairConstants* pc_row, double dt, bool friction, Vec3& f,
                         Vec3& q, double& mo, double& fmo) {
-  phys::PolyWallParticle pw;
-  pw.core = core_of(p, i);
-  pw.r = contact_radius(p, i);
-  pw.body = body_of(p, i, pw.core);
+  const phys::PolyWallParticle pw = phys::poly_wall_particle(p, static_cast<int>(i));
   if (friction)
     phys::poly_wall_contacts<true>(pw, w, i, pc_row, dt, f, q, mo, fmo);
   else
@@ -124,7 +62,7 @@ void poly_wall_contacts(const PolyParticles& p, const phys::WallView& w, std::in
 
 void poly_angular_kick(const PolyParticles& p, std::int64_t i, double* wx, double* wy, double* wz,
                        Vec3 t, double h) {
-  if (is_poly(p, i)) {
+  if (p.shape_id[i] >= 0) {
     phys::angular_kick(wx[i], wy[i], wz[i], p.qw[i], p.qx[i], p.qy[i], p.qz[i],
                        Vec3{p.ix[i], p.iy[i], p.iz[i]}, t, h);
   } else {

@@ -7,23 +7,12 @@
 
 #include <cstdint>
 
-#include "demfem/dem/physics/contact.hpp"
-#include "demfem/dem/physics/pair.hpp"
-#include "demfem/dem/physics/shape_table.hpp"
-#include "demfem/dem/physics/wall_contact.hpp"
+#include "demfem/dem/physics/poly_contact.hpp"
 
 namespace demfem::dem::detail {
 
-/// Particle arrays of a mixed system (host pointers).
-struct PolyParticles {
-  phys::ParticleView view;  ///< positions, velocities, angular velocities, radius, mass
-  const double *qw, *qx, *qy, *qz;
-  const double *ix, *iy, *iz;  ///< principal moments
-  const double* inertia;       ///< spheres' moment
-  const double* scale;
-  const std::int32_t* shape_id;  ///< -1: sphere
-  phys::ShapeTableView table;
-};
+/// Particle arrays of a mixed system (host pointers): the shared physics view.
+using PolyParticles = phys::PolyView;
 
 /// The pair list and its per-pair slots.
 struct PolyPairs {

@@ -226,6 +226,93 @@ struct PolyWallParticle {
   BodyState body;
 };
 
+/// Read-only view of the particle arrays of a system with polyhedra (host or device).
+struct PolyView {
+  ParticleView p;  ///< positions, velocities, angular velocities, radius, mass
+  const double *qw, *qx, *qy, *qz;
+  const double *ix, *iy, *iz;  ///< principal moments
+  const double* inertia;       ///< spheres' moment
+  const double* scale;
+  const std::int32_t* shape_id;  ///< -1: sphere
+  ShapeTableView table;
+};
+
+/// The convex core of particle i (a sphere: its centre).
+DEMFEM_HD Core particle_core(const PolyView& v, int i) {
+  const Vec3 x{v.p.px[i], v.p.py[i], v.p.pz[i]};
+  if (v.shape_id[i] < 0) return point_core(x);
+  return polyhedron_core(v.table, v.shape_id[i], x, v.qw[i], v.qx[i], v.qy[i], v.qz[i], v.scale[i]);
+}
+
+/// The contact radius of particle i: a sphere's radius, a polyhedron's dilation.
+DEMFEM_HD double particle_contact_radius(const PolyView& v, int i) {
+  return v.shape_id[i] >= 0 ? v.scale[i] * v.table.dilation[v.shape_id[i]] : v.p.radius[i];
+}
+
+/// Kinematics and mass of particle i (c: its core, for the orientation).
+DEMFEM_HD BodyState particle_body(const PolyView& v, int i, const Core& c) {
+  BodyState b;
+  b.x = Vec3{v.p.px[i], v.p.py[i], v.p.pz[i]};
+  b.v = Vec3{v.p.vx[i], v.p.vy[i], v.p.vz[i]};
+  b.w = Vec3{v.p.wx[i], v.p.wy[i], v.p.wz[i]};
+  b.m = v.p.mass[i];
+  if (v.shape_id[i] >= 0) {
+    b.r = c.r;
+    b.inertia = Vec3{v.ix[i], v.iy[i], v.iz[i]};
+  } else {
+    b.r = Rot{{1, 0, 0, 0, 1, 0, 0, 0, 1}};
+    b.inertia = Vec3{v.inertia[i], v.inertia[i], v.inertia[i]};
+  }
+  return b;
+}
+
+/// One pair (i, j) of a system with polyhedra: two spheres by the sphere law (rolling
+/// resistance included), else the dilated law after the bounding spheres (particle radius)
+/// overlap. Fills the force on i and the torques on i and j; updates the spring, the
+/// rolling history (sphere pairs), the axis and feature caches. Returns the overlap (0: no
+/// contact).
+template <bool Friction>
+DEMFEM_HD double mixed_pair(const PolyView& v, int i, int j, const PairConstants& c, double dt,
+                            bool rolling, Vec3& shear, Vec3& rhist, Vec3& axis, int* feat,
+                            Vec3& force, Vec3& ti, Vec3& tj) {
+  double delta = 0.0;
+  force = ti = tj = Vec3{0, 0, 0};
+  if (v.shape_id[i] < 0 && v.shape_id[j] < 0) {
+    ContactResult r;
+    if (rolling)
+      sphere_sphere_select<Friction, true>(v.p, i, j, c, dt, shear, rhist, r, delta);
+    else
+      sphere_sphere_select<Friction, false>(v.p, i, j, c, dt, shear, rhist, r, delta);
+    force = r.force;
+    ti = v.p.radius[i] * r.torque + r.roll;
+    tj = v.p.radius[j] * r.torque - 1.0 * r.roll;
+    return delta;
+  }
+  const double dx = v.p.px[j] - v.p.px[i], dy = v.p.py[j] - v.p.py[i], dz = v.p.pz[j] - v.p.pz[i];
+  const double rs = v.p.radius[i] + v.p.radius[j];
+  if (!(dx * dx + dy * dy + dz * dz < rs * rs)) {
+    shear = Vec3{0, 0, 0};
+    return 0.0;
+  }
+  const Core ci = particle_core(v, i), cj = particle_core(v, j);
+  DilatedResult r;
+  if (dilated_pair<Friction>(ci, particle_contact_radius(v, i), particle_body(v, i, ci), cj,
+                             particle_contact_radius(v, j), particle_body(v, j, cj), c, dt, shear,
+                             axis, feat, r)) {
+    force = r.force, ti = r.torque_i, tj = r.torque_j, delta = r.delta;
+  }
+  return delta;
+}
+
+/// The wall-contact data of polyhedron i.
+DEMFEM_HD PolyWallParticle poly_wall_particle(const PolyView& v, int i) {
+  PolyWallParticle w;
+  w.core = particle_core(v, i);
+  w.r = particle_contact_radius(v, i);
+  w.body = particle_body(v, i, w.core);
+  return w;
+}
+
 /// Adds the wall contact forces and torques of polyhedron i to f and q (world), fills its
 /// wall slots (the sphere layout of WallView: key, spring, force, point, barycentric weights
 /// and triangle per contact) and raises mo / fmo (largest overlap, with the flexible mesh).
