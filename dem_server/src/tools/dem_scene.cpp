@@ -1,5 +1,7 @@
 #include "demfem/dem/dem_scene.hpp"
 
+#include "scene_shapes.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -209,6 +211,25 @@ DemScene read_dem_scene(const Table& dem) {
     return st.materials[m].density;
   };
 
+  // Particle shapes (dilated polyhedra).
+  for (const auto& t : dem.tables("shapes")) {
+    ShapeSpec sp = read_shape_spec(t);
+    for (const auto& other : s.shapes)
+      if (other.name == sp.name) t.fail("name", "shape \"" + sp.name + "\" is defined twice");
+    s.shapes.push_back(std::move(sp));
+  }
+  auto shape_index = [&](const Table& t) -> std::int32_t {
+    if (!t.has("shape")) return -1;
+    const std::string name = t.string("shape");
+    std::string list;
+    for (std::size_t k = 0; k < s.shapes.size(); ++k) {
+      if (s.shapes[k].name == name) return static_cast<std::int32_t>(k);
+      list += (list.empty() ? "\"" : ", \"") + s.shapes[k].name + "\"";
+    }
+    t.fail("shape", "names \"" + name + "\", which [[dem.shapes]] does not define" +
+                        (list.empty() ? std::string(" (none is defined)") : " (defined: " + list + ")"));
+  };
+
   // Lattice fills.
   for (const auto& l : dem.tables("lattice")) {
     LatticeSpec ls;
@@ -223,6 +244,8 @@ DemScene read_dem_scene(const Table& dem) {
     if (q.spacing > 0 && q.spacing < q.diameter) l.fail("spacing", "must be >= diameter (or 0)");
     q.velocity = l.vec3("velocity", std::array<double, 3>{0, 0, 0});
     q.max_count = l.integer("max_count", 0, 0, INT64_MAX);
+    ls.shape = shape_index(l);
+    if (ls.shape >= 0) q.seed = static_cast<std::uint64_t>(l.integer("seed", 1, 0, INT64_MAX));
     l.finish();
     s.lattices.push_back(ls);
   }
@@ -243,6 +266,7 @@ DemScene read_dem_scene(const Table& dem) {
     if (has_mass) q.mass = r.number("mass", Range::positive());
     q.velocity = r.vec3("velocity", std::array<double, 3>{0, 0, 0});
     q.max_attempts = r.integer("max_attempts", 2000, 1, INT64_MAX);
+    is.shape = shape_index(r);
     is.every = r.number("every", 0.0, Range::non_negative());
     if (is.every > 0) {
       is.until = r.number("until", Range::non_negative());
@@ -368,9 +392,18 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
     for (auto& s : scene_.sensors)
       if (s.kind == SensorSpec::Kind::wall_force && s.wall == index) s.area = area;
   }
+  for (std::size_t k = 0; k < scene_.shapes.size(); ++k) {
+    libraries_.push_back(build_shape_library(scene_.shapes[k], seed, k, log));
+    shape_base_.push_back(add_library_shapes(*system_, *libraries_.back(), scene_.shapes[k].name));
+  }
   for (const auto& l : scene_.lattices) {
     try {
-      add(lattice_fill(l.request));
+      LatticeFill q = l.request;
+      if (l.shape >= 0) {
+        q.library = libraries_[static_cast<std::size_t>(l.shape)].get();
+        q.shape_base = shape_base_[static_cast<std::size_t>(l.shape)];
+      }
+      add(lattice_fill(q));
     } catch (const InsertionError& e) {
       throw SceneError(l.where + ": " + e.what());
     }
@@ -452,6 +485,10 @@ void DemRun::pour() {
       const bool due = k == 0 || (in.every > 0 && when <= in.until + 1e-9 * in.every);
       if (!due || when > now + eps) break;
       RandomInsertion q = in.request;
+      if (in.shape >= 0) {
+        q.library = libraries_[static_cast<std::size_t>(in.shape)].get();
+        q.shape_base = shape_base_[static_cast<std::size_t>(in.shape)];
+      }
       const std::uint64_t base = in.has_seed ? q.seed : seed_ + i;
       // Repetition k draws from its own stream: 1000003 (prime) apart, so it never meets the
       // stream of another entry's first insertion (entries are 1 apart).
@@ -501,7 +538,9 @@ void DemRun::check_stable() const {
   if (radius.empty()) return;
   const double ke = system_->kinetic_energy();
   const double ov = system_->advance_max_overlap();
-  const double rmin = *std::min_element(radius.begin(), radius.end());
+  // a polyhedron's overlap is measured against its dilation radius (its cores intersect at
+  // an overlap of r_i + r_j)
+  const double rmin = system_->smallest_contact_radius();
   if (std::isfinite(ke) && ov <= kMaxStableOverlap * rmin) return;
   std::ostringstream m;
   m << "DEM run unstable in the steps up to t = " << system_->time() << " s: ";
@@ -509,7 +548,8 @@ void DemRun::check_stable() const {
     m << "the kinetic energy is " << ke << " (the particle state is no longer finite)";
   else
     m << "the largest overlap, " << ov << " m, was " << ov / rmin << " of the smallest radius "
-      << rmin << " m (at most " << kMaxStableOverlap << ")";
+      << rmin << " m (a sphere's radius or a polyhedron's dilation; at most "
+      << kMaxStableOverlap << ")";
   m << ". dt = " << scene_.settings.dt << " s against a Rayleigh time step of "
     << system_->rayleigh_time_step() << " s; reduce dt (" << scene_.dt_where
     << ") or the velocities and loads of the scene. The output holds the states before it.";
