@@ -4,9 +4,13 @@
 // shows progress, and exits with the run's status. --in-process runs the same schemes over
 // the solver libraries in this process instead (the reference for the three-process run).
 //
-// Exit status: 0 done; 1 a solver or the run failed; 2 bad command line or scene; 3 blow-up
-// (the diagnosis names step and quantity); 4 a solver kept dying after checkpoint.max_retries
-// restarts from the same checkpoint; 128 + N stopped by signal N (SIGINT: 130).
+// Exit status: 0 done; 1 a solver or the run failed (also: a solver that did not attach
+// within --hello-timeout); 2 bad command line, scene or checkpoint to resume, output folder in
+// use by another run or not writable; 3 blow-up (the diagnosis names step and quantity, or a
+// solver reported a non-finite or unstable state); 4 a solver kept dying after
+// checkpoint.max_retries restarts from the same checkpoint; 128 + N stopped by signal N
+// (SIGINT: 130, SIGTERM: 143). Every run that got its output folder leaves run.json there
+// (run_record.hpp) saying how it ended.
 
 #include <unistd.h>
 
@@ -15,21 +19,28 @@
 #include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <iostream>
 #include <memory>
 #include <optional>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include "demfem/coupling/beam_check.hpp"
 #include "demfem/coupling/checkpoint.hpp"
 #include "demfem/coupling/coupling_run.hpp"
 #include "demfem/coupling/coupling_settings.hpp"
 #include "demfem/coupling/local_solvers.hpp"
+#include "demfem/coupling/output_folder.hpp"
 #include "demfem/coupling/progress.hpp"
+#include "demfem/coupling/run_record.hpp"
 #include "demfem/coupling/solver_link.hpp"
 #include "demfem/coupling/supervisor.hpp"
 #include "demfem/io/atomic_file.hpp"
+#include "demfem/io/folder_lock.hpp"
+#include "demfem/io/h5_file.hpp"
 
 namespace fs = std::filesystem;
 using namespace demfem;
@@ -54,6 +65,7 @@ struct Options {
   std::string debug_kill;   // ROLE:STEP[:always], fault injection for tests
   std::vector<std::string> sets;  // --set KEY=VALUE, passed on to the solvers
   bool check = false;             // --check: read and check the scene, start nothing
+  double hello_timeout = 300.0;  // s: a started solver that has not said Hello is killed
 };
 
 // --debug-kill dem:17, fem:5:always, coupler:30 (docs/reliability.md). Testing only.
@@ -98,14 +110,29 @@ fs::path self_dir() {
   return ec ? fs::current_path() : exe.parent_path();
 }
 
+// Shares are of the same wall time: this session's parts of this session's total, and for a
+// resumed run the whole run's parts (earlier sessions from the checkpoint, plus this one) of
+// the whole run's total.
 void print_timing(const RunSummary& s, bool remote) {
-  const double total = s.wall_total > 0 ? s.wall_total : 1.0;
-  std::printf(
-      "wall time: total %.3f s; DEM %.3f s (%.1f %%), FEM %.3f s (%.1f %%), coupling %.4f s "
-      "(%.2f %%)%s\n",
-      s.wall_total, s.wall_dem, 100 * s.wall_dem / total, s.wall_fem, 100 * s.wall_fem / total,
-      s.wall_coupling, 100 * s.wall_coupling / total,
-      remote ? "; DEM/FEM times include the IPC round trip" : "");
+  auto line = [](const char* what, const WallTimes& w, const char* tail) {
+    const double total = w.total > 0 ? w.total : 1.0;
+    std::printf(
+        "%s: total %.3f s; DEM %.3f s (%.1f %%), FEM %.3f s (%.1f %%), coupling %.4f s "
+        "(%.2f %%)%s\n",
+        what, w.total, w.dem, 100 * w.dem / total, w.fem, 100 * w.fem / total, w.coupling,
+        100 * w.coupling / total, tail);
+  };
+  const WallTimes session{s.wall_total, s.wall_dem, s.wall_fem, s.wall_coupling};
+  const char* ipc = remote ? "; DEM/FEM times include the IPC round trip" : "";
+  if (s.earlier.total <= 0.0) {
+    line("wall time", session, ipc);
+    return;
+  }
+  line("wall time of this session", session, ipc);
+  const WallTimes whole{s.earlier.total + s.wall_total, s.earlier.dem + s.wall_dem,
+                        s.earlier.fem + s.wall_fem, s.earlier.coupling + s.wall_coupling};
+  line("wall time of the whole run (earlier sessions up to the checkpoint, and this one)", whole,
+       "");
 }
 
 void write_timing(const fs::path& dir, const RunSummary& s) {
@@ -118,16 +145,131 @@ void write_timing(const fs::path& dir, const RunSummary& s) {
   io::write_file_atomic(dir / "timing.csv", text);
 }
 
-int run(const Options& opt) {
+// The checkpoint directory of the run when it is a folder of its own (not inside the output
+// folder, whose lock covers it).
+bool inside(const fs::path& path, const fs::path& folder) {
+  const auto p = fs::weakly_canonical(fs::absolute(path));
+  const auto f = fs::weakly_canonical(fs::absolute(folder));
+  auto pi = p.begin();
+  for (auto fi = f.begin(); fi != f.end(); ++fi, ++pi) {
+    if (fi->empty()) continue;  // a trailing separator
+    if (pi == p.end() || *pi != *fi) return false;
+  }
+  return true;
+}
+
+bool same_folder(const fs::path& a, const fs::path& b) {
+  return fs::weakly_canonical(fs::absolute(a)) == fs::weakly_canonical(fs::absolute(b));
+}
+
+// Checks of the checkpoint of --resume against this scene that need no process (exit status
+// 2 on refusal), and takes over the series of the checkpoint's run when resuming into another
+// output folder (docs/reliability.md, "Resume"). Returns an exit status, or nullopt to go on.
+std::optional<int> prepare_resume(const fs::path& checkpoint, const CouplingSettings& settings,
+                                  const SolverSections& sections, const fs::path& out_dir,
+                                  RunRecord& record) {
+  auto refuse = [](const std::string& m) {
+    std::fprintf(stderr, "demfem run: --resume: %s\n", m.c_str());
+    return kExitUsage;
+  };
+  std::string origin;
+  try {
+    const io::H5File coupler(checkpoint / "coupler.h5", io::H5File::Mode::read);
+    if (coupler.has_attribute("/", "scene_hash")) {
+      const std::string then = coupler.attribute_string("/", "scene_hash");
+      if (then != record.scene_hash) {
+        std::fprintf(stderr,
+                     "demfem run: note: the scene differs from the one checkpoint %s was taken "
+                     "with (scene hash %s then, %s now); the run continues with this scene. "
+                     "Changed end times and output settings continue the same run; other "
+                     "changes give results that belong to neither scene\n",
+                     checkpoint.c_str(), then.c_str(), record.scene_hash.c_str());
+      }
+    }
+    if (coupler.has_attribute("/", "output_dir"))
+      origin = coupler.attribute_string("/", "output_dir");
+    if (settings.has_dem) {
+      const io::H5File dem(checkpoint / "dem.h5", io::H5File::Mode::read);
+      if (dem.has_attribute("dem_tools", "setup_particles")) {
+        const auto then = dem.attribute_int64("dem_tools", "setup_particles");
+        if (then != static_cast<std::int64_t>(sections.dem_setup_particles)) {
+          return refuse((checkpoint / "dem.h5").string() + ": the checkpoint's scene made " +
+                        std::to_string(then) + " particles at set-up, " +
+                        settings.scene_file.string() + " makes " +
+                        std::to_string(sections.dem_setup_particles) +
+                        " ([[dem.lattice]], [[dem.insert]] or run.seed changed); its state "
+                        "cannot be continued with this scene: resume with the scene it was "
+                        "taken with, or start afresh");
+        }
+      }
+    }
+    if (settings.has_fem) {
+      const io::H5File fem(checkpoint / "fem.h5", io::H5File::Mode::read);
+      if (fem.has_attribute("fem", "mesh_nodes")) {
+        const auto nodes = fem.attribute_int64("fem", "mesh_nodes");
+        const auto elements = fem.attribute_int64("fem", "mesh_elements");
+        if (nodes != static_cast<std::int64_t>(sections.fem_nodes) ||
+            elements != static_cast<std::int64_t>(sections.fem_elements)) {
+          return refuse((checkpoint / "fem.h5").string() + ": the checkpoint's FEM mesh has " +
+                        std::to_string(nodes) + " nodes and " + std::to_string(elements) +
+                        " elements, the mesh of " + settings.scene_file.string() + " has " +
+                        std::to_string(sections.fem_nodes) + " and " +
+                        std::to_string(sections.fem_elements) +
+                        " ([fem.mesh] changed); its state cannot be continued on another mesh: "
+                        "resume with the scene it was taken with, or start afresh");
+        }
+      }
+    }
+  } catch (const std::exception& e) {
+    return refuse(std::string("checkpoint ") + checkpoint.string() +
+                  " cannot be read: " + e.what());
+  }
+  // Resuming into another folder than the one the checkpoint's run wrote: its series
+  // (coupling.csv, the FEM's and the DEM's files) are copied here first, and the run
+  // continues them as it would in the original folder.
+  if (!origin.empty() && !same_folder(origin, out_dir)) {
+    if (!fs::exists(fs::path(origin) / "coupling.csv")) {
+      return refuse("checkpoint " + checkpoint.string() + " was taken by a run writing to " +
+                    origin +
+                    ", whose series (coupling.csv) are not there any more; resume into "
+                    "that folder with its output, or copy the output back there");
+    }
+    try {
+      // Not while the run that wrote them is still going (a read-only archive cannot be
+      // locked, and needs no lock: nothing writes there).
+      io::FolderLock origin_lock;
+      try {
+        origin_lock = io::FolderLock(origin, "copying the series for a resume");
+      } catch (const io::FolderBusy&) {
+        throw;
+      } catch (const std::exception&) {
+      }
+      const auto copied = copy_owned_outputs(origin, out_dir);
+      record.copied_from = origin;
+      std::fprintf(stderr,
+                   "demfem run: resuming into %s: took over the series of %s (%zu files) to "
+                   "continue them\n",
+                   out_dir.c_str(), origin.c_str(), copied.size());
+    } catch (const io::FolderBusy& e) {
+      return refuse(std::string("the run that wrote the checkpoint is still going: ") + e.what());
+    } catch (const std::exception& e) {
+      return refuse(std::string("cannot take over the series of ") + origin + ": " + e.what());
+    }
+  }
+  return std::nullopt;
+}
+
+int run(const Options& opt, const std::vector<std::string>& command_line) {
   // ---- the scene: everything is checked before any process starts -----------------------
   std::optional<scene::Document> doc;
   CouplingSettings settings;
+  SolverSections sections;
   try {
     std::vector<scene::Override> overrides;
     for (const auto& s : opt.sets) overrides.push_back(scene::Override::parse(s));
     doc = scene::Document::load(opt.scene, overrides);
     settings = read_coupling_settings(*doc);
-    check_solver_sections(*doc);
+    sections = check_solver_sections(*doc, settings.run.seed);
   } catch (const scene::SceneError& e) {
     std::fprintf(stderr, "demfem run: scene error: %s\n", e.what());
     return kExitUsage;
@@ -149,30 +291,156 @@ int run(const Options& opt) {
                  opt.debug_kill.c_str());
     return kExitUsage;
   }
+  if (!remote && debug_kill && debug_kill->role != "coupler") {
+    std::fprintf(stderr,
+                 "demfem run: --debug-kill %s needs solver processes (not with --in-process)\n",
+                 opt.debug_kill.c_str());
+    return kExitUsage;
+  }
+  // --resume without a [checkpoint] section: nothing was ever checkpointed.
+  if (opt.resume && opt.resume_from.empty() && !settings.checkpoint.enabled) {
+    std::fprintf(stderr,
+                 "demfem run: --resume: %s has no [checkpoint] section, so its runs take no "
+                 "checkpoints to resume from; add one (docs/scenes.md, [checkpoint]) and run "
+                 "afresh, or name a checkpoint folder: --resume DIR\n",
+                 opt.scene.c_str());
+    return kExitUsage;
+  }
+
+  // ---- the output folder: this run's alone --------------------------------------------
+  // Two runs writing one folder corrupt it silently; the lock refuses the second. Solvers
+  // restarted by this run are its children and take no lock.
+  const fs::path cp_dir =
+      settings.checkpoint.enabled ? checkpoint_directory(settings, out_dir) : fs::path();
+  std::vector<io::FolderLock> locks;
+  try {
+    const std::string what = "demfem run " + opt.scene + " (started " + utc_now() + ")";
+    locks.emplace_back(out_dir, what);
+    if (!cp_dir.empty()) {
+      if (inside(cp_dir, out_dir)) {
+        fs::create_directories(cp_dir);
+      } else {
+        locks.emplace_back(cp_dir, what);
+      }
+    }
+  } catch (const io::FolderBusy& e) {
+    std::fprintf(stderr,
+                 "demfem run: %s; two runs in one folder would corrupt each other's files: wait "
+                 "for it to end, or give this run another folder (--output-dir, run.output_dir, "
+                 "checkpoint.directory)\n",
+                 e.what());
+    return kExitUsage;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr,
+                 "demfem run: %s; choose a writable folder (--output-dir, run.output_dir, "
+                 "checkpoint.directory)\n",
+                 e.what());
+    return kExitUsage;
+  }
+  if (const auto prev = read_run_status(out_dir); prev && prev->status == "running") {
+    std::fprintf(stderr,
+                 "demfem run: note: the previous run in %s (pid %d, started %s) ended without "
+                 "writing its end to run.json: it was killed or crashed\n",
+                 out_dir.c_str(), static_cast<int>(prev->pid), prev->start_time.c_str());
+  }
+
+  RunRecord record;
+  record.scene = fs::absolute(opt.scene);
+  record.overrides = opt.sets;
+  record.scene_hash = scene_hash(opt.scene, record.overrides);
+  record.output_dir = fs::absolute(out_dir);
+  if (!cp_dir.empty()) record.checkpoint_dir = fs::absolute(cp_dir);
+  record.in_process = !remote;
+  record.command_line = command_line;
+  {
+    char host[256] = {};
+    ::gethostname(host, sizeof(host) - 1);
+    record.host = host;
+  }
+  record.pid = ::getpid();
+  record.dem_backend = sections.dem_backend;
+  record.dem_threads = sections.dem_threads;
+  if (const char* omp = std::getenv("OMP_NUM_THREADS")) record.omp_num_threads = omp;
+  record.hardware_threads = std::thread::hardware_concurrency();
+  record.start_time = utc_now();
+  record.end_time_simulated = settings.run.end_time;
+  record.step_count = settings.step_count;
+
   // --resume: the checkpoint to start from, verified before any process starts.
   RunControl control;
   control.report = [](const std::string& m) {
     std::fprintf(stderr, "demfem run: %s\n", m.c_str());
   };
+  control.scene_hash = record.scene_hash;
   if (opt.resume) {
-    const fs::path dir = checkpoint_directory(settings, out_dir);
     const auto parts = checkpoint_parts(settings);
     if (!opt.resume_from.empty()) {
-      try {
-        (void)verify_checkpoint(opt.resume_from, parts);
-      } catch (const std::exception& e) {
-        std::fprintf(stderr, "demfem run: --resume %s: not a valid checkpoint: %s\n",
-                     opt.resume_from.c_str(), e.what());
+      const fs::path from = opt.resume_from;
+      std::error_code ec;
+      if (!fs::exists(from, ec)) {
+        std::fprintf(stderr,
+                     "demfem run: --resume %s: no such folder; give a checkpoint folder "
+                     "(<checkpoint directory>/step-NNNNNN), or --resume alone for the latest\n",
+                     from.c_str());
         return kExitUsage;
       }
-      control.resume_from = fs::path(opt.resume_from);
+      if (!fs::is_directory(from, ec)) {
+        std::fprintf(stderr,
+                     "demfem run: --resume %s: is a file, not a checkpoint folder "
+                     "(<checkpoint directory>/step-NNNNNN with manifest.json)\n",
+                     from.c_str());
+        return kExitUsage;
+      }
+      try {
+        (void)verify_checkpoint(from, parts);
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "demfem run: --resume %s: not a valid checkpoint: %s\n", from.c_str(),
+                     e.what());
+        return kExitUsage;
+      }
+      control.resume_from = from;
     } else {
-      control.resume_from = latest_valid_checkpoint(dir, parts, control.report);
+      if (!fs::exists(cp_dir)) {
+        std::fprintf(stderr,
+                     "demfem run: --resume: the checkpoint folder %s does not exist (no run of "
+                     "this scene has written to %s yet?)\n",
+                     cp_dir.c_str(), out_dir.c_str());
+        return kExitUsage;
+      }
+      control.resume_from = latest_valid_checkpoint(cp_dir, parts, control.report);
       if (!control.resume_from) {
-        std::fprintf(stderr, "demfem run: --resume: no valid checkpoint in %s\n", dir.c_str());
+        std::fprintf(stderr, "demfem run: --resume: no valid checkpoint in %s\n", cp_dir.c_str());
         return kExitUsage;
       }
     }
+    if (const auto code =
+            prepare_resume(*control.resume_from, settings, sections, out_dir, record)) {
+      return *code;
+    }
+    record.resumed_from = fs::absolute(*control.resume_from).string();
+    const std::string folder = control.resume_from->filename().string();
+    if (folder.rfind("step-", 0) == 0) record.resumed_step = std::atoll(folder.c_str() + 5);
+  } else {
+    // A fresh start: files of an earlier run with other output settings would stay and look
+    // like this run's.
+    try {
+      record.cleared = clear_owned_outputs(out_dir);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "demfem run: %s\n", e.what());
+      return kExitUsage;
+    }
+    if (!record.cleared.empty()) {
+      std::fprintf(stderr, "demfem run: removed %zu files of an earlier run in %s\n",
+                   record.cleared.size(), out_dir.c_str());
+    }
+  }
+  // From here on a signal ends the run through its handler (and is written into run.json).
+  SignalGuard signals;
+  try {
+    write_run_record(out_dir, record);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "demfem run: %s; choose a writable output folder\n", e.what());
+    return kExitUsage;
   }
   std::printf(
       "demfem run: %s: scheme %s, dt_C = %.6g s (n_D = %lld), %lld coupling steps to "
@@ -182,7 +450,6 @@ int run(const Options& opt) {
       settings.run.end_time, remote ? "" : " (in process)");
   std::fflush(stdout);
 
-  SignalGuard signals;
   const bool terminal = ::isatty(STDOUT_FILENO) == 1;
   Progress progress(stdout, terminal, opt.quiet);
 
@@ -191,7 +458,16 @@ int run(const Options& opt) {
   std::unique_ptr<SolverLink> link;
   const fs::path bin = opt.bin_dir.empty() ? self_dir() : fs::path(opt.bin_dir);
   int code = 0;
+  std::string reason;
   std::optional<RunSummary> summary;
+  std::int64_t steps_done = -1;
+  double time_reached = -1.0;
+  auto failed = [&](int c, const std::string& text) {
+    progress.finish();
+    std::fprintf(stderr, "demfem run: %s\n", text.c_str());
+    code = c;
+    reason = text;
+  };
   try {
     if (remote) {
       // The coupler waits for StepDone while a solver computes. By default it blocks at once
@@ -201,6 +477,11 @@ int run(const Options& opt) {
       copt.wait.spin = std::chrono::microseconds(opt.wait_spin_us);
       copt.reply_timeout = std::chrono::milliseconds(
           static_cast<std::int64_t>(std::ceil(1000.0 * settings.checkpoint.reply_timeout)));
+      copt.hello_timeout = std::chrono::milliseconds(
+          static_cast<std::int64_t>(std::ceil(1000.0 * opt.hello_timeout)));
+      // After Ctrl-C / SIGTERM (forwarded to the solvers) a solver that has not ended within
+      // copt.stop_grace is not waited for any longer.
+      copt.stop = &SignalGuard::stop_flag();
       session = std::make_unique<protocol::CouplerSession>(copt);
       std::vector<std::string> args = {"--scene", opt.scene, "--segment", session->segment_name()};
       for (const auto& s : opt.sets) args.insert(args.end(), {"--set", s});
@@ -264,13 +545,6 @@ int run(const Options& opt) {
         };
       }
     } else {
-      if (debug_kill && debug_kill->role != "coupler") {
-        std::fprintf(stderr,
-                     "demfem run: --debug-kill %s needs solver processes (not with "
-                     "--in-process)\n",
-                     opt.debug_kill.c_str());
-        return kExitUsage;
-      }
       if (debug_kill) {
         control.after_send = [&](protocol::Role, std::int64_t step) {
           if (step != debug_kill->step) return;
@@ -278,12 +552,17 @@ int run(const Options& opt) {
           ::raise(SIGKILL);
         };
       }
-      link = std::make_unique<LocalLink>(make_local_dem(*doc, settings, out_dir),
+      auto dem = make_local_dem(*doc, settings, out_dir);
+      // Ctrl-C stops a long DEM step within one substep, as in dem_server.
+      if (dem) dem->set_cancel_flag(&SignalGuard::stop_flag());
+      link = std::make_unique<LocalLink>(std::move(dem),
                                          make_local_fem(*doc, settings, out_dir, opt.resume));
     }
     CouplingRun loop(*link, settings, out_dir, &SignalGuard::stop_flag());
     loop.set_control(control);
     loop.set_observer([&](const StepDiagnostics& d, const CouplingSettings& s) {
+      steps_done = d.step + 1;
+      time_reached = d.time;
       progress.update(d.step, s.step_count, d.time, s.run.end_time);
     });
     summary = loop.run();
@@ -295,55 +574,75 @@ int run(const Options& opt) {
                   static_cast<long long>(rs.recoveries), rs.recovery_wall);
     }
   } catch (const BlowUp& e) {
-    progress.finish();
-    std::fprintf(stderr, "demfem run: %s\n  output so far is in %s\n", e.what(), out_dir.c_str());
-    code = kExitBlowUp;
+    failed(kExitBlowUp, std::string(e.what()) + "\n  output so far is in " + out_dir.string());
   } catch (const RecoveryExhausted& e) {
-    progress.finish();
-    std::fprintf(stderr, "demfem run: %s\n  output so far is in %s\n", e.what(), out_dir.c_str());
-    code = kExitRecoveryExhausted;
+    failed(kExitRecoveryExhausted,
+           std::string(e.what()) + "\n  output so far is in " + out_dir.string());
   } catch (const SolverFailure& e) {
-    progress.finish();
-    // The adapters refuse non-finite numbers themselves ("... is not finite (the DEM blew
-    // up ...)"): that is a blow-up found one step earlier, and exits as one.
-    const bool blow_up = std::string(e.what()).find("not finite") != std::string::npos;
+    // The adapters refuse non-finite numbers and unstable states themselves ("... is not
+    // finite", "the DEM blew up"): that is a blow-up found by the solver, and exits as one.
     if (SignalGuard::stop_flag().load()) {
-      std::fprintf(stderr, "demfem run: stopped by signal %d (%s)\n", SignalGuard::signal_number(),
-                   e.what());
-      code = 128 + SignalGuard::signal_number();
+      failed(128 + SignalGuard::signal_number(), "stopped by signal " +
+                                                     std::to_string(SignalGuard::signal_number()) +
+                                                     " (" + e.what() + ")");
+    } else if (is_blow_up_report(e.what())) {
+      failed(kExitBlowUp,
+             "blow-up: " + std::string(e.what()) + "\n  output so far is in " + out_dir.string());
     } else {
-      std::fprintf(stderr, "demfem run: %s%s\n  output so far is in %s\n",
-                   blow_up ? "blow-up: " : "", e.what(), out_dir.c_str());
-      code = blow_up ? kExitBlowUp : kExitFailed;
+      failed(kExitFailed, std::string(e.what()) + "\n  output so far is in " + out_dir.string());
     }
   } catch (const Interrupted& e) {
-    progress.finish();
-    std::fprintf(stderr, "demfem run: %s\n", e.what());
-    code = 128 + SignalGuard::signal_number();
+    failed(128 + SignalGuard::signal_number(), e.what());
+  } catch (const ResumeRefused& e) {
+    failed(kExitUsage, e.what());
   } catch (const scene::SceneError& e) {
-    progress.finish();
-    std::fprintf(stderr, "demfem run: scene error: %s\n", e.what());
-    code = kExitUsage;
-  } catch (const std::exception& e) {
-    progress.finish();
+    failed(kExitUsage, std::string("scene error: ") + e.what());
+  } catch (const protocol::PeerDied& e) {
+    // Only the start (Hello, mesh exchange) lets it through unwrapped: a solver that ended
+    // before it attached, or never attached.
+    SolverProcess* p = e.role() == protocol::Role::dem ? dem_proc.get() : fem_proc.get();
+    const std::string name = e.role() == protocol::Role::dem ? "dem_server" : "fem_server";
     if (SignalGuard::stop_flag().load()) {
-      std::fprintf(stderr, "demfem run: stopped by signal %d (%s)\n", SignalGuard::signal_number(),
-                   e.what());
-      code = 128 + SignalGuard::signal_number();
+      failed(128 + SignalGuard::signal_number(), "stopped by signal " +
+                                                     std::to_string(SignalGuard::signal_number()) +
+                                                     " (" + e.what() + ")");
+    } else if (p && p->running()) {
+      p->signal(SIGKILL);
+      const int c = p->stop(std::chrono::milliseconds(1000));
+      char limit[32];
+      std::snprintf(limit, sizeof(limit), "%g", opt.hello_timeout);
+      failed(kExitFailed, "the " + p->label() + " (" + name + ", pid " + std::to_string(p->pid()) +
+                              ") did not attach within " + limit +
+                              " s (--hello-timeout); it was killed (status " + std::to_string(c) +
+                              "). " + e.what());
+    } else if (p) {
+      const int c = p->exit_code().value_or(-1);
+      failed(c == kExitUsage ? kExitUsage : kExitFailed,
+             "the " + p->label() + " (" + name + ", pid " + std::to_string(p->pid()) +
+                 ") ended with status " + std::to_string(c) +
+                 " before it attached; its message is above (" + e.what() + ")");
     } else {
-      std::fprintf(stderr, "demfem run: %s\n", e.what());
-      code = kExitFailed;
+      failed(kExitFailed, e.what());
+    }
+  } catch (const std::exception& e) {
+    if (SignalGuard::stop_flag().load()) {
+      failed(128 + SignalGuard::signal_number(), "stopped by signal " +
+                                                     std::to_string(SignalGuard::signal_number()) +
+                                                     " (" + e.what() + ")");
+    } else {
+      failed(kExitFailed, e.what());
     }
   }
 
   // ---- end the solvers: Shutdown, then wait, then signals ---------------------------------
-  if (link) link->shutdown();
+  // After a stop signal the solvers were sent SIGTERM already: no Shutdown, a short grace.
+  const bool stopping = SignalGuard::stop_flag().load();
+  if (link && !stopping) link->shutdown();
   for (auto* p : {dem_proc.get(), fem_proc.get()}) {
     if (!p) continue;
-    const int c = p->stop(std::chrono::milliseconds(3000));
+    const int c = p->stop(std::chrono::milliseconds(stopping ? 1000 : 3000));
     if (c != 0 && code == 0) {
-      std::fprintf(stderr, "demfem run: the %s exited with status %d\n", p->label().c_str(), c);
-      code = kExitFailed;
+      failed(kExitFailed, "the " + p->label() + " exited with status " + std::to_string(c));
     }
   }
   link.reset();
@@ -373,9 +672,38 @@ int run(const Options& opt) {
         io::write_file_atomic(out_dir / "beam_check.csv", text);
       }
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "demfem run: %s\n", e.what());
-      if (code == 0) code = kExitFailed;
+      if (code == 0) {
+        failed(kExitFailed, e.what());
+      } else {
+        std::fprintf(stderr, "demfem run: %s\n", e.what());
+      }
     }
+  }
+
+  // ---- the run record: how it ended ---------------------------------------------------------
+  record.exit_code = code;
+  record.end_time = utc_now();
+  if (summary) {
+    steps_done = summary->steps;
+    time_reached = summary->time;
+  }
+  record.steps_done = steps_done;
+  record.time_reached = time_reached;
+  if (code == 0) {
+    record.status = "completed";
+  } else if (code > 128 && SignalGuard::stop_flag().load()) {
+    record.status = "interrupted";
+    record.signal = SignalGuard::signal_number();
+    record.reason = reason;
+  } else {
+    record.status = "failed";
+    record.reason = reason;
+  }
+  try {
+    write_run_record(out_dir, record);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "demfem run: %s\n", e.what());
+    if (code == 0) code = kExitFailed;
   }
   std::fflush(stdout);
   return code;
@@ -414,6 +742,11 @@ int main(int argc, char** argv) {
                                 "continue from a committed checkpoint: the given folder, or "
                                 "without a value the latest valid one in the checkpoint folder")
                      ->expected(0, 1);
+  app.add_option("--hello-timeout", opt.hello_timeout,
+                 "seconds a started solver may take to attach (its Hello) before it is killed "
+                 "and the run stops with status 1 (default 300; raise it for models whose "
+                 "set-up takes longer)")
+      ->check(CLI::Range(0.1, 1e6));
   app.add_option("--debug-kill", opt.debug_kill,
                  "testing only: SIGKILL (or with :stop SIGSTOP) a process at a coupling step, "
                  "ROLE:STEP[:always|:stop] with ROLE dem, fem or coupler (docs/reliability.md)");
@@ -426,5 +759,5 @@ int main(int argc, char** argv) {
     app.exit(e);
     return kExitUsage;
   }
-  return run(opt);
+  return run(opt, std::vector<std::string>(argv, argv + argc));
 }

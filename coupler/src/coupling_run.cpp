@@ -100,7 +100,12 @@ class SeriesFile {
     std::string kept;
     {
       std::ifstream in(path, std::ios::binary);
-      if (!in) throw std::runtime_error(path.string() + ": cannot read the series to continue");
+      if (!in) {
+        throw std::runtime_error(path.string() +
+                                 ": cannot read the series to continue (the output folder does "
+                                 "not hold the output of the run that took the checkpoint: resume "
+                                 "into that run's output folder)");
+      }
       std::string line;
       std::size_t lines = 0;
       while (lines < keep_rows + 1 && std::getline(in, line)) {
@@ -141,6 +146,10 @@ class SeriesFile {
 };
 
 }  // namespace
+
+bool is_blow_up_report(const std::string& text) {
+  return text.find("not finite") != std::string::npos || text.find("blew up") != std::string::npos;
+}
 
 BlowUp::BlowUp(std::int64_t step, double time, std::string quantity, double value, double bound,
                const std::string& text)
@@ -222,6 +231,7 @@ RunSummary CouplingRun::run() {
   };
 
   RunSummary sum;
+  auto run_start = Clock::now();  // set again when the steps begin (see below)
   sum.mesh = link_.start();
   const std::size_t n3 = 3 * sum.mesh.node_count();
   const bool coupled = s.has_dem && s.has_fem;
@@ -293,9 +303,13 @@ RunSummary CouplingRun::run() {
       h5.set_attribute("/", "work_fem", work_fem);
       h5.set_attribute("/", "settled", static_cast<std::int64_t>(settled));
       h5.set_attribute("/", "csv_rows", csv_rows);
-      h5.set_attribute("/", "wall_dem", sum.wall_dem);
-      h5.set_attribute("/", "wall_fem", sum.wall_fem);
-      h5.set_attribute("/", "wall_coupling", sum.wall_coupling);
+      // Wall times of the whole run so far: earlier sessions (a resumed run) and this one.
+      h5.set_attribute("/", "wall_total", sum.earlier.total + seconds(run_start, Clock::now()));
+      h5.set_attribute("/", "wall_dem", sum.earlier.dem + sum.wall_dem);
+      h5.set_attribute("/", "wall_fem", sum.earlier.fem + sum.wall_fem);
+      h5.set_attribute("/", "wall_coupling", sum.earlier.coupling + sum.wall_coupling);
+      if (!control_.scene_hash.empty()) h5.set_attribute("/", "scene_hash", control_.scene_hash);
+      h5.set_attribute("/", "output_dir", std::filesystem::absolute(output_dir_).string());
       const auto last = row_of(sum.last);
       h5.write("last_diagnostics", std::span<const double>(last), {last.size()});
       h5.create_group("scheme");
@@ -318,24 +332,38 @@ RunSummary CouplingRun::run() {
       }
     });
   };
-  auto load_coupler = [&](const std::filesystem::path& file, std::int64_t steps) {
+  // `resume`: the checkpoint of --resume (its wall times are the earlier sessions'), not a
+  // rollback within this session (whose wall times go on counting).
+  auto load_coupler = [&](const std::filesystem::path& file, std::int64_t steps, bool resume) {
     const io::H5File h5 = io::open_checkpoint_file(file, steps);
     auto need = [&](bool ok, const std::string& what) {
       if (!ok) throw std::runtime_error(file.string() + ": " + what);
     };
     need(h5.attribute_string("/", "scheme") == scheme_name(s.scheme),
          "attribute 'scheme' is '" + h5.attribute_string("/", "scheme") + "', the scene's is '" +
-             scheme_name(s.scheme) + "'");
-    need(h5.attribute_int64("/", "node_count") == static_cast<std::int64_t>(n3 / 3),
-         "attribute 'node_count' differs from the interface mesh of this run");
+             scheme_name(s.scheme) +
+             "' (coupling.scheme changed: the scheme's history cannot "
+             "be carried over; resume with the scheme it was taken with)");
+    const std::int64_t nodes = h5.attribute_int64("/", "node_count");
+    need(nodes == static_cast<std::int64_t>(n3 / 3),
+         "the checkpoint's interface has " + std::to_string(nodes) + " nodes, this scene's " +
+             std::to_string(n3 / 3) +
+             " (the FEM mesh or fem.interface_surface changed): its state cannot be continued "
+             "with this scene");
     sum.time = h5.attribute_double("/", "time");
     work_dem = h5.attribute_double("/", "work_dem");
     work_fem = h5.attribute_double("/", "work_fem");
     settled = h5.attribute_int64("/", "settled") != 0;
     csv_rows = h5.attribute_int64("/", "csv_rows");
-    sum.wall_dem = h5.attribute_double("/", "wall_dem");
-    sum.wall_fem = h5.attribute_double("/", "wall_fem");
-    sum.wall_coupling = h5.attribute_double("/", "wall_coupling");
+    if (resume) {
+      sum.earlier.dem = h5.attribute_double("/", "wall_dem");
+      sum.earlier.fem = h5.attribute_double("/", "wall_fem");
+      sum.earlier.coupling = h5.attribute_double("/", "wall_coupling");
+      // Checkpoints of older versions lack the total: the parts are a lower bound of it.
+      sum.earlier.total = h5.has_attribute("/", "wall_total")
+                              ? h5.attribute_double("/", "wall_total")
+                              : sum.earlier.dem + sum.earlier.fem + sum.earlier.coupling;
+    }
     const auto last = h5.read_doubles("last_diagnostics");
     need(last.size() == kColumns.size(), "dataset 'last_diagnostics' has the wrong size");
     sum.last = diagnostics_of(last);
@@ -413,13 +441,15 @@ RunSummary CouplingRun::run() {
   };
   // Every process back to the checkpoint in `folder`: both solvers, the coupler's scheme
   // history and the CSV rows. Returns the step to continue from.
-  auto restore_from = [&](const std::filesystem::path& folder) {
+  auto restore_from = [&](const std::filesystem::path& folder, bool resume) {
     const CheckpointManifest m = verify_checkpoint(folder, parts);
+    // The coupler's part first: its interface check names a changed mesh more plainly than
+    // the solvers' own refusals would.
+    load_coupler(folder / "coupler.h5", m.step, resume);
     for (Role role : {Role::dem, Role::fem}) {
       if (!link_.has(role)) continue;
       link_.restore(role, folder / (role == Role::dem ? "dem.h5" : "fem.h5"), m.step);
     }
-    load_coupler(folder / "coupler.h5", m.step);
     csv.reset();
     csv.emplace(output_dir_ / "coupling.csv", static_cast<std::size_t>(csv_rows));
     last_cp = folder;
@@ -649,7 +679,7 @@ RunSummary CouplingRun::run() {
              ", rolling back to checkpoint " + last_cp->string());
       try {
         control_.restart_solver(role);
-        const std::int64_t at = restore_from(*last_cp);
+        const std::int64_t at = restore_from(*last_cp, false);
         ++stats_.recoveries;
         stats_.recovery_wall += seconds(t0, Clock::now());
         report("recovered: every process is back at step " + std::to_string(at) + " (t = " +
@@ -663,11 +693,23 @@ RunSummary CouplingRun::run() {
     }
   };
 
-  const auto run_start = Clock::now();
+  run_start = Clock::now();  // wall_total: from the first step (or restore) to the last
   try {
     std::int64_t i = 0;
     if (control_.resume_from) {
-      i = restore_from(*control_.resume_from);
+      try {
+        i = restore_from(*control_.resume_from, true);
+      } catch (const protocol::PeerDied&) {
+        throw;  // a solver died while restoring: not the checkpoint's fault
+      } catch (const protocol::SolverError& e) {
+        throw ResumeRefused("checkpoint " + control_.resume_from->string() +
+                            " cannot be resumed: " + e.what());
+      } catch (const protocol::ProtocolError&) {
+        throw;
+      } catch (const std::exception& e) {
+        throw ResumeRefused("checkpoint " + control_.resume_from->string() +
+                            " cannot be resumed: " + e.what());
+      }
       stats_.resumed_from = i;
       if (cps.enabled) discard_checkpoints_after(cp_dir, i);
       report("resumed from checkpoint " + control_.resume_from->string() + " (step " +
@@ -676,15 +718,22 @@ RunSummary CouplingRun::run() {
       discard_checkpoints_after(cp_dir, -1);  // an older run's, its series are being replaced
       take_checkpoint(0);
     }
-    while (i < s.step_count && !settled) {
+    // The steps, then (with [checkpoint]) a last checkpoint of the end state, so that a
+    // finished run can be continued with a later run.end_time; a solver that dies on the way
+    // is recovered in either.
+    for (bool done = false; !done;) {
       if (stop_ && stop_->load()) {
         throw Interrupted("stopped by a signal before coupling step " + std::to_string(i) +
                           " (t = " + fmt(static_cast<double>(i) * s.coupling_dt) + " s)");
       }
       try {
-        if (checkpoint_due(i)) take_checkpoint(i);
-        if (one_step(i)) break;
-        ++i;
+        if (i >= s.step_count || settled) {
+          if (cps.enabled && last_cp_step != sum.steps) take_checkpoint(sum.steps);
+          done = true;
+        } else {
+          if (checkpoint_due(i)) take_checkpoint(i);
+          if (!one_step(i)) ++i;
+        }
       } catch (const SolverFailure& e) {
         // Only a dead (or silent) solver is restarted: an error it reported, such as a
         // blow-up refusal, would repeat from the checkpoint.
@@ -697,7 +746,7 @@ RunSummary CouplingRun::run() {
           "one_way_static: the DEM did not settle by run.end_time = " + fmt(s.run.end_time) +
           " s (kinetic energy " + fmt(sum.last.kinetic_energy) +
           " J > coupling.settle.kinetic_energy = " + fmt(s.settle_kinetic_energy) +
-          " J); raise run.end_time or the threshold");
+          " J); raise run.end_time (and --resume from the last checkpoint) or the threshold");
     }
   } catch (...) {
     sum.wall_total = seconds(run_start, Clock::now());

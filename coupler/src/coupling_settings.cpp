@@ -1,7 +1,9 @@
 #include "demfem/coupling/coupling_settings.hpp"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <sstream>
 
 namespace demfem::coupling {
@@ -35,15 +37,51 @@ std::string format(double v) {
   return std::string(text, r.ptr);
 }
 
+// A step count for a message: "1e+18", not "1000000000000000128".
+std::string count_text(double v) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.3g", v);
+  return text;
+}
+
 // Single-solver runs have no coupling step of their own; the coupler still advances them in
 // slices of about this length so that progress and diagnostics come at a steady rate.
 constexpr double kSoloSlice = 1e-3;  // s
+
+// Refuses a run whose step counts exceed the limits of coupling_settings.hpp, naming the keys
+// that make them (docs/coupling.md).
+void check_step_counts(const CouplingSettings& s, const Table& root) {
+  const Table run = root.required_table("run");
+  const std::string end = run.where("end_time") + " = " + format(s.run.end_time) + " s";
+  const double coupling_steps = s.run.end_time / s.coupling_dt;
+  if (s.has_fem && !(coupling_steps <= static_cast<double>(kMaxCouplingSteps))) {
+    throw SceneError(end + " and " + root.table("fem")->where("dt") + " = " + format(s.fem_dt) +
+                     " s make " + count_text(coupling_steps) + " coupling steps; at most " +
+                     count_text(kMaxCouplingSteps) +
+                     " are accepted. Lower run.end_time or raise fem.dt (both in seconds)");
+  }
+  if (s.has_dem) {
+    const double dem_steps = s.run.end_time / s.dem_dt;
+    if (!(dem_steps <= kMaxDemSteps)) {
+      throw SceneError(end + " and " + root.table("dem")->where("dt") + " = " + format(s.dem_dt) +
+                       " s make " + count_text(dem_steps) + " DEM steps; at most " +
+                       count_text(kMaxDemSteps) +
+                       " are accepted. Lower run.end_time or raise dem.dt (both in seconds)");
+    }
+  }
+}
 
 }  // namespace
 
 std::int64_t dem_substeps(double fem_dt, double dem_dt, const std::string& fem_where,
                           const std::string& dem_where) {
   const double ratio = fem_dt / dem_dt;
+  if (!(ratio <= static_cast<double>(kMaxDemSubsteps))) {
+    throw SceneError(fem_where + " = " + format(fem_dt) + " s and " + dem_where + " = " +
+                     format(dem_dt) + " s make n_D = " + count_text(ratio) +
+                     " DEM substeps per coupling step; at most " + count_text(kMaxDemSubsteps) +
+                     " are accepted. Raise dem.dt (is it in seconds?) or lower fem.dt");
+  }
   const double n = std::round(ratio);
   if (!(n >= 1.0) || std::abs(ratio - n) > kSubstepTolerance * ratio) {
     throw SceneError(fem_where + " = " + format(fem_dt) + " s is not an integer multiple of " +
@@ -56,6 +94,7 @@ std::int64_t dem_substeps(double fem_dt, double dem_dt, const std::string& fem_w
 
 std::int64_t steps_to_reach(double end_time, double dt) {
   const double r = end_time / dt;
+  if (!(r < 9e18)) return INT64_MAX;
   const double n = std::round(r);
   if (std::abs(r - n) <= 1e-9 * std::max(1.0, r)) return std::max<std::int64_t>(1, std::llround(n));
   return static_cast<std::int64_t>(std::ceil(r));
@@ -99,13 +138,15 @@ CouplingSettings read_coupling_settings(const scene::Document& doc) {
     s.coupling_dt = s.fem_dt;
   } else if (s.has_dem) {
     s.scheme = Scheme::dem_only;
-    s.dem_substeps = std::max<std::int64_t>(1, static_cast<std::int64_t>(kSoloSlice / s.dem_dt));
+    const double slice = std::min(kSoloSlice / s.dem_dt, static_cast<double>(kMaxDemSubsteps));
+    s.dem_substeps = std::max<std::int64_t>(1, static_cast<std::int64_t>(slice));
     s.coupling_dt = static_cast<double>(s.dem_substeps) * s.dem_dt;
   } else {
     s.scheme = Scheme::fem_only;
     s.dem_substeps = 1;
     s.coupling_dt = s.fem_static ? s.run.end_time : s.fem_dt;
   }
+  check_step_counts(s, root);
   s.step_count = steps_to_reach(s.run.end_time, s.coupling_dt);
 
   if (coupling) {

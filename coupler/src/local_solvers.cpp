@@ -1,5 +1,7 @@
 #include "demfem/coupling/local_solvers.hpp"
 
+#include <omp.h>
+
 #include <iostream>
 
 #include "demfem/coupling/solver_link.hpp"
@@ -24,7 +26,9 @@ class LocalDem final : public protocol::SolverBackend {
       : run_(scene, out, run.seed, run.output_interval, nullptr, true), backend_(run_) {}
   ~LocalDem() override {
     try {
-      if (run_.system().step_count() > 0) run_.write_snapshot();  // the end state
+      // The end state, as dem_server; not after a step was cancelled half-way (a stop signal):
+      // dem_server writes none then either, and that state lies between two coupling steps.
+      if (run_.system().step_count() > 0 && !cancelled_) run_.finish();
     } catch (const std::exception& e) {
       std::cerr << "dem: " << e.what() << "\n";
     }
@@ -33,7 +37,12 @@ class LocalDem final : public protocol::SolverBackend {
   std::optional<InterfaceMesh> published_mesh() override { return backend_.published_mesh(); }
   void on_mesh(const InterfaceMesh& m) override { backend_.on_mesh(m); }
   StepResult step(const StepCommand& c, InterfaceBuffers& b) override {
-    return backend_.step(c, b);
+    try {
+      return backend_.step(c, b);
+    } catch (const dem::Cancelled&) {
+      cancelled_ = true;
+      throw;
+    }
   }
   void write_checkpoint(const std::filesystem::path& f, std::int64_t s) override {
     backend_.write_checkpoint(f, s);
@@ -41,10 +50,12 @@ class LocalDem final : public protocol::SolverBackend {
   void restore_checkpoint(const std::filesystem::path& f, std::int64_t s) override {
     backend_.restore_checkpoint(f, s);
   }
+  void set_cancel_flag(const std::atomic<bool>* flag) override { backend_.set_cancel_flag(flag); }
 
  private:
   dem::DemRun run_;
   dem::DemBackend backend_;
+  bool cancelled_ = false;
 };
 
 class LocalFem final : public protocol::SolverBackend {
@@ -52,22 +63,20 @@ class LocalFem final : public protocol::SolverBackend {
   LocalFem(fem::FemScene scene, const scene::RunSettings& run, const std::filesystem::path& out,
            bool resume)
       : solver_(std::move(scene.problem)) {
+    for (const auto& note : scene.notes) std::cerr << "fem: note: " << note << "\n";
     if (scene.output.enabled) {
       output_ = std::make_unique<fem::FemOutput>(
           out, "fem", solver_.problem().mesh, scene.output,
           resume ? fem::OutputMode::resume : fem::OutputMode::replace);
-      if (!resume) output_->write(solver_);  // reference state
     }
     const double interval =
         scene.output.interval > 0.0 ? scene.output.interval : run.output_interval;
     backend_ = std::make_unique<fem::FemBackend>(solver_, output_.get(), interval);
+    if (!resume) backend_->write_initial_output();  // reference state
   }
   ~LocalFem() override {
     try {
-      if (output_ && solver_.step_count() > 0 &&
-          (output_->steps() == 0 || output_->last_time() != solver_.time())) {
-        output_->write(solver_);  // the end state
-      }
+      backend_->write_final_output();  // the end state
     } catch (const std::exception& e) {
       std::cerr << "fem: " << e.what() << "\n";
     }
@@ -93,9 +102,15 @@ class LocalFem final : public protocol::SolverBackend {
 
 }  // namespace
 
-void check_solver_sections(const scene::Document& scene) {
+SolverSections check_solver_sections(const scene::Document& scene, std::uint64_t seed) {
+  SolverSections out;
   const scene::Table root = scene.root();
   const auto fem = root.table("fem");
+  if (fem) {
+    const fem::FemScene fs = fem::read_fem_scene(*fem);
+    out.fem_nodes = fs.problem.mesh.nodes.size();
+    out.fem_elements = fs.problem.mesh.elements.size();
+  }
   if (auto dem = root.table("dem")) {
     const dem::DemScene ds = dem::read_dem_scene(*dem);
     // The DEM adapter needs it only when the mesh arrives; say so before anything starts.
@@ -104,8 +119,11 @@ void check_solver_sections(const scene::Document& scene) {
           dem->where("interface_material") +
           ": a coupled scene needs it: the [[dem.materials]] name of the structure's surface");
     }
+    out.dem_backend = ds.settings.backend;
+    out.dem_threads = ds.settings.threads > 0 ? ds.settings.threads : omp_get_max_threads();
+    out.dem_setup_particles = dem::DemRun::check_setup(ds, seed);
   }
-  if (fem) (void)fem::read_fem_scene(*fem);
+  return out;
 }
 
 std::unique_ptr<protocol::SolverBackend> make_local_dem(const scene::Document& scene,

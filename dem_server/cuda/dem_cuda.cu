@@ -632,7 +632,8 @@ void enqueue_step(CudaBackend* b, double skin) {
 }
 }  // namespace
 
-std::int64_t cuda_run_steps(CudaBackend* b, std::int64_t steps, double skin, double t, double tau) {
+std::int64_t cuda_run_steps(CudaBackend* b, std::int64_t steps, double skin, double t, double tau,
+                            const std::atomic<bool>* cancel) {
   if (b->n == 0) return steps;
   check(cudaMemsetAsync(b->d.stop, 0, 2 * sizeof(int), b->stream), "cudaMemset");
   check(cudaMemsetAsync(b->d.steps_done, 0, sizeof(unsigned long long), b->stream), "cudaMemset");
@@ -667,6 +668,7 @@ std::int64_t cuda_run_steps(CudaBackend* b, std::int64_t steps, double skin, dou
     check(cudaStreamSynchronize(b->stream), "cudaStreamSynchronize");
     done = static_cast<std::int64_t>(count);
     if (flags[0]) break;
+    if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) break;  // a stop request
   }
   return done;
 }

@@ -15,6 +15,7 @@
 
 #include "demfem/dem/dem_backend.hpp"
 #include "demfem/dem/dem_scene.hpp"
+#include "demfem/io/folder_lock.hpp"
 #include "demfem/protocol/protocol.hpp"
 #include "demfem/scene/scene_reader.hpp"
 #include "demfem/scene/solver_command_line.hpp"
@@ -60,6 +61,8 @@ int main(int argc, char** argv) {
       if (code == demfem::protocol::kExitOk) dem_run.finish();  // the end state
       return code;
     }
+    // Alone, this process owns the output folder (served, the coupler holds its lock).
+    const demfem::io::FolderLock lock(out_dir, "dem_server --scene " + cl.scene_file);
     const auto start = std::chrono::steady_clock::now();
     double last_print = -1.0;
     dem_run.run_to(run.end_time, [&](double t) {
@@ -82,6 +85,9 @@ int main(int argc, char** argv) {
     return 0;
   } catch (const demfem::scene::SceneError& e) {
     std::cerr << e.what() << "\n";
+    return kExitBadInput;
+  } catch (const demfem::io::FolderBusy& e) {
+    std::cerr << "dem_server: " << e.what() << "; give this run another --output-dir\n";
     return kExitBadInput;
   } catch (const std::exception& e) {
     std::cerr << "dem_server: " << e.what() << "\n";

@@ -2,8 +2,9 @@
 //   fem_server --scene FILE --segment NAME   serve a coupler over shared memory
 //   fem_server --scene FILE                  run the scene's [fem] alone (static solve or
 //                                            dynamic steps to run.end_time)
-// Exit codes: 0 success; 1 a failure while running (solver, I/O); 2 a bad command line or
-// scene (the message names file, line and key); with --segment, serve()'s codes.
+// Exit codes: 0 success; 1 a failure while running (I/O); 2 a bad command line, scene or
+// model (the message names file, line and key, or the nodes of a mechanism); with --segment,
+// serve()'s codes.
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
@@ -17,6 +18,7 @@
 #include "demfem/fem/fem_output.hpp"
 #include "demfem/fem/fem_scene.hpp"
 #include "demfem/fem/fem_solver.hpp"
+#include "demfem/io/folder_lock.hpp"
 #include "demfem/protocol/protocol.hpp"
 #include "demfem/scene/scene_reader.hpp"
 #include "demfem/scene/solver_command_line.hpp"
@@ -50,6 +52,9 @@ int main(int argc, char** argv) {
   const std::filesystem::path out_dir = cl.output_folder(run);
   const std::string& segment = cl.segment;
   const bool quiet = cl.quiet;
+  // Notes (orphan nodes left out, .inp element formulations, keywords accepted with a
+  // caveat) go to stderr even with --quiet: they can change how results must be read.
+  for (const auto& note : fem.notes) std::cerr << "fem: note: " << note << "\n";
 
   try {
     if (!segment.empty()) {
@@ -61,25 +66,30 @@ int main(int argc, char** argv) {
             resume ? demfem::fem::OutputMode::resume : demfem::fem::OutputMode::replace);
       }
       const double interval = fem.output.interval > 0.0 ? fem.output.interval : run.output_interval;
-      if (output && !resume) output->write(solver);  // reference state
       demfem::fem::FemBackend backend(solver, output.get(), interval);
+      if (!resume) backend.write_initial_output();  // reference state
       demfem::protocol::ServeOptions options;
       options.segment = segment;
       options.remove_orphaned_segments = true;  // a killed coupler leaves nothing behind
       options.role = demfem::protocol::Role::fem;
       const int code = demfem::protocol::serve(backend, options);
-      // The end state, unless the last step was just written by the backend.
-      if (code == demfem::protocol::kExitOk && output && solver.step_count() > 0 &&
-          (output->steps() == 0 || output->last_time() != solver.time())) {
-        output->write(solver);
-      }
+      if (code == demfem::protocol::kExitOk) backend.write_final_output();  // the end state
       return code;
     }
+    // Alone, this process owns the output folder (served, the coupler holds its lock).
+    const demfem::io::FolderLock lock(out_dir, "fem_server --scene " + cl.scene_file);
     demfem::fem::run_fem_standalone(fem, run.end_time, run.output_interval, out_dir, "fem",
                                     quiet ? nullptr : &std::cout);
     return 0;
   } catch (const demfem::scene::SceneError& e) {
     std::cerr << e.what() << "\n";
+    return kExitBadInput;
+  } catch (const demfem::io::FolderBusy& e) {
+    std::cerr << "fem_server: " << e.what() << "; give this run another --output-dir\n";
+    return kExitBadInput;
+  } catch (const demfem::fem::FemModelError& e) {
+    // A defect of the model found by the solver (mechanism, massless dynamics): bad input.
+    std::cerr << "fem_server: " << e.what() << "\n";
     return kExitBadInput;
   } catch (const std::exception& e) {
     std::cerr << "fem_server: " << e.what() << "\n";

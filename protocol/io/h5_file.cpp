@@ -2,6 +2,8 @@
 
 #include <hdf5.h>
 
+#include <cerrno>
+#include <cstring>
 #include <mutex>
 
 namespace demfem::io {
@@ -22,6 +24,30 @@ template <>
 hid_t native_type<std::int64_t>() { return H5T_NATIVE_INT64; }
 template <>
 hid_t native_type<std::uint8_t>() { return H5T_NATIVE_UINT8; }
+
+// errno values that say why a file operation failed (others, left over from HDF5's own
+// probing, say nothing about it).
+bool telling_errno(int err) {
+  switch (err) {
+    case EACCES:
+    case EPERM:
+    case EROFS:
+    case ENOSPC:
+    case EDQUOT:
+    case EFBIG:
+    case EIO:
+    case EISDIR:
+    case ENOTDIR:
+    case EMFILE:
+    case ENFILE:
+    case ENOMEM:
+    case ENAMETOOLONG:
+    case ENOENT:
+      return true;
+    default:
+      return false;
+  }
+}
 
 struct Handle {
   hid_t id;
@@ -79,6 +105,7 @@ std::vector<T> read_dataset(hid_t file, const std::string& name, std::vector<std
 H5File::H5File(const std::filesystem::path& path, Mode mode) : path_(path) {
   silence_hdf5();
   hid_t id = -1;
+  errno = 0;
   switch (mode) {
     case Mode::read:
       if (!std::filesystem::exists(path)) fail("file does not exist");
@@ -93,11 +120,19 @@ H5File::H5File(const std::filesystem::path& path, Mode mode) : path_(path) {
                                                      H5P_DEFAULT);
       break;
   }
-  if (id < 0) fail("cannot open (not an HDF5 file, truncated, or no permission)");
+  if (id < 0) {
+    const int err = errno;
+    const bool creating = mode == Mode::create || !std::filesystem::exists(path);
+    if (telling_errno(err)) fail_io(creating ? "cannot create" : "cannot open", err);
+    fail(creating ? "cannot create (the folder does not exist or is not writable?)"
+                  : "cannot open (not an HDF5 file, or truncated)");
+  }
   id_ = id;
 }
 
-H5File::~H5File() { close(); }
+H5File::~H5File() {
+  close_quietly();
+}
 
 H5File::H5File(H5File&& other) noexcept : path_(std::move(other.path_)), id_(other.id_) {
   other.id_ = -1;
@@ -105,7 +140,7 @@ H5File::H5File(H5File&& other) noexcept : path_(std::move(other.path_)), id_(oth
 
 H5File& H5File::operator=(H5File&& other) noexcept {
   if (this != &other) {
-    close();
+    close_quietly();
     path_ = std::move(other.path_);
     id_ = other.id_;
     other.id_ = -1;
@@ -117,11 +152,36 @@ void H5File::fail(const std::string& what) const {
   throw H5Error(path_.string() + ": " + what);
 }
 
+void H5File::fail_io(const std::string& what, int err) const {
+  if (!telling_errno(err)) fail(what);
+  std::string hint;
+  if (err == ENOSPC || err == EDQUOT || err == EFBIG) {
+    hint = "; free space (or choose another output folder) and run again";
+  } else if (err == EACCES || err == EPERM || err == EROFS) {
+    hint = "; the folder is not writable";
+  }
+  fail(what + ": " + std::strerror(err) + hint);
+}
+
 void H5File::close() {
+  if (id_ < 0) return;
+  errno = 0;
+  const herr_t rc = H5Fclose(id_);
+  const int err = errno;
+  id_ = -1;
+  if (rc < 0) fail_io("cannot write the file's end (it is incomplete)", err);
+}
+
+void H5File::close_quietly() noexcept {
   if (id_ >= 0) {
     H5Fclose(id_);
     id_ = -1;
   }
+}
+
+bool H5File::has_attribute(const std::string& object, const std::string& name) const {
+  if (!exists(object)) return false;
+  return H5Aexists_by_name(id_, object.c_str(), name.c_str(), H5P_DEFAULT) > 0;
 }
 
 void H5File::flush() {
@@ -152,15 +212,21 @@ bool H5File::exists(const std::string& name) const {
 
 void H5File::write(const std::string& name, std::span<const double> data,
                    std::vector<std::size_t> dims) {
-  write_dataset(id_, name, data, std::move(dims), [this](const std::string& m) { fail(m); });
+  errno = 0;
+  write_dataset(id_, name, data, std::move(dims),
+                [this](const std::string& m) { fail_io(m, errno); });
 }
 void H5File::write(const std::string& name, std::span<const std::int64_t> data,
                    std::vector<std::size_t> dims) {
-  write_dataset(id_, name, data, std::move(dims), [this](const std::string& m) { fail(m); });
+  errno = 0;
+  write_dataset(id_, name, data, std::move(dims),
+                [this](const std::string& m) { fail_io(m, errno); });
 }
 void H5File::write(const std::string& name, std::span<const std::uint8_t> data,
                    std::vector<std::size_t> dims) {
-  write_dataset(id_, name, data, std::move(dims), [this](const std::string& m) { fail(m); });
+  errno = 0;
+  write_dataset(id_, name, data, std::move(dims),
+                [this](const std::string& m) { fail_io(m, errno); });
 }
 
 std::vector<double> H5File::read_doubles(const std::string& name,

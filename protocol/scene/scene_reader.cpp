@@ -1,12 +1,15 @@
 #include "demfem/scene/scene_reader.hpp"
 
 #include <toml++/toml.h>
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
-#include <fstream>
+#include <cstring>
 #include <sstream>
 
+#include "demfem/io/input_file.hpp"
 #include "scene_override.hpp"
 
 namespace demfem::scene {
@@ -187,13 +190,54 @@ std::string Range::describe() const {
          (max_open ? ")" : "]");
 }
 
+std::size_t key_distance(std::string_view a, std::string_view b) {
+  auto lower = [](char c) { return static_cast<char>(std::tolower(static_cast<unsigned char>(c))); };
+  const std::size_t n = a.size(), m = b.size();
+  std::vector<std::vector<std::size_t>> d(n + 1, std::vector<std::size_t>(m + 1, 0));
+  for (std::size_t i = 0; i <= n; ++i) d[i][0] = i;
+  for (std::size_t j = 0; j <= m; ++j) d[0][j] = j;
+  for (std::size_t i = 1; i <= n; ++i) {
+    for (std::size_t j = 1; j <= m; ++j) {
+      const std::size_t cost = lower(a[i - 1]) == lower(b[j - 1]) ? 0 : 1;
+      d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + cost});
+      if (i > 1 && j > 1 && lower(a[i - 1]) == lower(b[j - 2]) &&
+          lower(a[i - 2]) == lower(b[j - 1])) {
+        d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+      }
+    }
+  }
+  return d[n][m];
+}
+
+bool is_misspelling(std::string_view written, std::string_view known) {
+  if (written == known) return false;
+  // No key is this long, and the distance table is quadratic in the lengths (a fuzzed key).
+  if (written.size() > 64 || known.size() > 64) return false;
+  const std::size_t longer = std::max(written.size(), known.size());
+  if (longer - std::min(written.size(), known.size()) > 3) return false;
+  const std::size_t dist = key_distance(written, known);
+  if (known.size() <= 2) {
+    // Too short for a distance to mean anything ('a' and 'b'): only a key that contains it,
+    // in any case ('dtt', 'DT'), counts.
+    auto lower = [](std::string_view s) {
+      std::string l(s);
+      for (char& c : l) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+      return l;
+    };
+    return dist <= 1 && lower(written).find(lower(known)) != std::string::npos;
+  }
+  const std::size_t limit = known.size() <= 5 ? 1 : known.size() <= 9 ? 2 : 3;
+  return dist <= limit;
+}
+
 Table::Table(const toml::table* table, std::shared_ptr<const std::string> file, std::string path,
              std::shared_ptr<const std::vector<Override>> overrides)
     : table_(table),
       file_(std::move(file)),
       path_(std::move(path)),
       used_(std::make_shared<std::set<std::string, std::less<>>>()),
-      overrides_(std::move(overrides)) {}
+      overrides_(std::move(overrides)),
+      asked_(std::make_shared<std::set<std::string, std::less<>>>()) {}
 
 std::string Table::full_key(std::string_view key) const {
   return path_.empty() ? std::string(key) : path_ + "." + std::string(key);
@@ -236,10 +280,12 @@ void Table::fail(std::string_view key, const std::string& message) const {
 }
 
 bool Table::has(std::string_view key) const {
+  asked_->emplace(key);
   return table_->contains(key);
 }
 
 const toml::node* Table::get(std::string_view key) const {
+  asked_->emplace(key);
   const toml::node* n = table_->get(key);
   if (n) used_->emplace(key);
   return n;
@@ -247,8 +293,30 @@ const toml::node* Table::get(std::string_view key) const {
 
 const toml::node& Table::require(std::string_view key) const {
   const toml::node* n = get(key);
-  if (!n) fail(key, "is required but missing");
+  if (!n) fail_missing(key);
   return *n;
+}
+
+void Table::fail_missing(std::string_view key, const std::string& hint) const {
+  // A present key that no reader has asked for and that is spelt like the missing one is
+  // almost surely it, misspelt: name both, so the user need not guess.
+  std::string best;
+  std::size_t best_distance = 0;
+  for (const auto& [k, v] : *table_) {
+    const std::string name(k.str());
+    if (asked_->contains(name) || !is_misspelling(name, key)) continue;
+    const std::size_t d = key_distance(name, key);
+    if (best.empty() || d < best_distance) best = name, best_distance = d;
+  }
+  std::string message = "is required but missing";
+  if (!hint.empty()) message += " (" + hint + ")";
+  if (!best.empty()) {
+    const auto line = table_->get(best)->source().begin.line;
+    message += "; this table has '" + best + "'" +
+               (line > 0 ? " (line " + std::to_string(line) + ")" : std::string()) +
+               ", which is not a known key here: did you mean '" + std::string(key) + "'?";
+  }
+  fail(key, message);
 }
 
 double Table::as_finite(std::string_view key, const toml::node& n, Range range) const {
@@ -408,7 +476,7 @@ std::optional<Table> Table::table(std::string_view key) const {
 
 Table Table::required_table(std::string_view key) const {
   auto t = table(key);
-  if (!t) fail(key, "is required but missing");
+  if (!t) fail_missing(key);
   return *t;
 }
 
@@ -427,23 +495,34 @@ std::vector<Table> Table::tables(std::string_view key) const {
 }
 
 void Table::skip(std::string_view key) const {
+  asked_->emplace(key);
   if (table_->contains(key)) used_->emplace(key);
 }
 
 void Table::finish() const {
   for (const auto& [k, v] : *table_) {
-    if (!used_->contains(k.str())) {
-      fail(k.str(), "is not a known key here (misspelt, or not accepted in this section)");
+    if (used_->contains(k.str())) continue;
+    // The closest key the reader asked for, when the unknown one looks like a misspelling.
+    std::string best;
+    std::size_t best_distance = 0;
+    for (const auto& known : *asked_) {
+      if (!is_misspelling(k.str(), known)) continue;
+      const std::size_t d = key_distance(k.str(), known);
+      if (best.empty() || d < best_distance) best = known, best_distance = d;
     }
+    fail(k.str(), "is not a known key here (misspelt, or not accepted in this section)" +
+                      (best.empty() ? std::string() : ": did you mean '" + best + "'?"));
   }
 }
 
 Document Document::load(const std::filesystem::path& file, const std::vector<Override>& overrides) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw SceneError(file.string() + ": cannot open scene file");
-  std::stringstream buf;
-  buf << in.rdbuf();
-  Document d = parse(buf.str(), file.string(), overrides);
+  std::string text;
+  try {
+    text = io::read_regular_file(file, io::kSceneFileLimit, "a scene file (TOML)");
+  } catch (const io::InputFileError& e) {
+    throw SceneError(e.what());
+  }
+  Document d = parse(text, file.string(), overrides);
   d.file_ = file;
   return d;
 }
@@ -487,12 +566,39 @@ Table Document::root() const {
   return Table(tree_.get(), std::make_shared<const std::string>(file_.string()), "", overrides_);
 }
 
+namespace {
+
+// run.name becomes a folder (out/<name>) and part of file names: one path component of
+// ordinary characters, so that "../../x" or "a/b" cannot write outside out/.
+void check_run_name(const Table& run, const std::string& name) {
+  constexpr std::size_t kMaxLength = 128;
+  const char* rule =
+      " (accepted: 1 to 128 letters, digits and . _ - + = , @, not starting with '.' or '-'; "
+      "to write elsewhere set run.output_dir or --output-dir)";
+  if (name.size() > kMaxLength) run.fail("name", "is longer than 128 bytes" + std::string(rule));
+  if (name.front() == '.' || name.front() == '-') {
+    run.fail("name", "'" + name + "' starts with '" + name.substr(0, 1) + "'" + rule);
+  }
+  for (const char ch : name) {
+    const auto c = static_cast<unsigned char>(ch);
+    const bool ok = c >= 0x80 || std::isalnum(c) != 0 || std::strchr("._-+=,@", c) != nullptr;
+    if (!ok) {
+      std::string shown = c >= 0x20 && c < 0x7f ? std::string("'") + ch + "'" : "a control code";
+      if (c == '/' || c == '\\') shown += " (a path separator)";
+      run.fail("name", "'" + name + "' contains " + shown + rule);
+    }
+  }
+}
+
+}  // namespace
+
 RunSettings read_run_settings(const Document& scene) {
   Table root = scene.root();
   Table run = root.required_table("run");
   RunSettings s;
   s.name = run.string("name", scene.file().stem().string());
   if (s.name.empty()) run.fail("name", "must not be empty");
+  if (run.has("name")) check_run_name(run, s.name);
   s.end_time = run.number("end_time", Range::positive());
   s.output_dir = run.has("output_dir") ? std::filesystem::path(run.string("output_dir"))
                                        : std::filesystem::path("out") / s.name;

@@ -1,5 +1,10 @@
 #include <catch2/catch.hpp>
 
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <csignal>
 #include <filesystem>
 #include <fstream>
 
@@ -50,5 +55,62 @@ TEST_CASE("a truncated HDF5 file is refused with its name", "[io]") {
     refused = std::string(e.what()).find(path.string()) != std::string::npos;
   }
   CHECK(refused);
+  std::filesystem::remove(path);
+}
+
+TEST_CASE("a full disk is reported with the system's reason, not as a corrupt file", "[io]") {
+  // Issue 19, defect 9: a full disk said "cannot open (not an HDF5 file)". /dev/full refuses
+  // every write with ENOSPC, as a full file system does.
+  try {
+    H5File f("/dev/full", H5File::Mode::create);
+    std::vector<double> v(100000, 1.0);
+    f.write("x", v);
+    f.close();
+    FAIL("writing to /dev/full did not fail");
+  } catch (const H5Error& e) {
+    CHECK_THAT(e.what(), Catch::Contains("/dev/full") &&
+                             Catch::Contains("No space left on device") &&
+                             Catch::Contains("free space"));
+  }
+  // A missing folder says so.
+  CHECK_THROWS_WITH(H5File("/nonexistent-demfem/x.h5", H5File::Mode::create),
+                    Catch::Contains("cannot create: No such file or directory"));
+  // A file that is not HDF5 is still called that.
+  const auto text = std::filesystem::temp_directory_path() / "demfem_test_not_h5.h5";
+  std::ofstream(text) << "not hdf5";
+  CHECK_THROWS_WITH(H5File(text, H5File::Mode::read), Catch::Contains("not an HDF5 file"));
+  std::filesystem::remove(text);
+}
+
+TEST_CASE("a write cut short by the file size limit fails at the write or the close, with errno",
+          "[io]") {
+  // The data of a dataset reaches the disk at H5Dwrite or when the file is closed: a failure
+  // at either must be an error naming the reason (here EFBIG from RLIMIT_FSIZE, in a child
+  // process), never a silently incomplete file.
+  const auto path = std::filesystem::temp_directory_path() /
+                    ("demfem_test_fsize_" + std::to_string(::getpid()) + ".h5");
+  const pid_t pid = ::fork();
+  REQUIRE(pid >= 0);
+  if (pid == 0) {
+    ::signal(SIGXFSZ, SIG_IGN);
+    struct rlimit limit {};
+    limit.rlim_cur = limit.rlim_max = 64 * 1024;
+    ::setrlimit(RLIMIT_FSIZE, &limit);
+    int code = 3;
+    try {
+      H5File f(path, H5File::Mode::create);
+      std::vector<double> v(1 << 20, 1.0);  // 8 MiB
+      f.write("x", v);
+      f.close();
+      code = 1;  // no error
+    } catch (const H5Error& e) {
+      code = std::string(e.what()).find("File too large") != std::string::npos ? 0 : 2;
+    }
+    ::_exit(code);
+  }
+  int status = 0;
+  REQUIRE(::waitpid(pid, &status, 0) == pid);
+  REQUIRE(WIFEXITED(status));
+  CHECK(WEXITSTATUS(status) == 0);  // 1: no error, 2: an error without the reason
   std::filesystem::remove(path);
 }

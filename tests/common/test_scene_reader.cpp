@@ -45,6 +45,12 @@ TEST_CASE("scene reader reports syntax errors and missing files", "[scene]") {
   CHECK_THROWS_WITH(Document::parse("[dem\n", "syn.toml"), Contains("syn.toml:1"));
   CHECK_THROWS_WITH(Document::load("/nonexistent/scene.toml"),
                     Contains("/nonexistent/scene.toml") && Contains("cannot open"));
+  // Issue 19: a directory said "key 'run' is required"; /dev/zero grew to 4 GB.
+  CHECK_THROWS_WITH(Document::load(DEMFEM_SOURCE_DIR "/cases"),
+                    Contains("/cases: is a directory, not a regular file; expected a scene file"));
+  CHECK_THROWS_AS(Document::load("/dev/zero"), demfem::scene::SceneError);
+  CHECK_THROWS_WITH(Document::load("/dev/zero"),
+                    Contains("/dev/zero: is a character device, not a regular file"));
 }
 
 TEST_CASE("run settings: defaults, ranges and unknown sections", "[scene]") {
@@ -72,4 +78,84 @@ TEST_CASE("scene reader guards toml++ against code points it mishandles", "[scen
   // Characters outside those ranges pass through strings unchanged.
   auto cjk = Document::parse("[run]\nname = \"\xe6\xa2\x81\"\n", "c.toml");
   CHECK(cjk.root().required_table("run").string("name") == "\xe6\xa2\x81");
+}
+
+TEST_CASE("run.name is one folder name: path separators, '..' and odd characters refused",
+          "[scene]") {
+  // run.name = "../../x" used to write outside out/ (issue 19, defect 13).
+  auto name_error = [](const std::string& name) {
+    try {
+      demfem::scene::read_run_settings(
+          Document::parse("[run]\nend_time = 1\nname = \"" + name + "\"\n", "n.toml"));
+    } catch (const demfem::scene::SceneError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  CHECK_THAT(name_error("../../x"), Contains("n.toml:3:8: key 'run.name'") &&
+                                        Contains("starts with '.'") && Contains("run.output_dir"));
+  CHECK_THAT(name_error("a/b"), Contains("'/' (a path separator)"));
+  CHECK_THAT(name_error("a\\\\b"), Contains("(a path separator)"));
+  CHECK_THAT(name_error(".."), Contains("key 'run.name'"));
+  CHECK_THAT(name_error("-rf"), Contains("starts with '-'"));
+  CHECK_THAT(name_error("a b"), Contains("contains ' '"));
+  CHECK_THAT(name_error("x\\ty"), Contains("a control code"));
+  CHECK_THAT(name_error(std::string(129, 'a')), Contains("longer than 128"));
+  CHECK_THAT(name_error(""), Contains("must not be empty"));
+  for (const char* ok : {"beam", "beam_1.2-a+b=c,d@e", "a..b", "\xe6\xa2\x81"}) {
+    INFO(ok);
+    CHECK(name_error(ok).empty());
+  }
+}
+
+TEST_CASE("a missing required key names the misspelt key beside it", "[scene]") {
+  auto doc = Document::parse(R"([dem]
+dt = 1e-5
+[[dem.lattice]]
+material = "steel"
+lo = [0, 0, 0]
+hi = [1, 1, 1]
+diamter = 0.024
+velocity = [0, 0, 0]
+)",
+                             "typo.toml");
+  auto dem = doc.root().required_table("dem");
+  auto lattice = dem.tables("lattice").at(0);
+  CHECK(lattice.string("material") == "steel");
+  // 'velocity' is present and not read yet, but it is no misspelling of 'diameter'; the
+  // unknown 'diamter' is, and the message names it with its line.
+  CHECK_THROWS_WITH(lattice.number("diameter", Range::positive()),
+                    Contains("typo.toml:") && Contains("key 'dem.lattice[0].diameter'") &&
+                        Contains("is required but missing") && Contains("'diamter' (line 7)") &&
+                        Contains("not a known key here") && Contains("did you mean 'diameter'?"));
+  // Without a look-alike, the plain message.
+  CHECK_THROWS_WITH(lattice.number("spacing"), Contains("is required but missing") &&
+                                                   !Contains("did you mean"));
+  // A key asked for before is known, not a misspelling ('lo' then a missing 'l0' style).
+  auto doc2 = Document::parse("[t]\nd_max = 2\n", "short.toml");
+  auto t = doc2.root().required_table("t");
+  CHECK_THROWS_WITH(t.number("d_min"), !Contains("did you mean"));  // 2 substitutions apart
+  auto doc3 = Document::parse("[p]\nb = \"x\"\ndtt = 1\n", "p.toml");
+  auto p = doc3.root().required_table("p");
+  CHECK_THROWS_WITH(p.string("a"), !Contains("did you mean"));  // 'b' is no misspelling of 'a'
+  CHECK_THROWS_WITH(p.number("dt"), Contains("'dtt' (line 3)") && Contains("did you mean 'dt'?"));
+  // A misspelt required table ([rnu] for [run]).
+  auto doc4 = Document::parse("[rnu]\nend_time = 1\n", "r.toml");
+  CHECK_THROWS_WITH(demfem::scene::read_run_settings(doc4),
+                    Contains("key 'run'") && Contains("'rnu' (line 1)") &&
+                        Contains("did you mean 'run'?"));
+}
+
+TEST_CASE("an unknown key suggests the closest key the section knows", "[scene]") {
+  auto doc = Document::parse("[c]\nscheme = \"x\"\nforce_averagin = true\nzzz = 1\n", "c.toml");
+  auto c = doc.root().required_table("c");
+  CHECK(c.string("scheme") == "x");
+  CHECK_FALSE(c.boolean("force_averaging", false));  // absent under its right name
+  CHECK_THROWS_WITH(c.finish(), Contains("c.toml:3") && Contains("'c.force_averagin'") &&
+                                    Contains("did you mean 'force_averaging'?"));
+  CHECK(demfem::scene::key_distance("diamter", "diameter") == 1);
+  CHECK(demfem::scene::key_distance("DT", "dt") == 0);
+  CHECK(demfem::scene::key_distance("restitution", "restituiton") == 1);  // transposition
+  CHECK(demfem::scene::is_misspelling("youngs_modulos", "youngs_modulus"));
+  CHECK_FALSE(demfem::scene::is_misspelling("hi", "lo"));
 }

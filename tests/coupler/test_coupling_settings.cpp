@@ -93,3 +93,34 @@ TEST_CASE("steps_to_reach rounds a near multiple and covers a remainder") {
   CHECK(coupling::steps_to_reach(0.35, 0.1) == 4);
   CHECK(coupling::steps_to_reach(1e-4, 1e-4) == 1);
 }
+
+TEST_CASE("step counts beyond the stated limits are refused upfront, naming the keys") {
+  // end_time = 1e300 once overflowed to "1 coupling steps"; dem.dt = 1e-20 was accepted and
+  // then never finished (issue 19, defect 5).
+  std::string msg = error_of(
+      "[run]\nend_time = 1e300\n[dem]\ndt = 1e-6\n[fem]\ndt = 1e-4\n[coupling]\n"
+      "scheme = \"just_in_time\"\n");
+  CHECK_THAT(msg, Catch::Contains("scene.toml:2:12: key 'run.end_time' = 1e+300 s"));
+  CHECK_THAT(msg, Catch::Contains("key 'fem.dt' = 1e-04 s"));
+  CHECK_THAT(msg, Catch::Contains("coupling steps; at most 1e+09 are accepted"));
+  msg = error_of(std::string(kRun) +
+                 "[dem]\ndt = 1e-20\n[fem]\ndt = 1e-4\n[coupling]\nscheme = \"just_in_time\"\n");
+  CHECK_THAT(msg, Catch::Contains("key 'dem.dt' = 1e-20 s"));
+  CHECK_THAT(msg, Catch::Contains("key 'fem.dt'"));
+  CHECK_THAT(msg, Catch::Contains("DEM substeps per coupling step; at most 1e+09"));
+  // The DEM alone: the total count of DEM steps is bounded (1e12), and no slice overflows.
+  msg = error_of(std::string(kRun) + "[dem]\ndt = 1e-20\n");
+  CHECK_THAT(msg, Catch::Contains("key 'run.end_time' = 0.01 s and"));
+  CHECK_THAT(msg, Catch::Contains("key 'dem.dt' = 1e-20 s make 1e+18 DEM steps; at most 1e+12"));
+  msg = error_of("[run]\nend_time = 1e300\n[dem]\ndt = 1e-300\n");
+  CHECK_THAT(msg, Catch::Contains("DEM steps; at most 1e+12"));
+  // The FEM alone.
+  msg = error_of("[run]\nend_time = 1e6\n[fem]\ndt = 1e-4\n");
+  CHECK_THAT(msg, Catch::Contains("make 1e+10 coupling steps"));
+  // At the limits: accepted.
+  auto s = read("[run]\nend_time = 1e5\n[fem]\ndt = 1e-4\n");
+  CHECK(s.step_count == coupling::kMaxCouplingSteps);
+  s = read("[run]\nend_time = 1e3\n[dem]\ndt = 1e-6\n");
+  CHECK(s.step_count == 1'000'000);  // slices of 1 ms
+  CHECK(coupling::steps_to_reach(1e300, 1e-300) == INT64_MAX);
+}

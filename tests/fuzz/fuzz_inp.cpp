@@ -8,7 +8,11 @@
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string text(reinterpret_cast<const char*>(data), size);
   try {
-    (void)demfem::fem::parse_inp(text, "fuzz.inp");
+    // No *INCLUDE: the fuzzer must not read files (and results must not depend on them).
+    demfem::fem::InpOptions options;
+    options.allow_include = false;
+    options.c3d8r_as = demfem::fem::SolidFormulation::incompatible_modes;
+    (void)demfem::fem::parse_inp(text, "fuzz.inp", options);
   } catch (const demfem::fem::InpError&) {
   }
   return 0;

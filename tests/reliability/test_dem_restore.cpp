@@ -14,6 +14,7 @@
 #include <string>
 
 #include "demfem/dem/dem_scene.hpp"
+#include "demfem/dem/state_check.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem/scene/scene_reader.hpp"
 #include "demfem_test/temp_dir.hpp"
@@ -92,4 +93,72 @@ TEST_CASE("a restored DemRun continues the sensor series of the uninterrupted ru
   CHECK(std::stod(last) > 0.0);
   CHECK(flow_a == flow_b);
   CHECK(read_text(a.path / "sensor_ke.csv") == read_text(b.path / "sensor_ke.csv"));
+}
+
+TEST_CASE("a restored DEM state is checked as strictly as a scene") {
+  // Issue 19, defect 7: a checkpoint with NaN positions (and a matching manifest) resumed.
+  dem::ParticleState st;
+  auto add = [&](double z) {
+    for (auto* v : {&st.px, &st.py, &st.vx, &st.vy, &st.vz, &st.wx, &st.wy, &st.wz, &st.qx,
+                    &st.qy, &st.qz, &st.fx, &st.fy, &st.fz})
+      v->push_back(0.0);
+    st.pz.push_back(z);
+    st.qw.push_back(1.0);
+    st.radius.push_back(0.01);
+    st.mass.push_back(0.1);
+    st.inertia.push_back(4e-6);
+    st.material.push_back(0);
+    st.shape.push_back(0);
+  };
+  add(0.0);
+  add(0.1);
+  CHECK_NOTHROW(dem::check_particle_state(st, "cp.h5:/dem"));
+  auto refused = [&](auto change, const std::string& expect) {
+    dem::ParticleState bad = st;
+    change(bad);
+    CHECK_THROWS_WITH(dem::check_particle_state(bad, "cp.h5:/dem"),
+                      Catch::Contains("cp.h5:/dem") && Catch::Contains(expect));
+  };
+  refused([](auto& s) { s.pz[1] = std::nan(""); }, "particle 1: position z is nan");
+  refused([](auto& s) { s.vx[0] = INFINITY; }, "particle 0: velocity x is inf");
+  refused([](auto& s) { s.radius[1] = 0.0; }, "particle 1: radius is 0 (must be finite and > 0)");
+  refused([](auto& s) { s.mass[0] = -1.0; }, "particle 0: mass is -1");
+  refused([](auto& s) { s.inertia[0] = std::nan(""); }, "moment of inertia is nan");
+  refused([](auto& s) { s.qw[1] = 0.5; }, "|orientation|^2 is 0.25");
+  refused([](auto& s) { s.vy.pop_back(); }, "velocity y has 1 entries for 2 particles");
+}
+
+TEST_CASE("a DEM checkpoint of a scene that made other particles is refused on restore") {
+  // Issue 19, defect 7: docs/reliability.md said the particle count was checked; it was not
+  // (the checkpoint's particles silently replaced those of the changed scene).
+  TempDir d;
+  const fs::path cp = d.path / "dem.h5";
+  {
+    dem::DemRun run(scene_with_plane(-1.0), d.path, 1, 0.0, nullptr, true);
+    run.advance(3);
+    io::H5File h5(cp, io::H5File::Mode::create);
+    run.save(h5, "dem");
+    h5.close();
+  }
+  // Twice the lattice's length in x: more spheres at set-up.
+  std::ostringstream t;
+  t << "[dem]\ndt = 1e-4\n"
+    << "[[dem.materials]]\nname = \"soft\"\nyoungs_modulus = 1e7\npoisson_ratio = 0.3\n"
+    << "density = 7800.0\n"
+    << "[[dem.pairs]]\na = \"soft\"\nb = \"soft\"\nfriction = 0.0\nrestitution = 0.5\n"
+    << "[[dem.lattice]]\nmaterial = \"soft\"\nlo = [0.0, 0.0, 0.0]\nhi = [0.2, 0.03, 0.03]\n"
+    << "diameter = 0.024\nspacing = 0.05\n"
+    << "[[dem.sensors]]\nname = \"flow\"\nkind = \"mass_flow\"\ninterval = 0.01\n"
+    << "point = [0.0, 0.0, -1.0]\ndirection = [0.0, 0.0, -1.0]\n"
+    << "[[dem.sensors]]\nname = \"ke\"\nkind = \"kinetic_energy\"\ninterval = 0.01\n";
+  const auto doc = scene::Document::parse(t.str(), "bigger.toml");
+  const dem::DemScene bigger = dem::read_dem_scene(*doc.root().table("dem"));
+  dem::DemRun run(bigger, d.path, 1, 0.0, nullptr, true);
+  REQUIRE(run.setup_particles() == 4);
+  io::H5File h5(cp, io::H5File::Mode::read);
+  CHECK_THROWS_WITH(run.restore(h5, "dem"),
+                    Catch::Contains("dem.h5: the checkpoint's scene made 2 particles at set-up") &&
+                        Catch::Contains("bigger.toml) makes 4"));
+  // The launcher's check before any process starts counts the same.
+  CHECK(dem::DemRun::check_setup(bigger, 1) == 4);
 }

@@ -9,9 +9,7 @@
 // the file, and the previous checkpoint is used.
 #include <catch2/catch.hpp>
 
-#include <fcntl.h>
 #include <signal.h>
-#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -27,7 +25,9 @@
 #include <vector>
 
 #include "demfem/io/h5_file.hpp"
+#include "demfem_test/launch.hpp"
 #include "demfem_test/run_output.hpp"
+#include "demfem_test/scene_variant.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 namespace fs = std::filesystem;
@@ -50,33 +50,13 @@ struct Result {
   std::string out, err;
 };
 
-// demfem_run in `dir` (relative output paths land there), stdout/stderr appended to files.
+// demfem_run in `dir` (relative output paths land there), stdout/stderr to files there.
 Result run(const fs::path& dir, std::vector<std::string> args, const fs::path& scene = kScene) {
-  std::vector<std::string> argv_s = {(kBin / "demfem_run").string(), "--bin-dir", kBin.string(),
-                                     scene.string(), "--quiet"};
-  argv_s.insert(argv_s.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (auto& a : argv_s) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  const std::string out = (dir / "stdout.txt").string(), err = (dir / "stderr.txt").string();
-  posix_spawn_file_actions_addopen(&fa, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_addopen(&fa, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  const fs::path old = fs::current_path();
-  fs::current_path(dir);
-  pid_t pid = -1;
-  const int rc = posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ);
-  fs::current_path(old);
-  posix_spawn_file_actions_destroy(&fa);
-  REQUIRE(rc == 0);
-  int st = 0;
-  REQUIRE(waitpid(pid, &st, 0) == pid);
-  Result r;
-  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
-  r.out = read_text(dir / "stdout.txt");
-  r.err = read_text(dir / "stderr.txt");
-  return r;
+  std::vector<std::string> argv = {(kBin / "demfem_run").string(), "--bin-dir", kBin.string(),
+                                   scene.string(), "--quiet"};
+  argv.insert(argv.end(), args.begin(), args.end());
+  const auto ended = demfem::test::wait_for(demfem::test::launch(dir, argv));
+  return Result{ended.status, ended.out, ended.err};
 }
 
 // Every solver process of these outputs has ended (a solver whose coupler died leaves within
@@ -188,11 +168,12 @@ std::int64_t kill_step(int seed, int salt) {
 
 }  // namespace
 
-TEST_CASE("checkpoints: committed every 10 steps with a manifest, the last 2 kept") {
+TEST_CASE("checkpoints: committed every 10 steps and at the end with a manifest, the last 2 kept") {
   const fs::path cp = reference() / "checkpoints";
   std::set<std::string> names;
   for (const auto& e : fs::directory_iterator(cp)) names.insert(e.path().filename().string());
-  CHECK(names == std::set<std::string>{"step-000030", "step-000040"});
+  // Step 50 is the end of the run: a finished run can be continued from it.
+  CHECK(names == std::set<std::string>{"step-000040", "step-000050"});
   const std::string manifest = read_text(cp / "step-000040" / "manifest.json");
   for (const char* part : {"dem.h5", "fem.h5", "coupler.h5"}) {
     INFO(part);
@@ -337,7 +318,7 @@ TEST_CASE("a corrupt or incomplete checkpoint is skipped with a message, the pre
     TempDir d;
     fs::create_directories(d.path / "out");
     fs::copy(reference(), d.path / kOut, fs::copy_options::recursive);
-    const fs::path target = d.path / kOut / "checkpoints" / "step-000040" / c.part;
+    const fs::path target = d.path / kOut / "checkpoints" / "step-000050" / c.part;
     const std::string what = c.what;
     if (what == "truncated") {
       fs::resize_file(target, fs::file_size(target) / 2);
@@ -359,7 +340,7 @@ TEST_CASE("a corrupt or incomplete checkpoint is skipped with a message, the pre
     REQUIRE(r.status == 0);
     CHECK(r.err.find("skipping checkpoint") != std::string::npos);
     CHECK(r.err.find(c.expect) != std::string::npos);
-    CHECK(r.err.find("resumed from checkpoint " + std::string(kOut) + "/checkpoints/step-000030") !=
+    CHECK(r.err.find("resumed from checkpoint " + std::string(kOut) + "/checkpoints/step-000040") !=
           std::string::npos);
     check_same_results(reference(), d.path / kOut);
     // Given explicitly, a damaged checkpoint is refused (exit 2), naming the file.
@@ -415,34 +396,28 @@ TEST_CASE("a hung (SIGSTOP) dem_server is found by its stale heartbeat, killed a
 // The case with some `key = value` texts replaced (each must occur).
 fs::path variant(const fs::path& dir,
                  const std::vector<std::pair<std::string, std::string>>& subs) {
-  std::string text = read_text(kScene);
-  for (const auto& [from, to] : subs) {
-    const auto at = text.find(from);
-    REQUIRE(at != std::string::npos);
-    text.replace(at, from.size(), to);
-  }
-  const fs::path p = dir / "variant.toml";
-  std::ofstream(p) << text;
-  return p;
+  return demfem::test::write_variant(kScene, dir / "variant.toml", subs);
 }
 
 TEST_CASE("a solver that hangs inside a step (heartbeat alive) is killed after reply_timeout") {
-  // The DEM time step 1000 times smaller makes one coupling step take 50,000 substeps (about
-  // a second here) while the heartbeat goes on; checkpoint.reply_timeout = 0.1 s gives up on
-  // it, kills and restarts it, rolls back to the step-0 checkpoint, and after max_retries = 1
-  // stops with exit 4, naming the timeout. The run must end within seconds (not hang) and
-  // leave no process or segment behind.
+  // The DEM time step 2000 times smaller makes one coupling step take 100,000 substeps
+  // (about two seconds here) while the heartbeat goes on; checkpoint.reply_timeout = 0.5 s
+  // gives up on it, kills and restarts it, rolls back to the step-0 checkpoint, and after
+  // max_retries = 1 stops with exit 4, naming the timeout. The run must end within seconds
+  // (not hang) and leave no process or segment behind. (With 0.1 s, the step-0 checkpoint
+  // itself, which starts the DEM's output, sometimes took longer on the loaded 2-core machine:
+  // the run then stopped with exit 1 before it had a checkpoint to recover to.)
   TempDir d;
   const fs::path scene = variant(
       d.path,
-      {{"max_retries = 3", "max_retries = 1\nreply_timeout = 0.1"},
-       {"dt = 2e-6                  # s; Rayleigh", "dt = 2e-9                  # s; Rayleigh"}});
+      {{"max_retries = 3", "max_retries = 1\nreply_timeout = 0.5"},
+       {"dt = 2e-6                  # s; Rayleigh", "dt = 1e-9                  # s; Rayleigh"}});
   const auto t0 = std::chrono::steady_clock::now();
   const Result r = run(d.path, {}, scene);
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   INFO(r.out << r.err);
   CHECK(r.status == 4);
-  CHECK(r.err.find("no reply within reply_timeout (100 ms)") != std::string::npos);
+  CHECK(r.err.find("no reply within reply_timeout (500 ms)") != std::string::npos);
   CHECK(r.err.find("kept failing: 1 restarts from checkpoint") != std::string::npos);
   CHECK(secs < 30.0);
   check_nothing_left({r.out});
@@ -483,14 +458,15 @@ TEST_CASE("every_sim_time: checkpoints where the simulated time passes a multipl
   std::set<std::string> names;
   for (const auto& e : fs::directory_iterator(d.path / kOut / "checkpoints"))
     names.insert(e.path().filename().string());
-  CHECK(names == std::set<std::string>{"step-000000", "step-000015", "step-000030", "step-000045"});
+  CHECK(names == std::set<std::string>{"step-000000", "step-000015", "step-000030", "step-000045",
+                                       "step-000050"});
   check_same_results(reference(), d.path / kOut);
 }
 
 TEST_CASE(
     "old checkpoints do not outlive their run: a fresh run and an older resume discard them") {
   TempDir d;
-  REQUIRE(run(d.path, {}).status == 0);  // leaves step-30 and step-40
+  REQUIRE(run(d.path, {}).status == 0);  // leaves step-40 and step-50
   const fs::path cp = d.path / kOut / "checkpoints";
   // A fresh run in the same folder, killed and recovered: it must roll back to its own
   // checkpoint, not find an older run's step-40 newer than its own.
@@ -501,7 +477,7 @@ TEST_CASE(
   check_same_results(reference(), d.path / kOut);
   // Resuming explicitly from an older checkpoint drops the newer ones, then writes its own.
   const Result e =
-      run(d.path, {"--resume", (cp / "step-000030").string(), "--debug-kill", "dem:45"});
+      run(d.path, {"--resume", (cp / "step-000040").string(), "--debug-kill", "dem:45"});
   INFO(e.out << e.err);
   REQUIRE(e.status == 0);
   CHECK(e.err.find("back at step 40") != std::string::npos);
@@ -516,11 +492,11 @@ TEST_CASE("every_wall_time: a checkpoint whenever the wall-time interval has pas
   INFO(r.out << r.err);
   REQUIRE(r.status == 0);
   CHECK(r.err.find("back at step 37") != std::string::npos);
-  CHECK(r.out.find("50 checkpoints") != std::string::npos);  // steps 0..49
+  CHECK(r.out.find("51 checkpoints") != std::string::npos);  // steps 0..49 and the end, 50
   std::set<std::string> names;
   for (const auto& e : fs::directory_iterator(d.path / kOut / "checkpoints"))
     names.insert(e.path().filename().string());
-  CHECK(names == std::set<std::string>{"step-000048", "step-000049"});
+  CHECK(names == std::set<std::string>{"step-000049", "step-000050"});
   check_same_results(reference(), d.path / kOut);
 }
 
@@ -544,4 +520,81 @@ TEST_CASE("one-way static: a FEM killed in its static solve recovers to the same
   CHECK(r1.err.find("back at step 5") != std::string::npos);
   check_same_results(ref.path / "out/beam_fixed_ci", d.path / "out/beam_fixed_ci", 8);
   check_nothing_left({r1.out});
+}
+
+TEST_CASE("a finished run is continued to a later end_time and equals the run straight to it") {
+  // Issue 19, defect 17: no checkpoint was taken at the end, so a run that ended could not be
+  // continued. The run to 4 ms ends with a checkpoint of its end state (step 40); --resume
+  // with the scene's end_time of 5 ms continues it, equal to the uninterrupted run to 5 ms
+  // (4 ms is a multiple of the output interval, so the first run wrote no extra output).
+  TempDir d;
+  const fs::path t1 = variant(d.path, {{"end_time = 0.005 ", "end_time = 0.004 "}});
+  const Result first = run(d.path, {}, t1);
+  INFO(first.out << first.err);
+  REQUIRE(first.status == 0);
+  REQUIRE(fs::exists(d.path / kOut / "checkpoints" / "step-000040" / "manifest.json"));
+  const Result second = run(d.path, {"--resume"});
+  INFO(second.out << second.err);
+  REQUIRE(second.status == 0);
+  CHECK(second.err.find("resumed from checkpoint " + std::string(kOut) +
+                        "/checkpoints/step-000040 (step 40") != std::string::npos);
+  CHECK(second.err.find("the scene differs from the one checkpoint") != std::string::npos);
+  check_same_results(reference(), d.path / kOut);
+  // Resumed at its end, a finished run has nothing left to do and stays as it is.
+  const Result again = run(d.path, {"--resume"});
+  INFO(again.out << again.err);
+  REQUIRE(again.status == 0);
+  CHECK(again.err.find("step-000050 (step 50") != std::string::npos);
+  check_same_results(reference(), d.path / kOut);
+}
+
+TEST_CASE("resume into a new output folder continues the series of the checkpoint's run") {
+  // Issue 19, defect 17: "coupling.csv: cannot read the series to continue" until the old
+  // coupling.csv was copied by hand. The checkpoint records its run's output folder; the
+  // new folder takes over that run's series and continues them.
+  TempDir d;
+  const fs::path cp40 = reference() / "checkpoints" / "step-000040";
+  const fs::path fresh = d.path / "continued";
+  const Result r = run(d.path, {"--resume", cp40.string(), "--output-dir", fresh.string()});
+  INFO(r.out << r.err);
+  REQUIRE(r.status == 0);
+  CHECK(r.err.find("took over the series of " + fs::absolute(reference()).string()) !=
+        std::string::npos);
+  check_same_results(reference(), fresh);
+  // The folder the series came from is gone: refused with what to do (exit 2).
+  TempDir gone_run;
+  REQUIRE(run(gone_run.path, {}).status == 0);
+  const fs::path kept = d.path / "kept-step-000040";
+  fs::copy(gone_run.path / kOut / "checkpoints" / "step-000040", kept);
+  fs::remove_all(gone_run.path / kOut);
+  const Result e =
+      run(d.path, {"--resume", kept.string(), "--output-dir", (d.path / "x").string()});
+  INFO(e.out << e.err);
+  CHECK(e.status == 2);
+  CHECK(e.err.find("whose series (coupling.csv) are not there any more") != std::string::npos);
+  CHECK(started_pids(e.out).empty());
+}
+
+TEST_CASE("after a resume the wall-time shares are of the same wall time") {
+  // Issue 19, defect 12: the restored DEM total was divided by this session's wall time
+  // ("DEM 716 %").
+  // Resumed at the end of a finished run, this session computes nothing, so the old sum was
+  // the whole run's DEM time over a few milliseconds.
+  TempDir d;
+  REQUIRE(run(d.path, {}).status == 0);
+  const Result r = run(d.path, {"--resume"});
+  INFO(r.out << r.err);
+  REQUIRE(r.status == 0);
+  REQUIRE(r.err.find("step-000050 (step 50") != std::string::npos);
+  auto shares = [&](const std::string& label) {
+    const std::regex re(label +
+                        ": total ([0-9.]+) s; DEM [0-9.]+ s \\(([0-9.]+) %\\), FEM [0-9.]+ "
+                        "s \\(([0-9.]+) %\\), coupling [0-9.]+ s \\(([0-9.]+) %\\)");
+    std::smatch m;
+    REQUIRE(std::regex_search(r.out, m, re));
+    return std::stod(m[2]) + std::stod(m[3]) + std::stod(m[4]);
+  };
+  CHECK(shares("wall time of this session") <= 100.5);
+  CHECK(shares("wall time of the whole run \\(earlier sessions up to the checkpoint, and this "
+               "one\\)") <= 100.5);
 }

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "demfem/io/h5_file.hpp"
+#include "demfem_test/launch.hpp"
 #include "demfem_test/run_output.hpp"
 #include "demfem_test/temp_dir.hpp"
 
@@ -43,31 +44,9 @@ struct Result {
 
 // Starts demfem_run in `dir` (own process group when `group`), stdout/stderr to files.
 pid_t spawn_run(const fs::path& dir, const std::vector<std::string>& args, bool group) {
-  std::vector<std::string> argv_s = {(kBin / "demfem_run").string(), "--bin-dir", kBin.string()};
-  argv_s.insert(argv_s.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (auto& a : argv_s) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  const std::string out = (dir / "stdout.txt").string(), err = (dir / "stderr.txt").string();
-  posix_spawn_file_actions_addopen(&fa, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_addopen(&fa, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawnattr_t attr;
-  posix_spawnattr_init(&attr);
-  if (group) {
-    posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETPGROUP);
-    posix_spawnattr_setpgroup(&attr, 0);
-  }
-  const fs::path old = fs::current_path();
-  fs::current_path(dir);  // the child inherits it
-  pid_t pid = -1;
-  const int rc = posix_spawn(&pid, argv[0], &fa, &attr, argv.data(), environ);
-  fs::current_path(old);
-  posix_spawn_file_actions_destroy(&fa);
-  posix_spawnattr_destroy(&attr);
-  REQUIRE(rc == 0);
-  return pid;
+  std::vector<std::string> argv = {(kBin / "demfem_run").string(), "--bin-dir", kBin.string()};
+  argv.insert(argv.end(), args.begin(), args.end());
+  return demfem::test::launch(dir, argv, group).pid;
 }
 
 Result wait_run(const fs::path& dir, pid_t pid) {

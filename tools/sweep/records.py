@@ -14,7 +14,7 @@ from pathlib import Path
 STATUS_FILE = "status.json"     # the sweep's record of the member (state, attempts)
 IDENTITY_FILE = "member.json"   # what the member is: scene, its hash, the overrides
 LOCK_FILE = "member.lock"       # held while a process runs the member
-RUN_RECORD = "run.json"         # demfem_run's own run record, when it writes one
+RUN_RECORD = "run.json"         # demfem_run's own run record
 
 # Final states; "running" and "interrupted" are not.
 DONE, FAILED = "done", "failed"
@@ -57,19 +57,13 @@ def read_json(path):
 
 
 def run_record_finished(folder):
-    """True when demfem_run's run record (run.json) says the run finished successfully.
-    Accepts a 'status' of done/finished/completed/success/ok, and an 'exit_status' or
-    'exit_code' of 0 where one is given."""
+    """True when demfem_run's run record (run.json, coupler/src/run_record.cpp) says the run
+    finished successfully: status "completed" and exit_code 0."""
     rec = read_json(Path(folder) / RUN_RECORD)
     if not rec:
         return False
     status = str(rec.get("status", "")).lower()
-    if status not in ("done", "finished", "completed", "complete", "success", "ok"):
-        return False
-    for k in ("exit_status", "exit_code"):
-        if k in rec and rec[k] != 0:
-            return False
-    return True
+    return status == "completed" and rec.get("exit_code") == 0
 
 
 def pid_alive(pid):

@@ -38,7 +38,8 @@ void cuda_upload_lists(CudaBackend*, const GpuHostView&) {
 void cuda_download_state(CudaBackend*, const GpuHostView&) {
   no_cuda();
 }
-std::int64_t cuda_run_steps(CudaBackend*, std::int64_t, double, double, double) {
+std::int64_t cuda_run_steps(CudaBackend*, std::int64_t, double, double, double,
+                            const std::atomic<bool>*) {
   no_cuda();
 }
 void cuda_finish_step(CudaBackend*) {

@@ -4,6 +4,7 @@
 // headers. Without CUDA (DEMFEM_HAVE_CUDA undefined) the functions are provided by
 // cuda_stub.cpp and report that no device exists.
 
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 
@@ -94,8 +95,9 @@ void cuda_download_state(CudaBackend* b, const GpuHostView& v);
 /// since the last build exceeds the skin): returns the number of steps done. The check runs
 /// on the device; the host reads one flag per chunk. t and tau are the time and the time
 /// into the advance() at the start (the device advances its copy by dt per step, as the
-/// host does).
-std::int64_t cuda_run_steps(CudaBackend* b, std::int64_t steps, double skin, double t, double tau);
+/// host does). Returns early, after a chunk, when `cancel` (may be null) is found set.
+std::int64_t cuda_run_steps(CudaBackend* b, std::int64_t steps, double skin, double t, double tau,
+                            const std::atomic<bool>* cancel = nullptr);
 /// Completes a step whose drift was done but whose forces were held back for a rebuild.
 void cuda_finish_step(CudaBackend* b);
 /// Largest overlap of the last step, m.

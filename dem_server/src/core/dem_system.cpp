@@ -248,6 +248,13 @@ struct DemSystem::Impl {
   std::vector<double> tx, ty, tz;  // torque of the last step
   double t = 0.0;
   std::int64_t steps = 0;
+  const std::atomic<bool>* cancel = nullptr;  // set_cancel_flag(): polled by advance()
+  void check_cancel(std::int64_t done, std::int64_t of) const {
+    if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) {
+      throw Cancelled("DEM advance cancelled after " + std::to_string(done) + " of " +
+                      std::to_string(of) + " steps (a stop was requested)");
+    }
+  }
   double rmax = 0.0;
   double skin = 0.0;
 
@@ -1299,10 +1306,11 @@ struct DemSystem::Impl {
     std::int64_t left = substeps;
     double tdet = 0.0;
     while (left > 0) {
-      const std::int64_t done = cuda_run_steps(gpu, left, skin, t, flex_tau);
+      const std::int64_t done = cuda_run_steps(gpu, left, skin, t, flex_tau, cancel);
       for (std::int64_t k = 0; k < done; ++k) t += s.dt, flex_tau += s.dt;  // the device's sums
       steps += done;
       left -= done;
+      check_cancel(substeps - left, substeps);
       if (left > 0) {  // drift of the next step done, forces wait for the new list
         const double r0 = omp_get_wtime();
         cuda_download_state(gpu, view());  // with the moved walls
@@ -1680,12 +1688,17 @@ void DemSystem::advance(std::int64_t substeps, ForceMode mode) {
     I.flex_max_ov = 0.0;
   }
   for (std::int64_t k = 0; k < substeps; ++k) {
+    I.check_cancel(k, substeps);
     const bool last = k + 1 == substeps;
     if (I.friction)
       I.step<true>(last, mode, substeps);
     else
       I.step<false>(last, mode, substeps);
   }
+}
+
+void DemSystem::set_cancel_flag(const std::atomic<bool>* flag) {
+  impl_->cancel = flag;
 }
 
 double DemSystem::advance_max_overlap() const {

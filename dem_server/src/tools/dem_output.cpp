@@ -1,10 +1,13 @@
 #include "demfem/dem/dem_output.hpp"
 
+#include <cmath>
 #include <cstdio>
+#include <numeric>
 #include <sstream>
 
 #include "demfem/io/atomic_file.hpp"
 #include "demfem/io/h5_file.hpp"
+#include "demfem/io/output_schedule.hpp"
 
 namespace demfem::dem {
 
@@ -23,7 +26,8 @@ std::filesystem::path ParticleOutput::snapshot_path(std::size_t k) const {
   return dir_ / (stem_ + buf);
 }
 
-void ParticleOutput::write(const ParticleState& p, std::span<const std::int64_t> ids, double time) {
+void ParticleOutput::write(const ParticleState& p, std::span<const std::int64_t> ids, double time,
+                           double state_time) {
   const std::size_t n = p.size();
   if (ids.size() != n) throw std::logic_error("particle output: ids and particles differ");
   const auto final_path = snapshot_path(entries_.size());
@@ -47,7 +51,11 @@ void ParticleOutput::write(const ParticleState& p, std::span<const std::int64_t>
     std::vector<std::int64_t> mat(p.material.begin(), p.material.end());
     f.write("material", std::span<const std::int64_t>(mat), {n});
     f.write("id", ids, {n});
+    std::vector<std::int64_t> vertex(n);
+    std::iota(vertex.begin(), vertex.end(), std::int64_t{0});
+    f.write("vertex", std::span<const std::int64_t>(vertex), {n});
     f.set_attribute("/", "time", time);
+    f.set_attribute("/", "state_time", std::isnan(state_time) ? time : state_time);
     f.set_attribute("/", "count", static_cast<std::int64_t>(n));
     f.close();
   }
@@ -66,42 +74,44 @@ void ParticleOutput::resume(std::size_t keep) {
   write_index();
 }
 
+void ParticleOutput::write_sphere_grid(std::ostream& x, std::size_t k,
+                                       const std::string& indent) const {
+  const auto& e = entries_[k];
+  const std::string h5 = snapshot_path(k).filename().string();
+  auto item = [&](const std::string& ds, const std::string& dims, const char* type) {
+    std::ostringstream s;
+    s << "<DataItem Dimensions=\"" << dims << "\" NumberType=\"" << type
+      << "\" Precision=\"8\" Format=\"HDF\">" << h5 << ":/" << ds << "</DataItem>";
+    return s.str();
+  };
+  const std::string n = std::to_string(e.count);
+  x << indent << "<Grid Name=\"step_" << k << "\" GridType=\"Uniform\">\n"
+    << indent << "  <Time Value=\"" << io::format_time(e.time) << "\"/>\n"
+    << indent << "  <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << n
+    << "\" NodesPerElement=\"1\">" << item("vertex", n + " 1", "Int") << "</Topology>\n"
+    << indent << "  <Geometry GeometryType=\"XYZ\">" << item("position", n + " 3", "Float")
+    << "</Geometry>\n";
+  const char* vectors[] = {"velocity", "angular_velocity"};
+  for (const char* v : vectors) {
+    x << indent << "  <Attribute Name=\"" << v << "\" AttributeType=\"Vector\" Center=\"Node\">"
+      << item(v, n + " 3", "Float") << "</Attribute>\n";
+  }
+  const std::pair<const char*, const char*> scalars[] = {
+      {"radius", "Float"}, {"mass", "Float"}, {"material", "Int"}, {"id", "Int"}};
+  for (const auto& [name, type] : scalars) {
+    x << indent << "  <Attribute Name=\"" << name << "\" AttributeType=\"Scalar\" Center=\"Node\">"
+      << item(name, n, type) << "</Attribute>\n";
+  }
+  x << indent << "</Grid>\n";
+}
+
 void ParticleOutput::write_index() const {
   std::ostringstream x;
-  x.precision(17);
   x << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n  <Domain>\n"
     << "    <Grid Name=\"" << stem_ << "\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
   for (std::size_t k = 0; k < entries_.size(); ++k) {
-    const auto& e = entries_[k];
-    if (e.count == 0) continue;  // an empty Polyvertex grid is not valid XDMF
-    const std::string h5 = snapshot_path(k).filename().string();
-    auto item = [&](const std::string& ds, const std::string& dims, const char* type) {
-      std::ostringstream s;
-      s << "<DataItem Dimensions=\"" << dims << "\" NumberType=\"" << type
-        << "\" Precision=\"8\" Format=\"HDF\">" << h5 << ":/" << ds << "</DataItem>";
-      return s.str();
-    };
-    const std::string n = std::to_string(e.count);
-    x << "      <Grid Name=\"step_" << k << "\" GridType=\"Uniform\">\n"
-      << "        <Time Value=\"" << e.time << "\"/>\n"
-      << "        <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << n
-      << "\" NodesPerElement=\"1\"/>\n"
-      << "        <Geometry GeometryType=\"XYZ\">" << item("position", n + " 3", "Float")
-      << "</Geometry>\n";
-    const char* vectors[] = {"velocity", "angular_velocity"};
-    for (const char* v : vectors) {
-      x << "        <Attribute Name=\"" << v << "\" AttributeType=\"Vector\" Center=\"Node\">"
-        << item(v, n + " 3", "Float") << "</Attribute>\n";
-    }
-    x << "        <Attribute Name=\"radius\" AttributeType=\"Scalar\" Center=\"Node\">"
-      << item("radius", n, "Float") << "</Attribute>\n"
-      << "        <Attribute Name=\"mass\" AttributeType=\"Scalar\" Center=\"Node\">"
-      << item("mass", n, "Float") << "</Attribute>\n"
-      << "        <Attribute Name=\"material\" AttributeType=\"Scalar\" Center=\"Node\">"
-      << item("material", n, "Int") << "</Attribute>\n"
-      << "        <Attribute Name=\"id\" AttributeType=\"Scalar\" Center=\"Node\">"
-      << item("id", n, "Int") << "</Attribute>\n"
-      << "      </Grid>\n";
+    if (entries_[k].count == 0) continue;  // an empty grid is not valid XDMF
+    write_sphere_grid(x, k, "      ");
   }
   x << "    </Grid>\n  </Domain>\n</Xdmf>\n";
   io::write_file_atomic(index_path(), x.str());

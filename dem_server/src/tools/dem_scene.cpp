@@ -1,4 +1,5 @@
 #include "demfem/dem/dem_scene.hpp"
+#include "demfem/dem/state_check.hpp"
 
 #include "scene_shapes.hpp"
 
@@ -8,6 +9,8 @@
 #include <map>
 #include <ostream>
 #include <sstream>
+
+#include <unistd.h>
 
 #include "demfem/dem/dem_output.hpp"
 #include "demfem/dem/stl_reader.hpp"
@@ -109,7 +112,70 @@ std::array<double, 3> checked_hi(const Table& t, const std::array<double, 3>& lo
   return hi;
 }
 
+double repetitions(const InsertSpec& in) {
+  return in.every > 0 ? std::floor(in.until / in.every + 1e-9) + 1.0 : 1.0;
+}
+
+std::string format_bytes(double b) {
+  std::ostringstream s;
+  s.precision(3);
+  if (b >= 1e12)
+    s << b / 1e12 << " TB";
+  else if (b >= 1e9)
+    s << b / 1e9 << " GB";
+  else
+    s << b / 1e6 << " MB";
+  return s.str();
+}
+
+// Refuses, up front, a scene whose particles cannot be held: more than a DEM system indexes,
+// or more memory than the machine has. `keys` names, per lattice then per insertion, the key
+// that sets its size.
+void check_particle_budget(const DemScene& s, const std::vector<std::string>& keys) {
+  std::vector<double> counts;
+  for (const auto& l : s.lattices) {
+    try {
+      counts.push_back(lattice_count(l.request));
+    } catch (const InsertionError&) {
+      counts.push_back(0.0);  // refused with its own message when it is filled
+    }
+  }
+  for (const auto& in : s.inserts) counts.push_back(expected_count(in.request) * repetitions(in));
+  double total = 0.0;
+  std::size_t largest = 0;
+  for (std::size_t i = 0; i < counts.size(); ++i) {
+    total += counts[i];
+    if (counts[i] > counts[largest]) largest = i;
+  }
+  const double bytes = total * kBytesPerParticle;
+  const double pages = static_cast<double>(sysconf(_SC_PHYS_PAGES));
+  const double memory = pages * static_cast<double>(sysconf(_SC_PAGE_SIZE));
+  const bool too_many = total > kMaxParticles;
+  const bool too_big = memory > 0 && bytes > memory;
+  if (!too_many && !too_big) return;
+  std::ostringstream m;
+  m.precision(3);
+  m << keys[largest] << ": the scene asks for about " << total << " particles (" << counts[largest]
+    << " from this entry), ";
+  if (too_many) {
+    m << "more than the " << std::int64_t(kMaxParticles)
+      << " a DEM system can index (32-bit particle indices)";
+  } else {
+    m << "about " << format_bytes(bytes) << " of memory at " << kBytesPerParticle / 1024
+      << " kB per particle, more than this machine's " << format_bytes(memory);
+  }
+  m << "; use larger particles, a smaller region, or fewer of them";
+  throw SceneError(m.str());
+}
+
 }  // namespace
+
+double estimated_particle_count(const DemScene& s) {
+  double total = 0.0;
+  for (const auto& l : s.lattices) total += lattice_count(l.request);
+  for (const auto& in : s.inserts) total += expected_count(in.request) * repetitions(in);
+  return total;
+}
 
 DemScene read_dem_scene(const Table& dem) {
   DemScene s;
@@ -231,6 +297,7 @@ DemScene read_dem_scene(const Table& dem) {
   };
 
   // Lattice fills.
+  std::vector<std::string> size_keys;  // per lattice, then per insertion: where its size is set
   for (const auto& l : dem.tables("lattice")) {
     LatticeSpec ls;
     ls.where = l.where("lo");
@@ -239,13 +306,44 @@ DemScene read_dem_scene(const Table& dem) {
     particle_density(l, q.material);
     q.region.lo = l.vec3("lo");
     q.region.hi = checked_hi(l, q.region.lo);
-    q.diameter = l.number("diameter", Range::positive());
+    if (!l.has("diameter") && !l.has("distribution")) {
+      l.fail_missing("diameter", "or 'distribution'");
+    }
+    if (l.has("diameter") && l.has("distribution")) {
+      l.fail("diameter", "give exactly one of 'diameter' (one size) and 'distribution'");
+    }
+    if (l.has("diameter")) {
+      q.diameter = l.number("diameter", Range::positive());
+      size_keys.push_back(l.where("diameter"));
+    } else {
+      q.sizes = read_distribution(l.required_table("distribution"));
+      q.has_sizes = true;
+      q.diameter = q.sizes.largest();
+      size_keys.push_back(l.where("distribution"));
+    }
     q.spacing = l.number("spacing", 0.0, Range::non_negative());
-    if (q.spacing > 0 && q.spacing < q.diameter) l.fail("spacing", "must be >= diameter (or 0)");
+    if (q.spacing > 0 && q.spacing < q.diameter) {
+      l.fail("spacing", q.has_sizes ? "must be >= the largest diameter of the distribution, " +
+                                          std::to_string(q.diameter) + " m (or 0)"
+                                    : std::string("must be >= diameter (or 0)"));
+    }
+    q.jitter = l.number("jitter", 0.0, Range{0.0, 1.0, false, true});
+    const double a = q.spacing > 0 ? q.spacing : 1.001 * q.diameter;
+    if (q.jitter > 0 && !q.has_sizes && a - q.diameter < 0.01 * q.diameter) {
+      std::ostringstream m;
+      m << "moves each sphere within its gap to the next site, and the spacing " << a
+        << " m leaves a gap of " << a - q.diameter << " m (" << (a - q.diameter) / q.diameter
+        << " of the diameter): give 'spacing' >= 1.01 x diameter, e.g. 1.2 x diameter = "
+        << 1.2 * q.diameter << " m";
+      l.fail("jitter", m.str());
+    }
+    if (l.has("seed")) {
+      q.seed = static_cast<std::uint64_t>(l.integer("seed", 0, INT64_MAX));
+      ls.has_seed = true;
+    }
     q.velocity = l.vec3("velocity", std::array<double, 3>{0, 0, 0});
     q.max_count = l.integer("max_count", 0, 0, INT64_MAX);
     ls.shape = shape_index(l);
-    if (ls.shape >= 0) q.seed = static_cast<std::uint64_t>(l.integer("seed", 1, 0, INT64_MAX));
     l.finish();
     s.lattices.push_back(ls);
   }
@@ -277,9 +375,11 @@ DemScene read_dem_scene(const Table& dem) {
       q.seed = static_cast<std::uint64_t>(r.integer("seed", 0, INT64_MAX));
       is.has_seed = true;
     }
+    size_keys.push_back(r.where(has_count ? "count" : "mass"));
     r.finish();
     s.inserts.push_back(is);
   }
+  check_particle_budget(s, size_keys);
 
   // Every pair that involves a particle material must be given: a silent default friction
   // would change results without anyone noticing.
@@ -358,7 +458,16 @@ DemScene read_dem_scene(const Table& dem) {
 
 DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, std::uint64_t seed,
                double run_output_interval, std::ostream* log, bool defer_output)
-    : scene_(scene), output_dir_(output_dir), run_output_interval_(run_output_interval) {
+    : DemRun(scene, output_dir, seed, run_output_interval, log, defer_output, false) {}
+
+std::size_t DemRun::check_setup(const DemScene& scene, std::uint64_t seed) {
+  const DemRun setup(scene, {}, seed, 0.0, nullptr, true, true);
+  return setup.setup_particles_;
+}
+
+DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, std::uint64_t seed,
+               double run_output_interval, std::ostream* log, bool defer_output, bool setup_only)
+    : scene_(scene), output_dir_(output_dir), run_output_interval_(run_output_interval), log_(log) {
   try {
     system_ = std::make_unique<DemSystem>(scene_.settings);
   } catch (const std::exception& e) {
@@ -386,6 +495,7 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
     mesh.name = w.name;
     mesh.material = w.material;
     mesh.motion = w.motion;
+    wall_shapes_.push_back({w.name, mesh.vertices, mesh.triangles});
     // The pressure sensors need the area of their wall.
     const double area = mesh_area(mesh.vertices, mesh.triangles);
     const auto index = system_->add_wall(std::move(mesh));
@@ -396,21 +506,59 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
     libraries_.push_back(build_shape_library(scene_.shapes[k], seed, k, log));
     shape_base_.push_back(add_library_shapes(*system_, *libraries_.back(), scene_.shapes[k].name));
   }
-  for (const auto& l : scene_.lattices) {
+  const WallClearance walls = wall_clearance();
+  for (std::size_t i = 0; i < scene_.lattices.size(); ++i) {
+    const auto& l = scene_.lattices[i];
+    LatticeFill q = l.request;
+    if (!l.has_seed) q.seed = seed + kLatticeSeedOffset + i;
+    if (l.shape >= 0) {
+      q.library = libraries_[static_cast<std::size_t>(l.shape)].get();
+      q.shape_base = shape_base_[static_cast<std::size_t>(l.shape)];
+    }
+    std::vector<ParticleInit> spheres;
     try {
-      LatticeFill q = l.request;
-      if (l.shape >= 0) {
-        q.library = libraries_[static_cast<std::size_t>(l.shape)].get();
-        q.shape_base = shape_base_[static_cast<std::size_t>(l.shape)];
-      }
-      add(lattice_fill(q));
+      spheres = lattice_fill(q);
     } catch (const InsertionError& e) {
       throw SceneError(l.where + ": " + e.what());
     }
+    auto sphere = [&](const ParticleInit& p) {
+      std::ostringstream m;
+      m << "sphere " << &p - spheres.data() << " of " << spheres.size() << " (centre ["
+        << p.position[0] << ", " << p.position[1] << ", " << p.position[2] << "] m, radius "
+        << p.radius << " m)";
+      return m.str();
+    };
+    // At start, no sphere may sit in a wall (it would be thrown off it) ...
+    for (const auto& p : spheres) {
+      std::size_t wall = 0;
+      const double depth = walls.overlap(p.position, p.radius, &wall);
+      if (depth > 1e-9 * p.radius) {
+        std::ostringstream m;
+        m << l.where << ": " << sphere(p) << " overlaps wall '" << walls.name(wall) << "' by "
+          << depth << " m: the lattice region reaches into or through the walls; move 'lo' and "
+          << "'hi' inside them";
+        throw SceneError(m.str());
+      }
+    }
+    // ... nor in another lattice's sphere ...
+    if (const auto j = first_overlapping(spheres, system_->particles()); j >= 0) {
+      throw SceneError(l.where + ": " + sphere(spheres[std::size_t(j)]) +
+                       " overlaps a sphere of an earlier [[dem.lattice]]: lattice regions must "
+                       "not overlap");
+    }
+    // ... nor where it falls past every wall.
+    for (const auto& p : spheres) {
+      if (walls.falls_past(p.position, scene_.settings.gravity)) {
+        check_falls_past(sphere(p), l.where);  // throws, or warns once for the entry
+        break;
+      }
+    }
+    add(spheres);
   }
   seed_ = seed;
   repeats_.assign(scene_.inserts.size(), 0);
   pour();  // every insertion once at t = 0
+  setup_particles_ = system_->particle_count();
   if (system_->particle_count() > 0) {
     const double tr = system_->rayleigh_time_step();
     const double dt = scene_.settings.dt;
@@ -432,6 +580,7 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
            << "; collisions faster than ~0.1 m/s need a smaller dt\n";
     }
   }
+  if (setup_only) return;  // check_setup(): no settling, no output
   if (scene_.settle_time > 0) {
     const auto steps =
         static_cast<std::int64_t>(std::ceil(scene_.settle_time / scene_.settings.dt));
@@ -493,8 +642,30 @@ void DemRun::pour() {
       // Repetition k draws from its own stream: 1000003 (prime) apart, so it never meets the
       // stream of another entry's first insertion (entries are 1 apart).
       q.seed = base + std::uint64_t(k) * 1000003u;
+      // The region must lie over the walls (its corners must not fall past all of them);
+      // inside it, positions that overlap a wall are drawn again.
+      const WallClearance walls = wall_clearance();
+      if (k == 0) {
+        for (int c = 0; c < 8; ++c) {
+          const std::array<double, 3> corner{c & 1 ? q.region.hi[0] : q.region.lo[0],
+                                             c & 2 ? q.region.hi[1] : q.region.lo[1],
+                                             c & 4 ? q.region.hi[2] : q.region.lo[2]};
+          if (walls.falls_past(corner, scene_.settings.gravity)) {
+            std::ostringstream m;
+            m << "the region's corner [" << corner[0] << ", " << corner[1] << ", " << corner[2]
+              << "] m";
+            check_falls_past(m.str(), in.where);
+            break;
+          }
+        }
+      }
+      auto blocked = [&walls](double x, double y, double z, double r) {
+        return walls.overlap({x, y, z}, r) > 1e-9 * r;
+      };
       try {
-        add(insert_random(q, &system_->particles()));
+        add(insert_random(
+            q, &system_->particles(),
+            walls.empty() ? std::function<bool(double, double, double, double)>{} : blocked));
       } catch (const InsertionError& e) {
         std::ostringstream m;
         m << in.where << ": " << e.what();
@@ -506,12 +677,36 @@ void DemRun::pour() {
   }
 }
 
+WallClearance DemRun::wall_clearance() const {
+  std::vector<WallClearance::Wall> now = wall_shapes_;
+  for (std::size_t w = 0; w < now.size(); ++w) {
+    if (scene_.walls[w].motion.kind != WallMotion::Kind::fixed) {
+      now[w].vertices = system_->wall_vertices(static_cast<std::int32_t>(w));
+    }
+  }
+  return WallClearance(now);
+}
+
+void DemRun::check_falls_past(const std::string& what, const std::string& where) const {
+  std::ostringstream m;
+  const WallClearance walls(wall_shapes_);
+  m << where << ": " << what << " lies outside the walls: carried along gravity it misses "
+    << "the bounding box of all of them ([" << walls.lo()[0] << ", " << walls.lo()[1] << ", "
+    << walls.lo()[2] << "] .. [" << walls.hi()[0] << ", " << walls.hi()[1] << ", " << walls.hi()[2]
+    << "] m), so it would fall for ever; move 'lo' and 'hi' over the walls";
+  if (scene_.interface_material < 0) throw SceneError(m.str());
+  // A coupled scene: the structure, which the DEM does not know yet, may catch it.
+  if (log_) *log_ << "dem: warning: " << m.str() << " (unless the coupled structure is there)\n";
+}
+
 void DemRun::start_output(bool resume) {
   sensors_ = std::make_unique<SensorSet>(scene_.sensors, output_dir_, *system_, !resume);
   if (!output_dir_.empty() && scene_.output_particles) {
     output_ = std::make_unique<ParticleOutput>(output_dir_);
   }
-  next_output_ = system_->time();
+  schedule_ = io::OutputSchedule(output_interval_);
+  // Outputs due before the output starts (during settle_time) are not taken.
+  schedule_.skip_to_after(output_clock() - 0.5 * double(chunk_steps_) * scene_.settings.dt);
   if (!resume) after_advance();  // the initial state: first sensor samples and snapshot
 }
 
@@ -525,12 +720,22 @@ void DemRun::add(std::span<const ParticleInit> particles) {
   for (std::size_t i = 0; i < particles.size(); ++i) ids_.push_back(next_id_++);
 }
 
+double DemRun::output_clock() const {
+  return static_cast<double>(system_->step_count()) * scene_.settings.dt;
+}
+
+void DemRun::write_snapshot(double label) {
+  if (!output_) return;
+  output_->write(system_->particles(), ids_, label, system_->time());
+  last_snapshot_step_ = system_->step_count();
+}
+
 void DemRun::write_snapshot() {
-  if (output_) output_->write(system_->particles(), ids_, system_->time());
+  write_snapshot(schedule_.label(output_clock(), double(chunk_steps_) * scene_.settings.dt));
 }
 
 void DemRun::finish() {
-  if (output_ && output_->last_time() != system_->time()) write_snapshot();
+  if (output_ && last_snapshot_step_ != system_->step_count()) write_snapshot();
 }
 
 void DemRun::check_stable() const {
@@ -553,7 +758,7 @@ void DemRun::check_stable() const {
   m << ". dt = " << scene_.settings.dt << " s against a Rayleigh time step of "
     << system_->rayleigh_time_step() << " s; reduce dt (" << scene_.dt_where
     << ") or the velocities and loads of the scene. The output holds the states before it.";
-  throw std::runtime_error(m.str());
+  throw Unstable(m.str());
 }
 
 void DemRun::after_advance() {
@@ -563,15 +768,13 @@ void DemRun::after_advance() {
     start_output(false);  // samples the current state itself
     return;
   }
-  const double t = system_->time();
-  const double eps = 0.1 * scene_.settings.dt;
   sensors_->sample(*system_, ids_);
-  if (output_ && output_interval_ > 0 && t + eps >= next_output_) {
-    write_snapshot();
-    while (next_output_ <= t + eps) next_output_ += output_interval_;
-  } else if (output_ && output_interval_ == 0 && output_->count() == 0) {
-    write_snapshot();  // interval 0: the initial and the final state only
-  }
+  if (!output_) return;
+  // Output k is the state at the step end nearest to k * interval (io::OutputSchedule); the
+  // first snapshot is the initial state, also with interval 0 (then only it and the end).
+  const double t = output_clock();
+  const double step = double(chunk_steps_) * scene_.settings.dt;
+  if (output_->count() == 0 || schedule_.due(t, step)) write_snapshot(schedule_.take(t, step));
 }
 
 void DemRun::start_deferred_output() {
@@ -581,6 +784,7 @@ void DemRun::start_deferred_output() {
 void DemRun::advance(std::int64_t substeps, ForceMode mode) {
   start_deferred_output();
   system_->advance(substeps, mode);
+  chunk_steps_ = std::max<std::int64_t>(substeps, 1);  // a coupling step, when coupled
   after_advance();
 }
 
@@ -589,10 +793,12 @@ void DemRun::run_to(double end_time, const std::function<void(double)>& progress
   const double dt = scene_.settings.dt;
   while (system_->time() + 0.5 * dt < end_time) {
     double target = std::min({end_time, sensors_->next_time(), next_pour_time()});
-    if (output_ && output_interval_ > 0) target = std::min(target, next_output_);
+    if (output_ && schedule_.active())
+      target = std::min(target, schedule_.nominal(schedule_.next()));
     auto steps = static_cast<std::int64_t>(std::llround((target - system_->time()) / dt));
     steps = std::max<std::int64_t>(steps, 1);
     system_->advance(steps);
+    chunk_steps_ = 1;  // any step end can take an output: pieces end on the output times
     after_advance();
     if (progress) progress(system_->time());
   }
@@ -628,16 +834,34 @@ void DemRun::save(io::H5File& file, const std::string& group) const {
     }
   }
   file.set_attribute(g, "next_id", next_id_);
+  file.set_attribute(g, "setup_particles", static_cast<std::int64_t>(setup_particles_));
   file.set_attribute(g, "snapshots", static_cast<std::int64_t>(output_ ? output_->count() : 0));
-  file.set_attribute(g, "next_output", next_output_);
+  // The output schedule: the next output index and the step of the last snapshot, so that a
+  // restored run takes the same states with the same labels.
+  const std::vector<std::int64_t> sched_out{schedule_.next(), last_snapshot_step_, chunk_steps_};
+  file.write(g + "/output_schedule", std::span<const std::int64_t>(sched_out));
   std::vector<std::int64_t> reps = repeats_;
   reps.push_back(0);  // never empty
   file.write(g + "/insert_repeats", std::span<const std::int64_t>(reps));
 }
 
 void DemRun::restore(const io::H5File& file, const std::string& group) {
-  system_->restore(file, group);
   const std::string g = group + "_tools";
+  // The scene must be the one the checkpoint was taken with, as far as the particles go: a
+  // changed lattice or insertion would be silently replaced by the checkpoint's particles.
+  if (file.exists(g) && file.has_attribute(g, "setup_particles")) {
+    const auto saved = file.attribute_int64(g, "setup_particles");
+    if (saved != static_cast<std::int64_t>(setup_particles_)) {
+      throw std::runtime_error(
+          file.path().string() + ": the checkpoint's scene made " + std::to_string(saved) +
+          " particles at set-up, this scene (" + scene_.file + ") makes " +
+          std::to_string(setup_particles_) +
+          " ([[dem.lattice]], [[dem.insert]] or run.seed changed); its state cannot be "
+          "continued with this scene: resume with the scene it was taken with, or start afresh");
+    }
+  }
+  system_->restore(file, group);
+  check_particle_state(system_->particles(), file.path().string() + ":/" + group);
   ids_ = file.read_int64(g + "/ids");
   if (ids_.size() != system_->particle_count()) {
     throw std::runtime_error(file.path().string() + ": " + g + "/ids has " +
@@ -678,7 +902,18 @@ void DemRun::restore(const io::H5File& file, const std::string& group) {
     sensors_->restore_counter_states(states);
   }
   if (output_) output_->resume(static_cast<std::size_t>(file.attribute_int64(g, "snapshots")));
-  next_output_ = file.attribute_double(g, "next_output");
+  if (file.exists(g + "/output_schedule")) {
+    const auto o = file.read_int64(g + "/output_schedule");
+    if (o.size() != 3)
+      throw std::runtime_error(file.path().string() + ": " + g +
+                               "/output_schedule must have 3 entries");
+    schedule_.set_next(o[0]);
+    last_snapshot_step_ = o[1];
+    chunk_steps_ = std::max<std::int64_t>(o[2], 1);
+  } else {  // a checkpoint of an older version: outputs up to the restored time were taken
+    schedule_.skip_to_after(output_clock());
+    last_snapshot_step_ = -1;
+  }
   auto reps = file.read_int64(g + "/insert_repeats");
   reps.pop_back();
   if (reps.size() != repeats_.size()) {

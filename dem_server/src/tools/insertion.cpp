@@ -103,7 +103,9 @@ class SphereGrid {
 
 }  // namespace
 
-std::vector<ParticleInit> insert_random(const RandomInsertion& q, const ParticleState* existing) {
+std::vector<ParticleInit> insert_random(
+    const RandomInsertion& q, const ParticleState* existing,
+    const std::function<bool(double, double, double, double)>& blocked) {
   q.sizes.validate();
   const bool by_count = q.count > 0;
   if (by_count == (q.mass > 0)) {
@@ -202,7 +204,7 @@ std::vector<ParticleInit> insert_random(const RandomInsertion& q, const Particle
       const double x = rng.uniform(q.region.lo[0] + r, q.region.hi[0] - r);
       const double y = rng.uniform(q.region.lo[1] + r, q.region.hi[1] - r);
       const double z = rng.uniform(q.region.lo[2] + r, q.region.hi[2] - r);
-      if (grid.overlaps(x, y, z, r)) continue;
+      if (grid.overlaps(x, y, z, r) || (blocked && blocked(x, y, z, r))) continue;
       grid.add(x, y, z, r);
       ParticleInit p;
       p.position = {x, y, z};
@@ -246,57 +248,153 @@ std::vector<ParticleInit> insert_random(const RandomInsertion& q, const Particle
   return out;
 }
 
-std::vector<ParticleInit> lattice_fill(const LatticeFill& q) {
+namespace {
+
+// The sites of a lattice fill: centre distance a, first centre `inset` inside the box, n sites
+// per axis (in double: a typo can ask for more than an integer holds).
+struct LatticeLayout {
+  double a = 0.0;
+  double inset = 0.0;
+  std::array<double, 3> n{};
+  double count() const { return n[0] * n[1] * n[2]; }
+};
+
+// Bounding diameter per unit size: 1 for spheres, 2 max b_k for a shape library.
+double lattice_bound(const LatticeFill& q) {
+  if (!q.library) return 1.0;
+  if (q.library->size() == 0) throw InsertionError("lattice fill: the shape library is empty");
+  double bmax = 0.0;
+  for (std::size_t k = 0; k < q.library->size(); ++k)
+    bmax = std::max(bmax, q.library->unit(k).bounding_radius);
+  return 2.0 * bmax;
+}
+
+LatticeLayout layout(const LatticeFill& q) {
   if (!(q.diameter > 0)) throw InsertionError("lattice fill needs a diameter > 0");
-  // polyhedra: cells of the largest bounding diameter at this size
-  double bmax = 0.5;
-  if (q.library) {
-    if (q.library->size() == 0) throw InsertionError("lattice fill: the shape library is empty");
-    bmax = 0.0;
-    for (std::size_t k = 0; k < q.library->size(); ++k)
-      bmax = std::max(bmax, q.library->unit(k).bounding_radius);
-  }
-  const double bd = 2.0 * bmax * q.diameter;  // = diameter for spheres
-  const double a = q.spacing > 0 ? q.spacing : 1.001 * bd;
-  if (a < bd) {
-    throw InsertionError("lattice spacing " + std::to_string(a) + " m is below the " +
+  // polyhedra: the bounding diameter of the largest library shape at the size plays the
+  // diameter's part
+  const double bd = lattice_bound(q) * q.diameter;
+  LatticeLayout l;
+  l.a = q.spacing > 0 ? q.spacing : 1.001 * bd;
+  if (l.a < bd) {
+    throw InsertionError("lattice spacing " + std::to_string(l.a) + " m is below the " +
                          std::string(q.library ? "largest bounding diameter " : "diameter ") +
-                         std::to_string(bd) + " m: the particles would overlap");
+                         std::to_string(bd) + " m: the " + (q.library ? "particles" : "spheres") +
+                         " would overlap");
   }
-  const double r = 0.5 * bd;
-  Rng rng(q.seed);
-  std::array<std::int64_t, 3> n{};
+  if (!(q.jitter >= 0.0 && q.jitter < 1.0)) {
+    throw InsertionError("lattice jitter " + std::to_string(q.jitter) + " is outside [0, 1)");
+  }
+  // A sphere of diameter d moves up to jitter (a - d) / 2 from its site: its far side is at most
+  // (1 - jitter) d / 2 + jitter a / 2 away, largest for the largest diameter.
+  l.inset = 0.5 * bd + 0.5 * q.jitter * (l.a - bd);
   for (int k = 0; k < 3; ++k) {
-    const double free = q.region.hi[k] - q.region.lo[k] - bd;
-    n[k] = free < 0 ? 0 : std::int64_t(std::floor(free / a + 1e-9)) + 1;
+    const double free = q.region.hi[k] - q.region.lo[k] - 2.0 * l.inset;
+    l.n[k] = free < 0 ? 0.0 : std::floor(free / l.a + 1e-9) + 1.0;
   }
-  if (n[0] * n[1] * n[2] == 0) {
+  return l;
+}
+
+}  // namespace
+
+double lattice_count(const LatticeFill& q) {
+  const double n = layout(q).count();
+  return q.max_count > 0 ? std::min(n, double(q.max_count)) : n;
+}
+
+double expected_count(const RandomInsertion& q) {
+  if (q.count > 0) return double(q.count);
+  const double mean_mass = q.density * std::numbers::pi / 6.0 * q.sizes.mean_cube();
+  return mean_mass > 0 ? std::ceil(q.mass / mean_mass) : 0.0;
+}
+
+std::vector<ParticleInit> lattice_fill(const LatticeFill& q) {
+  const LatticeLayout l = layout(q);
+  if (l.count() == 0) {
     throw InsertionError("lattice fill of " + q.region.describe() + " with diameter " +
-                         std::to_string(bd) + " m: not one " + (q.library ? "particle" : "sphere") + " fits");
+                         std::to_string(lattice_bound(q) * q.diameter) + " m: not one " +
+                         (q.library ? "particle" : "sphere") + " fits");
   }
+  if (lattice_count(q) > kMaxParticles) {
+    std::ostringstream s;
+    s << "lattice fill of " << q.region.describe() << " with diameter " << q.diameter
+      << " m asks for " << lattice_count(q) << " spheres, more than the " << kMaxParticles
+      << " a DEM system holds";
+    throw InsertionError(s.str());
+  }
+  if (q.has_sizes) q.sizes.validate();
+  const auto n =
+      std::array<std::int64_t, 3>{std::int64_t(l.n[0]), std::int64_t(l.n[1]), std::int64_t(l.n[2])};
+  Rng rng(q.seed);
   std::vector<ParticleInit> out;
   for (std::int64_t k = 0; k < n[2]; ++k)
     for (std::int64_t j = 0; j < n[1]; ++j)
       for (std::int64_t i = 0; i < n[0]; ++i) {
         if (q.max_count > 0 && std::int64_t(out.size()) >= q.max_count) return out;
+        // Draws in a fixed order per sphere (diameter, then x, y, z), so a seed gives the
+        // same bed on any platform; none without a distribution and jitter.
+        const double d = q.has_sizes ? std::min(q.sizes.sample(rng), q.diameter) : q.diameter;
         ParticleInit p;
-        p.position = {q.region.lo[0] + r + double(i) * a, q.region.lo[1] + r + double(j) * a,
-                      q.region.lo[2] + r + double(k) * a};
+        p.position = {q.region.lo[0] + l.inset + double(i) * l.a,
+                      q.region.lo[1] + l.inset + double(j) * l.a,
+                      q.region.lo[2] + l.inset + double(k) * l.a};
+        const double bd = lattice_bound(q) * d;
+        if (q.jitter > 0) {
+          const double amplitude = 0.5 * q.jitter * (l.a - bd);
+          for (double& c : p.position) c += amplitude * (2.0 * rng.uniform() - 1.0);
+        }
         p.velocity = q.velocity;
-        p.radius = r;
+        p.radius = 0.5 * d;
         p.material = q.material;
-        if (q.library) {
+        if (q.library) {  // then a shape and an orientation
           const auto shape = q.library->pick(rng);
-          const auto s = q.library->scaled(shape, q.diameter);
+          const auto sc = q.library->scaled(shape, d);
           p.shape = ParticleShape::polyhedron;
           p.shape_id = q.shape_base + static_cast<std::int32_t>(shape);
-          p.scale = s.scale;
-          p.radius = s.bounding_radius;
+          p.scale = sc.scale;
+          p.radius = sc.bounding_radius;
           p.orientation = random_orientation(rng);
         }
         out.push_back(p);
       }
   return out;
+}
+
+std::int64_t first_overlapping(const std::vector<ParticleInit>& added,
+                               const ParticleState& existing) {
+  if (added.empty() || existing.size() == 0) return -1;
+  Box box{{added[0].position}, {added[0].position}};
+  double cell = 0.0;
+  for (const auto& p : added) {
+    for (std::size_t k = 0; k < 3; ++k) {
+      box.lo[k] = std::min(box.lo[k], p.position[k] - p.radius);
+      box.hi[k] = std::max(box.hi[k], p.position[k] + p.radius);
+    }
+    cell = std::max(cell, 2.0 * p.radius);
+  }
+  std::vector<std::size_t> nearby;
+  for (std::size_t i = 0; i < existing.size(); ++i) {
+    const double r = existing.radius[i];
+    if (existing.px[i] + r < box.lo[0] || existing.px[i] - r > box.hi[0] ||
+        existing.py[i] + r < box.lo[1] || existing.py[i] - r > box.hi[1] ||
+        existing.pz[i] + r < box.lo[2] || existing.pz[i] - r > box.hi[2])
+      continue;
+    nearby.push_back(i);
+    cell = std::max(cell, 2.0 * r);
+  }
+  if (nearby.empty()) return -1;
+  for (std::size_t k = 0; k < 3; ++k) box.lo[k] -= cell, box.hi[k] += cell;
+  SphereGrid grid(box, cell);
+  for (std::size_t i : nearby) {
+    // shrunk by 1e-9: spheres that only touch do not count
+    grid.add(existing.px[i], existing.py[i], existing.pz[i], existing.radius[i] * (1 - 1e-9));
+  }
+  for (std::size_t i = 0; i < added.size(); ++i) {
+    const auto& p = added[i];
+    if (grid.overlaps(p.position[0], p.position[1], p.position[2], p.radius * (1 - 1e-9)))
+      return std::int64_t(i);
+  }
+  return -1;
 }
 
 std::vector<std::uint8_t> keep_at_or_below(const ParticleState& particles, double height) {

@@ -11,6 +11,8 @@
 #include <unordered_map>
 #include <vector>
 
+#include "demfem/io/input_file.hpp"
+
 // Binary STL is little endian; the supported platforms (x86-64, aarch64) are too.
 static_assert(std::endian::native == std::endian::little, "binary STL I/O assumes little endian");
 
@@ -230,9 +232,12 @@ WallMesh weld(const std::string& file, const RawTriangles& raw, double tol) {
 
 WallMesh read_stl(const std::filesystem::path& path, double weld_tolerance) {
   const std::string file = path.string();
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw StlError(file + ": cannot open STL file");
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::string bytes;
+  try {
+    bytes = io::read_regular_file(path, io::kMeshFileLimit, "an STL file (ASCII or binary)");
+  } catch (const io::InputFileError& e) {
+    throw StlError(e.what());
+  }
   if (bytes.empty()) throw StlError(file + ": is empty");
 
   bool binary = false;

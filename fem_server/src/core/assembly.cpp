@@ -3,8 +3,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <map>
-#include <sstream>
 #include <stdexcept>
 
 #include "demfem/fem/element_topology.hpp"
@@ -24,12 +24,10 @@ Vec3 node_pos(const Mesh& m, std::int32_t n) {
   throw std::invalid_argument("FEM problem: " + what);
 }
 
-std::string element_name(const Mesh& m, std::size_t e) {
-  std::ostringstream s;
-  s << "element " << e;
-  if (e < m.element_labels.size()) s << " (label " << m.element_labels[e] << ")";
-  return s.str();
-}
+/// An element whose smallest measure (Gauss-point Jacobian, corner area, volume) is below
+/// this fraction of its size is collapsed: its stiffness is singular in some direction and
+/// would leave a mechanism. Legitimately distorted elements are orders of magnitude above.
+constexpr double kCollapsedRatio = 1e-6;
 
 const Material& element_material(const FemProblem& p, const Element& el) {
   return p.materials[static_cast<std::size_t>(
@@ -73,9 +71,11 @@ void element_matrix(const FemProblem& p, const std::vector<Vec3>& directors, std
     case ElementType::hex8: {
       std::array<Vec3, 8> x;
       for (int a = 0; a < 8; ++a) x[a] = node_pos(p.mesh, el.nodes[a]);
-      if (kind == MatrixKind::stiffness)
-        detail::hex8_stiffness(x, detail::elasticity_matrix(mat.youngs_modulus, mat.poisson_ratio),
-                               out);
+      const auto d = detail::elasticity_matrix(mat.youngs_modulus, mat.poisson_ratio);
+      if (kind == MatrixKind::stiffness && el.formulation == SolidFormulation::selective_reduced)
+        detail::hex8_bbar_stiffness(x, d, out);
+      else if (kind == MatrixKind::stiffness)
+        detail::hex8_stiffness(x, d, out);
       else
         detail::hex8_mass(x, mat.density, lumped, out);
       break;
@@ -140,15 +140,6 @@ SparseMatrix assemble(const FemProblem& p, const DofMap& dofs, MatrixKind kind) 
   return k;
 }
 
-double hex_centre_jacobian(const Mesh& m, const Element& el) {
-  static const double nat[8][3] = {{-1, -1, -1}, {1, -1, -1}, {1, 1, -1}, {-1, 1, -1},
-                                   {-1, -1, 1},  {1, -1, 1},  {1, 1, 1},  {-1, 1, 1}};
-  Eigen::Matrix3d j = Eigen::Matrix3d::Zero();
-  for (int a = 0; a < 8; ++a)
-    for (int b = 0; b < 3; ++b) j.row(b) += 0.125 * nat[a][b] * node_pos(m, el.nodes[a]);
-  return j.determinant();
-}
-
 }  // namespace
 
 void validate_problem(const FemProblem& p) {
@@ -189,17 +180,67 @@ void validate_problem(const FemProblem& p) {
         bad(element_name(m, e) + ": shell thickness must be finite and > 0");
       std::array<Vec3, 4> x;
       for (int a = 0; a < 4; ++a) x[a] = node_pos(m, el.nodes[a]);
-      for (int a = 0; a < 4; ++a)
-        if (!(detail::quad_corner_normal(x, a).dot(detail::quad_corner_normal(x, 0)) > 0))
-          bad(element_name(m, e) + ": degenerate or non-convex shell quadrilateral");
+      double longest = 0.0;
+      for (int a = 0; a < 4; ++a) longest = std::max(longest, (x[(a + 1) % 4] - x[a]).norm());
+      for (int a = 0; a < 4; ++a) {
+        // Each corner's area must be a fair part of the largest possible (a collapsed edge
+        // or a folded quad gives ~0 or a flipped normal).
+        const Vec3 na = detail::quad_corner_normal(x, a);
+        if (!(na.dot(detail::quad_corner_normal(x, 0)) > 0) ||
+            !(na.norm() > kCollapsedRatio * longest * longest))
+          bad(element_name(m, e) + ": degenerate or non-convex shell quadrilateral (corner " +
+              std::to_string(a + 1) + " has no area: coincident nodes or a folded quad)");
+      }
+      // Thickness relative to the element: below 1e-5 of the longest edge the bending
+      // stiffness ((t/h)^2 of the membrane one, < 1e-10) is lost to round-off.
+      if (t < 1e-5 * longest) {
+        char buf[160];
+        std::snprintf(buf, sizeof buf,
+                      ": shell thickness %g m is below 1e-5 of its longest edge (%g m): the "
+                      "bending stiffness would be lost to round-off",
+                      t, longest);
+        bad(element_name(m, e) + buf);
+      }
     } else if (el.type == ElementType::hex8) {
-      if (!(hex_centre_jacobian(m, el) > 0))
-        bad(element_name(m, e) + ": non-positive Jacobian (node order inverted?)");
+      std::array<Vec3, 8> x;
+      for (int a = 0; a < 8; ++a) x[a] = node_pos(m, el.nodes[a]);
+      const auto det = detail::hex8_gauss_jacobians(x);
+      const double dmax = *std::max_element(det.begin(), det.end());
+      const auto worst = std::min_element(det.begin(), det.end()) - det.begin();
+      if (!(det[static_cast<std::size_t>(worst)] > 0))
+        bad(element_name(m, e) + ": non-positive Jacobian at Gauss point " +
+            std::to_string(worst + 1) +
+            " (node order inverted, or the element folded over itself)");
+      // Against the largest Jacobian (a corner folded in) and against a cube of the longest
+      // edge (an element squashed flat: det J of a cube of edge L is L^3 / 8).
+      double longest = 0.0;
+      for (int a = 0; a < 8; ++a)
+        for (int b = a + 1; b < 8; ++b) longest = std::max(longest, (x[b] - x[a]).norm());
+      const double dmin = det[static_cast<std::size_t>(worst)];
+      if (!(dmin > kCollapsedRatio * std::max(dmax, longest * longest * longest / 8.0))) {
+        char buf[200];
+        std::snprintf(buf, sizeof buf,
+                      ": collapsed: its Jacobian at Gauss point %d is %.3g of the largest and "
+                      "%.3g of a cube of its longest edge (nodes that coincide or lie in one "
+                      "plane)",
+                      static_cast<int>(worst + 1), dmin / dmax,
+                      dmin / (longest * longest * longest / 8.0));
+        bad(element_name(m, e) + buf);
+      }
     } else {
       std::array<Vec3, 4> x;
       for (int a = 0; a < 4; ++a) x[a] = node_pos(m, el.nodes[a]);
-      if (!(detail::tet4_volume(x) > 0))
-        bad(element_name(m, e) + ": non-positive volume (node order inverted?)");
+      double longest = 0.0;
+      for (int a = 0; a < 4; ++a)
+        for (int b = a + 1; b < 4; ++b) longest = std::max(longest, (x[b] - x[a]).norm());
+      const double v = detail::tet4_volume(x);
+      if (!(v > 0)) bad(element_name(m, e) + ": non-positive volume (node order inverted?)");
+      // A regular tetrahedron of edge L has L^3 / (6 sqrt 2).
+      if (!(v > kCollapsedRatio * longest * longest * longest / (6.0 * std::sqrt(2.0))))
+        bad(element_name(m, e) + ": collapsed: its volume is below " +
+            std::to_string(kCollapsedRatio) +
+            " of a regular tetrahedron of its longest edge "
+            "(nodes that coincide or lie in one plane)");
     }
   }
   auto check_nodes = [&](const std::vector<std::int32_t>& nodes, const std::string& what) {
@@ -233,6 +274,23 @@ void validate_problem(const FemProblem& p) {
   }
   for (double g : p.gravity)
     if (!std::isfinite(g)) bad("gravity is not finite");
+  if (p.gravity != std::array<double, 3>{0.0, 0.0, 0.0})
+    for (std::size_t e = 0; e < m.elements.size(); ++e)
+      if (!(element_material(p, m.elements[e]).density > 0))
+        bad("gravity is given but " + element_name(m, e) + " has material '" +
+            element_material(p, m.elements[e]).name +
+            "' of density 0: its weight would be missing (give the density)");
+  // A load on a node that no element carries would vanish from the system.
+  {
+    std::vector<char> used(m.nodes.size(), 1);
+    for (auto n : orphan_nodes(m)) used[static_cast<std::size_t>(n)] = 0;
+    for (std::size_t i = 0; i < p.nodal_loads.size(); ++i)
+      for (auto n : p.nodal_loads[i].nodes)
+        if (n >= 0 && n < nn && !used[static_cast<std::size_t>(n)])
+          bad("nodal load " + std::to_string(i) + " acts on " +
+              node_name(m, static_cast<std::size_t>(n)) +
+              ", which belongs to no element: its force would be lost");
+  }
   const auto& b = p.bossak;
   if (!std::isfinite(b.alpha) || !(b.alpha <= 0.0 && b.alpha >= -1.0 / 3.0))
     bad("bossak.alpha must be in [-1/3, 0]");
@@ -264,6 +322,11 @@ DofMap make_dof_map(const FemProblem& p) {
   }
   d.total = off;
   std::vector<std::uint8_t> fixed(static_cast<std::size_t>(off), 0);
+  // Nodes of no element have no stiffness and no mass: their DOFs stay out of the system
+  // (zero), as Abaqus does with unused nodes.
+  for (auto n : orphan_nodes(p.mesh))
+    for (int k = 0; k < d.node_dofs[static_cast<std::size_t>(n)]; ++k)
+      fixed[static_cast<std::size_t>(d.node_offset[static_cast<std::size_t>(n)] + k)] = 1;
   for (const auto& c : p.constraints)
     for (auto n : c.nodes)
       for (int k = 0; k < d.node_dofs[static_cast<std::size_t>(n)]; ++k)

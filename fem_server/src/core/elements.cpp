@@ -124,6 +124,77 @@ void hex8_stiffness(const std::array<Vec3, 8>& x, const Eigen::Matrix<double, 6,
   k = 0.5 * (k + k.transpose());  // exact symmetry for the Cholesky factorisation
 }
 
+namespace {
+/// Cartesian shape derivatives and det J at the 8 Gauss points, and their volume average
+/// (1/V) sum g det J: the B-bar volumetric gradients.
+struct HexGradients {
+  std::array<Eigen::Matrix<double, 3, 8>, 8> g;
+  std::array<double, 8> det;
+  Eigen::Matrix<double, 3, 8> mean;
+};
+HexGradients hex_gradients(const std::array<Vec3, 8>& x) {
+  HexGradients h;
+  Eigen::Matrix<double, 8, 1> n;
+  Eigen::Matrix<double, 3, 8> dn;
+  h.mean.setZero();
+  double volume = 0;
+  for (int gi = 0; gi < 8; ++gi) {
+    hex_shape(kGauss * kHexNat[gi][0], kGauss * kHexNat[gi][1], kGauss * kHexNat[gi][2], n, dn);
+    const Mat3 j = hex_jacobian(x, dn);
+    h.det[gi] = j.determinant();
+    h.g[gi] = j.inverse() * dn;
+    h.mean += h.det[gi] * h.g[gi];
+    volume += h.det[gi];
+  }
+  h.mean /= volume;
+  return h;
+}
+
+/// B-bar: the normal-strain rows get (mean - g) / 3 of every displacement component, which
+/// replaces the volumetric strain by its element mean and leaves the deviator unchanged.
+Eigen::Matrix<double, 6, 24> bbar_matrix(const Eigen::Matrix<double, 3, 8>& g,
+                                         const Eigen::Matrix<double, 3, 8>& mean) {
+  Eigen::Matrix<double, 6, 24> b = strain_matrix<8>(g);
+  for (int i = 0; i < 8; ++i)
+    for (int l = 0; l < 3; ++l) {
+      const double c = (mean(l, i) - g(l, i)) / 3.0;
+      for (int k = 0; k < 3; ++k) b(k, 3 * i + l) += c;
+    }
+  return b;
+}
+}  // namespace
+
+void hex8_bbar_stiffness(const std::array<Vec3, 8>& x, const Eigen::Matrix<double, 6, 6>& d,
+                         Eigen::MatrixXd& k) {
+  const HexGradients h = hex_gradients(x);
+  Eigen::Matrix<double, 24, 24> kk = Eigen::Matrix<double, 24, 24>::Zero();
+  for (int gi = 0; gi < 8; ++gi) {
+    const auto b = bbar_matrix(h.g[gi], h.mean);
+    kk.noalias() += b.transpose() * d * b * h.det[gi];
+  }
+  k = 0.5 * (kk + kk.transpose());
+}
+
+Voigt hex8_bbar_centroid_strain(const std::array<Vec3, 8>& x, const double* ue) {
+  const HexGradients h = hex_gradients(x);
+  Eigen::Matrix<double, 8, 1> n;
+  Eigen::Matrix<double, 3, 8> dn;
+  hex_shape(0, 0, 0, n, dn);
+  const Eigen::Matrix<double, 3, 8> g0 = hex_jacobian(x, dn).inverse() * dn;
+  return bbar_matrix(g0, h.mean) * Eigen::Map<const Eigen::Matrix<double, 24, 1>>(ue);
+}
+
+std::array<double, 8> hex8_gauss_jacobians(const std::array<Vec3, 8>& x) {
+  std::array<double, 8> out{};
+  Eigen::Matrix<double, 8, 1> n;
+  Eigen::Matrix<double, 3, 8> dn;
+  for (int gi = 0; gi < 8; ++gi) {
+    hex_shape(kGauss * kHexNat[gi][0], kGauss * kHexNat[gi][1], kGauss * kHexNat[gi][2], n, dn);
+    out[gi] = hex_jacobian(x, dn).determinant();
+  }
+  return out;
+}
+
 void hex8_mass(const std::array<Vec3, 8>& x, double rho, bool lumped, Eigen::MatrixXd& m) {
   Eigen::Matrix<double, 8, 8> mn = Eigen::Matrix<double, 8, 8>::Zero();
   Eigen::Matrix<double, 8, 1> n;

@@ -18,6 +18,14 @@ Eigen::Matrix<double, 6, 6> elasticity_matrix(double youngs, double poisson);
 /// 24 x 24 stiffness after static condensation of the 9 internal (incompatible) modes.
 void hex8_stiffness(const std::array<Vec3, 8>& x, const Eigen::Matrix<double, 6, 6>& d,
                     Eigen::MatrixXd& k);
+/// 24 x 24 stiffness, full 2x2x2 integration with the mean-dilatation B-bar (selectively
+/// reduced integration of the volumetric strain, Hughes 1980; Abaqus C3D8).
+void hex8_bbar_stiffness(const std::array<Vec3, 8>& x, const Eigen::Matrix<double, 6, 6>& d,
+                         Eigen::MatrixXd& k);
+/// Strain at the centroid of the B-bar hex: deviatoric part there, volumetric the mean.
+Voigt hex8_bbar_centroid_strain(const std::array<Vec3, 8>& x, const double* ue);
+/// det J at the 2x2x2 Gauss points (element quality checks).
+std::array<double, 8> hex8_gauss_jacobians(const std::array<Vec3, 8>& x);
 /// 24 x 24 mass, consistent (2x2x2 Gauss) or row-sum lumped.
 void hex8_mass(const std::array<Vec3, 8>& x, double density, bool lumped, Eigen::MatrixXd& m);
 /// Strain at the centroid (the incompatible modes have zero gradient there).

@@ -3,9 +3,13 @@
 // DOFs only; fixed DOFs are zero.
 #include "demfem/fem/fem_solver.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
+
+#include <Eigen/Eigenvalues>
 
 #include "demfem/fem/assembly.hpp"
 #include "demfem/io/h5_file.hpp"
@@ -31,6 +35,12 @@ struct FemSolver::Impl {
   std::vector<TimedLoad> timed;
   std::vector<double> iface_forces;
 
+  VectorXd u_fixed_full;  // prescribed values of the fixed DOFs (zero at free DOFs)
+  VectorXd f_prescribed;  // K_fc u_c over the free DOFs: moved to the right-hand side
+  bool has_prescribed = false;
+  double model_size = 0.0;  // bounding-box diagonal of the nodes used by elements, m
+  bool mass_checked = false;
+
   VectorXd u, v, a;  // free DOFs
   double time = 0.0;
   std::int64_t step = 0;
@@ -54,6 +64,140 @@ struct FemSolver::Impl {
     for (std::size_t i = 0; i < dofs.free.size(); ++i)
       f(dofs.free[i]) = red(static_cast<Eigen::Index>(i));
     return f;
+  }
+
+  /// Displacement of all DOFs: the free ones from u, the fixed ones their prescribed value.
+  VectorXd full_u() const {
+    VectorXd f = expand(u);
+    if (has_prescribed) f += u_fixed_full;
+    return f;
+  }
+
+  // ---- model checks -----------------------------------------------------------------
+
+  /// Mesh node and component of a row of the reduced system: "node 17 (beam.inp:23), DOF y".
+  std::string dof_name(Eigen::Index row) const {
+    if (row < 0 || static_cast<std::size_t>(row) >= dofs.free.size()) return "an unknown DOF";
+    const std::int32_t g = dofs.free[static_cast<std::size_t>(row)];
+    const auto it = std::upper_bound(dofs.node_offset.begin(), dofs.node_offset.end(), g);
+    const auto n = static_cast<std::size_t>(it - dofs.node_offset.begin() - 1);
+    static const char* names[6] = {"x", "y", "z", "rx", "ry", "rz"};
+    return node_name(problem.mesh, n) + ", DOF " + names[g - dofs.node_offset[n]];
+  }
+
+  /// Nodes whose amplitude in x (a reduced vector, DOFs weighted by sqrt of the stiffness
+  /// diagonal so that translations and rotations compare) exceeds 1 % of the largest: the
+  /// nodes that take part in a free motion. Returns them and writes a list for messages.
+  std::vector<std::size_t> moving_nodes(const VectorXd& weighted, std::string& list) const {
+    const std::size_t nn = problem.mesh.nodes.size();
+    std::vector<double> amp(nn, 0.0);
+    for (std::size_t r = 0; r < dofs.free.size(); ++r) {
+      const std::int32_t g = dofs.free[r];
+      const auto it = std::upper_bound(dofs.node_offset.begin(), dofs.node_offset.end(), g);
+      const auto n = static_cast<std::size_t>(it - dofs.node_offset.begin() - 1);
+      amp[n] = std::max(amp[n], std::abs(weighted(static_cast<Eigen::Index>(r))));
+    }
+    const double top = *std::max_element(amp.begin(), amp.end());
+    std::vector<std::size_t> out;
+    for (std::size_t n = 0; n < nn; ++n)
+      if (amp[n] > 1e-2 * top) out.push_back(n);
+    list.clear();
+    constexpr std::size_t kShown = 8;
+    for (std::size_t i = 0; i < out.size() && i < kShown; ++i)
+      list += (i ? ", " : "") + node_name(problem.mesh, out[i]);
+    if (out.size() > kShown) list += " and " + std::to_string(out.size() - kShown) + " more";
+    return out;
+  }
+
+  /// Explains a free motion: the whole structure (clamps missing) or part of it (mechanism).
+  std::string free_motion_text(const std::vector<std::size_t>& moving, const std::string& list) {
+    const std::size_t used = problem.mesh.nodes.size() - orphan_nodes(problem.mesh).size();
+    if (moving.size() >= used)
+      return "the whole structure can move as a rigid body: the clamps do not hold it in every "
+             "direction. Add clamps ([[fem.clamps]] in the scene, or *BOUNDARY in the .inp). "
+             "Moving nodes: " +
+             list;
+    return std::to_string(moving.size()) + " of " + std::to_string(used) +
+           " nodes can move without deforming any element: a mechanism (parts joined only by "
+           "a node or an edge, a collapsed element), a part no clamp holds, or elements so thin "
+           "that their stiffness is lost to round-off. Free nodes: " +
+           list + ". Fix the connectivity of the mesh or clamp these nodes";
+  }
+
+  /// The stiffness matrix k is singular: find its null space by two steps of inverse
+  /// iteration on K + sigma diag(K) (sigma = 1e-10 keeps the shifted matrix factorisable while
+  /// a free motion, of Rayleigh quotient ~0, is amplified 1e10 times more than any deformation)
+  /// and name the nodes that move in it.
+  std::string diagnose_singular_stiffness() {
+    try {
+      const Eigen::VectorXd d = k.diagonal();
+      const double mean = d.cwiseAbs().mean();
+      SparseMatrix ks = k;
+      VectorXd w(d.size());
+      for (Eigen::Index i = 0; i < d.size(); ++i) {
+        w(i) = d(i) > 0.0 ? d(i) : mean;
+        ks.coeffRef(i, i) = (d(i) > 0.0 ? d(i) : 0.0) + 1e-10 * w(i);
+      }
+      SparseSpdSolver shifted(backend);
+      shifted.factorize(ks, "shifted stiffness matrix");
+      VectorXd x(d.size()), y(d.size());
+      // A fixed pseudo-random start (deterministic messages), weighted like the diagonal.
+      for (Eigen::Index i = 0; i < d.size(); ++i)
+        x(i) = std::sqrt(w(i)) *
+               (0.5 + std::fmod(std::sin(static_cast<double>(i) * 12.9898) * 43758.5453, 0.5));
+      for (int it = 0; it < 2; ++it) {
+        shifted.solve(x, y);
+        y /= y.norm();
+        x = w.cwiseProduct(y);
+      }
+      std::string list;
+      const auto moving = moving_nodes(w.cwiseSqrt().cwiseProduct(y), list);
+      return free_motion_text(moving, list);
+    } catch (const std::exception& e) {
+      return std::string("(the free nodes could not be found: ") + e.what() + ")";
+    }
+  }
+
+  /// Factorises, turning a singular matrix into a FemModelError that names the DOF and, for
+  /// the stiffness, the freely moving nodes.
+  void factorize_checked(SparseSpdSolver& solver, const SparseMatrix& matrix,
+                         const std::string& what, bool stiffness) {
+    try {
+      solver.factorize(matrix, what);
+    } catch (const SingularMatrixError& e) {
+      std::string msg = std::string(e.what()) + "; at " + dof_name(e.row) + ". ";
+      msg += stiffness ? diagnose_singular_stiffness()
+                       : std::string(
+                             "Every node must carry mass: check the densities and that "
+                             "no DOF is left without elements");
+      throw FemModelError(msg);
+    }
+  }
+
+  void check_finite(const VectorXd& x, const char* what) const {
+    if (!x.allFinite())
+      throw FemModelError("FEM: the " + std::string(what) +
+                          " became non-finite at t = " + std::to_string(time) +
+                          " s: a load, amplitude or material value overflowed");
+  }
+
+  /// A dynamic analysis needs every element to have mass.
+  void check_mass() {
+    if (mass_checked) return;
+    const Mesh& mesh = problem.mesh;
+    for (std::size_t e = 0; e < mesh.elements.size(); ++e) {
+      const Material& mat = problem.materials[static_cast<std::size_t>(
+          problem.sections[static_cast<std::size_t>(mesh.elements[e].section)].material)];
+      if (!(mat.density > 0.0))
+        throw FemModelError("FEM: a dynamic analysis needs mass, but material '" + mat.name +
+                            "' (of " + element_name(mesh, e) +
+                            ") has density 0: give its density (> 0 kg/m^3)");
+    }
+    if (has_prescribed)
+      throw FemModelError(
+          "FEM: non-zero prescribed displacements are supported by the static analysis only; "
+          "a dynamic analysis would need their velocity and acceleration too");
+    mass_checked = true;
   }
 
   double amplitude(const TimedLoad& l, double t) const {
@@ -105,7 +249,8 @@ struct FemSolver::Impl {
 
   void init_acceleration() {
     // M a0 = F(t0) - C v0 - K u0.
-    if (!mass_solver.factorized()) mass_solver.factorize(m, "mass matrix");
+    check_mass();
+    if (!mass_solver.factorized()) factorize_checked(mass_solver, m, "mass matrix", false);
     load_reduced(time, rhs);
     work = cm() * v;
     rhs.noalias() -= m * work;
@@ -121,7 +266,9 @@ struct FemSolver::Impl {
     const double cmass = (1.0 - b.alpha) + b.gamma * dt * cm();
     const double cstiff = b.beta * dt * dt + b.gamma * dt * ck();
     SparseMatrix eff = cmass * m + cstiff * k;
-    dynamic_solver.factorize(eff, "effective dynamic matrix (dt = " + std::to_string(dt) + ")");
+    char what[96];
+    std::snprintf(what, sizeof what, "effective dynamic matrix (dt = %g s)", dt);
+    factorize_checked(dynamic_solver, eff, what, false);
     dt_factorised = dt;
   }
 
@@ -149,22 +296,42 @@ struct FemSolver::Impl {
     a.swap(a_new);
     time = t1;
     ++step;
+    check_finite(u, "displacement");
   }
 
-  /// Translation (c < 3) or rotation (c >= 3) DOF c of mesh node n from a free-DOF vector.
-  double node_value(const VectorXd& x, std::size_t n, int c) const {
+  /// Translation (c < 3) or rotation (c >= 3) DOF c of mesh node n from a free-DOF vector;
+  /// fixed DOFs give their prescribed value for the displacement, 0 otherwise.
+  double node_value(const VectorXd& x, std::size_t n, int c, bool displacement = false) const {
     if (c >= dofs.node_dofs[n]) return 0.0;
-    const auto r = dofs.reduced[static_cast<std::size_t>(dofs.node_offset[n] + c)];
-    return r >= 0 ? x(r) : 0.0;
+    const auto g = dofs.node_offset[n] + c;
+    const auto r = dofs.reduced[static_cast<std::size_t>(g)];
+    if (r >= 0) return x(r);
+    return displacement && has_prescribed ? u_fixed_full(g) : 0.0;
   }
-  std::vector<double> nodal(const VectorXd& x) const {
+  std::vector<double> nodal(const VectorXd& x, bool displacement = false) const {
     const std::size_t nn = problem.mesh.nodes.size();
     std::vector<double> out(3 * nn);
     for (std::size_t n = 0; n < nn; ++n)
-      for (int c = 0; c < 3; ++c) out[3 * n + static_cast<std::size_t>(c)] = node_value(x, n, c);
+      for (int c = 0; c < 3; ++c)
+        out[3 * n + static_cast<std::size_t>(c)] = node_value(x, n, c, displacement);
     return out;
   }
 };
+
+double bossak_spectral_radius(const BossakParameters& b, double omega_dt) {
+  // advance() for M = 1, K = w^2, C = 0, F = 0 in the scaled state (u, dt v, dt^2 a):
+  // predictors, then (1 - alpha) a1 + alpha a0 + w^2 (ut + beta dt^2 a1) = 0.
+  const double w2 = omega_dt * omega_dt;
+  Eigen::Matrix3d amp;
+  for (int c = 0; c < 3; ++c) {
+    const double u = c == 0, v = c == 1, a = c == 2;
+    const double ut = u + v + (0.5 - b.beta) * a;
+    const double vt = v + (1.0 - b.gamma) * a;
+    const double a1 = -(b.alpha * a + w2 * ut) / ((1.0 - b.alpha) + b.beta * w2);
+    amp.col(c) << ut + b.beta * a1, vt + b.gamma * a1, a1;
+  }
+  return Eigen::EigenSolver<Eigen::Matrix3d>(amp, false).eigenvalues().cwiseAbs().maxCoeff();
+}
 
 FemSolver::FemSolver(FemProblem problem)
     : FemSolver(std::move(problem), SolverBackend::automatic) {}
@@ -195,6 +362,31 @@ FemSolver::FemSolver(FemProblem problem, SolverBackend backend) {
   for (const auto& pl : p.pressures) add_load(pressure_load_vector(p, s.dofs, pl), pl.amplitude);
   for (const auto& nl : p.nodal_loads) add_load(nodal_load_vector(p, s.dofs, nl), nl.amplitude);
   s.f_const = s.reduce(s.f_const_full);
+  // Prescribed values of fixed DOFs (*BOUNDARY with a value): K_fc u_c moves to the load side.
+  s.u_fixed_full = VectorXd::Zero(s.dofs.total);
+  for (const auto& c : p.constraints)
+    for (auto n : c.nodes)
+      for (int k = 0; k < s.dofs.node_dofs[static_cast<std::size_t>(n)]; ++k)
+        if (c.fixed[static_cast<std::size_t>(k)] && c.value[static_cast<std::size_t>(k)] != 0.0) {
+          s.u_fixed_full(s.dofs.node_offset[static_cast<std::size_t>(n)] + k) =
+              c.value[static_cast<std::size_t>(k)];
+          s.has_prescribed = true;
+        }
+  if (s.has_prescribed) {
+    for (std::size_t i = 0; i < s.dofs.free.size(); ++i) s.u_fixed_full(s.dofs.free[i]) = 0.0;
+    s.f_prescribed = s.reduce(s.k_full * s.u_fixed_full);
+  }
+  {
+    std::array<double, 3> lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
+    for (const auto& el : p.mesh.elements)
+      for (int a = 0; a < nodes_per_element(el.type); ++a)
+        for (int c = 0; c < 3; ++c) {
+          const double x = p.mesh.nodes[static_cast<std::size_t>(el.nodes[a])][c];
+          lo[c] = std::min(lo[c], x);
+          hi[c] = std::max(hi[c], x);
+        }
+    s.model_size = std::hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
+  }
   s.iface = build_interface(p);
   s.iface_forces.assign(3 * s.iface.mesh_node.size(), 0.0);
   const auto nf = static_cast<Eigen::Index>(s.dofs.free.size());
@@ -247,9 +439,31 @@ void FemSolver::set_interface_forces(std::span<const double> forces) {
 
 void FemSolver::solve_static() {
   Impl& s = *impl_;
-  if (!s.static_solver.factorized()) s.static_solver.factorize(s.k, "stiffness matrix");
+  if (!s.static_solver.factorized())
+    s.factorize_checked(s.static_solver, s.k, "stiffness matrix", true);
   s.load_reduced(s.time, s.rhs);
+  if (s.has_prescribed) s.rhs -= s.f_prescribed;
   s.static_solver.solve(s.rhs, s.u);
+  s.check_finite(s.u, "static displacement");
+  // A linear static displacement larger than the model: either loads off by orders of
+  // magnitude, or a mechanism whose pivot survived the factorisation's check (round-off gave
+  // it a small positive value); its nodes are those that move most.
+  double umax = 0.0;
+  const auto full = s.nodal(s.u, true);
+  for (std::size_t i = 0; i + 2 < full.size(); i += 3)
+    umax = std::max(umax, std::hypot(full[i], full[i + 1], full[i + 2]));
+  if (umax > s.model_size) {
+    const VectorXd d = s.k.diagonal().cwiseAbs().cwiseSqrt();
+    std::string list;
+    const auto moving = s.moving_nodes(d.cwiseProduct(s.u), list);
+    char head[240];
+    std::snprintf(head, sizeof head,
+                  "FEM: the static displacement reaches %.3g m, more than the size of the model "
+                  "(%.3g m; smallest pivot ratio %.3g). Linear elasticity does not hold there: "
+                  "check the load magnitudes and units, or ",
+                  umax, s.model_size, s.static_solver.smallest_pivot_ratio());
+    throw FemModelError(head + s.free_motion_text(moving, list));
+  }
   s.v.setZero();
   s.a.setZero();
   s.accel_ready = false;
@@ -270,10 +484,10 @@ void FemSolver::interface_kinematics(std::span<double> positions, std::span<doub
     const auto node = static_cast<std::size_t>(s.iface.mesh_node[i]);
     Eigen::Vector3d x, vel, acc, th, om, al;
     for (int c = 0; c < 3; ++c) {
-      x(c) = s.node_value(s.u, node, c);
+      x(c) = s.node_value(s.u, node, c, true);
       vel(c) = s.node_value(s.v, node, c);
       acc(c) = s.node_value(s.a, node, c);
-      th(c) = s.node_value(s.u, node, c + 3);
+      th(c) = s.node_value(s.u, node, c + 3, true);
       om(c) = s.node_value(s.v, node, c + 3);
       al(c) = s.node_value(s.a, node, c + 3);
     }
@@ -292,7 +506,7 @@ void FemSolver::interface_kinematics(std::span<double> positions, std::span<doub
 }
 
 std::vector<double> FemSolver::displacements() const {
-  return impl_->nodal(impl_->u);
+  return impl_->nodal(impl_->u, true);
 }
 std::vector<double> FemSolver::velocities() const {
   return impl_->nodal(impl_->v);
@@ -304,7 +518,7 @@ std::vector<double> FemSolver::accelerations() const {
 std::vector<double> FemSolver::reaction_forces() const {
   const Impl& s = *impl_;
   // R = K u + M a + C v - F at the fixed DOFs (what the supports exert on the structure).
-  const VectorXd uf = s.expand(s.u), vf = s.expand(s.v), af = s.expand(s.a);
+  const VectorXd uf = s.full_u(), vf = s.expand(s.v), af = s.expand(s.a);
   VectorXd r = s.k_full * (uf + s.ck() * vf) + s.m_full * (af + s.cm() * vf) - s.load_full(s.time);
   const std::size_t nn = s.problem.mesh.nodes.size();
   std::vector<double> out(3 * nn, 0.0);
@@ -320,7 +534,7 @@ std::vector<double> FemSolver::reaction_forces() const {
 ElementResults FemSolver::element_results() const {
   const Impl& s = *impl_;
   const FemProblem& p = s.problem;
-  const VectorXd uf = s.expand(s.u);
+  const VectorXd uf = s.full_u();
   std::vector<Eigen::Vector3d> directors;
   std::vector<double> thick;
   shell_nodal_directors(p, directors, thick);
@@ -345,7 +559,9 @@ ElementResults FemSolver::element_results() const {
     }
     detail::Voigt eps, sig;
     if (el.type == ElementType::hex8) {
-      eps = detail::hex8_centroid_strain(x, ue);
+      eps = el.formulation == SolidFormulation::selective_reduced
+                ? detail::hex8_bbar_centroid_strain(x, ue)
+                : detail::hex8_centroid_strain(x, ue);
       sig = detail::elasticity_matrix(mat.youngs_modulus, mat.poisson_ratio) * eps;
     } else if (el.type == ElementType::tet4) {
       eps = detail::tet4_strain({x[0], x[1], x[2], x[3]}, ue);
@@ -380,6 +596,10 @@ double FemSolver::kinetic_energy() const {
 }
 double FemSolver::strain_energy() const {
   const Impl& s = *impl_;
+  if (s.has_prescribed) {
+    const VectorXd uf = s.full_u();
+    return 0.5 * uf.dot(s.k_full * uf);
+  }
   return 0.5 * s.u.dot(s.k * s.u);
 }
 
@@ -407,14 +627,26 @@ void FemSolver::restore(const io::H5File& file, const std::string& group) {
   if (file.attribute_int64(group, "dof_count") != s.dofs.total ||
       file.attribute_int64(group, "free_dof_count") !=
           static_cast<std::int64_t>(s.dofs.free.size()))
-    throw std::runtime_error("FemSolver::restore: " + where +
-                             " was saved from a model with a different DOF count");
+    throw std::runtime_error(
+        "FemSolver::restore: " + where + " was saved from a model with a different DOF count (" +
+        std::to_string(file.attribute_int64(group, "dof_count")) + ", " +
+        std::to_string(file.attribute_int64(group, "free_dof_count")) + " free; this model has " +
+        std::to_string(s.dofs.total) + ", " + std::to_string(s.dofs.free.size()) +
+        " free): the mesh or the clamps changed; the state cannot be continued with this scene");
   auto read = [&](const std::string& name, VectorXd& x) {
     const auto d = file.read_doubles(group + "/" + name);
     if (d.size() != static_cast<std::size_t>(x.size()))
       throw std::runtime_error("FemSolver::restore: " + where + "/" + name + " has " +
                                std::to_string(d.size()) + " values, expected " +
                                std::to_string(x.size()));
+    // As strict as a scene: a checkpoint that matches its manifest may still hold a state
+    // saved just before a blow-up.
+    for (std::size_t k = 0; k < d.size(); ++k)
+      if (!std::isfinite(d[k]))
+        throw std::runtime_error("FemSolver::restore: " + where + "/" + name + "[" +
+                                 std::to_string(k) + "] is not finite (" + std::to_string(d[k]) +
+                                 "); the state cannot be continued: resume from an earlier "
+                                 "checkpoint");
     x = Eigen::Map<const VectorXd>(d.data(), x.size());
   };
   read("u", s.u);
@@ -427,6 +659,9 @@ void FemSolver::restore(const io::H5File& file, const std::string& group) {
   s.iface_forces = f;
   s.time = file.attribute_double(group, "time");
   s.step = file.attribute_int64(group, "step");
+  if (!std::isfinite(s.time) || s.time < 0.0 || s.step < 0)
+    throw std::runtime_error("FemSolver::restore: " + where + ": time " + std::to_string(s.time) +
+                             " or step " + std::to_string(s.step) + " is not a valid state");
   s.accel_ready = file.attribute_int64(group, "acceleration_ready") != 0;
   // The factorisation is rebuilt for the saved dt on the next step (deterministic, so the
   // continuation is bitwise identical).

@@ -9,6 +9,7 @@
 #include "demfem/io/atomic_file.hpp"
 #include "demfem/io/csv_writer.hpp"
 #include "demfem/io/h5_file.hpp"
+#include "demfem/io/output_schedule.hpp"
 
 namespace demfem::fem {
 
@@ -43,10 +44,21 @@ std::string data_item(const std::string& dims, const char* number_type, const st
          "\" Precision=\"8\" Format=\"HDF\">" + ref + "</DataItem>";
 }
 
-std::string format_time(double t) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.17g", t);
-  return buf;
+}  // namespace
+
+namespace {
+
+std::vector<double> strain_tensors(const std::vector<double>& engineering) {
+  // (exx, eyy, ezz, gxy, gyz, gzx) per element -> the symmetric tensor, row by row
+  const std::size_t k = engineering.size() / 6;
+  std::vector<double> out(9 * k);
+  for (std::size_t e = 0; e < k; ++e) {
+    const double* v = engineering.data() + 6 * e;
+    const double xy = 0.5 * v[3], yz = 0.5 * v[4], zx = 0.5 * v[5];
+    const double t[9] = {v[0], xy, zx, xy, v[1], yz, zx, yz, v[2]};
+    std::copy(t, t + 9, out.begin() + static_cast<std::ptrdiff_t>(9 * e));
+  }
+  return out;
 }
 
 }  // namespace
@@ -109,7 +121,8 @@ FemOutput::FemOutput(std::filesystem::path dir, std::string name, const Mesh& me
   } else {
     // Step files of an earlier run in this folder go: a later resume (a restarted solver)
     // scans the folder and would take them for this run's.
-    for (std::size_t k = 1; std::filesystem::exists(step_path(k)); ++k) {
+    // (From 1 too: series written before the numbering started at 0 begin there.)
+    for (std::size_t k = 0; k < 2 || std::filesystem::exists(step_path(k)); ++k) {
       std::filesystem::remove(step_path(k));
     }
     write_mesh(mesh);
@@ -146,15 +159,22 @@ void FemOutput::write_mesh(const Mesh& mesh) const {
 }
 
 void FemOutput::scan_existing() {
-  // Step files are committed in order, so the series is 1, 2, ... up to the first gap; a
+  // Step files are committed in order, so the series is 0, 1, ... up to the first gap; a
   // ".part" left by a crash is incomplete and removed.
   times_.clear();
+  state_times_.clear();
   written_.clear();
-  for (std::size_t k = 1;; ++k) {
+  for (std::size_t k = 0;; ++k) {
     std::filesystem::remove(io::partial_path(step_path(k)));
     if (!std::filesystem::exists(step_path(k))) break;
     io::H5File h5(step_path(k), io::H5File::Mode::read);
     times_.push_back(h5.attribute_double("/", "time"));
+    state_times_.push_back(times_.back());
+    try {
+      state_times_.back() = h5.attribute_double("/", "state_time");
+    } catch (const std::exception&) {
+      // written before the attribute existed: the label is the state's time
+    }
     std::vector<std::string> present;
     for (const char* f : kFemOutputFields) {
       const std::string field = f;
@@ -171,16 +191,18 @@ void FemOutput::scan_existing() {
 
 void FemOutput::rollback(double time) {
   std::size_t keep = 0;
-  while (keep < times_.size() && times_[keep] <= time + 1e-12 * std::max(1.0, std::abs(time))) {
+  while (keep < state_times_.size() &&
+         state_times_[keep] <= time + 1e-12 * std::max(1.0, std::abs(time))) {
     ++keep;
   }
   if (keep == times_.size()) return;
   // Index first, so that it never names a file that is being deleted.
   const std::size_t had = times_.size();
   times_.resize(keep);
+  state_times_.resize(keep);
   written_.resize(keep);
   write_xdmf();
-  for (std::size_t k = keep + 1; k <= had; ++k) std::filesystem::remove(step_path(k));
+  for (std::size_t k = keep; k < had; ++k) std::filesystem::remove(step_path(k));
   if (csv_) {
     csv_.reset();
     csv_ = std::make_unique<io::CsvWriter>(io::CsvWriter::resume(csv_path(), keep));
@@ -235,11 +257,13 @@ void FemOutput::write(const FemFields& f) {
     throw std::invalid_argument("FemOutput: max_principal_strain needs one value per element");
   }
 
-  const std::size_t step = times_.size() + 1;
+  const std::size_t step = times_.size();
   const auto path = step_path(step);
+  const double state_time = std::isnan(f.state_time) ? f.time : f.state_time;
   {
     io::H5File h5(io::partial_path(path), io::H5File::Mode::create);
     h5.set_attribute("/", "time", f.time);
+    h5.set_attribute("/", "state_time", state_time);
     const std::pair<const char*, const std::vector<double>*> node_fields[] = {
         {"displacement", &f.displacement},
         {"velocity", &f.velocity},
@@ -266,7 +290,7 @@ void FemOutput::write(const FemFields& f) {
         h5.write(grp + "/von_mises", gather(f.elements.von_mises, 1));
       }
       if (wants("strain") && !f.elements.strain.empty()) {
-        h5.write(grp + "/strain", gather(f.elements.strain, 6), {k, 6});
+        h5.write(grp + "/strain", strain_tensors(gather(f.elements.strain, 6)), {k, 9});
       }
       if (wants("max_principal_strain") && !f.elements.max_principal_strain.empty()) {
         h5.write(grp + "/max_principal_strain", gather(f.elements.max_principal_strain, 1));
@@ -276,6 +300,7 @@ void FemOutput::write(const FemFields& f) {
   }
   io::commit_partial(path);
   times_.push_back(f.time);
+  state_times_.push_back(state_time);
   written_.push_back(present_fields(f));
   write_xdmf();
   if (csv_) {
@@ -312,25 +337,25 @@ void FemOutput::write_xdmf() const {
     << "  <Grid Name=\"" << name_ << "\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
   const bool mixed = groups_.size() > 1;
   for (std::size_t s = 0; s < times_.size(); ++s) {
-    const std::string step_file = step_path(s + 1).filename().string();
+    const std::string step_file = step_path(s).filename().string();
     const auto& fields = written_[s];
     auto has = [&](const char* name) {
       return std::find(fields.begin(), fields.end(), name) != fields.end();
     };
     std::string indent = "   ";
     if (mixed) {
-      x << indent << "<Grid Name=\"step_" << s + 1
+      x << indent << "<Grid Name=\"step_" << s
         << "\" GridType=\"Collection\" CollectionType=\"Spatial\">\n"
-        << indent << " <Time Value=\"" << format_time(times_[s]) << "\"/>\n";
+        << indent << " <Time Value=\"" << io::format_time(times_[s]) << "\"/>\n";
       indent += " ";
     }
     for (const auto& g : groups_) {
       const std::string k = std::to_string(g.elements.size());
       const std::string npe = std::to_string(nodes_per_element(g.type));
       const std::string t = type_key(g.type);
-      x << indent << "<Grid Name=\"" << (mixed ? t : "step_" + std::to_string(s + 1))
+      x << indent << "<Grid Name=\"" << (mixed ? t : "step_" + std::to_string(s))
         << "\" GridType=\"Uniform\">\n";
-      if (!mixed) x << indent << " <Time Value=\"" << format_time(times_[s]) << "\"/>\n";
+      if (!mixed) x << indent << " <Time Value=\"" << io::format_time(times_[s]) << "\"/>\n";
       x << indent << " <Topology TopologyType=\"" << xdmf_topology(g.type)
         << "\" NumberOfElements=\"" << k << "\" NodesPerElement=\"" << npe << "\">\n"
         << indent << "  " << data_item(k + " " + npe, "Int", mesh_file + ":/topology/" + t) << "\n"
@@ -351,10 +376,11 @@ void FemOutput::write_xdmf() const {
           << indent << " </Attribute>\n";
       }
       if (has("strain")) {
-        // Not "Tensor6": readers differ in the component order they assume; a plain 6-column
-        // array keeps ours (exx, eyy, ezz, gxy, gyz, gzx).
-        x << indent << " <Attribute Name=\"strain\" AttributeType=\"Matrix\" Center=\"Cell\">\n"
-          << indent << "  " << data_item(k + " 6", "Float", step_file + ":/" + t + "/strain")
+        // The full tensor (9 components, row by row): with 6, ParaView assumes a symmetric
+        // tensor in the order XX, YY, ZZ, XY, YZ, XZ while XDMF's Tensor6 is XX, XY, XZ, YY,
+        // YZ, ZZ; 9 components mean the same to every reader.
+        x << indent << " <Attribute Name=\"strain\" AttributeType=\"Tensor\" Center=\"Cell\">\n"
+          << indent << "  " << data_item(k + " 9", "Float", step_file + ":/" + t + "/strain")
           << "\n"
           << indent << " </Attribute>\n";
       }

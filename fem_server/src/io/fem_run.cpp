@@ -4,6 +4,7 @@
 #include <ostream>
 
 #include "demfem/fem/fem_output.hpp"
+#include "demfem/io/output_schedule.hpp"
 
 namespace demfem::fem {
 
@@ -50,17 +51,28 @@ FemRunSummary run_fem_standalone(const FemScene& scene, double end_time, double 
     // The step count that reaches end_time; the 1e-9 keeps an end_time that is a multiple of
     // dt (up to round-off) from taking one step too many.
     const auto steps = static_cast<std::int64_t>(std::ceil(end_time / dt - 1e-9));
-    write();  // initial state
-    double next_output = interval > 0.0 ? interval : INFINITY;
+    // Output k is the state at the step end nearest to k * interval, labelled k * interval;
+    // the clock is the step count x dt, not the running sum of dt (io::OutputSchedule).
+    io::OutputSchedule schedule(interval);
+    auto write_labelled = [&](double label) {
+      if (!out) return;
+      FemFields f = gather_fields(solver);
+      f.time = label;
+      f.state_time = solver.time();
+      out->write(f);
+      ++summary.outputs;
+    };
+    write_labelled(schedule.label(0.0, dt));  // initial state
+    schedule.skip_to_after(0.0);
     auto last_report = clock::now();
     bool written_last = true;
     for (std::int64_t s = 0; s < steps; ++s) {
       solver.advance(dt);
       written_last = false;
-      if (solver.time() >= next_output - 1e-9 * dt) {
-        write();
+      const double t = static_cast<double>(s + 1) * dt;
+      if (schedule.due(t, dt)) {
+        write_labelled(schedule.take(t, dt));
         written_last = true;
-        while (next_output <= solver.time() + 1e-9 * dt) next_output += interval;
       }
       if (progress && clock::now() - last_report > std::chrono::seconds(2)) {
         last_report = clock::now();
@@ -74,7 +86,7 @@ FemRunSummary run_fem_standalone(const FemScene& scene, double end_time, double 
         *progress << line << std::flush;
       }
     }
-    if (!written_last) write();
+    if (!written_last) write_labelled(schedule.label(static_cast<double>(steps) * dt, dt));
     summary.steps = steps;
   }
   summary.end_time = solver.time();

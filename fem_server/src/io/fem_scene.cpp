@@ -3,12 +3,17 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
+#include <optional>
 #include <stdexcept>
 
+#include "demfem/fem/assembly.hpp"
+#include "demfem/fem/fem_solver.hpp"
 #include "demfem/fem/inp_reader.hpp"
 #include "demfem/fem/mesher.hpp"
 #include "demfem/fem/node_selector.hpp"
 #include "demfem/fem/time_function.hpp"
+#include "inp_mapping.hpp"
 
 namespace demfem::fem {
 
@@ -37,8 +42,32 @@ std::array<int, 3> cell_counts(const Table& t, std::string_view key, std::size_t
   return out;
 }
 
+/// Cells of a structured mesh must be distinguishable in double precision at their
+/// coordinates, and not so flat that their stiffness loses its digits (aspect ratio above
+/// 1e4: the pivots of such a mesh fall to round-off, see docs/scene_fem.md).
+void check_cells(const Table& t, std::string_view key, const std::vector<double>& size,
+                 const std::vector<double>& at, const std::array<int, 3>& cells) {
+  double hmin = INFINITY, hmax = 0.0;
+  for (std::size_t k = 0; k < size.size(); ++k) {
+    const double h = size[k] / cells[k];
+    if (!(h > 1e-9 * std::abs(at[k]))) {
+      t.fail(key, "gives cells of " + std::to_string(h) + " m at a coordinate of " +
+                      std::to_string(at[k]) +
+                      " m: their nodes cannot be told apart in double precision (cell size "
+                      "must be > 1e-9 x the coordinate)");
+    }
+    hmin = std::min(hmin, h);
+    hmax = std::max(hmax, h);
+  }
+  if (hmax > 1e4 * hmin) {
+    t.fail(key, "gives cells of aspect ratio " + std::to_string(hmax / hmin) +
+                    " (longest / shortest edge); at most 1e4 is accepted: flatter elements lose "
+                    "their stiffness to round-off");
+  }
+}
+
 /// The mesh, and the materials and sections of a .inp file when it has them.
-InpModel read_mesh(const Table& fem) {
+InpModel read_mesh(const Table& fem, bool& deck_loads) {
   const Table mesh = fem.required_table("mesh");
   const int kinds = int(mesh.has("file")) + int(mesh.has("box")) + int(mesh.has("plate"));
   if (kinds != 1) {
@@ -47,8 +76,15 @@ InpModel read_mesh(const Table& fem) {
   InpModel model;
   if (mesh.has("file")) {
     const auto path = mesh.path("file");
+    InpOptions options;
+    if (mesh.has("c3d8r_as")) {
+      options.c3d8r_as = mesh.choice("c3d8r_as", {"C3D8I", "C3D8"}) == "C3D8I"
+                             ? SolidFormulation::incompatible_modes
+                             : SolidFormulation::selective_reduced;
+    }
+    deck_loads = mesh.boolean("deck_loads", true);
     try {
-      model = read_inp_model(path);
+      model = read_inp_model(path, options);
     } catch (const InpError& e) {
       mesh.fail("file", e.what());
     }
@@ -62,12 +98,21 @@ InpModel read_mesh(const Table& fem) {
         box->fail("hi", "must be greater than lo in every coordinate");
       }
     }
+    check_cells(
+        *box, "cells", {hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]},
+        {std::max(std::abs(lo[0]), std::abs(hi[0])), std::max(std::abs(lo[1]), std::abs(hi[1])),
+         std::max(std::abs(lo[2]), std::abs(hi[2]))},
+        cells);
     box->finish();
     model.mesh = element == "hex8" ? box_mesh_hex(lo, hi, cells) : box_mesh_tet(lo, hi, cells);
   } else if (auto plate = mesh.table("plate")) {
     const auto origin = plate->vec3("origin", std::array<double, 3>{0.0, 0.0, 0.0});
     const auto size = plate->numbers("size", 2, Range::positive());
     const auto cells = cell_counts(*plate, "cells", 2);
+    check_cells(*plate, "cells", size,
+                {std::max(std::abs(origin[0]), std::abs(origin[0] + size[0])),
+                 std::max(std::abs(origin[1]), std::abs(origin[1] + size[1]))},
+                cells);
     plate->finish();
     model.mesh = plate_mesh_quad(origin, size[0], size[1], {cells[0], cells[1]});
   }
@@ -101,17 +146,26 @@ bool has_shell(const Mesh& mesh, const std::vector<std::int32_t>& elems) {
   });
 }
 
-void read_materials(const Table& fem, FemProblem& p) {
+/// Where a material was defined, for messages: the scene key of a [[fem.materials]] value,
+/// or the mesh file's material.
+struct MaterialOrigin {
+  std::optional<Table> table;  ///< the [[fem.materials]] entry; empty for .inp materials
+  std::string inp;             ///< "beam.inp:12: material STEEL" for .inp materials
+};
+
+void read_materials(const Table& fem, FemProblem& p, std::vector<MaterialOrigin>& origin) {
   for (const Table& m : fem.tables("materials")) {
+    origin.push_back({m, ""});
     Material mat;
     mat.name = m.string("name");
     if (mat.name.empty()) m.fail("name", "must not be empty");
     if (find_material(p.materials, mat.name) >= 0) {
       m.fail("name", "material \"" + mat.name + "\" is defined twice (names are case-insensitive)");
     }
-    mat.youngs_modulus = m.number("youngs_modulus", Range::positive());
+    mat.youngs_modulus =
+        m.number("youngs_modulus", Range::closed(kMinYoungsModulus, kMaxYoungsModulus));
     mat.poisson_ratio = m.number("poisson_ratio", Range{-1.0, 0.5, true, true});
-    mat.density = m.number("density", Range::non_negative());
+    mat.density = m.number("density", Range::closed(0.0, kMaxDensity));
     m.finish();
     p.materials.push_back(mat);
   }
@@ -257,6 +311,85 @@ void read_loads(const Table& fem, FemProblem& p) {
   }
 }
 
+/// Fails at the material's scene key (or at the mesh file for an .inp material).
+[[noreturn]] void fail_material(const Table& fem, const MaterialOrigin& o, std::string_view key,
+                                const std::string& message) {
+  if (o.table) o.table->fail(key, message);
+  fem.fail("mesh", o.inp + ": " + std::string(key) + " " + message);
+}
+
+/// Checks of the whole model that need more than one key: materials against the analysis
+/// (mass where dynamics or gravity need it), Bossak stability, element shapes and loads
+/// (validate_problem), orphan nodes (a note).
+void check_model(const Table& fem, FemScene& s, const std::vector<MaterialOrigin>& origin) {
+  FemProblem& p = s.problem;
+  std::vector<char> used(p.materials.size(), 0);
+  for (const auto& sec : p.sections) used[static_cast<std::size_t>(sec.material)] = 1;
+  const bool gravity = p.gravity != std::array<double, 3>{0.0, 0.0, 0.0};
+  for (std::size_t i = 0; i < p.materials.size(); ++i) {
+    if (!used[i]) continue;
+    const Material& m = p.materials[i];
+    const MaterialOrigin& o = origin[i];
+    auto range_text = [](double lo, double hi) {
+      char b[64];
+      std::snprintf(b, sizeof b, "[%g, %g]", lo, hi);
+      return std::string(b);
+    };
+    if (!(m.youngs_modulus >= kMinYoungsModulus && m.youngs_modulus <= kMaxYoungsModulus))
+      fail_material(fem, o, "youngs_modulus",
+                    "Young's modulus " + std::to_string(m.youngs_modulus) +
+                        " Pa is outside the accepted range " +
+                        range_text(kMinYoungsModulus, kMaxYoungsModulus) + " Pa");
+    if (!(m.density >= 0.0 && m.density <= kMaxDensity))
+      fail_material(fem, o, "density",
+                    "density " + std::to_string(m.density) +
+                        " kg/m^3 is outside the accepted "
+                        "range " +
+                        range_text(0.0, kMaxDensity) + " kg/m^3");
+    if (m.density > 0.0) continue;
+    if (s.analysis == Analysis::dynamic)
+      fail_material(fem, o, "density",
+                    "is 0 (or not given), but fem.analysis = \"dynamic\" needs mass: give a "
+                    "density > 0 kg/m^3 (a massless part has no dynamics; the mass matrix would "
+                    "be singular)");
+    if (gravity)
+      fail_material(fem, o, "density",
+                    "is 0 (or not given), but fem.gravity is set: the weight of the elements of "
+                    "this material would be missing; give a density > 0 kg/m^3");
+  }
+  // User-set gamma and beta must keep the step unconditionally stable: the spectral radius
+  // must not exceed 1 at any omega dt (the mesh's highest frequencies have omega dt >> 1).
+  if (auto b = fem.table("bossak")) {
+    for (double e = -3.0; e <= 8.0; e += 0.05) {
+      const double w = std::pow(10.0, e);
+      const double rho = bossak_spectral_radius(p.bossak, w);
+      if (rho > 1.0 + 1e-9) {
+        char msg[320];
+        std::snprintf(msg, sizeof msg,
+                      "with alpha = %g, gamma = %g, beta = %g the Bossak-Newmark step amplifies "
+                      "frequencies with omega dt >= %.3g (spectral radius %.6f > 1): unstable. "
+                      "Leave gamma and beta at their defaults (1/2 - alpha, (1 - alpha)^2 / 4)",
+                      p.bossak.alpha, p.bossak.gamma, p.bossak.beta, w, rho);
+        b->fail(b->has("beta") ? "beta" : "gamma", msg);
+      }
+    }
+  }
+  try {
+    validate_problem(p);
+  } catch (const std::invalid_argument& e) {
+    fem.fail("mesh", e.what());
+  }
+  const auto orphans = orphan_nodes(p.mesh);
+  if (!orphans.empty()) {
+    std::string list;
+    for (std::size_t i = 0; i < orphans.size() && i < 5; ++i)
+      list += (i ? ", " : "") + node_name(p.mesh, static_cast<std::size_t>(orphans[i]));
+    if (orphans.size() > 5) list += ", ...";
+    s.notes.push_back(fem.where("mesh") + ": " + std::to_string(orphans.size()) +
+                      " node(s) belong to no element and are left out of the model (" + list + ")");
+  }
+}
+
 }  // namespace
 
 TimeFunction read_time_function(const Table& a) {
@@ -298,17 +431,24 @@ TimeFunction read_time_function(const Table& a) {
 
 FemScene read_fem_scene(const Table& fem) {
   FemScene s;
+  const bool analysis_given = fem.has("analysis");
   s.analysis = fem.choice("analysis", "dynamic", {"static", "dynamic"}) == "static"
                    ? Analysis::static_analysis
                    : Analysis::dynamic;
-  s.dt = fem.number("dt", 0.0, Range::positive());
+  s.dt = fem.number("dt", 0.0, Range::open_closed(0.0, 1e6));
   s.dt_location = fem.where("dt");
 
-  InpModel inp = read_mesh(fem);
+  bool deck_loads = true;
+  InpModel inp = read_mesh(fem, deck_loads);
   FemProblem& p = s.problem;
   p.mesh = std::move(inp.mesh);
   p.materials = inp.materials;
-  read_materials(fem, p);
+  s.notes = inp.notes;
+  std::vector<MaterialOrigin> origin;
+  for (std::size_t i = 0; i < inp.materials.size(); ++i) {
+    origin.push_back({std::nullopt, inp.material_where[i] + ": material " + inp.materials[i].name});
+  }
+  read_materials(fem, p, origin);
   read_sections(fem, inp, p);
   // Every material that a section uses must be complete (a .inp may leave density out).
   for (const auto& sec : p.sections) {
@@ -320,6 +460,19 @@ FemScene read_fem_scene(const Table& fem) {
   read_loads(fem, p);
 
   p.gravity = fem.vec3("gravity", std::array<double, 3>{0.0, 0.0, 0.0});
+  if (fem.table("mesh")->has("file")) {
+    const Table mesh = *fem.table("mesh");
+    const bool history = inp.step.present || !inp.boundaries.empty() ||
+                         !inp.concentrated_loads.empty() || !inp.pressures.empty() ||
+                         !inp.gravity.empty();
+    if (deck_loads) {
+      apply_inp_history(inp, fem, mesh, analysis_given, s);
+    } else if (history) {
+      s.notes.push_back(mesh.where("deck_loads") +
+                        ": the deck's steps, boundary conditions and loads are not used "
+                        "(fem.mesh.deck_loads = false)");
+    }
+  }
   p.mass = fem.choice("mass", "consistent", {"consistent", "lumped"}) == "lumped"
                ? MassLumping::lumped
                : MassLumping::consistent;
@@ -334,8 +487,10 @@ FemScene read_fem_scene(const Table& fem) {
     b->finish();
   }
   if (auto d = fem.table("damping")) {
-    p.damping.mass_factor = d->number("mass_factor", 0.0, Range::non_negative());
-    p.damping.stiffness_factor = d->number("stiffness_factor", 0.0, Range::non_negative());
+    // Upper bounds: beyond them every mode of interest is overdamped (a typo guard, and the
+    // effective matrix stays finite for any accepted dt).
+    p.damping.mass_factor = d->number("mass_factor", 0.0, Range::closed(0.0, 1e6));
+    p.damping.stiffness_factor = d->number("stiffness_factor", 0.0, Range::closed(0.0, 1.0));
     d->finish();
   }
   if (fem.has("interface_surface")) {
@@ -375,6 +530,7 @@ FemScene read_fem_scene(const Table& fem) {
   if (s.output.fields.empty()) {
     for (const char* k : kFemOutputFields) s.output.fields.emplace_back(k);
   }
+  check_model(fem, s, origin);
   fem.finish();
   return s;
 }

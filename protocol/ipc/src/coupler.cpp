@@ -103,6 +103,7 @@ struct CouplerSession::Impl {
   std::array<pid_t, kRoleCount> known_pid{};
   InterfaceBuffers buffers;
   double time = 0.0;
+  std::optional<std::chrono::steady_clock::time_point> stop_seen;  // options.stop first set
 
   shm::Channel& channel(Role role) { return seg->channels[index(role)]; }
 
@@ -113,6 +114,14 @@ struct CouplerSession::Impl {
       throw VersionMismatch(role, kProtocolVersion, refused);
     const std::string why = watches[index(role)].check();
     if (!why.empty()) throw PeerDied(role, why);
+    if (options.stop != nullptr && options.stop->load()) {
+      const auto now = std::chrono::steady_clock::now();
+      if (!stop_seen) stop_seen = now;
+      if (now - *stop_seen > options.stop_grace)
+        throw ProtocolError("stop requested: the " + std::string(role_name(role)) +
+                            " solver did not end within " +
+                            std::to_string(options.stop_grace.count()) + " ms");
+    }
   }
 
   shm::Waiter waiter(Role role) {
@@ -246,17 +255,24 @@ void CouplerSession::wait_hello(Role role, std::optional<pid_t> pid) {
   s.known_pid[r] = pid.value_or(0);
   s.watches[r] =
       shm::PeerWatch(&s.seg->solvers[r], s.known_pid[r], shm::stale_after(s.options.peer_timeout));
-  const auto deadline = std::chrono::steady_clock::now() + s.options.hello_timeout;
+  const bool bounded = s.options.hello_timeout.count() > 0;
+  const auto limit = bounded ? s.options.hello_timeout : std::chrono::milliseconds(60000);
+  const auto deadline = std::chrono::steady_clock::now() + limit;
   shm::Waiter w = s.waiter(role);
   const bool watchable = s.known_pid[r] > 0;
-  w.check = [&s, role, r, deadline, watchable] {
+  w.check = [&s, role, r, deadline, watchable, bounded, limit] {
     s.check_peer(role);
-    // A solver that can be watched (known pid, or attached with a heartbeat) may take as
-    // long as it needs to set up; only an unwatchable wait is bounded by hello_timeout.
+    // Without a limit, a solver that can be watched (known pid, or attached with a heartbeat)
+    // may take as long as it lives; an unwatchable wait is always bounded.
     const bool attached = s.seg->solvers[r].pid.load(std::memory_order_acquire) != 0;
-    if (!watchable && !attached && std::chrono::steady_clock::now() > deadline)
-      throw PeerDied(role,
-                     "no Hello within " + std::to_string(s.options.hello_timeout.count()) + " ms");
+    if ((bounded || (!watchable && !attached)) && std::chrono::steady_clock::now() > deadline) {
+      const pid_t who = s.known_pid[r] > 0 ? s.known_pid[r]
+                                           : s.seg->solvers[r].pid.load(std::memory_order_acquire);
+      throw PeerDied(role, "no Hello within " + std::to_string(limit.count()) + " ms" +
+                               (who > 0 ? " from process " + std::to_string(who) : "") +
+                               (attached ? " (it attached to the segment but never said Hello)"
+                                         : " (it started but never attached)"));
+    }
   };
   shm::Message msg = shm::pop(s.channel(role).to_coupler, w);
   if (msg.kind == MessageKind::error)

@@ -3,9 +3,12 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <condition_variable>
 #include <cstdio>
 #include <cstring>
 #include <iostream>
+#include <mutex>
+#include <thread>
 
 #include "demfem/protocol/protocol.hpp"
 #include "demfem/protocol/segment.hpp"
@@ -15,9 +18,14 @@ namespace demfem::protocol {
 namespace {
 
 volatile sig_atomic_t g_signal = 0;
+// Set by a stop signal or by the watchdog (coupler gone): the backend's long step polls it
+// (SolverBackend::set_cancel_flag). Lock-free, so the signal handler may set it.
+std::atomic<bool> g_cancel{false};
+static_assert(std::atomic<bool>::is_always_lock_free);
 
 void on_stop_signal(int sig) {
   g_signal = sig;
+  g_cancel.store(true, std::memory_order_relaxed);
 }
 
 // Installs SIGTERM/SIGINT handlers (without SA_RESTART, so a futex wait returns at once) for
@@ -26,6 +34,7 @@ class SignalGuard {
  public:
   explicit SignalGuard(bool enable) : enabled_(enable) {
     g_signal = 0;
+    g_cancel.store(false);
     if (!enabled_) return;
     struct sigaction sa {};
     sa.sa_handler = on_stop_signal;
@@ -56,6 +65,57 @@ struct CouplerGone {
 // An exception from the backend, to be reported as an Error message.
 struct BackendFailure {
   std::string text;
+};
+
+// Watches the coupler while the solver computes: the serve loop checks the coupler only while
+// it waits for a message, so without this a solver in a long step (10^6 substeps) would run on
+// as an orphan until the step ends. Every check slice it looks at the coupler's pid, detached
+// flag and heartbeat (its own PeerWatch: the serve loop's is not shared across threads) and,
+// when the coupler is gone, records why and sets g_cancel.
+class CouplerWatchdog {
+ public:
+  CouplerWatchdog(const shm::ProcessSlot* coupler, pid_t pid, std::chrono::milliseconds timeout)
+      : watch_(coupler, pid, shm::stale_after(timeout)), slice_(shm::check_slice(timeout)) {
+    thread_ = std::thread([this] { loop(); });
+  }
+  ~CouplerWatchdog() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stop_ = true;
+    }
+    wake_.notify_all();
+    thread_.join();
+  }
+  CouplerWatchdog(const CouplerWatchdog&) = delete;
+  CouplerWatchdog& operator=(const CouplerWatchdog&) = delete;
+  /// Why the coupler counts as gone ("" while it is there).
+  std::string gone() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return why_;
+  }
+
+ private:
+  void loop() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    while (!stop_) {
+      wake_.wait_for(lock, slice_, [this] { return stop_; });
+      if (stop_ || !why_.empty()) continue;
+      lock.unlock();
+      std::string why = watch_.check();
+      lock.lock();
+      if (!why.empty()) {
+        why_ = std::move(why);
+        g_cancel.store(true, std::memory_order_relaxed);
+      }
+    }
+  }
+  shm::PeerWatch watch_;
+  std::chrono::milliseconds slice_;
+  mutable std::mutex mutex_;
+  std::condition_variable wake_;
+  bool stop_ = false;
+  std::string why_;
+  std::thread thread_;
 };
 
 class Server {
@@ -137,9 +197,19 @@ class Server {
   }
 
   void detach() {
+    watchdog_.reset();
     heartbeat_.reset();
     if (attached_) seg_->solvers[r()].detached.store(1, std::memory_order_release);
     attached_ = false;
+  }
+
+  // A backend that stopped because g_cancel was set: the signal or the dead coupler is the
+  // cause, not the backend.
+  void throw_if_cancelled() {
+    if (g_signal != 0) throw Interrupted{g_signal};
+    if (watchdog_) {
+      if (std::string why = watchdog_->gone(); !why.empty()) throw CouplerGone{why};
+    }
   }
 
   template <class F>
@@ -147,8 +217,10 @@ class Server {
     try {
       return f();
     } catch (const std::exception& e) {
+      throw_if_cancelled();
       throw BackendFailure{std::string(what) + " failed: " + e.what()};
     } catch (...) {
+      throw_if_cancelled();
       throw BackendFailure{std::string(what) + " failed with an unknown exception"};
     }
   }
@@ -187,6 +259,8 @@ class Server {
     slot.detached.store(0);
     attached_ = true;
     heartbeat_ = std::make_unique<shm::Heartbeat>(slot);
+    watchdog_ =
+        std::make_unique<CouplerWatchdog>(&seg_->coupler, coupler_pid_, options_.peer_timeout);
   }
 
   struct VersionMismatchExit {
@@ -260,6 +334,7 @@ class Server {
                    role_name(options_.role), options_.segment.c_str(), v.segment_version, v.ours);
       return kExitVersionMismatch;
     }
+    backend_.set_cancel_flag(&g_cancel);
     mesh_ = call_backend("published_mesh", [&] { return backend_.published_mesh(); });
     if (mesh_) {
       const std::size_t n = mesh_->node_count();
@@ -306,7 +381,7 @@ class Server {
           shm::StepDonePayload done{};
           done.step = cmd.step;
           done.result = call_backend("step", [&] { return backend_.step(cmd, buffers_); });
-          if (g_signal != 0) throw Interrupted{g_signal};
+          throw_if_cancelled();
           reply.kind = MessageKind::step_done;
           reply.set(done);
           break;
@@ -354,6 +429,7 @@ class Server {
   shm::Segment* seg_ = nullptr;
   shm::PeerWatch coupler_watch_;
   std::unique_ptr<shm::Heartbeat> heartbeat_;
+  std::unique_ptr<CouplerWatchdog> watchdog_;
   bool attached_ = false;
   std::optional<InterfaceMesh> mesh_;
   InterfaceBuffers buffers_;

@@ -1,5 +1,7 @@
 // Particle output: HDF5 snapshots re-read, the XDMF index lists every snapshot, stays valid
-// after each write, and resume() trims it.
+// after each write, and resume() trims it; DemRun takes the snapshots at the requested times
+// and labels them with exactly those times (tests/system/check_paraview_output.py opens the
+// files with ParaView itself).
 
 #include <catch2/catch.hpp>
 
@@ -7,6 +9,7 @@
 #include <sstream>
 
 #include "demfem/dem/dem_output.hpp"
+#include "demfem/dem/dem_scene.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem_test/temp_dir.hpp"
 
@@ -74,13 +77,17 @@ TEST_CASE("particle snapshots re-read from HDF5 and indexed in XDMF", "[output]"
   CHECK(f.read_int64("id") == ids_b);
   CHECK(f.read_int64("material") == std::vector<std::int64_t>{0, 1, 0});
   CHECK(f.attribute_double("/", "time") == 0.125);
+  CHECK(f.attribute_double("/", "state_time") == 0.125);
   CHECK(f.attribute_int64("/", "count") == 3);
+  // The Polyvertex connectivity: one vertex cell per particle.
+  CHECK(f.read_int64("vertex") == std::vector<std::int64_t>{0, 1, 2});
   f.close();
 
   const std::string x = read_text(out.index_path());
   CHECK_THAT(x, Catch::Contains("<Xdmf Version=\"3.0\">"));
   CHECK_THAT(x, Catch::Contains("CollectionType=\"Temporal\""));
   CHECK(occurrences(x, "TopologyType=\"Polyvertex\"") == 2);
+  CHECK(occurrences(x, "particles_000001.h5:/vertex</DataItem></Topology>") == 1);
   CHECK_THAT(x, Catch::Contains("<Time Value=\"0.125\"/>"));
   CHECK_THAT(
       x, Catch::Contains("Dimensions=\"3 3\"") && Catch::Contains("particles_000001.h5:/position"));
@@ -97,4 +104,105 @@ TEST_CASE("particle snapshots re-read from HDF5 and indexed in XDMF", "[output]"
   again.write(b, ids_b, 0.25);
   CHECK(occurrences(read_text(again.index_path()), "<Time Value=\"0.25\"/>") == 1);
   CHECK(again.count() == 2);
+}
+
+namespace {
+
+// 12 spheres falling freely (no walls), dt = 2e-6 s.
+const char* kFalling = R"([run]
+end_time = 0.002
+[dem]
+dt = 2e-6
+threads = 1
+[[dem.materials]]
+name = "steel"
+youngs_modulus = 2e11
+poisson_ratio = 0.3
+density = 7800.0
+[[dem.pairs]]
+a = "steel"
+b = "steel"
+friction = 0.3
+restitution = 0.5
+[[dem.lattice]]
+material = "steel"
+lo = [0.0, 0.0, 0.0]
+hi = [0.03, 0.02, 0.01]
+diameter = 0.01
+)";
+
+/// The scene with `extra` keys of [dem].
+DemScene falling(const std::string& extra = "") {
+  std::string text = kFalling;
+  text.insert(text.find("threads = 1\n"), extra);
+  const auto doc = demfem::scene::Document::parse(text, "falling.toml");
+  return read_dem_scene(doc.root().required_table("dem"));
+}
+
+std::vector<double> snapshot_attribute(const ParticleOutput& out, const char* name) {
+  std::vector<double> v;
+  for (std::size_t k = 0; std::filesystem::exists(out.snapshot_path(k)); ++k) {
+    v.push_back(H5File(out.snapshot_path(k), H5File::Mode::read).attribute_double("/", name));
+  }
+  return v;
+}
+
+}  // namespace
+
+TEST_CASE("snapshots are labelled with the requested times, not the running sum of dt",
+          "[output]") {
+  TempDir dir;
+  const ParticleOutput files(dir.path);  // names only
+  SECTION("alone: every 5e-4 s = 250 steps") {
+    DemRun run(falling(), dir.path, 1, 5e-4, nullptr);
+    run.run_to(0.002);
+    CHECK(snapshot_attribute(files, "time") ==
+          std::vector<double>{0.0, 0.0005, 0.001, 0.0015, 0.002});
+    // The states are those of steps 250, 500, ...: the running sum of dt carries rounding
+    // (0.0004999999999999991 at step 250), the label does not.
+    const auto state = snapshot_attribute(files, "state_time");
+    REQUIRE(state.size() == 5);
+    for (std::size_t k = 0; k < 5; ++k) CHECK(state[k] == Approx(5e-4 * double(k)).margin(1e-15));
+    const std::string x = read_text(files.index_path());
+    CHECK_THAT(x, Catch::Contains("<Time Value=\"0.0005\"/>") &&
+                      Catch::Contains("<Time Value=\"0.0015\"/>"));
+  }
+  SECTION("after settle_time: the initial state at the settled time, then the multiples") {
+    DemRun run(falling("settle_time = 0.0003\n"), dir.path, 1, 5e-4, nullptr);
+    run.run_to(0.0012);
+    CHECK(snapshot_attribute(files, "time") == std::vector<double>{0.0003, 0.0005, 0.001, 0.0012});
+  }
+  SECTION("coupled: a coupling step of 50 steps takes the nearest step end, ties to the later") {
+    DemRun run(falling(), dir.path, 1, 2.5e-4, nullptr, true);
+    for (int i = 0; i < 8; ++i) run.advance(50);  // 8 coupling steps of 1e-4 s
+    run.finish();
+    // 2.5e-4 lies half way between 2e-4 and 3e-4: taken at 3e-4, labelled 2.5e-4; 7.5e-4
+    // likewise at 8e-4, which is also the end state (not written twice).
+    CHECK(snapshot_attribute(files, "time") == std::vector<double>{0.0, 0.00025, 0.0005, 0.00075});
+    const auto state = snapshot_attribute(files, "state_time");
+    REQUIRE(state.size() == 4);
+    CHECK(state[1] == Approx(3e-4));
+    CHECK(state[2] == Approx(5e-4));
+    CHECK(state[3] == Approx(8e-4));
+  }
+  SECTION("a restored run takes the same snapshots with the same labels") {
+    const std::string ckpt = (dir.path / "ckpt.h5").string();
+    {
+      DemRun run(falling(), dir.path, 1, 2.5e-4, nullptr, true);
+      for (int i = 0; i < 3; ++i) run.advance(50);  // t = 3e-4: output 1 taken here
+      H5File f(ckpt, H5File::Mode::create);
+      run.save(f, "dem");
+      f.close();
+      for (int i = 0; i < 5; ++i) run.advance(50);
+      run.finish();
+    }
+    const auto times = snapshot_attribute(files, "time");
+    const auto states = snapshot_attribute(files, "state_time");
+    DemRun again(falling(), dir.path, 1, 2.5e-4, nullptr, true);
+    again.restore(H5File(ckpt, H5File::Mode::read), "dem");
+    for (int i = 0; i < 5; ++i) again.advance(50);
+    again.finish();
+    CHECK(snapshot_attribute(files, "time") == times);
+    CHECK(snapshot_attribute(files, "state_time") == states);
+  }
 }

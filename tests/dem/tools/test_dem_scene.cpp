@@ -291,3 +291,166 @@ TEST_CASE("DemRun builds walls from STL, inserts, and checks dt against Rayleigh
                           Catch::Contains("cannot insert 20000 particles"));
   }
 }
+
+namespace {
+
+// kBase with its insertion replaced by `lattice` (a [[dem.lattice]] body).
+std::string with_lattice(const std::string& lattice) {
+  std::string text = kBase;
+  const auto from = text.find("[[dem.insert]]");
+  const auto to = text.find("[[dem.sensors]]");
+  return text.replace(from, to - from, "[[dem.lattice]]\n" + lattice + "\n");
+}
+
+const char* kJittered = R"(material = "wheat"
+lo = [0.0, 0.0, 0.0]
+hi = [0.04, 0.04, 0.04]
+diameter = 0.004
+spacing = 0.005
+jitter = 0.6)";
+
+std::vector<std::array<double, 3>> positions(const DemRun& run) {
+  const auto& p = run.system().particles();
+  std::vector<std::array<double, 3>> out;
+  for (std::size_t i = 0; i < p.size(); ++i) out.push_back({p.px[i], p.py[i], p.pz[i]});
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("[[dem.lattice]] jitter: seeded from run.seed or its own seed, checked up front",
+          "[scene][lattice]") {
+  const DemScene s = parse(with_lattice(kJittered));
+  REQUIRE(s.lattices.size() == 1);
+  CHECK(s.lattices[0].request.jitter == 0.6);
+  CHECK_FALSE(s.lattices[0].has_seed);
+  DemRun a(s, "", 1, 0.0, nullptr), b(s, "", 1, 0.0, nullptr), c(s, "", 2, 0.0, nullptr);
+  // (0.04 - 2 x (2 mm + 0.6 x 0.5 mm)) / 5 mm + 1 = 8 sites per axis
+  CHECK(a.system().particle_count() == 8 * 8 * 8);
+  CHECK(positions(a) == positions(b));  // same run.seed: the same bed
+  CHECK(positions(a) != positions(c));  // another run.seed: another
+  // Its own seed wins over run.seed.
+  const DemScene seeded = parse(with_lattice(std::string(kJittered) + "\nseed = 11"));
+  DemRun d(seeded, "", 1, 0.0, nullptr), e(seeded, "", 2, 0.0, nullptr);
+  CHECK(positions(d) == positions(e));
+  // A distribution instead of one diameter.
+  const DemScene sized =
+      parse(with_lattice(replace(kJittered, "diameter = 0.004",
+                                 "distribution = { kind = \"uniform\", d_min = 0.003, "
+                                 "d_max = 0.0045 }")));
+  CHECK(sized.lattices[0].request.has_sizes);
+  CHECK(sized.lattices[0].request.diameter == 0.0045);
+  DemRun f(sized, "", 1, 0.0, nullptr);
+  const auto& r = f.system().particles().radius;
+  CHECK(*std::min_element(r.begin(), r.end()) < *std::max_element(r.begin(), r.end()));
+
+  // Mistakes.
+  CHECK_THAT(error_of(with_lattice(replace(kJittered, "spacing = 0.005\n", ""))),
+             Catch::Contains("key 'dem.lattice[0].jitter'") &&
+                 Catch::Contains("spacing' >= 1.01 x diameter"));
+  CHECK_THAT(error_of(with_lattice(replace(kJittered, "jitter = 0.6", "jitter = 1.0"))),
+             Catch::Contains("key 'dem.lattice[0].jitter'") && Catch::Contains("[0, 1)"));
+  CHECK_THAT(error_of(with_lattice(replace(kJittered, "diameter = 0.004",
+                                           "diameter = 0.004\ndistribution = { kind = "
+                                           "\"constant\", diameter = 0.004 }"))),
+             Catch::Contains("key 'dem.lattice[0].diameter'") &&
+                 Catch::Contains("exactly one of 'diameter'"));
+  CHECK_THAT(error_of(with_lattice(replace(kJittered, "diameter = 0.004", "diamter = 0.004"))),
+             Catch::Contains("key 'dem.lattice[0].diameter': is required but missing (or "
+                             "'distribution')") &&
+                 Catch::Contains("'diamter'") && Catch::Contains("did you mean 'diameter'?"));
+}
+
+TEST_CASE("particles placed outside or inside the walls are refused, naming the entry",
+          "[scene][lattice]") {
+  // The wall is the box [0, 0.04] x [0, 0.04] x [0, 0.08] with an open top.
+  SECTION("a lattice reaching through a side wall") {
+    const DemScene s = parse(with_lattice(
+        replace(replace(kJittered, "lo = [0.0, 0.0, 0.0]", "lo = [0.019, 0.0, 0.0]"),
+                "hi = [0.04, 0.04, 0.04]", "hi = [0.07, 0.04, 0.04]")));  // a site at x = 0.0413
+    CHECK_THROWS_WITH(DemRun(s, "", 1, 0.0, nullptr), Catch::Contains("key 'dem.lattice[0].lo'") &&
+                                                          Catch::Contains("overlaps wall 'floor'"));
+  }
+  SECTION("a lattice beside the box, clear of it: it would fall for ever") {
+    const std::string text =
+        with_lattice(replace(replace(kJittered, "lo = [0.0, 0.0, 0.0]", "lo = [0.05, 0.0, 0.0]"),
+                             "hi = [0.04, 0.04, 0.04]", "hi = [0.09, 0.04, 0.04]"));
+    CHECK_THROWS_WITH(DemRun(parse(text), "", 1, 0.0, nullptr),
+                      Catch::Contains("key 'dem.lattice[0].lo'") &&
+                          Catch::Contains("lies outside the walls") &&
+                          Catch::Contains("fall for ever"));
+    // In a coupled scene the structure may catch them: a warning, not an error.
+    std::ostringstream log;
+    const std::string coupled =
+        replace(text, "threads = 1", "threads = 1\ninterface_material = \"steel\"");
+    DemRun run(parse(coupled), "", 1, 0.0, &log);
+    CHECK_THAT(log.str(), Catch::Contains("warning") && Catch::Contains("dem.lattice[0]"));
+  }
+  SECTION("without gravity nothing says where particles belong: beside the box is accepted") {
+    const std::string text = with_lattice(
+        replace(replace(kJittered, "lo = [0.0, 0.0, 0.0]", "lo = [0.05, 0.0, 0.0]"),
+                "hi = [0.04, 0.04, 0.04]", "hi = [0.09, 0.04, 0.04]"));
+    DemRun run(parse(replace(text, "gravity = [0.0, 0.0, -9.81]", "gravity = [0.0, 0.0, 0.0]")),
+               "", 1, 0.0, nullptr);
+    CHECK(run.system().particle_count() == 8 * 8 * 8);
+  }
+  SECTION("above an open box the lattice falls in: accepted") {
+    const DemScene s = parse(
+        with_lattice(replace(replace(kJittered, "lo = [0.0, 0.0, 0.0]", "lo = [0.0, 0.0, 0.1]"),
+                             "hi = [0.04, 0.04, 0.04]", "hi = [0.04, 0.04, 0.14]")));
+    DemRun run(s, "", 1, 0.0, nullptr);
+    CHECK(run.system().particle_count() == 8 * 8 * 8);
+  }
+  SECTION("two lattices on top of each other") {
+    const DemScene s =
+        parse(with_lattice(std::string(kJittered) + "\n\n[[dem.lattice]]\n" + kJittered));
+    CHECK_THROWS_WITH(DemRun(s, "", 1, 0.0, nullptr),
+                      Catch::Contains("key 'dem.lattice[1].lo'") &&
+                          Catch::Contains("overlaps a sphere of an earlier [[dem.lattice]]"));
+  }
+  SECTION("an insertion region reaching outside the box") {
+    const std::string text =
+        replace(kBase, "hi = [0.04, 0.04, 0.08]\ncount", "hi = [0.06, 0.04, 0.08]\ncount");
+    CHECK_THROWS_WITH(DemRun(parse(text), "", 1, 0.0, nullptr),
+                      Catch::Contains("key 'dem.insert[0].lo'") &&
+                          Catch::Contains("the region's corner [0.06, 0, 0] m") &&
+                          Catch::Contains("lies outside the walls"));
+  }
+  SECTION("an insertion region across a wall: the particles avoid it") {
+    // A plane splitting the box at x = 0.02.
+    const std::string text =
+        replace(kBase, "[[dem.insert]]",
+                "[[dem.walls]]\nname = \"divider\"\nmaterial = \"steel\"\nplane = { point = [0.02, "
+                "0.02, 0.04], normal = [1.0, 0.0, 0.0], size = 0.1 }\n\n[[dem.insert]]");
+    DemRun run(parse(text), "", 1, 0.0, nullptr);
+    const auto& p = run.system().particles();
+    REQUIRE(p.size() == 200);
+    std::size_t left = 0;
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      CHECK(std::abs(p.px[i] - 0.02) >= p.radius[i]);
+      if (p.px[i] < 0.02) ++left;
+    }
+    CHECK(left > 50);
+    CHECK(left < 150);
+  }
+}
+
+TEST_CASE("impossible particle counts are refused when the scene is read, naming the key",
+          "[scene][lattice]") {
+  // The issue's example: a lattice of ~1e15 spheres used to start the solvers and die in
+  // bad_alloc. 10 m cubed of 0.1 mm spheres.
+  const std::string huge = with_lattice(
+      "material = \"wheat\"\nlo = [0.0, 0.0, 0.0]\nhi = [10.0, 10.0, 10.0]\ndiameter = 1e-4");
+  CHECK_THAT(error_of(huge), Catch::Contains("key 'dem.lattice[0].diameter'") &&
+                                 Catch::Contains("about 9.97e+14 particles") &&
+                                 Catch::Contains("32-bit particle indices"));
+  // Below the index limit but beyond any workstation's memory (2e9 x 2 kB = 4 TB).
+  CHECK_THAT(error_of(replace(kBase, "count = 200", "count = 2000000000")),
+             Catch::Contains("key 'dem.insert[0].count'") && Catch::Contains("TB of memory") &&
+                 Catch::Contains("more than this machine's"));
+  // By mass and repeated: 1 t of 4 mm wheat, 1000 times.
+  CHECK_THAT(error_of(replace(kBase, "count = 200", "mass = 1000.0\nevery = 0.001\nuntil = 0.999")),
+             Catch::Contains("key 'dem.insert[0].mass'"));
+  const DemScene ok = parse(kBase);
+  CHECK(estimated_particle_count(ok) == 200.0);
+}

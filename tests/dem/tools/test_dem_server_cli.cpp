@@ -108,6 +108,16 @@ TEST_CASE("dem_server: help, bad scene, standalone run", "[server]") {
   CHECK_THAT(b.err, Catch::Contains("bad.toml:" + std::to_string(line_no) + ":") &&
                         Catch::Contains("key 'dem.pairs[0].rolling_fricton': is not a known key"));
 
+  // An impossible size is bad input found before anything is allocated: exit 2 at once,
+  // naming the key (it used to start and die of bad_alloc with no key named).
+  std::string huge = kScene;
+  huge.replace(huge.find("count = 50"), 10, "count = 5000000000000");
+  std::ofstream(dir / "huge.toml") << huge;
+  const Result h = run("--scene '" + (dir / "huge.toml").string() + "'", dir);
+  CHECK(h.code == 2);
+  CHECK_THAT(h.err, Catch::Contains("key 'dem.insert[0].count'") &&
+                        Catch::Contains("about 5e+12 particles"));
+
   std::ofstream(dir / "good.toml") << kScene;
   const Result g = run("--scene '" + (dir / "good.toml").string() + "' --output-dir '" +
                            (dir / "out").string() + "'",

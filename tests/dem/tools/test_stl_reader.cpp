@@ -112,6 +112,13 @@ TEST_CASE("malformed STL files give errors naming file and triangle or line", "[
   SECTION("missing file") {
     CHECK_THAT(message_of(dir / "nope.stl"), Catch::Contains("nope.stl: cannot open"));
   }
+  SECTION("not a regular file") {
+    // Issue 19: /dev/zero as an STL grew to 4 GB and aborted with bad_alloc.
+    CHECK_THAT(message_of("/dev/zero"),
+               Catch::Contains("/dev/zero: is a character device, not a regular file; expected "
+                               "an STL file"));
+    CHECK_THAT(message_of(dir.path), Catch::Contains("is a directory, not a regular file"));
+  }
   SECTION("empty file") {
     write_text(dir / "empty.stl", "");
     CHECK_THAT(message_of(dir / "empty.stl"), Catch::Contains("empty.stl: is empty"));

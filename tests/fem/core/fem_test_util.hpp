@@ -12,6 +12,7 @@
 
 #include "demfem/fem/assembly.hpp"
 #include "demfem/fem/fem_problem.hpp"
+#include "demfem/fem/fem_solver.hpp"
 #include "demfem/fem/mesher.hpp"
 
 namespace demfem::fem::test {
@@ -42,6 +43,33 @@ inline std::size_t node_at(const Mesh& m, double x, double y, double z) {
   }
   if (bd > 1e-9) throw std::runtime_error("no node at the requested position");
   return best;
+}
+
+struct BeamResult {
+  double deflection;  ///< mid-span, on the neutral axis, m (positive down)
+  double reaction_z;  ///< sum of the vertical reactions, N
+};
+
+/// The fixed-fixed steel beam of thesis table 4.1 (1000 x 100 x 100 mm, E = 210 GPa,
+/// nu = 0.3, both end faces clamped, 5000 Pa on the top face), nx x ny x ny hex8 of the
+/// given formulation.
+inline BeamResult fixed_beam(int nx, int ny,
+                             SolidFormulation f = SolidFormulation::incompatible_modes) {
+  auto p = make_problem(box_mesh_hex({0, 0, 0}, {1.0, 0.1, 0.1}, {nx, ny, ny}), 210e9, 0.3, 7850);
+  for (auto& e : p.mesh.elements) e.formulation = f;
+  clamp(p, "xmin");
+  clamp(p, "xmax");
+  PressureLoad q;
+  q.faces = p.mesh.surfaces.at("zmax");
+  q.magnitude = 5000.0;
+  p.pressures.push_back(q);
+  const auto mid = node_at(p.mesh, 0.5, 0.05, 0.05);
+  FemSolver s(std::move(p));
+  s.solve_static();
+  const auto r = s.reaction_forces();
+  double rz = 0;
+  for (std::size_t i = 2; i < r.size(); i += 3) rz += r[i];
+  return {-s.displacements()[3 * mid + 2], rz};
 }
 
 struct Modes {

@@ -70,10 +70,13 @@ TEST_CASE("FemOutput: HDF5 + XDMF of a mixed mesh re-read, references valid, CSV
   for (int s = 0; s < 3; ++s) out.write(fields_at(0.1 * (s + 1), n, ne));
   REQUIRE(out.steps() == 3);
 
-  // Re-read step 2 and compare exactly with what was written.
+  // Re-read the second output (file 1: the series is numbered from 0) and compare exactly
+  // with what was written.
   const FemFields f2 = fields_at(0.2, n, ne);
-  io::H5File h5(out.step_path(2), io::H5File::Mode::read);
+  io::H5File h5(out.step_path(1), io::H5File::Mode::read);
+  CHECK(out.step_path(1).filename() == "run_000001.h5");
   CHECK(h5.attribute_double("/", "time") == 0.2);
+  CHECK(h5.attribute_double("/", "state_time") == 0.2);
   std::vector<std::size_t> dims;
   CHECK(h5.read_doubles("displacement", &dims) == f2.displacement);
   CHECK(dims == std::vector<std::size_t>{n, 3});
@@ -82,8 +85,16 @@ TEST_CASE("FemOutput: HDF5 + XDMF of a mixed mesh re-read, references valid, CSV
   CHECK(h5.read_doubles("hex8/von_mises") == std::vector<double>{f2.elements.von_mises[0]});
   CHECK(h5.read_doubles("quad4/von_mises") == std::vector<double>{f2.elements.von_mises[1]});
   CHECK(h5.read_doubles("tet4/von_mises") == std::vector<double>{f2.elements.von_mises[2]});
-  CHECK(h5.read_doubles("tet4/strain") ==
-        std::vector<double>(f2.elements.strain.begin() + 12, f2.elements.strain.begin() + 18));
+  // The strain tensor, row by row: shear components are half the engineering shear.
+  {
+    const auto e =
+        std::vector<double>(f2.elements.strain.begin() + 12, f2.elements.strain.begin() + 18);
+    std::vector<std::size_t> sdims;
+    CHECK(h5.read_doubles("tet4/strain", &sdims) == std::vector<double>{e[0], e[3] / 2, e[5] / 2,
+                                                                        e[3] / 2, e[1], e[4] / 2,
+                                                                        e[5] / 2, e[4] / 2, e[2]});
+    CHECK(sdims == std::vector<std::size_t>{1, 9});
+  }
   io::H5File mh5(out.mesh_path(), io::H5File::Mode::read);
   CHECK(mh5.read_int64("topology/tet4") == std::vector<std::int64_t>{4, 5, 6, 8});
   CHECK(mh5.read_int64("elements/quad4") == std::vector<std::int64_t>{1});
@@ -119,7 +130,11 @@ TEST_CASE("FemOutput: HDF5 + XDMF of a mixed mesh re-read, references valid, CSV
   }
   // 3 steps x 3 element types x (topology + geometry + 4 node + 3 cell fields).
   CHECK(references == 3 * 3 * 9);
-  CHECK(xdmf.find("<Time Value=\"0.20000000000000001\"/>") != std::string::npos);
+  // Times as the shortest decimal that reads back exactly, and the tensor as a 9-component
+  // "Tensor" (a 6-component one is ordered differently by XDMF and by ParaView).
+  CHECK(xdmf.find("<Time Value=\"0.2\"/>") != std::string::npos);
+  CHECK(xdmf.find("<Attribute Name=\"strain\" AttributeType=\"Tensor\" Center=\"Cell\">") !=
+        std::string::npos);
 
   // No temporary file remains.
   for (const auto& e : std::filesystem::directory_iterator(tmp.path)) {
@@ -149,7 +164,7 @@ TEST_CASE("FemOutput: selected fields only, and wrong sizes are refused") {
   settings.csv = false;
   FemOutput out(tmp.path, "only_u", mesh, settings);
   out.write(fields_at(1.0, 8, 1));
-  io::H5File h5(out.step_path(1), io::H5File::Mode::read);
+  io::H5File h5(out.step_path(0), io::H5File::Mode::read);
   CHECK(h5.exists("displacement"));
   CHECK_FALSE(h5.exists("velocity"));
   CHECK_FALSE(h5.exists("hex8/von_mises"));
@@ -169,26 +184,26 @@ TEST_CASE("FemOutput: rollback drops later steps, resume continues an existing s
   {
     FemOutput out(tmp.path, "fem", mesh);
     for (int s = 1; s <= 3; ++s) out.write(fields_at(0.1 * s, 8, 1));
-    out.rollback(0.2);  // a restore to t = 0.2: step 3 goes
+    out.rollback(0.2);  // a restore to t = 0.2: the third output (file 2) goes
     CHECK(out.steps() == 2);
-    CHECK_FALSE(std::filesystem::exists(out.step_path(3)));
-    CHECK(read_text(out.xdmf_path()).find("fem_000003.h5") == std::string::npos);
+    CHECK_FALSE(std::filesystem::exists(out.step_path(2)));
+    CHECK(read_text(out.xdmf_path()).find("fem_000002.h5") == std::string::npos);
     const std::string csv = read_text(out.csv_path());
     CHECK(std::count(csv.begin(), csv.end(), '\n') == 3);  // header + 2 rows
     out.write(fields_at(0.3, 8, 1));                       // the continuation
     CHECK(out.steps() == 3);
   }
-  // A crash left a partial step 4; a restarted writer resumes after step 3.
-  std::ofstream(tmp.path / "fem_000004.h5.part") << "half";
+  // A crash left a partial fourth output; a restarted writer resumes after the third.
+  std::ofstream(tmp.path / "fem_000003.h5.part") << "half";
   FemOutput again(tmp.path, "fem", mesh, {}, OutputMode::resume);
   CHECK(again.steps() == 3);
   CHECK(again.last_time() == Approx(0.3));
-  CHECK_FALSE(std::filesystem::exists(tmp.path / "fem_000004.h5.part"));
+  CHECK_FALSE(std::filesystem::exists(tmp.path / "fem_000003.h5.part"));
   again.write(fields_at(0.4, 8, 1));
-  CHECK(std::filesystem::exists(again.step_path(4)));
+  CHECK(std::filesystem::exists(again.step_path(3)));
   const std::string xdmf = read_text(again.xdmf_path());
-  CHECK(xdmf.find("fem_000001.h5:/displacement") != std::string::npos);
-  CHECK(xdmf.find("fem_000004.h5:/hex8/strain") != std::string::npos);
+  CHECK(xdmf.find("fem_000000.h5:/displacement") != std::string::npos);
+  CHECK(xdmf.find("fem_000003.h5:/hex8/strain") != std::string::npos);
   const std::string csv = read_text(again.csv_path());
   CHECK(std::count(csv.begin(), csv.end(), '\n') == 5);  // header + 4 rows
   // Resuming with another mesh is refused.

@@ -78,8 +78,13 @@ TEST_CASE("standalone dynamic run: HDF5/XDMF/CSV re-read equal the solver's own 
   // Reference: the same problem stepped directly (the solver is deterministic, so equal).
   FemSolver ref(s.problem);
   for (int i = 0; i < 10; ++i) ref.advance(1e-4);
-  io::H5File last(tmp.path / "fem_000003.h5", io::H5File::Mode::read);
-  CHECK(last.attribute_double("/", "time") == ref.time());
+  // The third output (file 2; the initial state is file 0) is labelled with the requested
+  // time exactly, and records the time of its state (the solver's running sum of dt).
+  io::H5File last(tmp.path / "fem_000002.h5", io::H5File::Mode::read);
+  CHECK(last.attribute_double("/", "time") == 1e-3);
+  CHECK(last.attribute_double("/", "state_time") == ref.time());
+  CHECK(io::H5File(tmp.path / "fem_000001.h5", io::H5File::Mode::read)
+            .attribute_double("/", "time") == 5e-4);
   CHECK(last.read_doubles("displacement") == ref.displacements());
   CHECK(last.read_doubles("velocity") == ref.velocities());
   CHECK(last.read_doubles("hex8/von_mises") == ref.element_results().von_mises);
@@ -181,7 +186,7 @@ TEST_CASE("fem_server executable: --help, standalone run, bad scene exits 2 nami
                     (tmp.path / "out").string() + " > " + log.string() + " 2>&1") == 0);
   CHECK(read_text(log).find("fem: done, dynamic") != std::string::npos);
   CHECK(std::filesystem::exists(tmp.path / "out/fem.xdmf"));
-  CHECK(std::filesystem::exists(tmp.path / "out/fem_000003.h5"));
+  CHECK(std::filesystem::exists(tmp.path / "out/fem_000002.h5"));
 
   const auto bad = tmp.path / "bad.toml";
   std::ofstream(bad) << std::regex_replace(kTinyDynamic, std::regex("dt = 1e-4"), "dt = -1e-4");
@@ -194,9 +199,26 @@ TEST_CASE("fem_server executable: --help, standalone run, bad scene exits 2 nami
                     (tmp.path / "out2").string() + " > " + log.string() + " 2>&1") == 2);
   CHECK_THAT(read_text(log), Catch::Contains("key 'fem.dt'") && Catch::Contains("is required"));
 
+  // Issue 19: density 0 in a dynamic run crashed fem_server (SIGSEGV) and, run in process,
+  // the launcher (exit 139). Both now refuse the scene before any step: exit 2, key named.
+  const auto massless = tmp.path / "massless.toml";
+  std::ofstream(massless) << std::regex_replace(kTinyDynamic, std::regex("density = 7850"),
+                                                "density = 0");
+  CHECK(run_command(exe + " --scene " + massless.string() + " --output-dir " +
+                    (tmp.path / "out3").string() + " > " + log.string() + " 2>&1") == 2);
+  CHECK_THAT(read_text(log),
+             Catch::Contains("key 'fem.materials[0].density'") && Catch::Contains("needs mass"));
+  const std::string launcher = std::string(DEMFEM_BINARY_DIR) + "/bin/demfem_run";
+  if (std::filesystem::exists(launcher)) {
+    CHECK(run_command(launcher + " --in-process --quiet --output-dir " +
+                      (tmp.path / "out4").string() + " " + massless.string() + " > " +
+                      log.string() + " 2>&1") == 2);
+    CHECK_THAT(read_text(log), Catch::Contains("key 'fem.materials[0].density'"));
+  }
+
   CHECK(run_command(exe + " --scene " + (tmp.path / "missing.toml").string() + " > " +
                     log.string() + " 2>&1") == 2);
-  CHECK_THAT(read_text(log), Catch::Contains("missing.toml: cannot open scene file"));
+  CHECK_THAT(read_text(log), Catch::Contains("missing.toml: cannot open: no such file; expected a scene file"));
 }
 
 TEST_CASE("standalone static runs of a shell .inp and a tet box write their topologies") {
@@ -216,7 +238,7 @@ magnitude = 100
   CHECK(a.max_displacement > 0.0);
   CHECK(read_text(tmp.path / "shell/fem.xdmf").find("TopologyType=\"Quadrilateral\"") !=
         std::string::npos);
-  io::H5File h5(tmp.path / "shell/fem_000001.h5", io::H5File::Mode::read);
+  io::H5File h5(tmp.path / "shell/fem_000000.h5", io::H5File::Mode::read);
   CHECK(h5.read_doubles("quad4/von_mises").size() == 2);
 
   const FemScene tets = scene_from(R"([fem]
@@ -231,8 +253,8 @@ total_force = -1000
 )");
   const FemRunSummary b = run_fem_standalone(tets, 1.0, 0.0, tmp.path / "tet", "fem", nullptr);
   CHECK(b.max_displacement > 0.0);
-  io::H5File t5(tmp.path / "tet/fem_000001.h5", io::H5File::Mode::read);
-  CHECK(t5.read_doubles("tet4/strain").size() == 6 * 24);
+  io::H5File t5(tmp.path / "tet/fem_000000.h5", io::H5File::Mode::read);
+  CHECK(t5.read_doubles("tet4/strain").size() == 9 * 24);  // the strain tensors
   // Static equilibrium: the reactions balance the 1000 N pulled out of the x = 0.4 face.
   const auto r = t5.read_doubles("reaction_force");
   double rx = 0.0;

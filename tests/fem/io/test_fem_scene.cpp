@@ -140,11 +140,18 @@ density = 1000
                                                              Catch::Contains("must be finite"));
   // Negative time step.
   CHECK_THAT(error_of(kBox + "dt = -1e-3\n"),
-             Catch::Contains("test_scene.toml:4:6: key 'fem.dt'") && Catch::Contains("> 0"));
+             Catch::Contains("test_scene.toml:4:6: key 'fem.dt'") && Catch::Contains("(0, 1e+06]"));
   // Missing mesh file: the scene key and the file.
   CHECK_THAT(error_of("[fem]\nmesh = { file = \"no_such_beam.inp\" }\n"),
              Catch::Contains("test_scene.toml:2:") && Catch::Contains("'fem.mesh.file'") &&
-                 Catch::Contains("no_such_beam.inp: cannot open mesh file"));
+                 Catch::Contains("no_such_beam.inp: cannot open: no such file"));
+  // Issue 19: a directory said "has no elements", /dev/zero grew to 4 GB.
+  CHECK_THAT(error_of("[fem]\nmesh = { file = \".\" }\n"),
+             Catch::Contains("'fem.mesh.file'") &&
+                 Catch::Contains("is a directory, not a regular file; expected an Abaqus input "
+                                 "file (.inp)"));
+  CHECK_THAT(error_of("[fem]\nmesh = { file = \"/dev/zero\" }\n"),
+             Catch::Contains("/dev/zero: is a character device, not a regular file"));
   // A malformed mesh file: both the scene key and the .inp line.
   CHECK_THAT(error_of("[fem]\nmesh = { file = \"malformed_missing_node.inp\" }\n"),
              Catch::Contains("test_scene.toml:2:") && Catch::Contains("'fem.mesh.file'") &&
@@ -173,4 +180,69 @@ mesh = { box = { lo = [0, 0, 0], hi = [1, 1, 1], cells = [1000, 1000, 1000] } }
              Catch::Contains("'fem.mesh.box.cells'") && Catch::Contains("at most 2e7"));
   CHECK_THAT(error_of(kBox + "[fem.output]\nfields = [\"stress\"]\n"),
              Catch::Contains("'fem.output.fields'") && Catch::Contains("not an output field"));
+}
+
+TEST_CASE("fem scene: values the solver cannot use are refused upfront, naming the key") {
+  // Issue 19: density 0 passed and crashed fem_server (SIGSEGV in the factorisation).
+  const std::string massless = R"([fem]
+mesh = { box = { lo = [0, 0, 0], hi = [2, 0.2, 0.2], cells = [10, 1, 1] } }
+materials = [{ name = "foam", youngs_modulus = 1e6, poisson_ratio = 0.3, density = 0 }]
+)";
+  const std::string clamp = "[[fem.clamps]]\nnodes = \"x <= 0\"\n";
+  CHECK_THAT(error_of(massless + "analysis = \"dynamic\"\n" + clamp),
+             Catch::Contains("test_scene.toml:3:") &&
+                 Catch::Contains("'fem.materials[0].density'") &&
+                 Catch::Contains("fem.analysis = \"dynamic\" needs mass"));
+  // Static analysis needs no mass ...
+  CHECK_NOTHROW(read(massless + "analysis = \"static\"\n" + clamp));
+  // ... unless gravity asks for the weight.
+  CHECK_THAT(
+      error_of(massless + "analysis = \"static\"\ngravity = [0, 0, -9.81]\n" + clamp),
+      Catch::Contains("'fem.materials[0].density'") && Catch::Contains("fem.gravity is set"));
+  // Typo guards on the material.
+  CHECK_THAT(
+      error_of(R"([fem]
+mesh = { box = { lo = [0, 0, 0], hi = [2, 0.2, 0.2], cells = [10, 1, 1] } }
+materials = [{ name = "s", youngs_modulus = 2.1e20, poisson_ratio = 0.3, density = 7850 }]
+)"),
+      Catch::Contains("'fem.materials[0].youngs_modulus'") && Catch::Contains("[0.001, 1e+14]"));
+  CHECK_THAT(error_of(R"([fem]
+mesh = { box = { lo = [0, 0, 0], hi = [2, 0.2, 0.2], cells = [10, 1, 1] } }
+materials = [{ name = "s", youngs_modulus = 2.1e11, poisson_ratio = 0.5, density = 7850 }]
+)"),
+             Catch::Contains("'fem.materials[0].poisson_ratio'") && Catch::Contains("(-1, 0.5)"));
+  // Bossak parameters: alpha outside [-1/3, 0], and gamma/beta that make the step unstable
+  // (beta < gamma / 2: amplifies high frequencies), found by the spectral radius.
+  CHECK_THAT(error_of(kBox + "[fem.bossak]\nalpha = -0.5\n"),
+             Catch::Contains("'fem.bossak.alpha'") && Catch::Contains("[-0.333333, 0]"));
+  CHECK_THAT(error_of(kBox + "[fem.bossak]\nalpha = 0\ngamma = 0.6\nbeta = 0.2\n"),
+             Catch::Contains("'fem.bossak.beta'") && Catch::Contains("unstable") &&
+                 Catch::Contains("spectral radius"));
+  CHECK_NOTHROW(read(kBox + "[fem.bossak]\nalpha = 0\ngamma = 0.5\nbeta = 0.25\n"));
+  // Damping and time step bounds.
+  CHECK_THAT(error_of(kBox + "[fem.damping]\nstiffness_factor = 10\n"),
+             Catch::Contains("'fem.damping.stiffness_factor'") && Catch::Contains("[0, 1]"));
+  CHECK_THAT(error_of(kBox + "dt = 0\n"), Catch::Contains("'fem.dt'"));
+  // Box cells too flat, or too small for their coordinates.
+  CHECK_THAT(error_of(R"([fem]
+mesh = { box = { lo = [0, 0, 0], hi = [1, 1e-5, 1], cells = [1, 1, 1] } }
+materials = [{ name = "s", youngs_modulus = 2.1e11, poisson_ratio = 0.3, density = 7850 }]
+)"),
+             Catch::Contains("'fem.mesh.box.cells'") && Catch::Contains("aspect ratio"));
+  CHECK_THAT(error_of(R"([fem]
+mesh = { box = { lo = [1e6, 0, 0], hi = [1000000.0000001, 1, 1], cells = [1, 1, 1] } }
+materials = [{ name = "s", youngs_modulus = 2.1e11, poisson_ratio = 0.3, density = 7850 }]
+)"),
+             Catch::Contains("'fem.mesh.box.cells'") &&
+                 Catch::Contains("cannot be told apart in double precision"));
+  // Shell thickness against the element size (bending lost to round-off below 1e-5).
+  CHECK_THAT(error_of(R"([fem]
+analysis = "static"
+mesh = { plate = { size = [1, 1], cells = [2, 2] } }
+materials = [{ name = "s", youngs_modulus = 2.1e11, poisson_ratio = 0.3, density = 7850 }]
+[[fem.sections]]
+material = "s"
+thickness = 1e-7
+)"),
+             Catch::Contains("'fem.mesh'") && Catch::Contains("below 1e-5 of its longest edge"));
 }

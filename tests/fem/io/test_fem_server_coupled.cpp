@@ -114,7 +114,9 @@ TEST_CASE("fem_server --segment: steps match the in-process solver, checkpoint, 
   CHECK(WEXITSTATUS(status) == 0);
   // Output: the reference state and the end state.
   CHECK(std::filesystem::exists(dir / "out/fem.xdmf"));
-  CHECK(std::filesystem::exists(dir / "out/fem_000002.h5"));
+  CHECK(std::filesystem::exists(dir / "out/fem_000000.h5"));
+  CHECK(std::filesystem::exists(dir / "out/fem_000001.h5"));
+  CHECK_FALSE(std::filesystem::exists(dir / "out/fem_000002.h5"));
   std::filesystem::remove_all(dir);
 }
 #endif

@@ -207,7 +207,7 @@ TEST_CASE("malformed .inp input names the file and line") {
              Catch::Contains("beam.inp:8: section refers to material WOOD, which is not defined"));
   // A missing file names the file.
   CHECK_THROWS_WITH(read_inp("/nonexistent/beam.inp"),
-                    Catch::Contains("/nonexistent/beam.inp: cannot open mesh file"));
+                    Catch::Contains("/nonexistent/beam.inp: cannot open: no such file; expected an Abaqus input file"));
 }
 
 TEST_CASE("mutated .inp files parse or fail with a file:line message, never otherwise") {

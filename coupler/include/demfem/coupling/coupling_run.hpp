@@ -74,6 +74,19 @@ class Interrupted : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// @brief The checkpoint given to --resume cannot be continued with this scene: a solver or
+/// the coupler refused its state (a changed mesh or particle count, non-finite values, a
+/// changed scheme). Bad input (exit status 2), not a failure of the run.
+class ResumeRefused : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// @brief A solver's error text reports a blow-up (a non-finite state, an unstable
+/// integration: "not finite", "blew up") rather than a failure; the launcher exits with
+/// status 3 for these, as for the coupler's own blow-up checks.
+bool is_blow_up_report(const std::string& text);
+
 /// @brief Diagnostics of one coupling step (one CSV row).
 struct StepDiagnostics {
   std::int64_t step = 0;
@@ -93,14 +106,27 @@ struct StepDiagnostics {
                                       ///< diagnostics, output)
 };
 
+/// @brief Wall-clock totals, s.
+struct WallTimes {
+  double total = 0.0;
+  double dem = 0.0;
+  double fem = 0.0;
+  double coupling = 0.0;
+};
+
 /// @brief Totals of a finished (or stopped) run.
 struct RunSummary {
   std::int64_t steps = 0;
-  double time = 0.0;        ///< simulated time reached, s
+  double time = 0.0;  ///< simulated time reached, s
+  // Wall times of this process (this session): every step it computed, recomputed ones
+  // after a recovery included, so that the shares below add up to at most the total.
   double wall_total = 0.0;  ///< s, from the first step to the last
   double wall_dem = 0.0;
   double wall_fem = 0.0;
   double wall_coupling = 0.0;
+  /// A resumed run: the wall times of the earlier sessions up to the checkpoint resumed
+  /// from (coupler.h5); zero for a fresh run. The whole run so far is earlier + this session.
+  WallTimes earlier;
   bool settled = false;  ///< one_way_static: the settle criterion was met
   StepDiagnostics last;
   InterfaceMesh mesh;
@@ -121,6 +147,10 @@ struct RunControl {
   std::function<void(protocol::Role role, std::int64_t step)> after_send;
   /// Messages about checkpoints and recovery (stderr in demfem_run).
   std::function<void(const std::string&)> report;
+  /// Recorded in every checkpoint (coupler.h5): scene_hash() of the scene, so that a resume
+  /// can tell a changed scene; and the absolute output folder, so that a run resumed into
+  /// another folder finds the series it continues.
+  std::string scene_hash;
 };
 
 /// @brief Counts of the reliability machinery in one run.
@@ -147,8 +177,10 @@ class CouplingRun {
   void set_control(RunControl control) { control_ = std::move(control); }
   const RecoveryStats& recovery_stats() const { return stats_; }
 
-  /// Runs to the end. Throws BlowUp, Interrupted, or protocol errors; the CSV written so far
-  /// is flushed and coupling.h5 holds the state of the last step in every case.
+  /// Runs to the end; with [checkpoint], takes a last checkpoint at the end (so that a finished
+  /// run can be continued with a later run.end_time). Throws BlowUp, Interrupted,
+  /// ResumeRefused, or protocol errors; the CSV written so far is flushed and coupling.h5
+  /// holds the state of the last step in every case.
   RunSummary run();
 
  private:

@@ -99,13 +99,23 @@ struct CouplingSettings {
 /// @brief Relative tolerance of the n_D = dt_F / dt_D integrality check.
 inline constexpr double kSubstepTolerance = 1e-9;
 
-/// @brief n_D = fem_dt / dem_dt when it is an integer within kSubstepTolerance (relative);
-/// otherwise throws scene::SceneError naming both keys, their values and the ratio.
+/// @brief Largest accepted step counts (docs/coupling.md, "Time steps"). Steps are counted in
+/// 64-bit integers, but a run beyond these would not end in any useful time (a DEM step
+/// costs at least a microsecond), and an end_time or dt typed wrong by orders of magnitude
+/// (1e300, 1e-20) is refused before any process starts instead of overflowing or hanging.
+inline constexpr std::int64_t kMaxCouplingSteps = 1'000'000'000;  ///< coupling steps of a run
+inline constexpr std::int64_t kMaxDemSubsteps = 1'000'000'000;    ///< n_D of one coupling step
+inline constexpr double kMaxDemSteps = 1e12;                      ///< DEM steps of a run
+
+/// @brief n_D = fem_dt / dem_dt when it is an integer within kSubstepTolerance (relative)
+/// and at most kMaxDemSubsteps; otherwise throws scene::SceneError naming both keys, their
+/// values and the ratio.
 std::int64_t dem_substeps(double fem_dt, double dem_dt, const std::string& fem_where,
                           const std::string& dem_where);
 
 /// @brief Number of steps of `dt` that reach `end_time` (the last step may end past it when
-/// end_time is not a multiple of dt within 1e-9).
+/// end_time is not a multiple of dt within 1e-9). Saturates at INT64_MAX (the caller refuses
+/// counts above kMaxCouplingSteps).
 std::int64_t steps_to_reach(double end_time, double dt);
 
 /// @brief Reads [run] and [coupling] (strictly) and the step sizes. Throws scene::SceneError

@@ -12,9 +12,21 @@
 
 namespace demfem::coupling {
 
-/// @brief Reads [dem] and [fem] with the solvers' own readers, so that a bad key anywhere in
-/// the scene is reported (file, line, key) before any process starts. Throws SceneError.
-void check_solver_sections(const scene::Document& scene);
+/// @brief What check_solver_sections() found out about the solvers of a scene.
+struct SolverSections {
+  std::string dem_backend;              ///< "" without [dem]
+  int dem_threads = 0;                  ///< the DEM's CPU threads (dem.threads or OpenMP's)
+  std::size_t dem_setup_particles = 0;  ///< particles of the DEM's set-up (DemRun)
+  std::size_t fem_nodes = 0;            ///< nodes and elements of the FEM mesh
+  std::size_t fem_elements = 0;
+};
+
+/// @brief Reads [dem] and [fem] with the solvers' own readers and makes the checks the solvers
+/// make when they start (the DEM's backend, STL walls, lattices, insertions at t = 0 and the
+/// Rayleigh time step: dem::DemRun::check_setup), so that bad input anywhere in the scene is
+/// reported (file, line, key; exit status 2) before any process starts. `seed`: run.seed.
+/// Throws SceneError.
+SolverSections check_solver_sections(const scene::Document& scene, std::uint64_t seed);
 
 /// @brief The DEM engine of the scene's [dem] behind its DemBackend adapter, set up as
 /// dem_server sets it up (nullptr without [dem]). Output goes to `output_dir`; the end

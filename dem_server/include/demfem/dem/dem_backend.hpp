@@ -73,7 +73,13 @@ class DemBackend final : public protocol::SolverBackend {
       sys.set_flexible_kinematics(buffers.positions(cmd.buffer), buffers.velocities(cmd.buffer),
                                   buffers.accelerations(cmd.buffer));
     }
-    run_.advance(cmd.substeps, cmd.force_mode);
+    try {
+      run_.advance(cmd.substeps, cmd.force_mode);
+    } catch (const Unstable& e) {
+      // A blow-up, reported as one (the coupler exits with status 3, docs/coupling.md).
+      throw std::runtime_error("dem: step " + std::to_string(cmd.step) +
+                               ": the DEM blew up: " + e.what());
+    }
     protocol::StepResult r;
     if (coupled) {
       auto forces = buffers.forces(cmd.buffer);
@@ -113,6 +119,9 @@ class DemBackend final : public protocol::SolverBackend {
   void restore_checkpoint(const std::filesystem::path& file, std::int64_t step) override {
     run_.restore(io::open_checkpoint_file(file, step), "dem");
   }
+
+  /// A long coupling step (n_D substeps) stops within one substep when the flag is set.
+  void set_cancel_flag(const std::atomic<bool>* flag) override { run_.set_cancel_flag(flag); }
 
  private:
   DemRun& run_;

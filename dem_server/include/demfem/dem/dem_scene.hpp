@@ -3,6 +3,7 @@
 // DemSystem from it (walls, lattice fills, random insertion, settling, removal above a
 // height) and carries the sensors and particle output along as the system advances.
 
+#include <atomic>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -10,12 +11,15 @@
 #include <memory>
 #include <optional>
 #include <span>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/dem/insertion.hpp"
 #include "demfem/dem/sensors.hpp"
+#include "demfem/dem/wall_clearance.hpp"
+#include "demfem/io/output_schedule.hpp"
 #include "demfem/scene/scene_reader.hpp"
 
 namespace demfem::dem {
@@ -72,8 +76,18 @@ struct InsertSpec {
 struct LatticeSpec {
   LatticeFill request;
   std::int32_t shape = -1;  ///< index into DemScene::shapes, -1 = spheres
+  bool has_seed = false;    ///< false: seed = run seed + kLatticeSeedOffset + entry index
   std::string where;
 };
+
+/// @brief Default seed of lattice entry i: run.seed + kLatticeSeedOffset + i (a prime offset,
+/// so no lattice shares the stream of an insertion: those are run.seed + i + 1000003 k).
+inline constexpr std::uint64_t kLatticeSeedOffset = 500009;
+
+/// @brief Memory a DEM particle takes, for the up-front size check: 1.57 kB were measured
+/// per sphere of a lattice bed in a box (CPU backend, neighbour lists and contact histories
+/// included; docs/scene_dem.md); 2 kB leaves room for denser random packings.
+inline constexpr double kBytesPerParticle = 2048.0;
 
 /// @brief Everything [dem] says.
 struct DemScene {
@@ -96,7 +110,14 @@ struct DemScene {
 
 /// @brief Reads and checks [dem] (a Table from the scene's root: root.required_table("dem")).
 /// Every table's finish() is called; errors are scene::SceneError naming file, line, key.
+/// A scene that asks for more particles than a DEM system holds (kMaxParticles) or than this
+/// machine's memory holds at kBytesPerParticle each is refused here, naming the entry that
+/// asks for the most, before anything is allocated.
 DemScene read_dem_scene(const scene::Table& dem);
+
+/// @brief The particle count a [dem] section asks for up front (lattices, insertions with
+/// their repetitions; an insertion by mass counts its mass over the mean particle mass).
+double estimated_particle_count(const DemScene& scene);
 
 /// @brief Rayleigh time-step check (eq. 2.27): error above 1, warning above this fraction.
 inline constexpr double kRayleighWarnFraction = 0.2;
@@ -107,10 +128,22 @@ inline constexpr double kRayleighWarnFraction = 0.2;
 /// spheres pass through each other.
 inline constexpr double kMaxStableOverlap = 0.5;
 
+/// @brief The run became unstable (DemRun::check_stable): a blow-up, not a failure.
+class Unstable : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 class DemRun {
  public:
-  /// Builds the system: walls, lattice fills, random insertions (seed: the entry's seed, or
-  /// `seed` + entry index), settle_time of settling, remove_above. Prints the Rayleigh time
+  /// Builds the system: walls, lattice fills (seed: the entry's, or `seed` +
+  /// kLatticeSeedOffset + entry index), random insertions (seed: the entry's seed, or `seed` +
+  /// entry index), settle_time of settling, remove_above. The particles placed are checked
+  /// against the walls (WallClearance): a lattice sphere that overlaps a wall or another
+  /// particle is a SceneError naming the entry; so is a lattice sphere or an insertion region
+  /// corner that falls past every wall (under gravity; only a warning in a scene with an
+  /// interface material, whose structure may catch it); random insertion avoids the walls.
+  /// Prints the Rayleigh time
   /// step to `log` (may be nullptr) and warns when dt > 0.2 of it; throws SceneError (naming
   /// dem.dt) when dt exceeds it. `output_dir` empty = no files. With `defer_output` no file
   /// is touched until the first advance() (then created afresh, with the initial state) or
@@ -119,6 +152,19 @@ class DemRun {
   DemRun(const DemScene& scene, const std::filesystem::path& output_dir, std::uint64_t seed,
          double run_output_interval, std::ostream* log, bool defer_output = false);
   ~DemRun();
+
+  /// The checks dem_server makes when it starts, without running anything: builds the
+  /// backend, the walls (reading their STL files), the lattice fills and the insertions at
+  /// t = 0 and checks dem.dt against the Rayleigh time step, then drops it all (no settling,
+  /// no file). For a launcher that checks a whole scene before any process starts. Throws
+  /// SceneError naming file, line and key. Returns the particle count of that set-up.
+  static std::size_t check_setup(const DemScene& scene, std::uint64_t seed);
+  /// Particles the scene's set-up made (lattices and insertions at t = 0, before settling and
+  /// removal). Saved in checkpoints: restore() refuses a checkpoint of a scene that made
+  /// another number (a changed [[dem.lattice]] or [[dem.insert]]).
+  std::size_t setup_particles() const { return setup_particles_; }
+  /// DemSystem::set_cancel_flag of the system.
+  void set_cancel_flag(const std::atomic<bool>* flag) { system_->set_cancel_flag(flag); }
 
   DemSystem& system() { return *system_; }
   const DemSystem& system() const { return *system_; }
@@ -133,13 +179,14 @@ class DemRun {
   /// Advances to `end_time` in pieces that end on the sensor and output times;
   /// `progress(time)` is called after each piece.
   void run_to(double end_time, const std::function<void(double)>& progress = {});
-  /// Writes a particle snapshot now (no-op without output).
+  /// Writes a particle snapshot of the current state now (no-op without output), labelled as
+  /// io::OutputSchedule::label says.
   void write_snapshot();
   /// The end state: a snapshot unless the last one is of the current time.
   void finish();
   /// Sensor samples and snapshot due at the current time.
   void after_advance();
-  /// Throws std::runtime_error naming the time, the largest overlap against the smallest
+  /// Throws Unstable naming the time, the largest overlap against the smallest
   /// radius, dt and the Rayleigh time step when the state is not finite or two bodies
   /// overlap by more than kMaxStableOverlap of the smallest radius (the soft-sphere contact
   /// no longer resolves them: dt too large for the stiffness, or loads beyond it). Called by
@@ -152,17 +199,30 @@ class DemRun {
   /// Checkpoint: the system (DemSystem::save into `group`) and the tools' state (ids, output
   /// and sensor row counts) into `group` + "_tools".
   void save(io::H5File& file, const std::string& group) const;
+  /// Restores a checkpoint of save(); refuses (std::runtime_error naming the file) a state
+  /// that fails check_particle_state (state_check.hpp) or whose scene made another number of
+  /// particles at set-up.
   void restore(const io::H5File& file, const std::string& group);
 
  private:
+  DemRun(const DemScene& scene, const std::filesystem::path& output_dir, std::uint64_t seed,
+         double run_output_interval, std::ostream* log, bool defer_output, bool setup_only);
+
   DemScene scene_;
   std::unique_ptr<DemSystem> system_;
+  std::size_t setup_particles_ = 0;
   std::vector<std::int64_t> ids_;
   std::int64_t next_id_ = 0;
   std::unique_ptr<SensorSet> sensors_;
   std::unique_ptr<class ParticleOutput> output_;
   double output_interval_ = 0.0;
-  double next_output_ = 0.0;
+  io::OutputSchedule schedule_;           ///< particle snapshots at k * output_interval_
+  std::int64_t last_snapshot_step_ = -1;  ///< DemSystem::step_count() of the last snapshot
+  std::int64_t chunk_steps_ = 1;          ///< steps between the chances to take an output
+
+  /// The DEM clock for output: step count x dt (not the running sum of dt).
+  double output_clock() const;
+  void write_snapshot(double label);
 
   void add(std::span<const ParticleInit> particles);
   void start_output(bool resume);
@@ -178,6 +238,13 @@ class DemRun {
 
   /// Repeated insertions due at the current time.
   void pour();
+  std::ostream* log_ = nullptr;
+  std::vector<WallClearance::Wall> wall_shapes_;  ///< the walls as added (names, triangles)
+  /// The walls where they are now (they may move), for checking placed particles.
+  WallClearance wall_clearance() const;
+  /// Throws SceneError (or warns, in a coupled scene) when a placed particle falls past every
+  /// wall: `what` names it, `where` the scene entry.
+  void check_falls_past(const std::string& what, const std::string& where) const;
   double next_pour_time() const;
 };
 

@@ -5,9 +5,11 @@
 // the CPU and CUDA backends. Units: SI.
 
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -132,6 +134,14 @@ struct WallMesh {
   WallMotion motion;
 };
 
+/// @brief advance() stopped early because its cancellation flag was set (set_cancel_flag()).
+/// The system is then between two steps of that advance(): fit to be dropped or restored
+/// from a checkpoint, not to be continued.
+class Cancelled : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 /// @brief A DEM system of particles, walls and (optionally) the flexible coupled mesh.
 class DemSystem {
  public:
@@ -182,8 +192,14 @@ class DemSystem {
   /// Largest particle overlap with the flexible mesh in the last advance(), m.
   double flexible_max_overlap() const;
 
-  /// Runs `substeps` steps of settings().dt.
+  /// Runs `substeps` steps of settings().dt. Throws Cancelled when the cancellation flag is
+  /// found set (checked before every step; on the CUDA backend every 256 steps).
   void advance(std::int64_t substeps, ForceMode mode = ForceMode::last_substep);
+  /// A flag that another thread (or a signal handler) sets to make a running advance() stop
+  /// within a step (nullptr = none). Only read, never written: polling it changes no result.
+  /// A server sets it when its coupler is gone or a stop signal arrived, so that a long
+  /// coupling step (10^6 substeps) does not run on for minutes as an orphan.
+  void set_cancel_flag(const std::atomic<bool>* flag);
   double time() const;
   std::int64_t step_count() const;
 

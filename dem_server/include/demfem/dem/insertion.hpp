@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -65,27 +66,57 @@ inline constexpr double kMaxRandomPackingFraction = 0.40;
 /// kMaxRandomPackingFraction of the region, when the largest particle does not fit, or when a
 /// particle finds no free place in max_attempts tries (the message names the request and
 /// how many particles / how much mass were placed).
-std::vector<ParticleInit> insert_random(const RandomInsertion& request,
-                                        const ParticleState* existing = nullptr);
+/// `blocked(x, y, z, r)`, when given, rejects a position as an overlap does (the scene's walls:
+/// a region may reach into a funnel or across a wall, the particles never do).
+std::vector<ParticleInit> insert_random(
+    const RandomInsertion& request, const ParticleState* existing = nullptr,
+    const std::function<bool(double, double, double, double)>& blocked = {});
 
-/// @brief Lattice fill: spheres of one diameter on a simple cubic lattice of the given
-/// spacing (>= diameter) filling the box, lowest layer first. With a shape library: polyhedra
-/// of that size (`diameter` is the size), shapes drawn uniformly and orientations at random
-/// from Rng(seed); the spacing must then be at least the largest bounding diameter.
+/// @brief Lattice fill: spheres on a simple cubic lattice of the given spacing filling the
+/// box, lowest layer first; optionally with diameters drawn from a distribution and each sphere
+/// displaced at random (jitter), so that a bed poured from it does not settle in columns. With
+/// a shape library: dilated polyhedra, the diameter being their size, each with a shape drawn
+/// uniformly and a random orientation; the bounding diameter (of the library's largest shape
+/// at the size) then plays the diameter's part for the spacing, the jitter and the inset.
 struct LatticeFill {
   Box region;
-  double diameter = 0.0;
-  double spacing = 0.0;  ///< centre distance, m; 0 = 1.001 * diameter (bounding diameter)
+  double diameter = 0.0;  ///< m; with `has_sizes`, the largest diameter of `sizes`
+  bool has_sizes = false;
+  SizeDistribution sizes;  ///< with has_sizes: the diameter of each sphere, drawn in order
+  double spacing = 0.0;    ///< centre distance, m (>= diameter); 0 = 1.001 * diameter
+  /// [0, 1): each sphere is displaced along each axis by a uniform random amount of up to
+  /// jitter x half its gap (spacing - its diameter) either way. Neighbours are a spacing apart
+  /// along some axis, so they stay at least (d_i + d_j) / 2 apart: no overlap; the lattice is
+  /// inset by the largest such displacement, so the spheres stay inside the box.
+  double jitter = 0.0;
+  std::uint64_t seed = 1;  ///< Rng seed of the diameters, displacements, shapes, orientations
   std::int32_t material = 0;
   std::array<double, 3> velocity{};
   std::int64_t max_count = 0;  ///< 0 = as many as fit
   const shapes::ShapeLibrary* library = nullptr;
   std::int32_t shape_base = 0;
-  std::uint64_t seed = 1;
 };
 
-/// @brief Particles of a lattice fill; throws InsertionError when not one fits.
+/// @brief How many spheres a lattice fill places (in double: a typo can ask for more than
+/// an integer holds), without placing them.
+double lattice_count(const LatticeFill& request);
+
+/// @brief Expected number of particles of one random insertion (the count, or the mass over
+/// the mean particle mass).
+double expected_count(const RandomInsertion& request);
+
+/// @brief Particles of a lattice fill; throws InsertionError when not one fits or the fill
+/// asks for more than kMaxParticles.
 std::vector<ParticleInit> lattice_fill(const LatticeFill& request);
+
+/// @brief Most particles a DEM system holds: its neighbour lists index particles with 32-bit
+/// integers.
+inline constexpr double kMaxParticles = 2147483647.0;
+
+/// @brief Index of the first of `added` that overlaps a particle of `existing` (by more than
+/// 1e-9 of the smaller radius), or -1 (a lattice placed over another lattice).
+std::int64_t first_overlapping(const std::vector<ParticleInit>& added,
+                               const ParticleState& existing);
 
 /// @brief keep[i] = 1 for the particles whose centre is at or below `height` (m).
 std::vector<std::uint8_t> keep_at_or_below(const ParticleState& particles, double height);

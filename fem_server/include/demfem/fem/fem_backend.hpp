@@ -15,6 +15,7 @@
 #include "demfem/fem/fem_solver.hpp"
 #include "demfem/io/checkpoint_file.hpp"
 #include "demfem/io/h5_file.hpp"
+#include "demfem/io/output_schedule.hpp"
 #include "demfem/protocol/protocol.hpp"
 
 namespace demfem::fem {
@@ -25,13 +26,35 @@ namespace demfem::fem {
 /// when cmd.flags has kStepStatic, else one Bossak step of cmd.dt; writes the interface
 /// positions, velocities and accelerations into the same buffer. StepResult values:
 /// [0] max nodal |u| (m), [1] kinetic energy (J), [2] strain energy (J), [3] solver time (s).
-/// Optional output: a FemOutput written whenever the solver time passes a multiple of
-/// `output_interval` (never from step() when it is 0: the caller writes the start and end
-/// states).
+/// Optional output: a FemOutput step for every multiple k * `output_interval`, of the state at
+/// the coupling step end nearest to it and labelled with it (io::OutputSchedule; none from
+/// step() when the interval is 0); the caller writes the start and end states with
+/// write_initial_output() and write_final_output().
 class FemBackend final : public protocol::SolverBackend {
  public:
   explicit FemBackend(FemSolver& solver, FemOutput* output = nullptr, double output_interval = 0.0)
-      : solver_(solver), output_(output), interval_(output_interval) {}
+      : solver_(solver), output_(output), schedule_(output_interval) {}
+
+  /// The reference state (output 0, at t = 0) of a new series.
+  void write_initial_output() {
+    if (!output_) return;
+    FemFields f = gather_fields(solver_);
+    f.time = schedule_.label(output_clock(), step_dt_);
+    f.state_time = solver_.time();
+    schedule_.skip_to_after(output_clock());
+    output_->write(f);
+    last_output_step_ = solver_.step_count();
+  }
+
+  /// The end state, unless the last output is of it (or no step was taken).
+  void write_final_output() {
+    if (!output_ || solver_.step_count() == 0 || last_output_step_ == solver_.step_count()) return;
+    FemFields f = gather_fields(solver_);
+    f.time = schedule_.label(output_clock(), step_dt_);
+    f.state_time = solver_.time();
+    output_->write(f);
+    last_output_step_ = solver_.step_count();
+  }
 
   std::string name() const override { return "demfem-fem 0.1 (cpu)"; }
 
@@ -62,6 +85,7 @@ class FemBackend final : public protocol::SolverBackend {
         throw std::runtime_error("fem: step " + std::to_string(cmd.step) + ": dt must be > 0");
       }
       solver_.advance(cmd.dt);
+      step_dt_ = cmd.dt;
     }
     solver_.interface_kinematics(buffers.positions(cmd.buffer), buffers.velocities(cmd.buffer),
                                  buffers.accelerations(cmd.buffer));
@@ -89,31 +113,64 @@ class FemBackend final : public protocol::SolverBackend {
     io::write_checkpoint_file(file, step, [this](io::H5File& h5) {
       h5.create_group("fem");
       solver_.save(h5, "fem");
+      // The mesh the state belongs to, so that a resume with a changed mesh is refused before
+      // any process starts (demfem_run).
+      const auto& mesh = solver_.problem().mesh;
+      h5.set_attribute("fem", "mesh_nodes", static_cast<std::int64_t>(mesh.nodes.size()));
+      h5.set_attribute("fem", "mesh_elements", static_cast<std::int64_t>(mesh.elements.size()));
+      // The output schedule, so that a restored run writes the same states with the same labels.
+      const std::int64_t sched[3] = {schedule_.next(), last_output_step_, 0};
+      h5.write("fem_output_schedule", std::span<const std::int64_t>(sched));
+      const double dt[1] = {step_dt_};
+      h5.write("fem_output_step", std::span<const double>(dt));
     });
   }
 
   void restore_checkpoint(const std::filesystem::path& file, std::int64_t step) override {
-    solver_.restore(io::open_checkpoint_file(file, step), "fem");
-    if (interval_ > 0.0) {
-      // The next multiple of the interval after the restored time, as in the original run.
-      next_output_ = interval_ * (std::floor(solver_.time() / interval_ + 1e-9) + 1.0);
+    const io::H5File h5 = io::open_checkpoint_file(file, step);
+    solver_.restore(h5, "fem");
+    if (h5.exists("fem_output_schedule")) {
+      const auto sched = h5.read_int64("fem_output_schedule");
+      const auto dt = h5.read_doubles("fem_output_step");
+      if (sched.size() != 3 || dt.size() != 1) {
+        throw std::runtime_error(file.string() + ": fem_output_schedule is malformed");
+      }
+      schedule_.set_next(sched[0]);
+      last_output_step_ = sched[1];
+      step_dt_ = dt[0];
+    } else {  // written by an older version: the outputs up to the restored time were taken
+      schedule_.skip_to_after(solver_.time());
+      last_output_step_ = -1;
     }
-    // Output written after the checkpoint is rewritten by the continuation.
-    if (output_) output_->rollback(solver_.time());
+    // Output of states after the checkpoint is rewritten by the continuation.
+    if (output_) {
+      output_->rollback(solver_.time());
+      // The series may keep an output of the restored state itself (the end state of a
+      // finished run, written after its final checkpoint): it is not written again.
+      if (output_->last_state_time() == solver_.time()) last_output_step_ = solver_.step_count();
+    }
   }
 
  private:
+  /// The FEM clock for output: step count x dt (not the running sum of dt).
+  double output_clock() const { return static_cast<double>(solver_.step_count()) * step_dt_; }
+
   void maybe_write_output() {
-    if (!output_ || !(interval_ > 0.0)) return;
-    if (solver_.time() < next_output_ * (1.0 - 1e-12)) return;
-    while (next_output_ <= solver_.time() * (1.0 + 1e-12)) next_output_ += interval_;
-    output_->write(solver_);
+    if (!output_ || !(step_dt_ > 0.0)) return;
+    const double t = output_clock();
+    if (!schedule_.due(t, step_dt_)) return;
+    FemFields f = gather_fields(solver_);
+    f.time = schedule_.take(t, step_dt_);
+    f.state_time = solver_.time();
+    output_->write(f);
+    last_output_step_ = solver_.step_count();
   }
 
   FemSolver& solver_;
   FemOutput* output_;
-  double interval_;
-  double next_output_ = interval_;
+  io::OutputSchedule schedule_;
+  double step_dt_ = 0.0;                ///< dt of the dynamic steps (the coupling step), s
+  std::int64_t last_output_step_ = -1;  ///< solver step count of the last output
 };
 
 }  // namespace demfem::fem

@@ -6,11 +6,15 @@
 //                               0-based node indices, Abaqus = VTK node order),
 //                               /elements/<type> (k, index of each cell in Mesh::elements),
 //                               /node_labels, /element_labels
-//   <dir>/<name>_NNNNNN.h5      one file per output step: attribute "time" on "/", node fields
+//   <dir>/<name>_NNNNNN.h5      one file per output step, NNNNNN = 0 for the first (the
+//                               initial state), as the particle snapshots: attributes "time"
+//                               (the nominal output time) and "state_time" (the time of the
+//                               state written, see io::OutputSchedule) on "/", node fields
 //                               /displacement, /velocity, /acceleration, /reaction_force
 //                               (n x 3) and cell fields per element type /<type>/von_mises (k),
-//                               /<type>/strain (k x 6: exx, eyy, ezz, gxy, gyz, gzx,
-//                               engineering shear), /<type>/max_principal_strain (k)
+//                               /<type>/strain (k x 9: the strain tensor, row by row, shear
+//                               components = half the engineering shear), and
+//                               /<type>/max_principal_strain (k)
 //   <dir>/<name>.xdmf           Xdmf 3 temporal collection referencing the above; one grid per
 //                               element type when the mesh is mixed
 //   <dir>/<name>_series.csv     time, max_displacement (m, largest nodal |u|), max_von_mises
@@ -23,7 +27,9 @@
 #include <cstdint>
 #include <filesystem>
 #include <iosfwd>
+#include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -40,7 +46,10 @@ namespace demfem::fem {
 /// @brief The fields of one output step (sizes: 3 per node, or per element as in
 /// ElementResults); empty vectors are not written.
 struct FemFields {
-  double time = 0.0;
+  double time = 0.0;  ///< the output's time label, s
+  /// Time of the state, s, when it differs from the label (NaN: the same); see
+  /// io::OutputSchedule.
+  double state_time = std::numeric_limits<double>::quiet_NaN();
   std::vector<double> displacement;
   std::vector<double> velocity;
   std::vector<double> acceleration;
@@ -70,7 +79,7 @@ class FemOutput {
  public:
   /// Creates `dir` if needed. replace: writes the mesh file and an empty index. resume:
   /// keeps the mesh file (it must have this mesh's node count) and the step files
-  /// 1, 2, ... that exist, and continues the CSV after their rows.
+  /// 0, 1, ... that exist, and continues the CSV after their rows.
   FemOutput(std::filesystem::path dir, std::string name, const Mesh& mesh,
             FemOutputSettings settings = {}, OutputMode mode = OutputMode::replace);
   ~FemOutput();
@@ -81,9 +90,14 @@ class FemOutput {
   void write(const FemFields& fields);
   void write(const FemSolver& solver) { write(gather_fields(solver)); }
 
-  /// Drops the output steps later than `time` (a rollback to a checkpoint): their files are
-  /// deleted, the index rewritten and the CSV cut back, so the continuation writes anew.
+  /// Drops the output steps of states later than `time` (a rollback to a checkpoint): their
+  /// files are deleted, the index rewritten and the CSV cut back, so the continuation writes
+  /// anew.
   void rollback(double time);
+  /// Time of the state of the last output in the series (nullopt: none).
+  std::optional<double> last_state_time() const {
+    return state_times_.empty() ? std::nullopt : std::optional<double>(state_times_.back());
+  }
 
   std::size_t steps() const { return times_.size(); }
   /// Time of the last step written (0 before any).
@@ -91,7 +105,7 @@ class FemOutput {
   std::filesystem::path xdmf_path() const;
   std::filesystem::path csv_path() const;
   std::filesystem::path mesh_path() const;
-  std::filesystem::path step_path(std::size_t step) const;  ///< 1-based
+  std::filesystem::path step_path(std::size_t step) const;  ///< 0-based
 
  private:
   void write_mesh(const Mesh& mesh) const;
@@ -109,7 +123,8 @@ class FemOutput {
     std::vector<std::int64_t> elements;  // indices into Mesh::elements
   };
   std::vector<TypeGroup> groups_;
-  std::vector<double> times_;
+  std::vector<double> times_;                      // labels
+  std::vector<double> state_times_;                // times of the states written
   std::vector<std::vector<std::string>> written_;  // fields present in each step file
   std::unique_ptr<io::CsvWriter> csv_;
 };

@@ -33,7 +33,16 @@ struct FemScene {
   double dt = 0.0;          ///< s; 0 = not given (a coupled run takes it from the coupler)
   std::string dt_location;  ///< "file:line: key 'fem.dt'", for messages about dt
   FemOutputSettings output;
+  /// What the reader wants the user to know but does not refuse: orphan nodes left out, the
+  /// element formulation each .inp type maps to, .inp keywords accepted with a caveat. Each
+  /// names the file (and line); fem_server prints them before it starts.
+  std::vector<std::string> notes;
 };
+
+/// @brief Accepted material ranges (docs/scene_fem.md): typo guards around every real solid.
+inline constexpr double kMinYoungsModulus = 1e-3;  ///< Pa
+inline constexpr double kMaxYoungsModulus = 1e14;  ///< Pa, 100 x diamond
+inline constexpr double kMaxDensity = 1e6;         ///< kg/m^3, 40 x osmium
 
 /// @brief Reads and checks [fem]. Throws scene::SceneError naming file, line and key for
 /// any bad value, unknown key, missing or malformed mesh file, or selector that selects

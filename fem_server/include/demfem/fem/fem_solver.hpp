@@ -4,6 +4,7 @@
 
 #include <memory>
 #include <span>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -16,6 +17,20 @@ class H5File;
 }
 
 namespace demfem::fem {
+
+/// @brief A defect of the model that the solver found: a mechanism or an unconstrained
+/// rigid-body motion (the message names the nodes that move freely), a singular mass matrix,
+/// a displacement larger than the model, a non-finite solution. Bad input, like a scene error:
+/// fem_server exits with status 2.
+class FemModelError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// @brief Spectral radius of the amplification matrix of FemSolver's Bossak-Newmark step for
+/// an undamped oscillator at omega dt = `omega_dt` (>= 0): above 1 the step amplifies that
+/// frequency, i.e. the scheme is unstable there. Used to check user-set gamma and beta.
+double bossak_spectral_radius(const BossakParameters& bossak, double omega_dt);
 
 /// @brief Element results for output (per element, at its centroid).
 struct ElementResults {
@@ -48,7 +63,9 @@ class FemSolver {
   /// Forces on the interface nodes (3 * interface node count, N); held until replaced.
   void set_interface_forces(std::span<const double> forces);
 
-  /// Static solve K u = F(t) for the current time's external and interface loads.
+  /// Static solve K u = F(t) for the current time's external and interface loads. Throws
+  /// FemModelError for a singular stiffness (naming the free nodes) and for a solution larger
+  /// than the model (a mechanism that survived the factorisation's pivot check).
   void solve_static();
   /// One Bossak-Newmark step from time() to time() + dt. The effective matrix is factorised
   /// on the first step and again only when dt changes.

@@ -54,13 +54,20 @@ class H5File {
   double attribute_double(const std::string& object, const std::string& name) const;
   std::int64_t attribute_int64(const std::string& object, const std::string& name) const;
   std::string attribute_string(const std::string& object, const std::string& name) const;
+  bool has_attribute(const std::string& object, const std::string& name) const;
 
   void flush();
+  /// Closes the file, writing what HDF5 still holds; throws H5Error with the system's reason
+  /// (e.g. "No space left on device") when that fails (the destructor closes silently).
   void close();
   const std::filesystem::path& path() const { return path_; }
 
  private:
   [[noreturn]] void fail(const std::string& what) const;
+  /// fail() with the system's reason appended when errno holds one (a full disk, a
+  /// permission, an I/O error), so that such a failure is not taken for a corrupt file.
+  [[noreturn]] void fail_io(const std::string& what, int err) const;
+  void close_quietly() noexcept;
   std::filesystem::path path_;
   std::int64_t id_ = -1;
 };

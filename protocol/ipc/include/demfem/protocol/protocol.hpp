@@ -14,6 +14,7 @@
 // SolverBackend and calls serve(). The coupler uses CouplerSession.
 
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
@@ -140,6 +141,13 @@ class SolverBackend {
   virtual StepResult step(const StepCommand& cmd, InterfaceBuffers& buffers) = 0;
   virtual void write_checkpoint(const std::filesystem::path& file, std::int64_t step) = 0;
   virtual void restore_checkpoint(const std::filesystem::path& file, std::int64_t step) = 0;
+  /// serve() calls this once, before Hello, with a flag that turns true when the step in
+  /// progress should be abandoned: a stop signal arrived, or the coupler is gone (its pid, or
+  /// its heartbeat stale for peer_timeout). A backend whose step can take long polls it (it
+  /// is an atomic load; reading it must not change any result) and throws when it is set;
+  /// serve() then exits as for the signal or the dead coupler. The default ignores it: the
+  /// step is then abandoned only when it ends.
+  virtual void set_cancel_flag(const std::atomic<bool>* flag) { (void)flag; }
 };
 
 /// @brief How a waiting process waits: spin for `spin` then block on a futex in slices,
@@ -230,15 +238,25 @@ class VersionMismatch : public ProtocolError {
 struct CouplerOptions {
   /// A solver whose pid is gone or whose heartbeat has not advanced for this long is dead.
   std::chrono::milliseconds peer_timeout{2000};
-  /// How long wait_hello() waits for a solver it cannot watch (no pid given and not yet
-  /// attached). A solver with a known pid or a heartbeat may take as long as it lives.
-  std::chrono::milliseconds hello_timeout{60000};
+  /// How long wait_hello() waits for the Hello, whether the solver can be watched (known pid,
+  /// heartbeat) or not: a solver that started but never attaches (hung in its set-up, or not
+  /// a demfem solver at all) is reported (PeerDied) instead of waited for as long as it
+  /// lives. Zero: no limit for a solver that can be watched (an unwatchable one still gets
+  /// 60 s). Set-up before the Hello includes reading the mesh and, for the FEM, assembling
+  /// and factorising its matrices: raise it for very large models.
+  std::chrono::milliseconds hello_timeout{600000};
   /// Longest wait for any reply (StepDone, checkpoint_done, ...) of a live solver; zero (the
   /// default) = no limit. The heartbeat proves a solver is alive, not that its step makes
   /// progress: set this to catch a solver that hangs inside step(). On expiry the call
   /// throws PeerDied and the solver is still running (kill it, then reset_peer()).
   std::chrono::milliseconds reply_timeout{0};
   WaitPolicy wait{};
+  /// A stop request of the program (its signal handler's flag; nullptr = none). Once it is
+  /// set, every wait for a solver gives up (ProtocolError) when the solver has not answered
+  /// within `stop_grace`: the program has asked the solvers to stop (SIGTERM), and one that
+  /// does not (stuck in a long computation) must not keep the coupler waiting.
+  const std::atomic<bool>* stop = nullptr;
+  std::chrono::milliseconds stop_grace{3000};
   /// On SIGTERM/SIGINT/SIGHUP with the default action, remove the segments before dying
   /// (handlers the program installed itself are kept and called instead).
   bool unlink_on_signal = true;

@@ -111,6 +111,9 @@ class Table {
   /// "file:line:col: key 'a.b.c'" for messages about a key of this table.
   std::string where(std::string_view key) const;
   [[noreturn]] void fail(std::string_view key, const std::string& message) const;
+  /// Throws "is required but missing" (+ " (" hint ")"), naming a present key that nothing
+  /// has read and whose spelling is close to `key` (a misspelling of it), when there is one.
+  [[noreturn]] void fail_missing(std::string_view key, const std::string& hint = {}) const;
 
   const std::string& file() const { return *file_; }
   const std::string& dotted_path() const { return path_; }
@@ -128,7 +131,19 @@ class Table {
   std::string path_;
   mutable std::shared_ptr<std::set<std::string, std::less<>>> used_;
   std::shared_ptr<const std::vector<Override>> overrides_;
+  /// Every key a reader asked for, present or not: the known keys, for suggestions.
+  mutable std::shared_ptr<std::set<std::string, std::less<>>> asked_;
 };
+
+/// @brief Edit distance of two keys (optimal string alignment: insertions, deletions,
+/// substitutions and transpositions of neighbours each count 1; case is ignored).
+std::size_t key_distance(std::string_view a, std::string_view b);
+
+/// @brief Whether `written` is plausibly a misspelling of `known`: a distance of at most 1
+/// for keys up to 5 characters, 2 up to 9, 3 beyond; keys of 1 or 2 characters only match
+/// a written key that contains them (so that 'a' does not suggest 'b'); keys longer than 64
+/// characters never match.
+bool is_misspelling(std::string_view written, std::string_view known);
 
 /// @brief A parsed scene file; keeps the TOML tree alive for its Tables.
 class Document {

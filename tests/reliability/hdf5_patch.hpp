@@ -1,0 +1,37 @@
+#pragma once
+// Test double of a damaged checkpoint: one value of an existing HDF5 dataset replaced in
+// place (demfem's H5File never rewrites a dataset), e.g. a NaN position in a state whose
+// manifest is then recommitted to match, as a checkpoint saved just before a blow-up would.
+
+#include <hdf5.h>
+
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace demfem::test {
+
+inline void overwrite_doubles(const std::filesystem::path& file, const std::string& dataset,
+                              std::size_t index, double value) {
+  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  if (f < 0) throw std::runtime_error(file.string() + ": cannot open");
+  const hid_t d = H5Dopen2(f, dataset.c_str(), H5P_DEFAULT);
+  if (d < 0) {
+    H5Fclose(f);
+    throw std::runtime_error(file.string() + ": no dataset " + dataset);
+  }
+  const hid_t space = H5Dget_space(d);
+  std::vector<double> v(static_cast<std::size_t>(H5Sget_simple_extent_npoints(space)));
+  H5Sclose(space);
+  const bool ok = index < v.size() &&
+                  H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()) >= 0;
+  if (ok) v[index] = value;
+  const bool written =
+      ok && H5Dwrite(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()) >= 0;
+  H5Dclose(d);
+  H5Fclose(f);
+  if (!written) throw std::runtime_error(file.string() + ": cannot rewrite " + dataset);
+}
+
+}  // namespace demfem::test
