@@ -703,6 +703,10 @@ void DemRun::start_output(bool resume) {
   sensors_ = std::make_unique<SensorSet>(scene_.sensors, output_dir_, *system_, !resume);
   if (!output_dir_.empty() && scene_.output_particles) {
     output_ = std::make_unique<ParticleOutput>(output_dir_);
+    std::vector<PolyhedronShape> shapes;
+    for (std::size_t k = 0; k < system_->shape_count(); ++k)
+      shapes.push_back(system_->shape(static_cast<std::int32_t>(k)));
+    output_->set_shapes(shapes);
   }
   schedule_ = io::OutputSchedule(output_interval_);
   // Outputs due before the output starts (during settle_time) are not taken.

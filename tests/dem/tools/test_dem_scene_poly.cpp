@@ -7,8 +7,10 @@
 #include <fstream>
 #include <sstream>
 
+#include "demfem/dem/dem_output.hpp"
 #include "demfem/dem/dem_scene.hpp"
 #include "demfem/dem/stl_reader.hpp"
+#include "demfem/io/h5_file.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 using namespace demfem::dem;
@@ -158,8 +160,9 @@ seed = 4
     DemRun r3(l, "", 1, 0.0, nullptr);
     const auto& p = r3.system().particles();
     std::size_t cubes = 0;
-    for (std::size_t i = 0; i < p.size(); ++i) cubes += p.shape_id[i] == 6 ? 1 : 0;  // after 6 rocks
-    CHECK(cubes == 5 * 5 * 3);  // spacing 0.06 m in a 0.3 x 0.3 x 0.2 box
+    for (std::size_t i = 0; i < p.size(); ++i)
+      cubes += p.shape_id[i] == 6 ? 1 : 0;  // after 6 rocks
+    CHECK(cubes == 5 * 5 * 3);              // spacing 0.06 m in a 0.3 x 0.3 x 0.2 box
     CHECK(p.size() == cubes + 5);
   }
 }
@@ -204,14 +207,14 @@ seed = 5)",
     return std::string("(no error)");
   };
   const std::string e1 = load_error(replace(text, "rock.stl", "open.stl"));
-  CHECK_THAT(e1, Catch::Contains("scene.toml:" + std::to_string(line_of(text, "kind = \"stl\"")) +
-                                 ":") &&
-                     Catch::Contains("dem.shapes[0].kind") && Catch::Contains("open.stl"));
+  CHECK_THAT(
+      e1, Catch::Contains("scene.toml:" + std::to_string(line_of(text, "kind = \"stl\"")) + ":") &&
+              Catch::Contains("dem.shapes[0].kind") && Catch::Contains("open.stl"));
   // keys checked when read
-  CHECK_THAT(error_of(replace(kRocks, "dilation = 0.1", "dilation = 0.5")),
-             Catch::Contains("rocks.toml:" + std::to_string(line_of(kRocks, "dilation = 0.1")) +
-                             ":") &&
-                 Catch::Contains("dem.shapes[0].dilation") && Catch::Contains("(0, 0.5)"));
+  CHECK_THAT(
+      error_of(replace(kRocks, "dilation = 0.1", "dilation = 0.5")),
+      Catch::Contains("rocks.toml:" + std::to_string(line_of(kRocks, "dilation = 0.1")) + ":") &&
+          Catch::Contains("dem.shapes[0].dilation") && Catch::Contains("(0, 0.5)"));
   CHECK_THAT(error_of(replace(kRocks, "triangles = 10", "triangles = 11")),
              Catch::Contains("dem.shapes[0].triangles") && Catch::Contains("even"));
   CHECK_THAT(error_of(replace(kRocks, "elongation = 0.8", "elongation = 0.0")),
@@ -232,4 +235,61 @@ seed = 5)",
                        "distribution = { kind = \"gradation\", sieves = [0.02, 0.04, 0.06], "
                        "mass_fractions = [0.5, 0.4] }")),
       Catch::Contains("dem.insert[0].distribution") && Catch::Contains("sum"));
+}
+
+TEST_CASE("polyhedra are written as triangle surfaces beside the particles' points",
+          "[scene][poly][output]") {
+  // Reference: the pose. A cube (r_d 0.2 of the size) at a known position and orientation:
+  // its 12 surface triangles; each surface point at distance |R (v + r_d n_v)| s from the
+  // centre, where n_v is the vertex's mean normal (a cube corner: (1, 1, 1)/sqrt(3)); the
+  // index is a spatial collection of the points grid and a Triangle grid. Tolerance 1e-12.
+  TempDir dir;
+  DemSettings st;
+  st.dt = 1e-5;
+  st.materials = {{"rock", 1e8, 0.3, 2600.0}};
+  st.pairs = {MaterialPair{0.5, 0.5, 0.0}};
+  DemSystem sys(st);
+  PolyhedronShape cube;
+  cube.name = "cube";
+  for (int k = 0; k < 8; ++k)
+    cube.vertices.insert(cube.vertices.end(),
+                         {k & 1 ? 0.3 : -0.3, k & 2 ? 0.3 : -0.3, k & 4 ? 0.3 : -0.3});
+  const int q[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
+                       {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  for (const auto& f : q)
+    cube.triangles.insert(cube.triangles.end(), {f[0], f[1], f[2], f[0], f[2], f[3]});
+  cube.dilation = 0.2, cube.volume = 1.0, cube.inertia = {0.1, 0.1, 0.1};
+  sys.add_shape(cube);
+  ParticleInit p;
+  p.shape = ParticleShape::polyhedron;
+  p.shape_id = 0;
+  p.scale = 0.05;
+  p.position = {1.0, 2.0, 3.0};
+  p.orientation = {std::cos(0.3), std::sin(0.3), 0.0, 0.0};
+  ParticleInit s2;
+  s2.radius = 0.01;
+  s2.position = {0, 0, 0};
+  sys.add_particles(std::vector<ParticleInit>{p, s2});
+  ParticleOutput out(dir.path);
+  out.set_shapes({sys.shape(0)});
+  const std::vector<std::int64_t> ids{7, 8};
+  out.write(sys.particles(), ids, 0.0);
+  demfem::io::H5File f(out.snapshot_path(0), demfem::io::H5File::Mode::read);
+  const auto pts = f.read_doubles("surface_points");
+  REQUIRE(pts.size() == 8 * 3);
+  CHECK(f.read_int64("surface_triangles").size() == 12 * 3);
+  CHECK(f.read_int64("surface_id") == std::vector<std::int64_t>(12, 7));
+  const double expect = 0.05 * (0.3 * std::sqrt(3.0) + 0.2);
+  for (int k = 0; k < 8; ++k) {
+    const double d = std::sqrt((pts[3 * k] - 1.0) * (pts[3 * k] - 1.0) +
+                               (pts[3 * k + 1] - 2.0) * (pts[3 * k + 1] - 2.0) +
+                               (pts[3 * k + 2] - 3.0) * (pts[3 * k + 2] - 3.0));
+    CHECK(d == Approx(expect).epsilon(1e-12));
+  }
+  std::ifstream in(out.index_path());
+  std::stringstream text;
+  text << in.rdbuf();
+  CHECK_THAT(text.str(), Catch::Contains("CollectionType=\"Spatial\"") &&
+                             Catch::Contains("TopologyType=\"Triangle\" NumberOfElements=\"12\"") &&
+                             Catch::Contains("TopologyType=\"Polyvertex\" NumberOfElements=\"2\""));
 }
