@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "demfem/fem/fem_monitor.hpp"
 #include "demfem/fem/fem_output.hpp"
 #include "demfem/fem/fem_solver.hpp"
 #include "demfem/io/checkpoint_file.hpp"
@@ -55,6 +56,9 @@ class FemBackend final : public protocol::SolverBackend {
     output_->write(f);
     last_output_step_ = solver_.step_count();
   }
+
+  /// [fem.monitor]: sampled after every step, kept in checkpoints (may be null).
+  void set_monitor(FemMonitor* monitor) { monitor_ = monitor; }
 
   std::string name() const override { return "demfem-fem 0.1 (cpu)"; }
 
@@ -104,6 +108,7 @@ class FemBackend final : public protocol::SolverBackend {
     r.values[2] = solver_.strain_energy();
     r.values[3] = solver_.time();
     maybe_write_output();
+    if (monitor_) monitor_->sample(solver_, forces);
     return r;
   }
 
@@ -113,6 +118,7 @@ class FemBackend final : public protocol::SolverBackend {
     io::write_checkpoint_file(file, step, [this](io::H5File& h5) {
       h5.create_group("fem");
       solver_.save(h5, "fem");
+      if (monitor_) monitor_->save(h5, "fem_monitor");
       // The mesh the state belongs to, so that a resume with a changed mesh is refused before
       // any process starts (demfem_run).
       const auto& mesh = solver_.problem().mesh;
@@ -129,6 +135,7 @@ class FemBackend final : public protocol::SolverBackend {
   void restore_checkpoint(const std::filesystem::path& file, std::int64_t step) override {
     const io::H5File h5 = io::open_checkpoint_file(file, step);
     solver_.restore(h5, "fem");
+    if (monitor_) monitor_->restore(h5, "fem_monitor", solver_.time());
     if (h5.exists("fem_output_schedule")) {
       const auto sched = h5.read_int64("fem_output_schedule");
       const auto dt = h5.read_doubles("fem_output_step");
@@ -168,6 +175,7 @@ class FemBackend final : public protocol::SolverBackend {
 
   FemSolver& solver_;
   FemOutput* output_;
+  FemMonitor* monitor_ = nullptr;
   io::OutputSchedule schedule_;
   double step_dt_ = 0.0;                ///< dt of the dynamic steps (the coupling step), s
   std::int64_t last_output_step_ = -1;  ///< solver step count of the last output
