@@ -89,6 +89,9 @@ void validate(const DemSettings& s) {
       bad(where + ".friction = " + std::to_string(p.friction) + " must be >= 0");
     if (!(p.rolling_friction >= 0.0) || !std::isfinite(p.rolling_friction))
       bad(where + ".rolling_friction = " + std::to_string(p.rolling_friction) + " must be >= 0");
+    if (!(p.rocking_damping >= 0.0 && p.rocking_damping <= 10.0))
+      bad(where + ".rocking_damping = " + std::to_string(p.rocking_damping) +
+          " must be in [0, 10]");
   }
   if (!(s.list_skin >= 0.0 && s.list_skin <= 1.0))
     bad("settings.list_skin = " + std::to_string(s.list_skin) +
@@ -423,7 +426,8 @@ struct DemSystem::Impl {
         const auto& p = s.pairs[a * nmat + b];
         pc[a * nmat + b] =
             phys::pair_constants(ma.youngs_modulus, ma.poisson_ratio, mb.youngs_modulus,
-                                 mb.poisson_ratio, p.restitution, p.friction, p.rolling_friction);
+                                 mb.poisson_ratio, p.restitution, p.friction, p.rolling_friction,
+                                 p.rocking_damping);
         friction = friction || p.friction > 0.0 || p.rolling_friction > 0.0;
         rolling = rolling || p.rolling_friction > 0.0;
       }

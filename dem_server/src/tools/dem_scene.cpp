@@ -223,6 +223,7 @@ DemScene read_dem_scene(const Table& dem) {
     mp.friction = p.number("friction", Range::non_negative());
     mp.restitution = p.number("restitution", Range::open_closed(0.0, 1.0));
     mp.rolling_friction = p.number("rolling_friction", 0.0, Range::non_negative());
+    mp.rocking_damping = p.number("rocking_damping", 1.0, Range::closed(0.0, 10.0));
     p.finish();
     st.pairs[std::size_t(a) * n + std::size_t(b)] = mp;
     st.pairs[std::size_t(b) * n + std::size_t(a)] = mp;

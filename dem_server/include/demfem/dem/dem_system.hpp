@@ -34,6 +34,9 @@ struct MaterialPair {
   double friction = 0.0;          ///< Coulomb sliding friction coefficient
   double restitution = 0.5;       ///< coefficient of restitution, (0, 1]
   double rolling_friction = 0.0;  ///< rolling resistance coefficient (0 = off)
+  /// Polyhedra: damping of a face contact's rocking as a ratio to critical (docs/polyhedra.md;
+  /// 0 = off). Only with restitution < 1 (no dashpot, no rocking damping).
+  double rocking_damping = 1.0;
 };
 
 /// @brief Global settings of a DEM system.

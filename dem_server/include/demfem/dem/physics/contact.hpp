@@ -36,11 +36,15 @@ struct PairConstants {
   double friction;  ///< μ
   double rolling;   ///< μ_r (0 = off)
   double t_over_n;  ///< sqrt(S_t / S_n) = sqrt(4 G* / E*): γ_t = γ_n sqrt(S_t / S_n)
+  /// ζ_r: damping of a polyhedron face contact's rocking mode as a ratio to critical
+  /// (poly_contact.hpp, dilated_law; 0 = off; spheres and point contacts ignore it).
+  double rocking;
 };
 
 /// E*, G*, β of a pair from the two materials and the restitution coefficient e ∈ (0, 1].
 inline PairConstants pair_constants(double e1, double nu1, double e2, double nu2,
-                                    double restitution, double friction, double rolling) {
+                                    double restitution, double friction, double rolling,
+                                    double rocking = 1.0) {
   PairConstants c{};
   c.e_star = 1.0 / ((1.0 - nu1 * nu1) / e1 + (1.0 - nu2 * nu2) / e2);
   // 1/G* = (2 - ν1)/G1 + (2 - ν2)/G2 with G = E / (2(1 + ν)) (Mindlin; the form used by
@@ -56,6 +60,7 @@ inline PairConstants pair_constants(double e1, double nu1, double e2, double nu2
   c.friction = friction;
   c.rolling = rolling;
   c.t_over_n = std::sqrt(4.0 * c.g_star / c.e_star);
+  c.rocking = rocking;
   return c;
 }
 

@@ -176,7 +176,7 @@ DEMFEM_HD DilatedResult dilated_law(const PairConstants& pc, Vec3 n, double delt
         ir = ir * ij / (ir + ij);
       }
       const double kr = r.sn * jm / W;
-      const double cr = 2.0 * std::sqrt(kr * ir);
+      const double cr = 2.0 * pc.rocking * std::sqrt(kr * ir);
       const Vec3 a = cross(wrel, n);
       const Vec3 sa{sxx * a.x + sxy * a.y + sxz * a.z, sxy * a.x + syy * a.y + syz * a.z,
                     sxz * a.x + syz * a.y + szz * a.z};
