@@ -5,9 +5,9 @@
 //
 // The bed: rocks of a shape library (50 random rocks, elongation 0.8, flatness 0.8, r_d 0.1
 // of the sieve size) with sieve sizes from the thesis's ballast distribution (normal, mean
-// 40 mm, sd 10 mm, in [20, 80] mm), inserted at random without overlap of their bounding
-// spheres (solid fraction of the bounding spheres 0.18) in a box of triangle-mesh walls
-// (floor + 4 sides, open top), fallen and settled under gravity (restitution 0.1) until the
+// 40 mm, sd 10 mm, in [20, 80] mm), packed by their bounding spheres (make_bed) in a box of
+// triangle-mesh walls (floor + 4 sides, open top), fallen and settled under gravity
+// (restitution 0.1) until the
 // kinetic energy is below --settle-ke N m g d of the mean rock; saved (cached in --cache)
 // and restored into one system per backend and thread count. The sphere bed is made and
 // settled the same way with spheres whose diameters are drawn from the same distribution.
@@ -24,6 +24,7 @@
 #include <ctime>
 #include <filesystem>
 
+#include "ballast_bed.hpp"
 #include "bench_report.hpp"
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/dem/insertion.hpp"
@@ -31,6 +32,8 @@
 #include "demfem/io/h5_file.hpp"
 
 using namespace demfem::dem;
+using demfem::bench::Bed;
+using demfem::bench::make_bed;
 
 namespace {
 
@@ -45,63 +48,6 @@ DemSettings settings(int threads, const std::string& backend, double restitution
   s.threads = threads;
   s.backend = backend;
   return s;
-}
-
-WallMesh quad(std::array<double, 3> a, std::array<double, 3> b, std::array<double, 3> c,
-              std::array<double, 3> d, const std::string& name) {
-  WallMesh w;
-  w.name = name;
-  w.material = 1;
-  for (const auto& p : {a, b, c, d}) w.vertices.insert(w.vertices.end(), p.begin(), p.end());
-  w.triangles = {0, 1, 2, 0, 2, 3};
-  return w;
-}
-
-std::vector<WallMesh> box_walls(double lx, double ly, double h) {
-  return {quad({0, 0, 0}, {lx, 0, 0}, {lx, ly, 0}, {0, ly, 0}, "floor"),
-          quad({0, 0, 0}, {0, ly, 0}, {0, ly, h}, {0, 0, h}, "x0"),
-          quad({lx, 0, 0}, {lx, 0, h}, {lx, ly, h}, {lx, ly, 0}, "x1"),
-          quad({0, 0, 0}, {0, 0, h}, {lx, 0, h}, {lx, 0, 0}, "y0"),
-          quad({0, ly, 0}, {lx, ly, 0}, {lx, ly, h}, {0, ly, h}, "y1")};
-}
-
-struct Bed {
-  std::vector<ParticleInit> particles;
-  std::vector<WallMesh> walls;
-  double lx = 0, ly = 0;
-};
-
-const SizeDistribution kSizes = SizeDistribution::normal(0.04, 0.01, 0.02, 0.08);
-
-// Rocks (library given) or spheres (library null): random insertion over a footprint of
-// about twice the settled height.
-Bed make_bed(std::size_t n, const shapes::ShapeLibrary* lib, std::int32_t shape_base) {
-  Bed bed;
-  const double d = 0.042;  // about the mean size
-  const auto side = static_cast<std::size_t>(std::ceil(std::cbrt(2.0 * static_cast<double>(n))));
-  const double lx = static_cast<double>(side) * d * 1.1 + 0.1, ly = lx;
-  RandomInsertion q;
-  q.sizes = kSizes;
-  q.count = static_cast<std::int64_t>(n);
-  q.density = kRho;
-  q.seed = 11;
-  q.library = lib;
-  q.shape_base = shape_base;
-  double b3 = 0.125;
-  if (lib) {
-    b3 = 0.0;
-    for (std::size_t k = 0; k < lib->size(); ++k)
-      b3 += std::pow(lib->unit(k).bounding_radius, 3) / static_cast<double>(lib->size());
-  }
-  const double bounding =
-      static_cast<double>(n) * 4.0 / 3.0 * 3.14159265358979 * b3 * kSizes.mean_cube();
-  const double hz = bounding / (0.18 * lx * ly);
-  q.region = Box{{0, 0, 0}, {lx, ly, hz}};
-  q.max_attempts = 100000;
-  bed.particles = insert_random(q);
-  bed.lx = lx, bed.ly = ly;
-  bed.walls = box_walls(lx, ly, hz + 0.2);
-  return bed;
 }
 
 struct Result {
@@ -242,7 +188,7 @@ int main(int argc, char** argv) {
       }
       const Bed bed = make_bed(n, lib.get(), 0);
       char key[160];
-      std::snprintf(key, sizeof key, "poly_bed_%zu_%s_%.3g_%.3g_%.3g_v1.h5", n,
+      std::snprintf(key, sizeof key, "poly_bed_%zu_%s_%.3g_%.3g_%.3g_v2.h5", n,
                     rock ? std::to_string(std::stoi(kind)).c_str() : "spheres", settle_min,
                     settle_max, settle_ke);
       const auto state = cache ? std::filesystem::path(cache_dir) / key : tmp / key;
