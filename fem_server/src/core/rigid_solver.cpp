@@ -81,8 +81,9 @@ struct RigidSolver::Impl {
     for (std::size_t k = 0; k < f_timed6.size(); ++k) {
       const double a = amplitudes[k](t);
       if (!std::isfinite(a))
-        throw std::runtime_error("FEM (rigid): a load amplitude returned a non-finite value at t = " +
-                                 std::to_string(t));
+        throw std::runtime_error(
+            "FEM (rigid): a load amplitude returned a non-finite value at t = " +
+            std::to_string(t));
       f += a * f_timed6[k];
     }
     f += map_iface.transpose() *
@@ -94,9 +95,9 @@ struct RigidSolver::Impl {
     const std::size_t nn = problem.mesh.nodes.size();
     std::vector<double> out(3 * nn);
     for (std::size_t n = 0; n < nn; ++n) {
-      const Vector3d r = Vector3d(problem.mesh.nodes[n][0], problem.mesh.nodes[n][1],
-                                  problem.mesh.nodes[n][2]) -
-                         r0;
+      const Vector3d r =
+          Vector3d(problem.mesh.nodes[n][0], problem.mesh.nodes[n][1], problem.mesh.nodes[n][2]) -
+          r0;
       const Vector3d u = point_map(r) * s6;
       for (int c = 0; c < 3; ++c) out[3 * n + static_cast<std::size_t>(c)] = u(c);
     }
@@ -132,8 +133,9 @@ RigidSolver::RigidSolver(FemProblem problem, RigidSettings settings) {
   const MatrixXd m0 = g0.transpose() * (m_full * g0);
   s.total_mass = m0(0, 0);
   if (!(s.total_mass > 0.0))
-    throw FemModelError("FEM (rigid): the body has no mass: give its materials a density (> 0 "
-                        "kg/m^3)");
+    throw FemModelError(
+        "FEM (rigid): the body has no mass: give its materials a density (> 0 "
+        "kg/m^3)");
   // Static moment: m0(0:3, 3:6) = -m skew(com).
   const Matrix3d sm = -m0.block<3, 3>(0, 3) / s.total_mass;
   s.com = Vector3d(sm(2, 1), sm(0, 2), sm(1, 0));
@@ -177,8 +179,9 @@ RigidSolver::RigidSolver(FemProblem problem, RigidSettings settings) {
   for (int i = 0; i < 6; ++i)
     if (!s.settings.fixed[static_cast<std::size_t>(i)]) s.free.push_back(i);
   if (s.free.empty())
-    throw FemModelError("FEM (rigid): every DOF of the body is fixed (fem.rigid.fixed): nothing "
-                        "can move");
+    throw FemModelError(
+        "FEM (rigid): every DOF of the body is fixed (fem.rigid.fixed): nothing "
+        "can move");
   s.bossak = std::make_unique<ReducedBossak>(s.restrict_matrix(s.m6), s.restrict_matrix(s.k6),
                                              s.restrict_matrix(s.c6), p.damping, p.bossak);
   s.x.resize(s.nfree());
@@ -256,8 +259,8 @@ void RigidSolver::advance(double dt) {
   s.time += dt;
   ++s.step;
   if (!s.x.u.allFinite())
-    throw FemModelError("FEM (rigid): the motion became non-finite at t = " + std::to_string(s.time) +
-                        " s");
+    throw FemModelError(
+        "FEM (rigid): the motion became non-finite at t = " + std::to_string(s.time) + " s");
 }
 
 std::array<double, 6> RigidSolver::coordinates() const {
@@ -346,7 +349,8 @@ void RigidSolver::restore(const io::H5File& file, const std::string& group) {
                              "fem.rigid.reference_point changed");
   auto read6 = [&](const std::string& name) {
     const auto d = file.read_doubles(g + "/" + name);
-    if (d.size() != 6) throw std::runtime_error("RigidSolver::restore: " + where + "/" + name + " is malformed");
+    if (d.size() != 6)
+      throw std::runtime_error("RigidSolver::restore: " + where + "/" + name + " is malformed");
     for (double v : d)
       if (!std::isfinite(v))
         throw std::runtime_error("RigidSolver::restore: " + where + "/" + name +

@@ -16,8 +16,8 @@ namespace {
 // A steel block 1.0 x 0.2 x 0.1 m, 10 x 2 x 1 hex8, with the beam's clamps (which the rigid
 // body does not use).
 FemProblem block(MassLumping mass = MassLumping::consistent) {
-  auto p = test::make_problem(box_mesh_hex({0, 0, 0}, {1.0, 0.2, 0.1}, {10, 2, 1}), 210e9, 0.3,
-                              7800);
+  auto p =
+      test::make_problem(box_mesh_hex({0, 0, 0}, {1.0, 0.2, 0.1}, {10, 2, 1}), 210e9, 0.3, 7800);
   test::clamp(p, "xmin");
   p.mass = mass;
   return p;
@@ -81,7 +81,8 @@ TEST_CASE("rigid body on springs: statics, the oscillation and a tilt against th
     std::size_t at = 0;
     for (std::size_t i = 0; i < r.interface_mesh().node_count(); ++i) {
       const double* x = &r.interface_mesh().reference_positions[3 * i];
-      if (std::abs(x[0] - 0.8) < 1e-9 && std::abs(x[1] - 0.1) < 1e-9 && std::abs(x[2] - 0.1) < 1e-9) at = i;
+      if (std::abs(x[0] - 0.8) < 1e-9 && std::abs(x[1] - 0.1) < 1e-9 && std::abs(x[2] - 0.1) < 1e-9)
+        at = i;
     }
     f[3 * at + 2] = -1000.0;
     r.set_interface_forces(f);

@@ -38,8 +38,10 @@ namespace demfem::fem {
 
 /// @brief [fem.modal] of a scene: the modal analysis and the modal-reduced backend.
 struct ModalSettings {
-  int modes = 20;                 ///< N
-  double shift_frequency = 0.0;   ///< Hz: modes nearest it (analysis only; the backend uses 0)
+  int modes = 20;  ///< N
+  /// sigma, rad^2/s^2: the analysis finds the modes nearest it (negative for a structure that
+  /// can move freely); the backend always uses the lowest modes (sigma = 0)
+  double shift = 0.0;
   bool static_correction = true;  ///< the residual-flexibility term R L g
   SolverBackend backend = SolverBackend::automatic;
 };

@@ -55,7 +55,7 @@ class RigidSolver {
 
   const FemProblem& problem() const;
   const InterfaceMesh& interface_mesh() const;
-  double mass() const;                                ///< kg
+  double mass() const;                           ///< kg
   std::array<double, 3> centre_of_mass() const;  ///< m
   /// 3 x 3 inertia tensor about the centre of mass, kg m^2 (row-major).
   std::array<double, 9> inertia() const;
