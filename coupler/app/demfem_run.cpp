@@ -604,7 +604,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
         }
         fem_proc = std::make_unique<SolverProcess>("FEM solver", external->program, ext_args);
         fem_proc->set_working_directory(external->working_directory);
-        fem_program = "the external FEM backend '" + external->text + "'";
+        fem_program = "external FEM backend '" + external->text + "'";
         fem_pid = fem_proc->start();
         std::printf("demfem run: started the external FEM backend %s (pid %d)\n",
                     external->text.c_str(), static_cast<int>(*fem_pid));
@@ -622,8 +622,8 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
       std::fflush(stdout);
       auto remote_link = std::make_unique<RemoteLink>(*session, dem_pid, fem_pid);
       if (fem_pid) {
-        remote_link->describe(protocol::Role::fem,
-                              fem_program + " (pid " + std::to_string(*fem_pid) + ")");
+        remote_link->describe(protocol::Role::fem, (external ? "the " : "") + fem_program +
+                                                       " (pid " + std::to_string(*fem_pid) + ")");
         // The interface the FEM must report: the checkpoint's when resuming, else the scene's
         // for demfem's own backends (an external program's is its own).
         if (resume_nodes) {
@@ -656,7 +656,18 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
                     static_cast<int>(pid));
         std::fflush(stdout);
         session->wait_hello(role, pid);
-        session->reattach(role);
+        try {
+          session->reattach(role);
+        } catch (const protocol::PeerDied&) {
+          throw;
+        } catch (const protocol::ProtocolError& e) {
+          // A restarted process that is not the structure that was running (another interface
+          // size): named, and not restarted again.
+          throw HandshakeFailed(
+              role, "the restarted " +
+                        (role == protocol::Role::dem ? std::string("dem_server") : fem_program) +
+                        " (pid " + std::to_string(pid) + ") was refused: " + e.what());
+        }
       };
       if (debug_kill) {
         control.after_send = [&](protocol::Role role, std::int64_t step) {
