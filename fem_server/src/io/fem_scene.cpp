@@ -521,11 +521,10 @@ FemScene read_fem_scene(const Table& fem) {
     s.command = fem.strings("command");
     if (s.command.front().empty())
       fem.fail("command", "names no program (its first entry is empty)");
-  } else if (fem.has("command")) {
-    fem.fail("command",
-             "starts an outside FEM program and is only used with fem.backend = "
-             "\"external\" (fem.backend is \"" +
-                 backend + "\")");
+  } else {
+    // Kept for when the scene runs with fem.backend = "external" (demfem run --fem-backend
+    // chooses per run); unused by demfem's own backends.
+    fem.skip("command");
   }
   fem.skip("external");  // the outside program's own keys
   s.dt = fem.number("dt", 0.0, Range::open_closed(0.0, 1e6));
