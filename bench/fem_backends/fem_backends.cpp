@@ -4,8 +4,9 @@
 // just-in-time coupling, 50 steps of 0.1 ms) run in process with the full FEM and with the
 // modal backend for several mode counts N: the largest difference of the interface
 // displacement over all nodes and steps, relative to the largest interface displacement.
-// Part 2, cost: one FEM step (interface forces in, interface kinematics out) of FemSolver and
-// ModalSolver on beams of growing mesh, median of repeated steps, and the set-up times.
+// Part 2, cost: one FEM step (interface forces in, interface kinematics out) of FemSolver,
+// ModalSolver and RigidSolver (the beam on four corner springs) on beams of growing mesh,
+// median of repeated steps, and the set-up times.
 //
 //   fem_backends [--json FILE] [--modes 5,10,20,40] [--max-cells 80]
 #include <algorithm>
@@ -16,11 +17,11 @@
 #include <sstream>
 
 #include "bench_report.hpp"
-#include "demfem/coupling/coupling_run.hpp"
-#include "demfem/coupling/local_solvers.hpp"
 #include "demfem/fem/fem_solver.hpp"
 #include "demfem/fem/mesher.hpp"
 #include "demfem/fem/modal_solver.hpp"
+#include "demfem/fem/rigid_solver.hpp"
+#include "demfem_test/coupled_history.hpp"
 
 using namespace demfem;
 using Clock = std::chrono::steady_clock;
@@ -29,39 +30,6 @@ namespace {
 
 double seconds(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double>(b - a).count();
-}
-
-struct History {
-  std::vector<std::vector<double>> u;  // interface displacement per step
-  double fem_wall = 0.0;
-  std::int64_t steps = 0;
-};
-
-History coupled(const std::string& scene, const std::vector<std::string>& sets,
-                const std::filesystem::path& out) {
-  std::vector<scene::Override> overrides;
-  for (const auto& s : sets) overrides.push_back(scene::Override::parse(s));
-  const auto doc = scene::Document::load(scene, overrides);
-  const auto settings = coupling::read_coupling_settings(doc);
-  coupling::LocalLink link(coupling::make_local_dem(doc, settings, out),
-                           coupling::make_local_fem(doc, settings, out));
-  coupling::CouplingRun run(link, settings, out);
-  History h;
-  std::vector<double> ref;
-  run.set_observer([&](const coupling::StepDiagnostics&, const coupling::CouplingSettings&) {
-    const auto x = link.buffers().positions(0);
-    if (ref.empty()) {
-      const auto m = link.buffers().reference_mesh();
-      ref = m.reference_positions;
-    }
-    std::vector<double> u(x.size());
-    for (std::size_t k = 0; k < u.size(); ++k) u[k] = x[k] - ref[k];
-    h.u.push_back(std::move(u));
-  });
-  const auto sum = run.run();
-  h.fem_wall = sum.wall_fem;
-  h.steps = sum.steps;
-  return h;
 }
 
 fem::FemProblem beam(int nx) {
@@ -76,6 +44,15 @@ fem::FemProblem beam(int nx) {
   p.bossak = {-0.3, 0.4225, 0.8};
   p.damping.stiffness_factor = 1e-4;
   return p;
+}
+
+/// The beam as a rigid body on four vertical corner springs (tests/system/test_fem_backends.cpp).
+fem::RigidSettings corner_springs() {
+  fem::RigidSettings r;
+  r.fixed = {true, true, false, false, false, true};  // x, y, rz held
+  for (const auto& p : {std::array<double, 3>{0, 0, 0}, {1, 0, 0}, {0, 0.1, 0}, {1, 0.1, 0}})
+    r.springs.push_back({p, {0, 0, 1e8}, {}});
+  return r;
 }
 
 /// Median wall time of one coupling step of `solver` (set the forces, advance, read the
@@ -117,20 +94,20 @@ int main(int argc, char** argv) {
 
   bench::Report acc("fem_backends: modal backend on the coupled dynamic beam (beam_dynamic_ci)",
                     {"backend", "modes", "max |du| (m)", "relative", "final rel.", "FEM s/step"});
-  const History full = coupled(scene, {}, tmp / "full");
+  const auto full = test::coupled_history(scene, {}, tmp / "full");
   double umax = 0.0;
   for (const auto& u : full.u)
     for (double x : u) umax = std::max(umax, std::abs(x));
-  acc.add_row(
-      {std::string("fem"), 0LL, 0.0, 0.0, 0.0, full.fem_wall / static_cast<double>(full.steps)});
+  acc.add_row({std::string("fem"), 0LL, 0.0, 0.0, 0.0,
+               full.summary.wall_fem / static_cast<double>(full.summary.steps)});
   for (int n : modes) {
     for (bool correction : {true, false}) {
-      const History m =
-          coupled(scene,
-                  {"fem.backend=\"modal\"",
-                   "fem.modal={ modes = " + std::to_string(n) +
-                       ", static_correction = " + (correction ? "true" : "false") + " }"},
-                  tmp / ("modal" + std::to_string(n)));
+      const auto m = test::coupled_history(
+          scene,
+          {"fem.backend=\"modal\"", "fem.modal={ modes = " + std::to_string(n) +
+                                        ", static_correction = " + (correction ? "true" : "false") +
+                                        " }"},
+          tmp / ("modal" + std::to_string(n)));
       double d = 0.0, dend = 0.0, uend = 0.0;
       for (std::size_t s = 0; s < std::min(m.u.size(), full.u.size()); ++s)
         for (std::size_t k = 0; k < m.u[s].size(); ++k)
@@ -141,16 +118,17 @@ int main(int argc, char** argv) {
       }
       acc.add_row({std::string(correction ? "modal + static correction" : "modal, truncated"),
                    static_cast<long long>(n), d, d / umax, dend / uend,
-                   m.fem_wall / static_cast<double>(m.steps)});
+                   m.summary.wall_fem / static_cast<double>(m.summary.steps)});
     }
   }
   acc.set_info("largest interface displacement of the full FEM (m)", umax);
-  acc.set_info("steps", static_cast<long long>(full.steps));
+  acc.set_info("steps", static_cast<long long>(full.summary.steps));
   acc.print();
 
-  bench::Report cost("fem_backends: one FEM coupling step, full FEM vs modal (20 modes)",
-                     {"cells", "free DOF", "interface nodes", "fem setup s", "fem step ms",
-                      "modal setup s", "modal step ms", "speed-up"});
+  bench::Report cost(
+      "fem_backends: one FEM coupling step, full FEM vs modal (20 modes) vs rigid body",
+      {"cells", "free DOF", "interface nodes", "fem setup s", "fem step ms", "modal setup s",
+       "modal step ms", "modal speed-up", "rigid setup s", "rigid step ms", "rigid speed-up"});
   for (int nx = 20; nx <= max_cells; nx *= 2) {
     const auto t0 = Clock::now();
     fem::FemSolver f(beam(nx));
@@ -165,11 +143,16 @@ int main(int argc, char** argv) {
     fem::ModalSolver m(beam(nx), ms);
     const double modal_setup = seconds(t1, Clock::now());
     const double modal_step = step_time(m, 201);
+    const auto t2 = Clock::now();
+    fem::RigidSolver r(beam(nx), corner_springs());
+    const double rigid_setup = seconds(t2, Clock::now());
+    const double rigid_step = step_time(r, 201);
     cost.add_row(
         {std::to_string(nx) + "x" + std::to_string(nx / 10) + "x" + std::to_string(nx / 10),
          static_cast<long long>(f.free_dof_count()),
          static_cast<long long>(f.interface_mesh().node_count()), fem_setup, 1e3 * fem_step,
-         modal_setup, 1e3 * modal_step, fem_step / modal_step});
+         modal_setup, 1e3 * modal_step, fem_step / modal_step, rigid_setup, 1e3 * rigid_step,
+         fem_step / rigid_step});
   }
   cost.set_info("machine", bench::machine_description());
   cost.set_info("commit", bench::git_commit());

@@ -481,6 +481,19 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     } catch (const std::exception&) {
       // unreadable coupler.h5: the restore names the file and the reason
     }
+    // demfem's own backends: the scene's interface must be the checkpoint's, checked before
+    // any process starts (an external code's is checked when it says Hello).
+    if (resume_nodes && sections.fem_interface_nodes > 0 && !external &&
+        static_cast<std::size_t>(*resume_nodes) != sections.fem_interface_nodes) {
+      std::fprintf(stderr,
+                   "demfem run: --resume: checkpoint %s cannot be resumed: the checkpoint's "
+                   "interface has %lld nodes, this scene's %zu (the FEM mesh or "
+                   "fem.interface_surface changed): its state cannot be continued with this "
+                   "scene\n",
+                   control.resume_from->c_str(), static_cast<long long>(*resume_nodes),
+                   sections.fem_interface_nodes);
+      return kExitUsage;
+    }
     record.resumed_from = fs::absolute(*control.resume_from).string();
     const std::string folder = control.resume_from->filename().string();
     if (folder.rfind("step-", 0) == 0) record.resumed_step = std::atoll(folder.c_str() + 5);
@@ -752,7 +765,9 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
       failed(128 + SignalGuard::signal_number(), "stopped by signal " +
                                                      std::to_string(SignalGuard::signal_number()) +
                                                      " (" + e.what() + ")");
-    } else if (p && p->running()) {
+    } else if (p && !p->wait_for(std::chrono::milliseconds(1000)) && p->running()) {
+      // (A process seen gone may not be reapable for a moment: the wait tells a death from
+      // a hang.)
       p->signal(SIGKILL);
       const int c = p->stop(std::chrono::milliseconds(1000));
       char limit[32];

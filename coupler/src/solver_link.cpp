@@ -126,8 +126,9 @@ InterfaceMesh RemoteLink::start() {
     return session_.exchange_mesh();
   } catch (const protocol::PeerDied&) {
     throw;
-  } catch (const protocol::VersionMismatch&) {
-    throw;
+  } catch (const protocol::VersionMismatch& e) {
+    // Built against another demfem: named, so that the user knows which program to rebuild.
+    throw handshake_failure(e, "was refused");
   } catch (const InterfaceMismatch&) {
     throw;
   } catch (const protocol::SolverError& e) {

@@ -9,6 +9,8 @@ the minimal Python backend examples/python_spring_plate/spring_plate.py (fem.bac
                 refused with a message naming the program and pid
   interface     a backend that reports another interface size when resumed or restarted is
                 refused (exit 2 on --resume, 1 on a restart), naming it
+  version       a backend that speaks another protocol version is refused, naming the program,
+                its pid and both versions
 
 Usage: test_python_sdk.py CASE DEMFEM_RUN SOURCE_DIR. Nothing may be left in /dev/shm.
 """
@@ -118,8 +120,28 @@ def case_interface(demfem_run, source, d):
           "restart: the refusal does not name the backend and the size")
 
 
+def case_version(demfem_run, source, d):
+    scene = os.path.join(source, "examples/python_spring_plate/static_ci.toml")
+    other = os.path.join(source, "tests/protocol/python/other_version_backend.py")
+    r = run(demfem_run, scene, os.path.join(d, "v"), "--set",
+            f'fem.command=["{{python}}", "{other}"]', env=ENV)
+    line = [m for m in r.stderr.splitlines() if "protocol version mismatch" in m
+            and "external FEM backend" in m]
+    print(f"version: exit {r.returncode}: {line[-1][:300] if line else r.stderr[-600:]}")
+    check(r.returncode == 1, f"another protocol version: exit {r.returncode}, expected 1")
+    check(bool(line), "the refusal does not name the external FEM backend")
+    if line:
+        check("other_version_backend.py" in line[-1], "the program is not named")
+        check(re.search(r"pid [0-9]+", line[-1]) is not None, "the pid is not named")
+        check("speaks protocol version 999" in line[-1], "the backend's version is not named")
+    check("refusing to attach" in r.stderr, "the backend's own refusal is lost")
+    check(not os.path.exists(os.path.join(d, "v", "coupling.csv")) or
+          len(open(os.path.join(d, "v", "coupling.csv")).read().splitlines()) <= 1,
+          "the refused run wrote coupling steps")
+
+
 CASES = {"static": case_static, "restart": case_restart, "handshake": case_handshake,
-         "interface": case_interface}
+         "interface": case_interface, "version": case_version}
 ENV = None
 
 

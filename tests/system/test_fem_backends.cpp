@@ -11,9 +11,8 @@
 #include <cstdio>
 #include <regex>
 
-#include "demfem/coupling/coupling_run.hpp"
-#include "demfem/coupling/local_solvers.hpp"
 #include "demfem/io/h5_file.hpp"
+#include "demfem_test/coupled_history.hpp"
 #include "demfem_test/launch.hpp"
 #include "demfem_test/run_output.hpp"
 #include "demfem_test/temp_dir.hpp"
@@ -25,29 +24,6 @@ namespace {
 
 const std::string kSource = DEMFEM_SOURCE_DIR;
 const std::string kRun = std::string(DEMFEM_BINARY_DIR) + "/bin/demfem_run";
-
-/// Interface displacement after every coupling step of an in-process run of `scene`.
-std::vector<std::vector<double>> interface_history(const std::string& scene,
-                                                   const std::vector<std::string>& sets,
-                                                   const fs::path& out) {
-  std::vector<scene::Override> overrides;
-  for (const auto& s : sets) overrides.push_back(scene::Override::parse(s));
-  const auto doc = scene::Document::load(scene, overrides);
-  const auto settings = coupling::read_coupling_settings(doc);
-  coupling::LocalLink link(coupling::make_local_dem(doc, settings, out),
-                           coupling::make_local_fem(doc, settings, out));
-  coupling::CouplingRun run(link, settings, out);
-  std::vector<std::vector<double>> h;
-  run.set_observer([&](const coupling::StepDiagnostics&, const coupling::CouplingSettings&) {
-    const auto x = link.buffers().positions(0);
-    const auto ref = link.buffers().reference_mesh().reference_positions;
-    std::vector<double> u(x.size());
-    for (std::size_t k = 0; k < u.size(); ++k) u[k] = x[k] - ref[k];
-    h.push_back(std::move(u));
-  });
-  run.run();
-  return h;
-}
 
 double max_abs(const std::vector<double>& v) {
   double m = 0;
@@ -76,9 +52,11 @@ TEST_CASE(
     "[backends]") {
   test::TempDir dir("modal_accuracy");
   const std::string scene = kSource + "/cases/beam_dynamic_ci.toml";
-  const auto full = interface_history(scene, {}, dir.path / "full");
-  const auto modal = interface_history(scene, {"fem.backend=\"modal\"", "fem.modal={ modes = 10 }"},
-                                       dir.path / "modal");
+  const auto full = test::coupled_history(scene, {}, dir.path / "full").u;
+  const auto modal =
+      test::coupled_history(scene, {"fem.backend=\"modal\"", "fem.modal={ modes = 10 }"},
+                            dir.path / "modal")
+          .u;
   REQUIRE(full.size() == 50);
   REQUIRE(modal.size() == full.size());
   double d = 0, u = 0;

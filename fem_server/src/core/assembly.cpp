@@ -566,4 +566,16 @@ SparseMatrix interface_load_matrix(const DofMap& dofs, const InterfaceMap& iface
   return b;
 }
 
+void check_interface_forces(std::span<const double> forces, std::size_t expected, const char* who) {
+  if (forces.size() != expected)
+    throw std::invalid_argument(std::string(who) + "::set_interface_forces: got " +
+                                std::to_string(forces.size()) + " values, expected " +
+                                std::to_string(expected) + " (3 per interface node)");
+  for (std::size_t i = 0; i < forces.size(); ++i)
+    if (!std::isfinite(forces[i]))
+      throw std::invalid_argument(std::string(who) +
+                                  "::set_interface_forces: non-finite force at entry " +
+                                  std::to_string(i));
+}
+
 }  // namespace demfem::fem

@@ -419,14 +419,7 @@ std::int64_t FemSolver::step_count() const {
 
 void FemSolver::set_interface_forces(std::span<const double> forces) {
   Impl& s = *impl_;
-  if (forces.size() != s.iface_forces.size())
-    throw std::invalid_argument("FemSolver::set_interface_forces: got " +
-                                std::to_string(forces.size()) + " values, expected " +
-                                std::to_string(s.iface_forces.size()) + " (3 per interface node)");
-  for (std::size_t i = 0; i < forces.size(); ++i)
-    if (!std::isfinite(forces[i]))
-      throw std::invalid_argument("FemSolver::set_interface_forces: non-finite force at entry " +
-                                  std::to_string(i));
+  check_interface_forces(forces, s.iface_forces.size(), "FemSolver");
   std::copy(forces.begin(), forces.end(), s.iface_forces.begin());
   // The initial acceleration depends on the load; recompute it before the first step.
   if (s.step == 0) s.accel_ready = false;

@@ -378,14 +378,7 @@ const std::string& ModalSolver::restore_report() const {
 
 void ModalSolver::set_interface_forces(std::span<const double> forces) {
   Impl& s = *impl_;
-  if (forces.size() != s.forces.size())
-    throw std::invalid_argument("ModalSolver::set_interface_forces: got " +
-                                std::to_string(forces.size()) + " values, expected " +
-                                std::to_string(s.forces.size()) + " (3 per interface node)");
-  for (std::size_t i = 0; i < forces.size(); ++i)
-    if (!std::isfinite(forces[i]))
-      throw std::invalid_argument("ModalSolver::set_interface_forces: non-finite force at entry " +
-                                  std::to_string(i));
+  check_interface_forces(forces, s.forces.size(), "ModalSolver");
   std::copy(forces.begin(), forces.end(), s.forces.begin());
   // As FemSolver: the initial acceleration depends on the first load.
   if (s.step == 0) s.accel_ready = false;

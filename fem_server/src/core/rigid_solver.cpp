@@ -222,14 +222,7 @@ std::int64_t RigidSolver::step_count() const {
 
 void RigidSolver::set_interface_forces(std::span<const double> forces) {
   Impl& s = *impl_;
-  if (forces.size() != s.forces.size())
-    throw std::invalid_argument("RigidSolver::set_interface_forces: got " +
-                                std::to_string(forces.size()) + " values, expected " +
-                                std::to_string(s.forces.size()) + " (3 per interface node)");
-  for (std::size_t i = 0; i < forces.size(); ++i)
-    if (!std::isfinite(forces[i]))
-      throw std::invalid_argument("RigidSolver::set_interface_forces: non-finite force at entry " +
-                                  std::to_string(i));
+  check_interface_forces(forces, s.forces.size(), "RigidSolver");
   std::copy(forces.begin(), forces.end(), s.forces.begin());
   if (s.step == 0) s.accel_ready = false;
 }

@@ -4,6 +4,7 @@
 // on these; tests (eigenfrequencies) and benchmarks use them directly.
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include <Eigen/Dense>
@@ -79,5 +80,9 @@ InterfaceMap build_interface(const FemProblem& problem);
 /// (offset x force) on the mid-surface node. Its transpose maps free-DOF displacements to the
 /// interface node displacements (x = x_mid + u + theta x offset), by virtual work.
 SparseMatrix interface_load_matrix(const DofMap& dofs, const InterfaceMap& iface);
+
+/// @brief Checks interface forces handed to a solver (`who`, for the message): 3 values per
+/// interface node (`expected` in all), all finite. Throws std::invalid_argument.
+void check_interface_forces(std::span<const double> forces, std::size_t expected, const char* who);
 
 }  // namespace demfem::fem
