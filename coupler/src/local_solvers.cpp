@@ -3,6 +3,7 @@
 #include <omp.h>
 
 #include <iostream>
+#include <type_traits>
 
 #include "demfem/coupling/solver_link.hpp"
 
@@ -52,11 +53,12 @@ class LocalDem final : public protocol::SolverBackend {
     backend_.restore_checkpoint(f, s);
   }
   void set_cancel_flag(const std::atomic<bool>* flag) override { backend_.set_cancel_flag(flag); }
+  void drop_end_state() { cancelled_ = true; }
 
  private:
   dem::DemRun run_;
   dem::DemBackend backend_;
-  bool cancelled_ = false;
+  bool cancelled_ = false;  // no end state: a step was cut, or the folder is not ours any more
 };
 
 template <class Solver>
@@ -66,6 +68,14 @@ class LocalFem final : public protocol::SolverBackend {
            const std::filesystem::path& out, bool resume)
       : solver_(std::move(solver)) {
     for (const auto& note : scene.notes) std::cerr << "fem: note: " << note << "\n";
+    // The model checks fem_server makes before it attaches (a mechanism, missing clamps).
+    if constexpr (std::is_same_v<Solver, fem::FemSolver>) {
+      try {
+        solver_.prepare(scene.analysis == fem::Analysis::static_analysis);
+      } catch (const fem::FemModelError& e) {
+        throw protocol::BackendError(protocol::ErrorKind::bad_input, e.what());
+      }
+    }
     if (scene.output.enabled) {
       output_ = std::make_unique<fem::FemOutput>(
           out, "fem", solver_.problem().mesh, scene.output,
@@ -74,9 +84,16 @@ class LocalFem final : public protocol::SolverBackend {
     const double interval =
         scene.output.interval > 0.0 ? scene.output.interval : run.output_interval;
     backend_ = std::make_unique<fem::StructureBackend<Solver>>(solver_, output_.get(), interval);
+    if constexpr (std::is_same_v<Solver, fem::FemSolver>) {
+      if (scene.monitor.enabled) {  // the full FEM only (read_fem_scene refuses it otherwise)
+        monitor_ = std::make_unique<fem::FemMonitor>(out, scene.monitor, resume);
+        backend_->set_monitor(monitor_.get());
+      }
+    }
     if (!resume) backend_->write_initial_output();  // reference state
   }
   ~LocalFem() override {
+    if (!write_end_state_) return;
     try {
       backend_->write_final_output();  // the end state
     } catch (const std::exception& e) {
@@ -95,10 +112,13 @@ class LocalFem final : public protocol::SolverBackend {
   void restore_checkpoint(const std::filesystem::path& f, std::int64_t s) override {
     backend_->restore_checkpoint(f, s);
   }
+  void drop_end_state() { write_end_state_ = false; }
 
  private:
+  bool write_end_state_ = true;
   Solver solver_;
   std::unique_ptr<fem::FemOutput> output_;
+  std::unique_ptr<fem::FemMonitor> monitor_;
   std::unique_ptr<fem::StructureBackend<Solver>> backend_;
 };
 
@@ -133,6 +153,13 @@ SolverSections check_solver_sections(const scene::Document& scene, std::uint64_t
     out.dem_setup_particles = dem::DemRun::check_setup(ds, seed);
   }
   return out;
+}
+
+void drop_end_state(protocol::SolverBackend* backend) {
+  if (auto* dem = dynamic_cast<LocalDem*>(backend)) dem->drop_end_state();
+  if (auto* fem = dynamic_cast<LocalFem<fem::FemSolver>*>(backend)) fem->drop_end_state();
+  if (auto* fem = dynamic_cast<LocalFem<fem::ModalSolver>*>(backend)) fem->drop_end_state();
+  if (auto* fem = dynamic_cast<LocalFem<fem::RigidSolver>*>(backend)) fem->drop_end_state();
 }
 
 std::unique_ptr<protocol::SolverBackend> make_local_dem(const scene::Document& scene,

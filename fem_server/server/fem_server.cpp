@@ -13,6 +13,7 @@
 #include <iostream>
 #include <memory>
 #include <string>
+#include <type_traits>
 
 #include "demfem/fem/fem_backend.hpp"
 #include "demfem/fem/fem_output.hpp"
@@ -72,6 +73,13 @@ int main(int argc, char** argv) {
         const double interval =
             fem.output.interval > 0.0 ? fem.output.interval : run.output_interval;
         demfem::fem::StructureBackend backend(solver, output.get(), interval);
+        std::unique_ptr<demfem::fem::FemMonitor> monitor;
+        if constexpr (std::is_same_v<std::decay_t<decltype(solver)>, demfem::fem::FemSolver>) {
+          if (fem.monitor.enabled) {  // the full FEM only (read_fem_scene refuses it otherwise)
+            monitor = std::make_unique<demfem::fem::FemMonitor>(out_dir, fem.monitor, resume);
+            backend.set_monitor(monitor.get());
+          }
+        }
         if (!resume) backend.write_initial_output();  // reference state
         demfem::protocol::ServeOptions options;
         options.segment = segment;
@@ -98,7 +106,17 @@ int main(int argc, char** argv) {
           break;
       }
       demfem::fem::FemSolver solver(std::move(fem.problem));
+      // Before it attaches: a model that cannot be solved (a mechanism, a structure the
+      // clamps do not hold) ends the run now, with status 2, instead of after the DEM's work
+      // (the coupler reports "ended with status 2 before it attached"). The factorisation is
+      // the one the first step needs, so this costs nothing extra.
+      solver.prepare(fem.analysis == demfem::fem::Analysis::static_analysis);
       return serve_with(solver);
+    }
+    // Alone, the run's length is this process's: refused upfront like the coupler's.
+    if (fem.analysis == demfem::fem::Analysis::dynamic && fem.dt > 0.0) {
+      demfem::scene::check_step_count(run, fem.dt, fem.dt_location, demfem::scene::kMaxFemSteps,
+                                      "FEM");
     }
     // Alone, this process owns the output folder (served, the coupler holds its lock).
     const demfem::io::FolderLock lock(out_dir, "fem_server --scene " + cl.scene_file);

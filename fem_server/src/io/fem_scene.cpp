@@ -621,6 +621,14 @@ FemScene read_fem_scene(const Table& fem) {
     }
     o->finish();
   }
+  if (auto m = fem.table("monitor")) {
+    if (s.backend != FemBackendKind::fem)
+      fem.fail("monitor", std::string("needs fem.backend = \"fem\" (the full FEM), not \"") +
+                              backend_kind_name(s.backend) +
+                              "\": it reads the whole displacement field every step, which the "
+                              "reduced backends do not hold; remove [fem.monitor] for this run");
+    s.monitor = read_fem_monitor(*m, p.mesh);
+  }
   if (s.output.fields.empty()) {
     for (const char* k : kFemOutputFields) s.output.fields.emplace_back(k);
   }

@@ -13,7 +13,9 @@
 
 #include <cstdio>
 #include <iostream>
+#include <type_traits>
 
+#include "demfem/fem/fem_monitor.hpp"
 #include "demfem/fem/fem_output.hpp"
 #include "demfem/fem/fem_solver.hpp"
 #include "demfem/fem/modal_solver.hpp"
@@ -130,6 +132,13 @@ class StructureBackend final : public protocol::SolverBackend {
     last_output_step_ = solver_.step_count();
   }
 
+  /// [fem.monitor]: sampled after every step, kept in checkpoints (may be null). The full
+  /// FEM only: the monitor reads the whole displacement field every step, which the reduced
+  /// models do not hold (the scene reader refuses [fem.monitor] with them).
+  void set_monitor(FemMonitor* monitor) requires std::is_same_v<Solver, FemSolver> {
+    monitor_ = monitor;
+  }
+
   std::string name() const override { return backend_label(solver_); }
 
   std::optional<InterfaceMesh> published_mesh() override { return solver_.interface_mesh(); }
@@ -147,26 +156,34 @@ class StructureBackend final : public protocol::SolverBackend {
     const auto forces = buffers.forces(cmd.buffer);
     for (double f : forces) {
       if (!std::isfinite(f)) {
-        throw std::runtime_error("fem: step " + std::to_string(cmd.step) +
-                                 ": interface force is not finite");
+        throw protocol::BackendError(
+            protocol::ErrorKind::blow_up,
+            "fem: step " + std::to_string(cmd.step) + ": interface force is not finite");
       }
     }
     solver_.set_interface_forces(forces);
-    if (cmd.flags & protocol::kStepStatic) {
-      solver_.solve_static();
-    } else {
-      if (!(cmd.dt > 0.0) || !std::isfinite(cmd.dt)) {
-        throw std::runtime_error("fem: step " + std::to_string(cmd.step) + ": dt must be > 0");
+    if (!(cmd.flags & protocol::kStepStatic) && (!(cmd.dt > 0.0) || !std::isfinite(cmd.dt))) {
+      throw std::runtime_error("fem: step " + std::to_string(cmd.step) + ": dt must be > 0");
+    }
+    try {
+      if (cmd.flags & protocol::kStepStatic) {
+        solver_.solve_static();
+      } else {
+        solver_.advance(cmd.dt);
+        step_dt_ = cmd.dt;
       }
-      solver_.advance(cmd.dt);
-      step_dt_ = cmd.dt;
+    } catch (const FemModelError& e) {
+      // A model the solver cannot solve (a mechanism, a displacement larger than the model):
+      // bad input found late, not a failure of the run (the coupler exits with status 2).
+      throw protocol::BackendError(protocol::ErrorKind::bad_input, e.what());
     }
     solver_.interface_kinematics(buffers.positions(cmd.buffer), buffers.velocities(cmd.buffer),
                                  buffers.accelerations(cmd.buffer));
     const double umax = step_max_displacement(solver_);
     if (!std::isfinite(umax)) {
-      throw std::runtime_error("fem: step " + std::to_string(cmd.step) +
-                               ": displacement is not finite (the structure blew up)");
+      throw protocol::BackendError(protocol::ErrorKind::blow_up,
+                                   "fem: step " + std::to_string(cmd.step) +
+                                       ": displacement is not finite (the structure blew up)");
     }
     protocol::StepResult r;
     r.values[0] = umax;
@@ -174,6 +191,8 @@ class StructureBackend final : public protocol::SolverBackend {
     r.values[2] = solver_.strain_energy();
     r.values[3] = solver_.time();
     maybe_write_output();
+    if constexpr (std::is_same_v<Solver, FemSolver>)
+      if (monitor_) monitor_->sample(solver_, forces);
     return r;
   }
 
@@ -187,6 +206,7 @@ class StructureBackend final : public protocol::SolverBackend {
       h5.set_attribute("/", "backend_name", name());
       h5.create_group("fem");
       solver_.save(h5, "fem");
+      if (monitor_) monitor_->save(h5, "fem_monitor");
       // The mesh the state belongs to, so that a resume with a changed mesh is refused before
       // any process starts (demfem_run).
       const auto& mesh = solver_.problem().mesh;
@@ -217,6 +237,7 @@ class StructureBackend final : public protocol::SolverBackend {
                (from == "modal" ? " (reconstructed from its modes and static correction)" : "");
       std::cerr << "fem: note: " << backend_kind(solver_) << " backend took over " << note << "\n";
     }
+    if (monitor_) monitor_->restore(h5, "fem_monitor", solver_.time());
     if (h5.exists("fem_output_schedule")) {
       const auto sched = h5.read_int64("fem_output_schedule");
       const auto dt = h5.read_doubles("fem_output_step");
@@ -256,6 +277,7 @@ class StructureBackend final : public protocol::SolverBackend {
 
   Solver& solver_;
   FemOutput* output_;
+  FemMonitor* monitor_ = nullptr;
   io::OutputSchedule schedule_;
   double step_dt_ = 0.0;                ///< dt of the dynamic steps (the coupling step), s
   std::int64_t last_output_step_ = -1;  ///< solver step count of the last output

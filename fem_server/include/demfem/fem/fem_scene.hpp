@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "demfem/fem/fem_monitor.hpp"
 #include "demfem/fem/fem_problem.hpp"
 #include "demfem/fem/modal_solver.hpp"
 #include "demfem/fem/rigid_solver.hpp"
@@ -53,6 +54,7 @@ struct FemScene {
   RigidSettings rigid;  ///< [fem.rigid]: the rigid-body backend
   /// fem.command (backend = "external"): program and arguments, as written in the scene.
   std::vector<std::string> command;
+  FemMonitorSettings monitor;  ///< [fem.monitor] (fem_monitor.hpp)
   /// What the reader wants the user to know but does not refuse: orphan nodes left out, the
   /// element formulation each .inp type maps to, .inp keywords accepted with a caveat. Each
   /// names the file (and line); fem_server prints them before it starts.
