@@ -643,6 +643,8 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
       // machine with few cores, and the blocking round trip costs only a few microseconds.
       protocol::CouplerOptions copt;
       copt.wait.spin = std::chrono::microseconds(opt.wait_spin_us);
+      copt.peer_timeout = std::chrono::milliseconds(
+          static_cast<std::int64_t>(std::ceil(1000.0 * settings.run.peer_timeout)));
       copt.reply_timeout = std::chrono::milliseconds(
           static_cast<std::int64_t>(std::ceil(1000.0 * settings.checkpoint.reply_timeout)));
       copt.hello_timeout = std::chrono::milliseconds(

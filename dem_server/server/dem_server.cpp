@@ -6,6 +6,7 @@
 #include <CLI/CLI.hpp>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <exception>
 #include <filesystem>
@@ -62,6 +63,8 @@ int main(int argc, char** argv) {
       options.segment = segment;
       options.remove_orphaned_segments = true;  // a killed coupler leaves nothing behind
       options.role = demfem::protocol::Role::dem;
+      options.peer_timeout = std::chrono::milliseconds(
+          static_cast<std::int64_t>(std::ceil(1000.0 * run.peer_timeout)));
       const int code = demfem::protocol::serve(backend, options);
       if (code == demfem::protocol::kExitOk) dem_run.finish();  // the end state
       return code;

@@ -7,6 +7,8 @@
 // serve()'s codes.
 #include <CLI/CLI.hpp>
 
+#include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <exception>
 #include <filesystem>
@@ -85,6 +87,8 @@ int main(int argc, char** argv) {
         options.segment = segment;
         options.remove_orphaned_segments = true;  // a killed coupler leaves nothing behind
         options.role = demfem::protocol::Role::fem;
+        options.peer_timeout = std::chrono::milliseconds(
+            static_cast<std::int64_t>(std::ceil(1000.0 * run.peer_timeout)));
         const int code = demfem::protocol::serve(backend, options);
         if (code == demfem::protocol::kExitOk) backend.write_final_output();  // the end state
         return code;

@@ -605,6 +605,7 @@ RunSettings read_run_settings(const Document& scene) {
                                        : std::filesystem::path("out") / s.name;
   s.seed = static_cast<std::uint64_t>(run.integer("seed", 1, 0, INT64_MAX));
   s.output_interval = run.number("output_interval", 0.0, Range::non_negative());
+  s.peer_timeout = run.number("peer_timeout", s.peer_timeout, Range::closed(0.2, 3600.0));
   run.finish();
   for (auto section : kSceneSections) root.skip(section);
   root.finish();

@@ -95,5 +95,8 @@ def write_atomically(path, write):
 
 
 def run(backend, args):
-    """serve() with the arguments of parse_args(); returns the exit status for sys.exit()."""
-    return serve(backend, args.segment, Role.fem)
+    """serve() with the arguments of parse_args(); returns the exit status for sys.exit().
+    The coupler counts as hung after the scene's run.peer_timeout (s, default 10), as for
+    demfem's own solvers."""
+    timeout = load_scene(args.scene, args.set).get("run", {}).get("peer_timeout", 10.0)
+    return serve(backend, args.segment, Role.fem, peer_timeout=float(timeout))

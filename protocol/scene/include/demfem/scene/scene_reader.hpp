@@ -179,6 +179,11 @@ struct RunSettings {
                                        ///< the current directory)
   std::uint64_t seed = 1;              ///< run.seed, for random insertion
   double output_interval = 0.0;        ///< run.output_interval, s (0 = only the end state)
+  /// run.peer_timeout, s: a process whose heartbeat has not advanced for this long is hung.
+  /// Long enough that a loaded machine (a heartbeat thread not scheduled for seconds: 3.8 s
+  /// measured with ten compilers on two cores) does not end a healthy run; a dead pid is
+  /// found within 0.1 s regardless.
+  double peer_timeout = 10.0;
 };
 
 /// @brief Reads and checks [run] (required) of a scene; the other top-level sections are
