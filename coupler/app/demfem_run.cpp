@@ -32,6 +32,7 @@
 #include "demfem/coupling/checkpoint.hpp"
 #include "demfem/coupling/coupling_run.hpp"
 #include "demfem/coupling/coupling_settings.hpp"
+#include "demfem/coupling/external_backend.hpp"
 #include "demfem/coupling/local_solvers.hpp"
 #include "demfem/coupling/output_folder.hpp"
 #include "demfem/coupling/progress.hpp"
@@ -39,6 +40,9 @@
 #include "demfem/coupling/scene_steps.hpp"
 #include "demfem/coupling/solver_link.hpp"
 #include "demfem/coupling/supervisor.hpp"
+#include "demfem/fem/fem_backend.hpp"
+#include "demfem/fem/fem_scene.hpp"
+#include "demfem/fem/modal_run.hpp"
 #include "demfem/io/atomic_file.hpp"
 #include "demfem/io/folder_lock.hpp"
 #include "demfem/io/h5_file.hpp"
@@ -63,11 +67,12 @@ struct Options {
   bool no_post = false;
   int wait_spin_us = 0;
   bool resume = false;
-  std::string resume_from;  // empty: the latest valid checkpoint
-  std::string debug_kill;   // ROLE:STEP[:always], fault injection for tests
+  std::string resume_from;        // empty: the latest valid checkpoint
+  std::string debug_kill;         // ROLE:STEP[:always], fault injection for tests
   std::vector<std::string> sets;  // --set KEY=VALUE, passed on to the solvers
   bool check = false;             // --check: read and check the scene, start nothing
-  double hello_timeout = 300.0;  // s: a started solver that has not said Hello is killed
+  double hello_timeout = 300.0;   // s: a started solver that has not said Hello is killed
+  std::string fem_backend;        // --fem-backend: overrides fem.backend ("" = the scene's)
 };
 
 // --debug-kill dem:17, fem:5:always, coupler:30 (docs/reliability.md). Testing only.
@@ -205,7 +210,25 @@ std::optional<int> prepare_resume(const fs::path& checkpoint, const CouplingSett
         }
       }
     }
-    if (settings.has_fem) {
+    // The FEM backend that wrote fem.h5 (recorded by the coupler; older checkpoints: the full
+    // FEM). Another backend continues it only where the state maps (docs/backends.md).
+    std::string wrote = "fem";
+    if (settings.has_fem && coupler.has_attribute("/", "fem_backend"))
+      wrote = coupler.attribute_string("/", "fem_backend");
+    if (settings.has_fem && wrote != settings.fem_backend) {
+      const std::string why = fem::checkpoint_swap_refusal(wrote, settings.fem_backend);
+      if (!why.empty())
+        return refuse("checkpoint " + checkpoint.string() + " was taken with the FEM backend \"" +
+                      wrote + "\"; this run's is \"" + settings.fem_backend +
+                      "\" (fem.backend or --fem-backend), which cannot continue it: " + why +
+                      ". Resume with --fem-backend " + wrote + ", or start afresh");
+      std::fprintf(stderr,
+                   "demfem run: note: checkpoint %s was taken with the FEM backend \"%s\"; the run "
+                   "continues with \"%s\", which maps its state (the FEM's note below says how "
+                   "closely)\n",
+                   checkpoint.c_str(), wrote.c_str(), settings.fem_backend.c_str());
+    }
+    if (settings.has_fem && wrote != "external") {
       const io::H5File fem(checkpoint / "fem.h5", io::H5File::Mode::read);
       if (fem.has_attribute("fem", "mesh_nodes")) {
         const auto nodes = fem.attribute_int64("fem", "mesh_nodes");
@@ -282,6 +305,14 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   try {
     std::vector<scene::Override> overrides;
     for (const auto& s : opt.sets) overrides.push_back(scene::Override::parse(s));
+    if (!opt.fem_backend.empty()) {
+      if (!scene::Document::load(opt.scene, overrides).root().table("fem")) {
+        std::fprintf(stderr, "demfem run: --fem-backend %s: %s has no [fem] section\n",
+                     opt.fem_backend.c_str(), opt.scene.c_str());
+        return kExitUsage;
+      }
+      overrides.push_back(scene::Override::parse("fem.backend=\"" + opt.fem_backend + "\""));
+    }
     doc = scene::Document::load(opt.scene, overrides);
     settings = read_coupling_settings(*doc);
     post_steps = read_post_steps(*doc, bin);
@@ -295,9 +326,30 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     std::fprintf(stderr, "demfem run: scene error: %s\n", e.what());
     return kExitUsage;
   }
+  std::optional<ExternalCommand> external;
+  if (settings.has_fem && settings.fem_backend == "external") {
+    if (opt.in_process) {
+      std::fprintf(stderr,
+                   "demfem run: --in-process runs demfem's own FEM backends only; fem.backend = "
+                   "\"external\" starts the program of fem.command in its own process\n");
+      return kExitUsage;
+    }
+    try {
+      external = resolve_external_command(settings);
+    } catch (const scene::SceneError& e) {
+      std::fprintf(stderr, "demfem run: scene error: %s\n", e.what());
+      return kExitUsage;
+    }
+  }
   if (opt.check) {
     std::printf("demfem run: %s: the scene is valid\n", opt.scene.c_str());
     return 0;
+  }
+  if (settings.fem_modal && opt.resume) {
+    std::fprintf(stderr,
+                 "demfem run: --resume: fem.analysis = \"modal\" takes no time steps and no "
+                 "checkpoints; run it afresh\n");
+    return kExitUsage;
   }
   const fs::path out_dir =
       opt.output_dir.empty() ? settings.run.output_dir : fs::path(opt.output_dir);
@@ -408,6 +460,10 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   }
   record.pid = ::getpid();
   record.dem_backend = sections.dem_backend;
+  if (settings.has_fem) {
+    record.fem_backend = settings.fem_backend;
+    record.fem_command = settings.fem_command;
+  }
   record.dem_threads = sections.dem_threads;
   if (const char* omp = std::getenv("OMP_NUM_THREADS")) record.omp_num_threads = omp;
   record.hardware_threads = std::thread::hardware_concurrency();
@@ -417,6 +473,8 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
 
   // --resume: the checkpoint to start from, verified before any process starts.
   RunControl control;
+  control.fem_backend = settings.has_fem ? settings.fem_backend : std::string();
+  std::optional<std::int64_t> resume_nodes;  // the checkpoint's interface size
   control.report = [](const std::string& m) {
     std::fprintf(stderr, "demfem run: %s\n", m.c_str());
   };
@@ -483,6 +541,25 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
             prepare_resume(*control.resume_from, settings, sections, out_dir, record)) {
       return *code;
     }
+    try {
+      const io::H5File cp(*control.resume_from / "coupler.h5", io::H5File::Mode::read);
+      if (settings.has_fem) resume_nodes = cp.attribute_int64("/", "node_count");
+    } catch (const std::exception&) {
+      // unreadable coupler.h5: the restore names the file and the reason
+    }
+    // demfem's own backends: the scene's interface must be the checkpoint's, checked before
+    // any process starts (an external code's is checked when it says Hello).
+    if (resume_nodes && sections.fem_interface_nodes > 0 && !external &&
+        static_cast<std::size_t>(*resume_nodes) != sections.fem_interface_nodes) {
+      std::fprintf(stderr,
+                   "demfem run: --resume: checkpoint %s cannot be resumed: the checkpoint's "
+                   "interface has %lld nodes, this scene's %zu (the FEM mesh or "
+                   "fem.interface_surface changed): its state cannot be continued with this "
+                   "scene\n",
+                   control.resume_from->c_str(), static_cast<long long>(*resume_nodes),
+                   sections.fem_interface_nodes);
+      return kExitUsage;
+    }
     record.resumed_from = fs::absolute(*control.resume_from).string();
     const std::string folder = control.resume_from->filename().string();
     if (folder.rfind("step-", 0) == 0) record.resumed_step = std::atoll(folder.c_str() + 5);
@@ -508,6 +585,30 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     std::fprintf(stderr, "demfem run: %s; choose a writable output folder\n", e.what());
     return kExitUsage;
   }
+  if (settings.fem_modal) {
+    // Natural frequencies: no solver process and no time steps; the launcher computes them.
+    int code = 0;
+    try {
+      const fem::FemScene fs = fem::read_fem_scene(*doc->root().table("fem"));
+      for (const auto& note : fs.notes) std::fprintf(stderr, "fem: note: %s\n", note.c_str());
+      (void)fem::run_modal_analysis(fs, out_dir, opt.quiet ? nullptr : &std::cout);
+      record.status = "completed";
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "demfem run: modal analysis: %s\n", e.what());
+      code = dynamic_cast<const fem::FemModelError*>(&e) ||
+                     dynamic_cast<const std::invalid_argument*>(&e)
+                 ? kExitUsage
+                 : kExitFailed;
+      record.status = "failed";
+      record.reason = e.what();
+    }
+    record.exit_code = code;
+    record.end_time = utc_now();
+    record.steps_done = 0;
+    record.time_reached = 0.0;
+    write_run_record(out_dir, record);
+    return code;
+  }
   std::printf(
       "demfem run: %s: scheme %s, dt_C = %.6g s (n_D = %lld), %lld coupling steps to "
       "t = %.6g s%s\n",
@@ -522,6 +623,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   std::unique_ptr<protocol::CouplerSession> session;
   std::unique_ptr<SolverProcess> dem_proc, fem_proc;
   std::unique_ptr<SolverLink> link;
+  std::string fem_program = "fem_server";  // how messages name the FEM process
   int code = 0;
   bool folder_lost = false;  // OutputFolderLost: nothing more is written into the folder
   std::string reason;
@@ -562,10 +664,36 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
       if (opt.resume) fem_args.push_back("--resume");
       std::optional<pid_t> dem_pid, fem_pid;
       std::printf("demfem run: segment %s\n", session->segment_name().c_str());
-      if (settings.has_fem) {
+      if (!opt.fem_backend.empty()) {
+        // Every process reads the same scene: the override of --fem-backend goes to all.
+        for (auto* a : {&args, &fem_args})
+          a->insert(a->end(), {"--set", "fem.backend=\"" + opt.fem_backend + "\""});
+      }
+      if (settings.has_fem && external) {
+        // An outside program: the same arguments as fem_server (absolute paths: it runs in the
+        // scene's folder), the same supervision and restarts.
+        std::vector<std::string> ext_args = external->arguments;
+        for (std::size_t k = 0; k < fem_args.size(); ++k) {
+          const bool path =
+              k > 0 && (fem_args[k - 1] == "--scene" || fem_args[k - 1] == "--output-dir");
+          ext_args.push_back(path ? fs::absolute(fem_args[k]).string() : fem_args[k]);
+        }
+        if (const auto py = python_module_dir(bin)) {
+          const char* old = std::getenv("PYTHONPATH");
+          const std::string value = py->string() + (old && *old ? ":" + std::string(old) : "");
+          ::setenv("PYTHONPATH", value.c_str(), 1);
+        }
+        fem_proc = std::make_unique<SolverProcess>("FEM solver", external->program, ext_args);
+        fem_proc->set_working_directory(external->working_directory);
+        fem_program = "external FEM backend '" + external->text + "'";
+        fem_pid = fem_proc->start();
+        std::printf("demfem run: started the external FEM backend %s (pid %d)\n",
+                    external->text.c_str(), static_cast<int>(*fem_pid));
+      } else if (settings.has_fem) {
         fem_proc = std::make_unique<SolverProcess>("FEM solver", bin / "fem_server", fem_args);
         fem_pid = fem_proc->start();
-        std::printf("demfem run: started fem_server (pid %d)\n", static_cast<int>(*fem_pid));
+        std::printf("demfem run: started fem_server (pid %d) with the %s backend\n",
+                    static_cast<int>(*fem_pid), settings.fem_backend.c_str());
       }
       if (settings.has_dem) {
         dem_proc = std::make_unique<SolverProcess>("DEM solver", bin / "dem_server", args);
@@ -573,7 +701,23 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
         std::printf("demfem run: started dem_server (pid %d)\n", static_cast<int>(*dem_pid));
       }
       std::fflush(stdout);
-      link = std::make_unique<RemoteLink>(*session, dem_pid, fem_pid);
+      auto remote_link = std::make_unique<RemoteLink>(*session, dem_pid, fem_pid);
+      if (fem_pid) {
+        remote_link->describe(protocol::Role::fem, (external ? "the " : "") + fem_program +
+                                                       " (pid " + std::to_string(*fem_pid) + ")");
+        // The interface the FEM must report: the checkpoint's when resuming, else the scene's
+        // for demfem's own backends (an external program's is its own).
+        if (resume_nodes) {
+          remote_link->expect_fem_interface(
+              static_cast<std::size_t>(*resume_nodes),
+              "the checkpoint " + control.resume_from->string() + " being resumed");
+        } else if (sections.fem_interface_nodes > 0 && !external) {
+          remote_link->expect_fem_interface(
+              sections.fem_interface_nodes,
+              "the interface of " + opt.scene + " (fem.interface_surface)");
+        }
+      }
+      link = std::move(remote_link);
       // A solver that died is started again and attached to the same segment; the run then
       // rolls back to the last committed checkpoint (CouplingRun).
       control.restart_solver = [&](protocol::Role role) {
@@ -589,11 +733,22 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
         if (role == protocol::Role::fem) p->add_argument("--resume");
         const pid_t pid = p->start();
         std::printf("demfem run: started %s (pid %d)\n",
-                    role == protocol::Role::dem ? "dem_server" : "fem_server",
+                    role == protocol::Role::dem ? "dem_server" : fem_program.c_str(),
                     static_cast<int>(pid));
         std::fflush(stdout);
         session->wait_hello(role, pid);
-        session->reattach(role);
+        try {
+          session->reattach(role);
+        } catch (const protocol::PeerDied&) {
+          throw;
+        } catch (const protocol::ProtocolError& e) {
+          // A restarted process that is not the structure that was running (another interface
+          // size): named, and not restarted again.
+          throw HandshakeFailed(
+              role, "the restarted " +
+                        (role == protocol::Role::dem ? std::string("dem_server") : fem_program) +
+                        " (pid " + std::to_string(pid) + ") was refused: " + e.what());
+        }
       };
       if (debug_kill) {
         control.after_send = [&](protocol::Role role, std::int64_t step) {
@@ -674,18 +829,24 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     failed(128 + SignalGuard::signal_number(), e.what());
   } catch (const ResumeRefused& e) {
     failed(kExitUsage, e.what());
+  } catch (const InterfaceMismatch& e) {
+    failed(kExitUsage, e.what());
+  } catch (const HandshakeFailed& e) {
+    failed(kExitFailed, e.what());
   } catch (const scene::SceneError& e) {
     failed(kExitUsage, std::string("scene error: ") + e.what());
   } catch (const protocol::PeerDied& e) {
     // Only the start (Hello, mesh exchange) lets it through unwrapped: a solver that ended
     // before it attached, or never attached.
     SolverProcess* p = e.role() == protocol::Role::dem ? dem_proc.get() : fem_proc.get();
-    const std::string name = e.role() == protocol::Role::dem ? "dem_server" : "fem_server";
+    const std::string name = e.role() == protocol::Role::dem ? "dem_server" : fem_program;
     if (SignalGuard::stop_flag().load()) {
       failed(128 + SignalGuard::signal_number(), "stopped by signal " +
                                                      std::to_string(SignalGuard::signal_number()) +
                                                      " (" + e.what() + ")");
-    } else if (p && p->running()) {
+    } else if (p && !p->wait_for(std::chrono::milliseconds(1000)) && p->running()) {
+      // (A process seen gone may not be reapable for a moment: the wait tells a death from
+      // a hang.)
       p->signal(SIGKILL);
       const int c = p->stop(std::chrono::milliseconds(1000));
       char limit[32];
@@ -848,6 +1009,12 @@ int main(int argc, char** argv) {
                                 "continue from a committed checkpoint: the given folder, or "
                                 "without a value the latest valid one in the checkpoint folder")
                      ->expected(0, 1);
+  app.add_option("--fem-backend", opt.fem_backend,
+                 "the FEM backend of this run, overriding fem.backend: fem (full FEM), modal "
+                 "(first N modes + static correction), rigid (one rigid body on springs) or "
+                 "external (fem.command); with --resume it continues a checkpoint of another "
+                 "backend where the state maps (docs/backends.md)")
+      ->check(CLI::IsMember({"fem", "modal", "rigid", "external"}));
   app.add_option("--hello-timeout", opt.hello_timeout,
                  "seconds a started solver may take to attach (its Hello) before it is killed "
                  "and the run stops with status 1 (default 300; raise it for models whose "

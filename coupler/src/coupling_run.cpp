@@ -315,6 +315,11 @@ RunSummary CouplingRun::run() {
       h5.set_attribute("/", "wall_fem", sum.earlier.fem + sum.wall_fem);
       h5.set_attribute("/", "wall_coupling", sum.earlier.coupling + sum.wall_coupling);
       if (!control_.scene_hash.empty()) h5.set_attribute("/", "scene_hash", control_.scene_hash);
+      if (link_.has(Role::fem)) {
+        h5.set_attribute("/", "fem_backend",
+                         control_.fem_backend.empty() ? std::string("fem") : control_.fem_backend);
+        h5.set_attribute("/", "fem_backend_name", link_.name(Role::fem));
+      }
       h5.set_attribute("/", "output_dir", std::filesystem::absolute(output_dir_).string());
       const auto last = row_of(sum.last);
       h5.write("last_diagnostics", std::span<const double>(last), {last.size()});

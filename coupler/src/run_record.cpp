@@ -105,6 +105,8 @@ std::string to_json(const RunRecord& r) {
     << "  \"dem_backend\": " << opt_text(r.dem_backend) << ",\n"
     << "  \"dem_threads\": " << (r.dem_backend.empty() ? "null" : std::to_string(r.dem_threads))
     << ",\n"
+    << "  \"fem_backend\": " << opt_text(r.fem_backend) << ",\n"
+    << "  \"fem_command\": " << (r.fem_command.empty() ? "null" : strings(r.fem_command)) << ",\n"
     << "  \"omp_num_threads\": " << opt_text(r.omp_num_threads) << ",\n"
     << "  \"hardware_threads\": " << r.hardware_threads << ",\n"
     << "  \"start_time\": " << quoted(r.start_time) << ",\n"

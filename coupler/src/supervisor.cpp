@@ -71,7 +71,12 @@ pid_t SolverProcess::start() {
   for (auto& a : argv_store) argv.push_back(a.data());
   argv.push_back(nullptr);
   pid_t pid = -1;
-  const int rc = ::posix_spawn(&pid, executable_.c_str(), nullptr, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_t actions;
+  ::posix_spawn_file_actions_init(&actions);
+  if (!working_directory_.empty())
+    ::posix_spawn_file_actions_addchdir_np(&actions, working_directory_.c_str());
+  const int rc = ::posix_spawn(&pid, executable_.c_str(), &actions, nullptr, argv.data(), environ);
+  ::posix_spawn_file_actions_destroy(&actions);
   if (rc != 0) {
     throw std::runtime_error("cannot start the " + label_ + " (" + executable_.string() +
                              "): " + std::strerror(rc));
@@ -88,6 +93,12 @@ pid_t SolverProcess::start() {
     }
   }
   return pid;
+}
+
+std::string SolverProcess::command_text() const {
+  std::string text = executable_.string();
+  for (const auto& a : arguments_) text += " " + a;
+  return text;
 }
 
 void SolverProcess::reaped(int status) {

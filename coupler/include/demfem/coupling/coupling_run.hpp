@@ -172,6 +172,10 @@ struct RunControl {
   /// can tell a changed scene; and the absolute output folder, so that a run resumed into
   /// another folder finds the series it continues.
   std::string scene_hash;
+  /// The FEM backend of the run ("fem", "modal", "rigid", "external"), recorded in every
+  /// checkpoint (coupler.h5 attribute fem_backend, with the name the FEM announced in
+  /// fem_backend_name), so that a resume with another backend knows what wrote fem.h5.
+  std::string fem_backend;
 };
 
 /// @brief Counts of the reliability machinery in one run.

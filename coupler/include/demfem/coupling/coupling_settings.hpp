@@ -10,6 +10,7 @@
 #include <limits>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "demfem/interface/interface_mesh.hpp"
 #include "demfem/scene/scene_reader.hpp"
@@ -70,6 +71,16 @@ struct CouplingSettings {
   bool force_averaging = false;
   /// FEM-only runs: a single static solve (from [fem].analysis = "static").
   bool fem_static = false;
+  /// [fem].analysis = "modal": the natural frequencies, computed by the launcher itself (no
+  /// solver process, no coupling steps).
+  bool fem_modal = false;
+  /// [fem].backend: "fem", "modal", "rigid" (fem_server serves them) or "external" (the
+  /// program of fem.command); `demfem run --fem-backend` overrides it (docs/backends.md).
+  std::string fem_backend = "fem";
+  /// [fem].command of an external backend: program and arguments as the scene gives them, and
+  /// where (for messages).
+  std::vector<std::string> fem_command;
+  std::string fem_command_where;
 
   double dem_dt = 0.0;            ///< [dem].dt, s
   double fem_dt = 0.0;            ///< [fem].dt, s

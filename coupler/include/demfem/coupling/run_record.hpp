@@ -34,7 +34,11 @@ struct RunRecord {
   std::vector<std::string> command_line;
   std::string host;
   pid_t pid = 0;
-  std::string dem_backend;      ///< "" = no DEM
+  std::string dem_backend;  ///< "" = no DEM
+  /// The FEM backend of this run ("fem", "modal", "rigid", "external"; "" = no FEM) and, for an
+  /// external one, its command line.
+  std::string fem_backend;
+  std::vector<std::string> fem_command;
   int dem_threads = 0;          ///< threads of the DEM's CPU backend (dem.threads or OpenMP's)
   std::string omp_num_threads;  ///< the OMP_NUM_THREADS environment variable ("" = unset)
   unsigned hardware_threads = 0;

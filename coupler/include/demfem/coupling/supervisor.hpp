@@ -31,6 +31,11 @@ class SolverProcess {
   pid_t pid() const { return pid_; }
   /// Adds an argument for the next start() (e.g. --resume for a restarted solver), once.
   void add_argument(const std::string& argument);
+  /// The folder the process starts in (empty, the default: the launcher's own).
+  void set_working_directory(std::filesystem::path dir) { working_directory_ = std::move(dir); }
+  const std::filesystem::path& executable() const { return executable_; }
+  /// The command line, for messages: "python3 backend.py --scene ...".
+  std::string command_text() const;
   const std::string& label() const { return label_; }
   /// True while the process runs (reaps it when it has ended).
   bool running();
@@ -49,6 +54,7 @@ class SolverProcess {
   std::string label_;
   std::filesystem::path executable_;
   std::vector<std::string> arguments_;
+  std::filesystem::path working_directory_;
   pid_t pid_ = -1;
   int slot_ = -1;
   std::optional<int> exit_code_;

@@ -11,9 +11,15 @@
 #include <stdexcept>
 #include <string>
 
+#include <cstdio>
+#include <iostream>
+#include <type_traits>
+
 #include "demfem/fem/fem_monitor.hpp"
 #include "demfem/fem/fem_output.hpp"
 #include "demfem/fem/fem_solver.hpp"
+#include "demfem/fem/modal_solver.hpp"
+#include "demfem/fem/rigid_solver.hpp"
 #include "demfem/io/checkpoint_file.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem/io/output_schedule.hpp"
@@ -21,7 +27,74 @@
 
 namespace demfem::fem {
 
-/// @brief protocol::SolverBackend around a FemSolver.
+// What distinguishes the solvers of demfem's FEM backends for their protocol adapter: the
+// name in Hello, the kind recorded in a checkpoint (docs/backends.md) and the largest
+// displacement of the step diagnostic.
+inline const char* backend_kind(const FemSolver&) {
+  return "fem";
+}
+inline const char* backend_kind(const ModalSolver&) {
+  return "modal";
+}
+inline const char* backend_kind(const RigidSolver&) {
+  return "rigid";
+}
+inline std::string backend_label(const FemSolver&) {
+  return "demfem-fem 0.1 (cpu)";
+}
+inline std::string backend_label(const ModalSolver& s) {
+  return "demfem-modal 0.1 (" + std::to_string(s.mode_count()) + " modes" +
+         (s.settings().static_correction ? " + static correction)" : ")");
+}
+inline std::string backend_label(const RigidSolver&) {
+  return "demfem-rigid 0.1 (rigid body)";
+}
+/// Largest nodal |u| (FEM: every node; the reduced models: the interface nodes).
+inline double step_max_displacement(const FemSolver& s) {
+  const auto u = s.displacements();
+  double umax = 0.0;
+  for (std::size_t i = 0; i + 2 < u.size(); i += 3)
+    umax = std::max(umax, std::sqrt(u[i] * u[i] + u[i + 1] * u[i + 1] + u[i + 2] * u[i + 2]));
+  return umax;
+}
+inline double step_max_displacement(const ModalSolver& s) {
+  return s.max_interface_displacement();
+}
+inline double step_max_displacement(const RigidSolver& s) {
+  return s.max_interface_displacement();
+}
+/// A note about a state restored from another backend's checkpoint (stderr).
+inline std::string restore_note(const FemSolver&) {
+  return {};
+}
+inline std::string restore_note(const ModalSolver& s) {
+  return s.restore_report();
+}
+inline std::string restore_note(const RigidSolver&) {
+  return {};
+}
+
+/// @brief Whether a checkpoint written by the backend `from` can be restored by `to`, and why
+/// not (empty = it can). The full FEM and the modal backend share the full state (fem.h5's
+/// group "fem": the modal backend writes its reconstruction there); the rigid body has six
+/// coordinates of its own; an external program's file is its own format.
+inline std::string checkpoint_swap_refusal(const std::string& from, const std::string& to) {
+  if (from == to) return {};
+  const bool full_from = from == "fem" || from == "modal", full_to = to == "fem" || to == "modal";
+  if (full_from && full_to) return {};
+  if (from == "external" || to == "external")
+    return "an external program's checkpoint part is in its own format, which demfem's backends "
+           "cannot read, and demfem's state is one an external program cannot take over";
+  if (to == "rigid")
+    return "the rigid-body backend has six coordinates; the deformed state of the " + from +
+           " backend has no rigid-body equivalent (its interface would jump)";
+  return "the rigid-body backend's state is a rigid motion on springs, not a displacement of the "
+         "clamped structure that the " +
+         to + " backend models";
+}
+
+/// @brief protocol::SolverBackend around a FemSolver (FemBackend), a ModalSolver
+/// (ModalBackend) or a RigidSolver (RigidBackend).
 ///
 /// step(): takes the interface forces from buffers.forces(cmd.buffer); runs a static solve
 /// when cmd.flags has kStepStatic, else one Bossak step of cmd.dt; writes the interface
@@ -31,9 +104,11 @@ namespace demfem::fem {
 /// the coupling step end nearest to it and labelled with it (io::OutputSchedule; none from
 /// step() when the interval is 0); the caller writes the start and end states with
 /// write_initial_output() and write_final_output().
-class FemBackend final : public protocol::SolverBackend {
+template <class Solver>
+class StructureBackend final : public protocol::SolverBackend {
  public:
-  explicit FemBackend(FemSolver& solver, FemOutput* output = nullptr, double output_interval = 0.0)
+  explicit StructureBackend(Solver& solver, FemOutput* output = nullptr,
+                            double output_interval = 0.0)
       : solver_(solver), output_(output), schedule_(output_interval) {}
 
   /// The reference state (output 0, at t = 0) of a new series.
@@ -57,10 +132,14 @@ class FemBackend final : public protocol::SolverBackend {
     last_output_step_ = solver_.step_count();
   }
 
-  /// [fem.monitor]: sampled after every step, kept in checkpoints (may be null).
-  void set_monitor(FemMonitor* monitor) { monitor_ = monitor; }
+  /// [fem.monitor]: sampled after every step, kept in checkpoints (may be null). The full
+  /// FEM only: the monitor reads the whole displacement field every step, which the reduced
+  /// models do not hold (the scene reader refuses [fem.monitor] with them).
+  void set_monitor(FemMonitor* monitor) requires std::is_same_v<Solver, FemSolver> {
+    monitor_ = monitor;
+  }
 
-  std::string name() const override { return "demfem-fem 0.1 (cpu)"; }
+  std::string name() const override { return backend_label(solver_); }
 
   std::optional<InterfaceMesh> published_mesh() override { return solver_.interface_mesh(); }
 
@@ -100,11 +179,7 @@ class FemBackend final : public protocol::SolverBackend {
     }
     solver_.interface_kinematics(buffers.positions(cmd.buffer), buffers.velocities(cmd.buffer),
                                  buffers.accelerations(cmd.buffer));
-    const auto u = solver_.displacements();
-    double umax = 0.0;
-    for (std::size_t i = 0; i + 2 < u.size(); i += 3) {
-      umax = std::max(umax, std::sqrt(u[i] * u[i] + u[i + 1] * u[i + 1] + u[i + 2] * u[i + 2]));
-    }
+    const double umax = step_max_displacement(solver_);
     if (!std::isfinite(umax)) {
       throw protocol::BackendError(protocol::ErrorKind::blow_up,
                                    "fem: step " + std::to_string(cmd.step) +
@@ -116,7 +191,8 @@ class FemBackend final : public protocol::SolverBackend {
     r.values[2] = solver_.strain_energy();
     r.values[3] = solver_.time();
     maybe_write_output();
-    if (monitor_) monitor_->sample(solver_, forces);
+    if constexpr (std::is_same_v<Solver, FemSolver>)
+      if (monitor_) monitor_->sample(solver_, forces);
     return r;
   }
 
@@ -124,6 +200,10 @@ class FemBackend final : public protocol::SolverBackend {
   /// renamed when complete; attribute "step" on "/" records the coupling step.
   void write_checkpoint(const std::filesystem::path& file, std::int64_t step) override {
     io::write_checkpoint_file(file, step, [this](io::H5File& h5) {
+      // Which backend wrote the part: a resume with another backend maps the state or says
+      // why it cannot (checkpoint_swap_refusal).
+      h5.set_attribute("/", "backend", std::string(backend_kind(solver_)));
+      h5.set_attribute("/", "backend_name", name());
       h5.create_group("fem");
       solver_.save(h5, "fem");
       if (monitor_) monitor_->save(h5, "fem_monitor");
@@ -142,7 +222,21 @@ class FemBackend final : public protocol::SolverBackend {
 
   void restore_checkpoint(const std::filesystem::path& file, std::int64_t step) override {
     const io::H5File h5 = io::open_checkpoint_file(file, step);
+    // Parts written before the attribute existed are the full FEM's.
+    const std::string from =
+        h5.has_attribute("/", "backend") ? h5.attribute_string("/", "backend") : "fem";
+    const std::string refusal = checkpoint_swap_refusal(from, backend_kind(solver_));
+    if (!refusal.empty())
+      throw std::runtime_error(file.string() + " was written by the " + from + " backend; the " +
+                               backend_kind(solver_) + " backend cannot continue it: " + refusal);
     solver_.restore(h5, "fem");
+    if (from != backend_kind(solver_)) {
+      std::string note = restore_note(solver_);
+      if (note.empty())
+        note = "the full state written by the " + from + " backend" +
+               (from == "modal" ? " (reconstructed from its modes and static correction)" : "");
+      std::cerr << "fem: note: " << backend_kind(solver_) << " backend took over " << note << "\n";
+    }
     if (monitor_) monitor_->restore(h5, "fem_monitor", solver_.time());
     if (h5.exists("fem_output_schedule")) {
       const auto sched = h5.read_int64("fem_output_schedule");
@@ -181,12 +275,16 @@ class FemBackend final : public protocol::SolverBackend {
     last_output_step_ = solver_.step_count();
   }
 
-  FemSolver& solver_;
+  Solver& solver_;
   FemOutput* output_;
   FemMonitor* monitor_ = nullptr;
   io::OutputSchedule schedule_;
   double step_dt_ = 0.0;                ///< dt of the dynamic steps (the coupling step), s
   std::int64_t last_output_step_ = -1;  ///< solver step count of the last output
 };
+
+using FemBackend = StructureBackend<FemSolver>;
+using ModalBackend = StructureBackend<ModalSolver>;
+using RigidBackend = StructureBackend<RigidSolver>;
 
 }  // namespace demfem::fem

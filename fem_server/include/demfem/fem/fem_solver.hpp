@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "demfem/fem/element_results.hpp"
 #include "demfem/fem/fem_problem.hpp"
 #include "demfem/fem/sparse_solver.hpp"
 #include "demfem/interface/interface_mesh.hpp"
@@ -31,13 +32,6 @@ class FemModelError : public std::runtime_error {
 /// an undamped oscillator at omega dt = `omega_dt` (>= 0): above 1 the step amplifies that
 /// frequency, i.e. the scheme is unstable there. Used to check user-set gamma and beta.
 double bossak_spectral_radius(const BossakParameters& bossak, double omega_dt);
-
-/// @brief Element results for output (per element, at its centroid).
-struct ElementResults {
-  std::vector<double> strain;     ///< 6 per element: exx, eyy, ezz, gxy, gyz, gzx (engineering)
-  std::vector<double> von_mises;  ///< Pa, one per element
-  std::vector<double> max_principal_strain;  ///< one per element
-};
 
 /// @brief Linear-elastic FEM solver: static and Bossak-Newmark dynamic analysis.
 class FemSolver {
