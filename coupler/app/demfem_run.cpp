@@ -36,6 +36,7 @@
 #include "demfem/coupling/output_folder.hpp"
 #include "demfem/coupling/progress.hpp"
 #include "demfem/coupling/run_record.hpp"
+#include "demfem/coupling/scene_steps.hpp"
 #include "demfem/coupling/solver_link.hpp"
 #include "demfem/coupling/supervisor.hpp"
 #include "demfem/io/atomic_file.hpp"
@@ -59,6 +60,7 @@ struct Options {
   std::string output_dir;
   bool quiet = false;
   bool in_process = false;
+  bool no_post = false;
   int wait_spin_us = 0;
   bool resume = false;
   std::string resume_from;  // empty: the latest valid checkpoint
@@ -227,6 +229,17 @@ std::optional<int> prepare_resume(const fs::path& checkpoint, const CouplingSett
   // Resuming into another folder than the one the checkpoint's run wrote: its series
   // (coupling.csv, the FEM's and the DEM's files) are copied here first, and the run
   // continues them as it would in the original folder.
+  // A folder moved or copied with its checkpoints (mv out/a out/b; an archive unpacked
+  // elsewhere) holds the series of the checkpoint it holds: they are continued in place.
+  if (!origin.empty() && !same_folder(origin, out_dir) && inside(checkpoint, out_dir) &&
+      fs::exists(out_dir / "coupling.csv")) {
+    std::fprintf(stderr,
+                 "demfem run: note: checkpoint %s was taken by a run writing to %s; %s holds it "
+                 "and that run's series (a moved or copied output folder): they are continued "
+                 "here\n",
+                 checkpoint.c_str(), origin.c_str(), out_dir.c_str());
+    origin.clear();
+  }
   if (!origin.empty() && !same_folder(origin, out_dir)) {
     if (!fs::exists(fs::path(origin) / "coupling.csv")) {
       return refuse("checkpoint " + checkpoint.string() + " was taken by a run writing to " +
@@ -264,11 +277,19 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   std::optional<scene::Document> doc;
   CouplingSettings settings;
   SolverSections sections;
+  std::vector<PostStep> post_steps;
+  const fs::path bin = opt.bin_dir.empty() ? self_dir() : fs::path(opt.bin_dir);
   try {
     std::vector<scene::Override> overrides;
     for (const auto& s : opt.sets) overrides.push_back(scene::Override::parse(s));
     doc = scene::Document::load(opt.scene, overrides);
     settings = read_coupling_settings(*doc);
+    post_steps = read_post_steps(*doc, bin);
+    // A [dem.load] scene = ... whose state is missing or stale: that scene runs first, so
+    // that the check of the solver sections (which builds the particles) finds the state.
+    if (!opt.check) {
+      if (const int c = run_prepare_scenes(*doc, bin, opt.quiet, opt.in_process)) return c;
+    }
     sections = check_solver_sections(*doc, settings.run.seed);
   } catch (const scene::SceneError& e) {
     std::fprintf(stderr, "demfem run: scene error: %s\n", e.what());
@@ -296,6 +317,23 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
                  "demfem run: --debug-kill %s needs solver processes (not with --in-process)\n",
                  opt.debug_kill.c_str());
     return kExitUsage;
+  }
+  // The solver executables, before the output folder is touched: one that cannot be started
+  // is reported now, not after the other solver has started and set up.
+  if (remote) {
+    for (const auto& [needed, name] :
+         {std::pair{settings.has_fem, "fem_server"}, std::pair{settings.has_dem, "dem_server"}}) {
+      const fs::path exe = bin / name;
+      std::error_code ec;
+      if (needed && (!fs::is_regular_file(exe, ec) || ::access(exe.c_str(), X_OK) != 0)) {
+        std::fprintf(stderr,
+                     "demfem run: cannot start the solver %s: it is missing or not executable "
+                     "(build it, or give the folder that holds it with --bin-dir; --in-process "
+                     "needs no solver executables)\n",
+                     exe.c_str());
+        return kExitUsage;
+      }
+    }
   }
   // --resume without a [checkpoint] section: nothing was ever checkpointed.
   if (opt.resume && opt.resume_from.empty() && !settings.checkpoint.enabled) {
@@ -337,7 +375,18 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
                  e.what());
     return kExitUsage;
   }
-  if (const auto prev = read_run_status(out_dir); prev && prev->status == "running") {
+  if (const auto prev = read_run_status(out_dir); prev && recorded_run_alive(*prev)) {
+    // Its lock file was removed (the folder deleted and made again, a clean-up of dot files):
+    // the lock above is a new one, but the run is still writing here.
+    std::fprintf(stderr,
+                 "demfem run: %s is in use by process %d (run.json: running since %s, and the "
+                 "process is alive; its lock file %s was removed or replaced while it runs); two "
+                 "runs in one folder would corrupt each other's files: wait for it to end (or "
+                 "stop it), or give this run another folder (--output-dir, run.output_dir)\n",
+                 out_dir.c_str(), static_cast<int>(prev->pid), prev->start_time.c_str(),
+                 (out_dir / io::FolderLock::kFileName).c_str());
+    return kExitUsage;
+  } else if (prev && prev->status == "running") {
     std::fprintf(stderr,
                  "demfem run: note: the previous run in %s (pid %d, started %s) ended without "
                  "writing its end to run.json: it was killed or crashed\n",
@@ -372,6 +421,23 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     std::fprintf(stderr, "demfem run: %s\n", m.c_str());
   };
   control.scene_hash = record.scene_hash;
+  // The folder locks are checked now and then while the run goes on: a folder deleted under a
+  // running run (and perhaps made again by another) is no longer this run's to write.
+  auto last_lock_check = std::chrono::steady_clock::now();
+  control.check_output_folder = [&locks, &last_lock_check] {
+    const auto now = std::chrono::steady_clock::now();
+    if (now - last_lock_check < std::chrono::seconds(1)) return;
+    last_lock_check = now;
+    for (const auto& lock : locks) {
+      if (lock.intact()) continue;
+      throw OutputFolderLost(
+          (lock.folder() / io::FolderLock::kFileName).string() +
+          " was removed or replaced while this run was writing " + lock.folder().string() +
+          " (the folder was deleted?); another run may be writing there now, so this one "
+          "stops and writes nothing more there. Its output is incomplete: run it again into a "
+          "folder of its own");
+    }
+  };
   if (opt.resume) {
     const auto parts = checkpoint_parts(settings);
     if (!opt.resume_from.empty()) {
@@ -456,8 +522,8 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   std::unique_ptr<protocol::CouplerSession> session;
   std::unique_ptr<SolverProcess> dem_proc, fem_proc;
   std::unique_ptr<SolverLink> link;
-  const fs::path bin = opt.bin_dir.empty() ? self_dir() : fs::path(opt.bin_dir);
   int code = 0;
+  bool folder_lost = false;  // OutputFolderLost: nothing more is written into the folder
   std::string reason;
   std::optional<RunSummary> summary;
   std::int64_t steps_done = -1;
@@ -579,18 +645,29 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     failed(kExitRecoveryExhausted,
            std::string(e.what()) + "\n  output so far is in " + out_dir.string());
   } catch (const SolverFailure& e) {
-    // The adapters refuse non-finite numbers and unstable states themselves ("... is not
-    // finite", "the DEM blew up"): that is a blow-up found by the solver, and exits as one.
+    // The solver says what kind of error it found (protocol::ErrorKind): a model that cannot
+    // be solved (a mechanism, displacements larger than the model) is bad input, found late;
+    // a non-finite or unstable state is a blow-up. Errors of a solver that does not classify
+    // them are blow-ups when their text says so ("... is not finite", "blew up").
     if (SignalGuard::stop_flag().load()) {
       failed(128 + SignalGuard::signal_number(), "stopped by signal " +
                                                      std::to_string(SignalGuard::signal_number()) +
                                                      " (" + e.what() + ")");
-    } else if (is_blow_up_report(e.what())) {
+    } else if (e.kind() == protocol::ErrorKind::bad_input) {
+      failed(kExitUsage,
+             "bad model: " + std::string(e.what()) +
+                 "\n  (found by the solver after the run started; output so far is in " +
+                 out_dir.string() + ")");
+    } else if (e.kind() == protocol::ErrorKind::blow_up ||
+               (e.kind() == protocol::ErrorKind::failure && is_blow_up_report(e.what()))) {
       failed(kExitBlowUp,
              "blow-up: " + std::string(e.what()) + "\n  output so far is in " + out_dir.string());
     } else {
       failed(kExitFailed, std::string(e.what()) + "\n  output so far is in " + out_dir.string());
     }
+  } catch (const OutputFolderLost& e) {
+    failed(kExitFailed, e.what());
+    folder_lost = true;
   } catch (const Interrupted& e) {
     failed(128 + SignalGuard::signal_number(), e.what());
   } catch (const ResumeRefused& e) {
@@ -624,6 +701,13 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     } else {
       failed(kExitFailed, e.what());
     }
+  } catch (const protocol::BackendError& e) {
+    // In process, a solver's set-up found it (the FEM's model check before the first step).
+    if (e.kind() == protocol::ErrorKind::bad_input) {
+      failed(kExitUsage, std::string("bad model: ") + e.what());
+    } else {
+      failed(e.kind() == protocol::ErrorKind::blow_up ? kExitBlowUp : kExitFailed, e.what());
+    }
   } catch (const std::exception& e) {
     if (SignalGuard::stop_flag().load()) {
       failed(128 + SignalGuard::signal_number(), "stopped by signal " +
@@ -636,7 +720,17 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
 
   // ---- end the solvers: Shutdown, then wait, then signals ---------------------------------
   // After a stop signal the solvers were sent SIGTERM already: no Shutdown, a short grace.
-  const bool stopping = SignalGuard::stop_flag().load();
+  // A lost folder: the solvers are stopped as by a signal, so that they write no end state
+  // there (in process, the adapters are told so).
+  const bool stopping = SignalGuard::stop_flag().load() || folder_lost;
+  if (folder_lost) {
+    for (auto* p : {dem_proc.get(), fem_proc.get()})
+      if (p) p->signal(SIGTERM);
+    if (auto* local = dynamic_cast<LocalLink*>(link.get())) {
+      for (auto role : {protocol::Role::dem, protocol::Role::fem})
+        drop_end_state(local->backend(role));
+    }
+  }
   if (link && !stopping) link->shutdown();
   for (auto* p : {dem_proc.get(), fem_proc.get()}) {
     if (!p) continue;
@@ -679,6 +773,14 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
       }
     }
   }
+  // [[post]]: plots and reports of a run that ended well.
+  if (code == 0 && summary && !opt.no_post && !post_steps.empty()) {
+    std::fflush(stdout);
+    if (run_post_steps(post_steps, out_dir, opt.scene, bin) != 0) {
+      code = kExitFailed;
+      reason = "a [[post]] step failed";
+    }
+  }
 
   // ---- the run record: how it ended ---------------------------------------------------------
   record.exit_code = code;
@@ -700,7 +802,8 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     record.reason = reason;
   }
   try {
-    write_run_record(out_dir, record);
+    // A lost folder's run.json is another run's now (or gone): it is left alone.
+    if (!folder_lost) write_run_record(out_dir, record);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "demfem run: %s\n", e.what());
     if (code == 0) code = kExitFailed;
@@ -736,6 +839,7 @@ int main(int argc, char** argv) {
                  "microseconds the coupler spins before it blocks while waiting for a solver "
                  "(default 0: block at once)")
       ->check(CLI::Range(0, 100000));
+  app.add_flag("--no-post", opt.no_post, "skip the scene's [[post]] steps (plots, reports)");
   app.add_flag("--in-process", opt.in_process,
                "run the solvers in this process (no servers; same results on the CPU backend)");
   auto* resume = app.add_option("--resume", opt.resume_from,

@@ -51,11 +51,12 @@ class LocalDem final : public protocol::SolverBackend {
     backend_.restore_checkpoint(f, s);
   }
   void set_cancel_flag(const std::atomic<bool>* flag) override { backend_.set_cancel_flag(flag); }
+  void drop_end_state() { cancelled_ = true; }
 
  private:
   dem::DemRun run_;
   dem::DemBackend backend_;
-  bool cancelled_ = false;
+  bool cancelled_ = false;  // no end state: a step was cut, or the folder is not ours any more
 };
 
 class LocalFem final : public protocol::SolverBackend {
@@ -64,6 +65,12 @@ class LocalFem final : public protocol::SolverBackend {
            bool resume)
       : solver_(std::move(scene.problem)) {
     for (const auto& note : scene.notes) std::cerr << "fem: note: " << note << "\n";
+    // The model checks fem_server makes before it attaches (a mechanism, missing clamps).
+    try {
+      solver_.prepare(scene.analysis == fem::Analysis::static_analysis);
+    } catch (const fem::FemModelError& e) {
+      throw protocol::BackendError(protocol::ErrorKind::bad_input, e.what());
+    }
     if (scene.output.enabled) {
       output_ = std::make_unique<fem::FemOutput>(
           out, "fem", solver_.problem().mesh, scene.output,
@@ -72,9 +79,14 @@ class LocalFem final : public protocol::SolverBackend {
     const double interval =
         scene.output.interval > 0.0 ? scene.output.interval : run.output_interval;
     backend_ = std::make_unique<fem::FemBackend>(solver_, output_.get(), interval);
+    if (scene.monitor.enabled) {
+      monitor_ = std::make_unique<fem::FemMonitor>(out, scene.monitor, resume);
+      backend_->set_monitor(monitor_.get());
+    }
     if (!resume) backend_->write_initial_output();  // reference state
   }
   ~LocalFem() override {
+    if (!write_end_state_) return;
     try {
       backend_->write_final_output();  // the end state
     } catch (const std::exception& e) {
@@ -93,10 +105,13 @@ class LocalFem final : public protocol::SolverBackend {
   void restore_checkpoint(const std::filesystem::path& f, std::int64_t s) override {
     backend_->restore_checkpoint(f, s);
   }
+  void drop_end_state() { write_end_state_ = false; }
 
  private:
+  bool write_end_state_ = true;
   fem::FemSolver solver_;
   std::unique_ptr<fem::FemOutput> output_;
+  std::unique_ptr<fem::FemMonitor> monitor_;
   std::unique_ptr<fem::FemBackend> backend_;
 };
 
@@ -124,6 +139,11 @@ SolverSections check_solver_sections(const scene::Document& scene, std::uint64_t
     out.dem_setup_particles = dem::DemRun::check_setup(ds, seed);
   }
   return out;
+}
+
+void drop_end_state(protocol::SolverBackend* backend) {
+  if (auto* dem = dynamic_cast<LocalDem*>(backend)) dem->drop_end_state();
+  if (auto* fem = dynamic_cast<LocalFem*>(backend)) fem->drop_end_state();
 }
 
 std::unique_ptr<protocol::SolverBackend> make_local_dem(const scene::Document& scene,

@@ -123,6 +123,9 @@ std::optional<int> SolverProcess::wait_for(std::chrono::milliseconds timeout) {
 }
 
 int SolverProcess::stop(std::chrono::milliseconds grace) {
+  // Never started (its executable could not be spawned): nothing to wait for. waitpid(-1)
+  // below would wait for any child, i.e. for the other solver, which waits for us: a hang.
+  if (pid_ <= 0) return exit_code_.value_or(-1);
   if (auto c = wait_for(grace)) return *c;
   signal(SIGTERM);
   if (auto c = wait_for(grace)) return *c;

@@ -49,6 +49,11 @@ int main(int argc, char** argv) {
 
   try {
     const bool coupled = !segment.empty();
+    // Alone, the run's length is this process's: refused upfront like the coupler's.
+    if (!coupled) {
+      demfem::scene::check_step_count(run, dem.settings.dt, dem.dt_where,
+                                      demfem::scene::kMaxDemSteps, "DEM");
+    }
     // Served: files are created by the first step, or continued by a restore.
     demfem::dem::DemRun dem_run(dem, out_dir, run.seed, run.output_interval, log, coupled);
     if (coupled) {

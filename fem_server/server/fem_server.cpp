@@ -59,6 +59,11 @@ int main(int argc, char** argv) {
   try {
     if (!segment.empty()) {
       demfem::fem::FemSolver solver(std::move(fem.problem));
+      // Before it attaches: a model that cannot be solved (a mechanism, a structure the
+      // clamps do not hold) ends the run now, with status 2, instead of after the DEM's work
+      // (the coupler reports "ended with status 2 before it attached"). The factorisation is
+      // the one the first step needs, so this costs nothing extra.
+      solver.prepare(fem.analysis == demfem::fem::Analysis::static_analysis);
       std::unique_ptr<demfem::fem::FemOutput> output;
       if (fem.output.enabled) {
         output = std::make_unique<demfem::fem::FemOutput>(
@@ -67,6 +72,11 @@ int main(int argc, char** argv) {
       }
       const double interval = fem.output.interval > 0.0 ? fem.output.interval : run.output_interval;
       demfem::fem::FemBackend backend(solver, output.get(), interval);
+      std::unique_ptr<demfem::fem::FemMonitor> monitor;
+      if (fem.monitor.enabled) {
+        monitor = std::make_unique<demfem::fem::FemMonitor>(out_dir, fem.monitor, resume);
+        backend.set_monitor(monitor.get());
+      }
       if (!resume) backend.write_initial_output();  // reference state
       demfem::protocol::ServeOptions options;
       options.segment = segment;
@@ -75,6 +85,11 @@ int main(int argc, char** argv) {
       const int code = demfem::protocol::serve(backend, options);
       if (code == demfem::protocol::kExitOk) backend.write_final_output();  // the end state
       return code;
+    }
+    // Alone, the run's length is this process's: refused upfront like the coupler's.
+    if (fem.analysis == demfem::fem::Analysis::dynamic && fem.dt > 0.0) {
+      demfem::scene::check_step_count(run, fem.dt, fem.dt_location, demfem::scene::kMaxFemSteps,
+                                      "FEM");
     }
     // Alone, this process owns the output folder (served, the coupler holds its lock).
     const demfem::io::FolderLock lock(out_dir, "fem_server --scene " + cl.scene_file);

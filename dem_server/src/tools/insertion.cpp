@@ -145,6 +145,12 @@ std::vector<ParticleInit> insert_random(
   // with a reason instead of after millions of attempts.
   // (polyhedra: the fraction of their bounding spheres, which are what is placed)
   const double mean_volume = vmean * q.sizes.mean_cube();
+  if (!(mean_volume > 0) || !std::isfinite(mean_volume)) {
+    // d = 1e-300 m: a mass target would never be reached (each particle weighs 0).
+    throw InsertionError("cannot insert " + asked.str() +
+                         ": the particles' volume is not a positive number in double precision "
+                         "(diameters too small or too large)");
+  }
   const double solid = by_count ? double(q.count) * mean_volume : q.mass / q.density;
   const double bounding = 4.0 / 3.0 * std::numbers::pi * b3 * q.sizes.mean_cube();
   const double fraction = solid / q.region.volume() * (lib ? bounding / mean_volume : 1.0);
@@ -305,7 +311,10 @@ double lattice_count(const LatticeFill& q) {
 double expected_count(const RandomInsertion& q) {
   if (q.count > 0) return double(q.count);
   const double mean_mass = q.density * std::numbers::pi / 6.0 * q.sizes.mean_cube();
-  return mean_mass > 0 ? std::ceil(q.mass / mean_mass) : 0.0;
+  if (!(q.mass > 0)) return 0.0;
+  // Spheres so small that their mass underflows to 0 (d = 1e-300 m) would never make up the
+  // mass: unbounded (the budget check refuses it; insertion would loop for ever).
+  return mean_mass > 0 ? std::ceil(q.mass / mean_mass) : INFINITY;
 }
 
 std::vector<ParticleInit> lattice_fill(const LatticeFill& q) {

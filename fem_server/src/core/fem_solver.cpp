@@ -437,6 +437,17 @@ void FemSolver::set_interface_forces(std::span<const double> forces) {
   if (s.step == 0) s.accel_ready = false;
 }
 
+void FemSolver::prepare(bool static_analysis) {
+  Impl& s = *impl_;
+  if (static_analysis) {
+    if (!s.static_solver.factorized())
+      s.factorize_checked(s.static_solver, s.k, "stiffness matrix", true);
+    return;
+  }
+  s.check_mass();
+  if (!s.mass_solver.factorized()) s.factorize_checked(s.mass_solver, s.m, "mass matrix", false);
+}
+
 void FemSolver::solve_static() {
   Impl& s = *impl_;
   if (!s.static_solver.factorized())
@@ -456,12 +467,21 @@ void FemSolver::solve_static() {
     const VectorXd d = s.k.diagonal().cwiseAbs().cwiseSqrt();
     std::string list;
     const auto moving = s.moving_nodes(d.cwiseProduct(s.u), list);
-    char head[240];
+    char head[400];
+    const double pivot = s.static_solver.smallest_pivot_ratio();
+    // A well-conditioned stiffness (no pivot anywhere near round-off) has no mechanism: the
+    // loads are too large for it (issue 19: E = 2.1e4 typed for 2.1e11 named 171 "free nodes").
+    constexpr double kMechanismPivot = 1e-8;
     std::snprintf(head, sizeof head,
                   "FEM: the static displacement reaches %.3g m, more than the size of the model "
                   "(%.3g m; smallest pivot ratio %.3g). Linear elasticity does not hold there: "
-                  "check the load magnitudes and units, or ",
-                  umax, s.model_size, s.static_solver.smallest_pivot_ratio());
+                  "check the load magnitudes and units%s",
+                  umax, s.model_size, pivot,
+                  pivot >= kMechanismPivot
+                      ? " (the stiffness is well conditioned, so the loads are too large for it: "
+                        "a Young's modulus in MPa given as Pa is 1e6 times too soft)"
+                      : ", or ");
+    if (pivot >= kMechanismPivot) throw FemModelError(head);
     throw FemModelError(head + s.free_motion_text(moving, list));
   }
   s.v.setZero();

@@ -47,6 +47,11 @@ FemRunSummary run_fem_standalone(const FemScene& scene, double end_time, double 
     write();
   } else {
     const double dt = scene.dt;
+    if (!(end_time / dt <= scene::kMaxFemSteps)) {
+      throw scene::SceneError(
+          scene.dt_location + ": run.end_time / dt = " + std::to_string(end_time / dt) +
+          " steps, more than the " + std::to_string(scene::kMaxFemSteps) + " a run may take");
+    }
     const double interval = scene.output.interval > 0.0 ? scene.output.interval : output_interval;
     // The step count that reaches end_time; the 1e-9 keeps an end_time that is a multiple of
     // dt (up to round-off) from taking one step too many.

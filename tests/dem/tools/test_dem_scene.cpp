@@ -451,6 +451,12 @@ TEST_CASE("impossible particle counts are refused when the scene is read, naming
   // By mass and repeated: 1 t of 4 mm wheat, 1000 times.
   CHECK_THAT(error_of(replace(kBase, "count = 200", "mass = 1000.0\nevery = 0.001\nuntil = 0.999")),
              Catch::Contains("key 'dem.insert[0].mass'"));
+  // Issue 19 (QA): spheres so small that their mass is 0 in double precision made a mass
+  // target unreachable: the insertion looped for ever (the count estimate said 0).
+  CHECK_THAT(error_of(replace(replace(kBase, "count = 200", "mass = 0.25"),
+                              "d_min = 0.003, d_max = 0.005", "d_min = 1e-300, d_max = 1e-300")),
+             Catch::Contains("key 'dem.insert[0].mass'") &&
+                 Catch::Contains("more particles than can be counted"));
   const DemScene ok = parse(kBase);
   CHECK(estimated_particle_count(ok) == 200.0);
 }

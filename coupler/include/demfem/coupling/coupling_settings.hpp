@@ -105,7 +105,8 @@ inline constexpr double kSubstepTolerance = 1e-9;
 /// (1e300, 1e-20) is refused before any process starts instead of overflowing or hanging.
 inline constexpr std::int64_t kMaxCouplingSteps = 1'000'000'000;  ///< coupling steps of a run
 inline constexpr std::int64_t kMaxDemSubsteps = 1'000'000'000;    ///< n_D of one coupling step
-inline constexpr double kMaxDemSteps = 1e12;                      ///< DEM steps of a run
+inline constexpr double kMaxDemSteps = scene::kMaxDemSteps;       ///< DEM steps of a run
+static_assert(kMaxCouplingSteps == scene::kMaxFemSteps, "a solver alone has the same limit");
 
 /// @brief n_D = fem_dt / dem_dt when it is an integer within kSubstepTolerance (relative)
 /// and at most kMaxDemSubsteps; otherwise throws scene::SceneError naming both keys, their

@@ -42,4 +42,9 @@ std::unique_ptr<protocol::SolverBackend> make_local_fem(const scene::Document& s
                                                         const std::filesystem::path& output_dir,
                                                         bool resume = false);
 
+/// @brief A backend made by make_local_dem / make_local_fem writes no end state when it is
+/// destroyed: its output folder is no longer the run's (OutputFolderLost). No effect on other
+/// backends or nullptr.
+void drop_end_state(protocol::SolverBackend* backend);
+
 }  // namespace demfem::coupling

@@ -240,6 +240,10 @@ class DemSystem {
   /// Complete state, contact history included, for a bitwise-identical continuation.
   void save(io::H5File& file, const std::string& group) const;
   void restore(const io::H5File& file, const std::string& group);
+  /// Starts the clock anew at t = 0 with no steps taken (a saved state that begins a new
+  /// scene, docs/scene_dem.md [dem.load]); moving walls take their pose at t = 0. The
+  /// particles and the contact history are left as they are.
+  void reset_clock();
 
  private:
   struct Impl;

@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "demfem/fem/fem_monitor.hpp"
 #include "demfem/fem/fem_output.hpp"
 #include "demfem/fem/fem_solver.hpp"
 #include "demfem/io/checkpoint_file.hpp"
@@ -56,6 +57,9 @@ class FemBackend final : public protocol::SolverBackend {
     last_output_step_ = solver_.step_count();
   }
 
+  /// [fem.monitor]: sampled after every step, kept in checkpoints (may be null).
+  void set_monitor(FemMonitor* monitor) { monitor_ = monitor; }
+
   std::string name() const override { return "demfem-fem 0.1 (cpu)"; }
 
   std::optional<InterfaceMesh> published_mesh() override { return solver_.interface_mesh(); }
@@ -73,19 +77,26 @@ class FemBackend final : public protocol::SolverBackend {
     const auto forces = buffers.forces(cmd.buffer);
     for (double f : forces) {
       if (!std::isfinite(f)) {
-        throw std::runtime_error("fem: step " + std::to_string(cmd.step) +
-                                 ": interface force is not finite");
+        throw protocol::BackendError(
+            protocol::ErrorKind::blow_up,
+            "fem: step " + std::to_string(cmd.step) + ": interface force is not finite");
       }
     }
     solver_.set_interface_forces(forces);
-    if (cmd.flags & protocol::kStepStatic) {
-      solver_.solve_static();
-    } else {
-      if (!(cmd.dt > 0.0) || !std::isfinite(cmd.dt)) {
-        throw std::runtime_error("fem: step " + std::to_string(cmd.step) + ": dt must be > 0");
+    if (!(cmd.flags & protocol::kStepStatic) && (!(cmd.dt > 0.0) || !std::isfinite(cmd.dt))) {
+      throw std::runtime_error("fem: step " + std::to_string(cmd.step) + ": dt must be > 0");
+    }
+    try {
+      if (cmd.flags & protocol::kStepStatic) {
+        solver_.solve_static();
+      } else {
+        solver_.advance(cmd.dt);
+        step_dt_ = cmd.dt;
       }
-      solver_.advance(cmd.dt);
-      step_dt_ = cmd.dt;
+    } catch (const FemModelError& e) {
+      // A model the solver cannot solve (a mechanism, a displacement larger than the model):
+      // bad input found late, not a failure of the run (the coupler exits with status 2).
+      throw protocol::BackendError(protocol::ErrorKind::bad_input, e.what());
     }
     solver_.interface_kinematics(buffers.positions(cmd.buffer), buffers.velocities(cmd.buffer),
                                  buffers.accelerations(cmd.buffer));
@@ -95,8 +106,9 @@ class FemBackend final : public protocol::SolverBackend {
       umax = std::max(umax, std::sqrt(u[i] * u[i] + u[i + 1] * u[i + 1] + u[i + 2] * u[i + 2]));
     }
     if (!std::isfinite(umax)) {
-      throw std::runtime_error("fem: step " + std::to_string(cmd.step) +
-                               ": displacement is not finite (the structure blew up)");
+      throw protocol::BackendError(protocol::ErrorKind::blow_up,
+                                   "fem: step " + std::to_string(cmd.step) +
+                                       ": displacement is not finite (the structure blew up)");
     }
     protocol::StepResult r;
     r.values[0] = umax;
@@ -104,6 +116,7 @@ class FemBackend final : public protocol::SolverBackend {
     r.values[2] = solver_.strain_energy();
     r.values[3] = solver_.time();
     maybe_write_output();
+    if (monitor_) monitor_->sample(solver_, forces);
     return r;
   }
 
@@ -113,6 +126,7 @@ class FemBackend final : public protocol::SolverBackend {
     io::write_checkpoint_file(file, step, [this](io::H5File& h5) {
       h5.create_group("fem");
       solver_.save(h5, "fem");
+      if (monitor_) monitor_->save(h5, "fem_monitor");
       // The mesh the state belongs to, so that a resume with a changed mesh is refused before
       // any process starts (demfem_run).
       const auto& mesh = solver_.problem().mesh;
@@ -129,6 +143,7 @@ class FemBackend final : public protocol::SolverBackend {
   void restore_checkpoint(const std::filesystem::path& file, std::int64_t step) override {
     const io::H5File h5 = io::open_checkpoint_file(file, step);
     solver_.restore(h5, "fem");
+    if (monitor_) monitor_->restore(h5, "fem_monitor", solver_.time());
     if (h5.exists("fem_output_schedule")) {
       const auto sched = h5.read_int64("fem_output_schedule");
       const auto dt = h5.read_doubles("fem_output_step");
@@ -168,6 +183,7 @@ class FemBackend final : public protocol::SolverBackend {
 
   FemSolver& solver_;
   FemOutput* output_;
+  FemMonitor* monitor_ = nullptr;
   io::OutputSchedule schedule_;
   double step_dt_ = 0.0;                ///< dt of the dynamic steps (the coupling step), s
   std::int64_t last_output_step_ = -1;  ///< solver step count of the last output

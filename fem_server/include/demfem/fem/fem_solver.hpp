@@ -63,6 +63,12 @@ class FemSolver {
   /// Forces on the interface nodes (3 * interface node count, N); held until replaced.
   void set_interface_forces(std::span<const double> forces);
 
+  /// The model checks that need a factorisation, done at set-up instead of in the first step
+  /// (fem_server calls it before it attaches, so a coupled run with a bad model stops before
+  /// the DEM computes anything): static, K is factorised (a mechanism or a structure the
+  /// clamps do not hold throws FemModelError naming the free nodes); dynamic, the masses are
+  /// checked and M is factorised. The factorisations are kept for the solves: no extra cost.
+  void prepare(bool static_analysis);
   /// Static solve K u = F(t) for the current time's external and interface loads. Throws
   /// FemModelError for a singular stiffness (naming the free nodes) and for a solution larger
   /// than the model (a mechanism that survived the factorisation's pivot check).
