@@ -45,6 +45,7 @@ struct Loaded {
   std::vector<ParticleInit> particles;
   std::vector<std::int64_t> file_material;  // empty: the file has none (CSV)
   std::vector<std::string> origin;          // "file:line" (CSV) or "file: particle i"
+  std::vector<PolyhedronShape> shapes;      // a state's shape table (shape_id indexes it)
 };
 
 [[noreturn]] void data_error(const ParticleSource& s, const std::string& at,
@@ -217,12 +218,41 @@ Loaded read_state_particles(const ParticleSource& s) {
   out.file_material = f.read_int64(g + "material");
   if (out.file_material.size() != n || shape.size() != n)
     data_error(s, s.file.string(), "state arrays of different lengths");
+  // Polyhedra: their shapes, scales and orientations come along (the shape table is added
+  // to this scene's by load_particles).
+  bool any_poly = false;
+  for (std::size_t i = 0; i < n; ++i)
+    any_poly = any_poly || shape[i] == static_cast<std::uint8_t>(ParticleShape::polyhedron);
+  std::vector<std::int64_t> shape_id;
+  std::vector<double> scale, qw, qx, qy, qz;
+  if (any_poly) {
+    try {
+      out.shapes = read_state_shapes(f, s.group);
+    } catch (const std::invalid_argument& e) {
+      data_error(s, s.file.string(), e.what());
+    }
+    shape_id = f.read_int64(g + "shape_id");
+    scale = f.read_doubles(g + "scale");
+    qw = f.read_doubles(g + "qw"), qx = f.read_doubles(g + "qx"), qy = f.read_doubles(g + "qy"),
+    qz = f.read_doubles(g + "qz");
+    for (const auto* a : {&scale, &qw, &qx, &qy, &qz})
+      if (a->size() != n) data_error(s, s.file.string(), "state arrays of different lengths");
+    if (shape_id.size() != n) data_error(s, s.file.string(), "state arrays of different lengths");
+  }
   for (std::size_t i = 0; i < n; ++i) {
-    if (shape[i] != static_cast<std::uint8_t>(ParticleShape::sphere))
-      data_error(s, s.file.string() + ": particle " + std::to_string(i),
-                 "is not a sphere; loading other shapes without their history is not supported "
-                 "(use history = true)");
     ParticleInit p;
+    if (shape[i] == static_cast<std::uint8_t>(ParticleShape::polyhedron)) {
+      if (shape_id[i] < 0 || shape_id[i] >= std::int64_t(out.shapes.size()))
+        data_error(s, s.file.string() + ": particle " + std::to_string(i),
+                   "refers to a shape the state's table does not hold");
+      p.shape = ParticleShape::polyhedron;
+      p.shape_id = static_cast<std::int32_t>(shape_id[i]);  // the file's; remapped when added
+      p.scale = scale[i];
+      p.orientation = {qw[i], qx[i], qy[i], qz[i]};
+    } else if (shape[i] != static_cast<std::uint8_t>(ParticleShape::sphere)) {
+      data_error(s, s.file.string() + ": particle " + std::to_string(i),
+                 "has an unknown shape kind " + std::to_string(int(shape[i])));
+    }
     p.position = {px[i], py[i], pz[i]};
     p.velocity = {vx[i], vy[i], vz[i]};
     p.angular_velocity = {wx[i], wy[i], wz[i]};
@@ -463,6 +493,11 @@ OverlapReport largest_overlap(const ParticleState& p, std::span<const WallMesh> 
   grid.reserve(n);
   for (std::size_t i = 0; i < n; ++i)
     grid[key(p.px[i], p.py[i], p.pz[i])].push_back(std::int64_t(i));
+  // Polyhedra are left out: their radius is the bounding sphere's, which overlaps in any
+  // packed bed; the engine's stability guard measures their true overlap at the first steps.
+  auto sphere = [&](std::size_t i) {
+    return p.shape.size() != n || p.shape[i] == static_cast<std::uint8_t>(ParticleShape::sphere);
+  };
   auto consider = [&](double depth, double rsmall, std::int64_t i, std::int64_t j) {
     if (!(depth > 0)) return;
     ++r.touching;
@@ -478,6 +513,7 @@ OverlapReport largest_overlap(const ParticleState& p, std::span<const WallMesh> 
           for (std::int64_t j : it->second) {
             if (j <= std::int64_t(i)) continue;
             const double ex = p.px[j] - p.px[i], ey = p.py[j] - p.py[i], ez = p.pz[j] - p.pz[i];
+            if (!sphere(i) || !sphere(std::size_t(j))) continue;
             const double d = std::sqrt(ex * ex + ey * ey + ez * ez);
             consider(p.radius[i] + p.radius[j] - d, std::min(p.radius[i], p.radius[j]),
                      std::int64_t(i), j);
@@ -501,6 +537,7 @@ OverlapReport largest_overlap(const ParticleState& p, std::span<const WallMesh> 
       // A huge triangle (a floor) over a small bed: walk the particles instead of the cells.
       const bool walk_cells = double(cells(0)) * double(cells(1)) * double(cells(2)) < double(n);
       auto test = [&](std::int64_t i) {
+        if (!sphere(std::size_t(i))) return;
         const phys::Vec3 c{p.px[i], p.py[i], p.pz[i]};
         const auto cp = phys::closest_point_triangle(c, v[0], v[1], v[2]);
         const phys::Vec3 e = c - cp.point;
@@ -559,6 +596,18 @@ std::size_t load_particles(const ParticleSource& s, DemSystem& system,
       if (l.particles.empty()) data_error(s, s.file.string(), "holds no particles");
       if (l.particles.size() > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
         data_error(s, s.file.string(), "holds more particles than a scene can (2^31 - 1)");
+      if (!l.shapes.empty()) {  // the state's shapes join this scene's table
+        std::vector<std::int32_t> id(l.shapes.size());
+        for (std::size_t k = 0; k < l.shapes.size(); ++k) {
+          try {
+            id[k] = system.add_shape(l.shapes[k]);
+          } catch (const std::invalid_argument& e) {
+            data_error(s, s.file.string() + ": shape " + std::to_string(k), e.what());
+          }
+        }
+        for (auto& p : l.particles)
+          if (p.shape == ParticleShape::polyhedron) p.shape_id = id[std::size_t(p.shape_id)];
+      }
       system.add_particles(l.particles);
       origin = std::move(l.origin);
     }
