@@ -66,6 +66,7 @@ WallMotion read_motion(const Table& m) {
     w.amplitude = m.number("amplitude", Range::non_negative());
     w.frequency = m.number("frequency", Range::positive());
     w.phase = m.number("phase", 0.0);
+    w.velocity = m.vec3("velocity", std::array<double, 3>{0, 0, 0});
   }
   m.finish();
   return w;

@@ -312,14 +312,22 @@ std::string describe_count(std::size_t n) {
 
 // History: the state's walls must be this scene's, at the same place, and its masses this
 // scene's densities; then DemSystem::restore continues it exactly.
-void restore_state(const ParticleSource& s, DemSystem& system) {
+// Walls that move (a prescribed motion, or a rigid body moved by its contacts) are compared
+// by their vertex count only: a body continues from its saved pose, a moving wall takes the
+// pose of the scene's clock (keep a moving wall away from the particles at the save, as a
+// compaction plate parked above the bed).
+void restore_state(const ParticleSource& s, DemSystem& system, std::span<const WallMesh> walls) {
   io::H5File f(s.file, io::H5File::Mode::read);
   require_state_group(f, s);
   const std::string g = s.group + "/";
   std::vector<double> scene_vertices;
+  std::vector<std::uint8_t> compared;  // per coordinate
   for (std::size_t w = 0; w < system.wall_count(); ++w) {
     const auto v = system.wall_vertices(static_cast<std::int32_t>(w));
     scene_vertices.insert(scene_vertices.end(), v.begin(), v.end());
+    const bool moves = w < walls.size() &&
+                       (walls[w].body.enabled || walls[w].motion.kind != WallMotion::Kind::fixed);
+    compared.insert(compared.end(), v.size(), moves ? 0 : 1);
   }
   if (f.exists(g + "flex_x") && !f.read_doubles(g + "flex_x").empty())
     data_error(s, s.file.string(),
@@ -333,7 +341,7 @@ void restore_state(const ParticleSource& s, DemSystem& system) {
                    "; the wall contact history needs the same walls (same [[dem.walls]] in the "
                    "same order), or use history = false");
   for (std::size_t k = 0; k < vpos.size(); ++k)
-    if (vpos[k] != scene_vertices[k])
+    if (compared[k] && vpos[k] != scene_vertices[k])
       data_error(s, s.file.string(),
                  "wall vertex " + std::to_string(k / 3) +
                      " is at another place than in this "
@@ -348,6 +356,22 @@ void restore_state(const ParticleSource& s, DemSystem& system) {
   const auto& mats = system.settings().materials;
   if (mass.size() != radius.size() || material.size() != radius.size())
     data_error(s, s.file.string(), "state arrays of different lengths");
+  // A polyhedron's mass is density x its shape's volume x scale³ (its radius is the bounding
+  // sphere's); states written before polyhedra hold spheres only.
+  std::vector<PolyhedronShape> shapes;
+  std::vector<std::int64_t> shape_id;
+  std::vector<double> scale;
+  if (f.exists(g + "shape_id")) {
+    try {
+      shapes = read_state_shapes(f, s.group);
+    } catch (const std::invalid_argument& e) {
+      data_error(s, s.file.string(), e.what());
+    }
+    shape_id = f.read_int64(g + "shape_id");
+    scale = f.read_doubles(g + "scale");
+    if (shape_id.size() != mass.size() || scale.size() != mass.size())
+      data_error(s, s.file.string(), "state arrays of different lengths");
+  }
   for (std::size_t i = 0; i < mass.size(); ++i) {
     const std::string at = s.file.string() + ": particle " + std::to_string(i);
     const auto m = material[i];
@@ -356,8 +380,13 @@ void restore_state(const ParticleSource& s, DemSystem& system) {
                  "material index " + std::to_string(m) +
                      " is not a particle material of this scene; with history = true the "
                      "state's material indices are kept (same [[dem.materials]] order)");
+    const bool poly = !shape_id.empty() && shape_id[i] >= 0;
+    if (poly && shape_id[i] >= std::int64_t(shapes.size()))
+      data_error(s, at, "refers to a shape the state's table does not hold");
     const double expect =
-        mats[m].density * 4.0 / 3.0 * std::numbers::pi * radius[i] * radius[i] * radius[i];
+        poly ? mats[m].density * shapes[std::size_t(shape_id[i])].volume * scale[i] * scale[i] *
+                   scale[i]
+             : mats[m].density * 4.0 / 3.0 * std::numbers::pi * radius[i] * radius[i] * radius[i];
     if (!(std::abs(mass[i] - expect) <= 1e-12 * expect))
       data_error(s, at,
                  "mass " + std::to_string(mass[i]) + " kg differs from this scene's density (" +
@@ -582,7 +611,7 @@ std::size_t load_particles(const ParticleSource& s, DemSystem& system,
   std::vector<std::string> origin;
   try {
     if (s.history) {
-      restore_state(s, system);
+      restore_state(s, system, walls);
     } else {
       Loaded l = s.format == ParticleSource::Format::csv        ? read_csv(s)
                  : s.format == ParticleSource::Format::snapshot ? read_snapshot(s)

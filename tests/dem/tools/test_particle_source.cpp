@@ -344,8 +344,8 @@ seed = 5
 material = "rock"
 shape = "ballast"
 lo = [0.0, 0.0, 0.0]
-hi = [0.3, 0.3, 0.6]
-count = 60
+hi = [0.3, 0.3, 0.3]
+count = 30
 seed = 3
 distribution = { kind = "normal", mean = 0.04, stddev = 0.01, d_min = 0.02, d_max = 0.06 }
 [dem.output]
@@ -357,7 +357,7 @@ state = true
   DemRun saved(a.dem, dir / "fill", 1, 0.0, nullptr);
   saved.system().advance(20000);
   saved.finish();
-  REQUIRE(saved.system().contact_count() > 20);
+  REQUIRE(saved.system().contact_count() > 0);  // resting contacts: the history matters
   whole.system().advance(300);
   const auto& q = saved.system().particles();
   const std::string load = "[dem.load]\nfile = \"fill/dem_state.h5\"\n";
@@ -371,13 +371,17 @@ state = true
       REQUIRE(p.shape[i] == q.shape[i]);
       REQUIRE(p.scale[i] == q.scale[i]);
       REQUIRE(p.px[i] == q.px[i]);
-      REQUIRE(p.qx[i] == q.qx[i]);
+      REQUIRE(p.qx[i] == Approx(q.qx[i]).margin(1e-15));  // add_particles renormalises q
       REQUIRE(p.mass[i] == q.mass[i]);
       REQUIRE(run.system().shape(p.shape_id[i]).vertices ==
               saved.system().shape(q.shape_id[i]).vertices);
     }
-    run.system().advance(100);  // it runs, nothing explodes
+    run.system().advance(300);  // it runs, nothing explodes; without the springs it differs
     CHECK(run.system().kinetic_energy() < 1.0);
+    bool differs = false;
+    for (std::size_t i = 0; i < p.size(); ++i)
+      differs = differs || p.px[i] != whole.system().particles().px[i];
+    CHECK(differs);
   }
   SECTION("with history: the continuation is bitwise") {
     const auto s = read(dir, head + load);

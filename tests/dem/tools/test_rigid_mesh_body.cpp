@@ -315,3 +315,23 @@ box = { lo = [0, 0, 0], hi = [0.22, 0.22, 0.1] }
           "body = { density = 1 }\nmotion = { kind = \"translation\", velocity = [0, 0, 1] }\n"),
       Catch::Contains("cannot also have a 'motion'"));
 }
+
+TEST_CASE("a sinusoid wall motion with a drift: x0 + A sin(2 pi f t + phase) d + v t",
+          "[rigid_body][walls]") {
+  DemSystem d(settings({0, 0, 0}, 1e-4));
+  WallMesh w = box_body({0, 0, 1}, {1, 1, 1.02});
+  w.motion.kind = WallMotion::Kind::sinusoid;
+  w.motion.axis = {0, 0, 1};
+  w.motion.amplitude = 0.01;
+  w.motion.frequency = 5.0;
+  w.motion.phase = 0.5;
+  w.motion.velocity = {0, 0, -0.2};
+  w.motion.end_time = 0.3;
+  const auto id = d.add_wall(w);
+  d.advance(2000);  // 0.2 s
+  const double pi = 3.14159265358979323846;
+  auto z_at = [&](double t) { return 1.0 + 0.01 * std::sin(2 * pi * 5.0 * t + 0.5) - 0.2 * t; };
+  CHECK(d.wall_vertices(id)[2] == Approx(z_at(0.2)).epsilon(1e-12));
+  d.advance(2000);  // 0.4 s: stopped at the pose of end_time
+  CHECK(d.wall_vertices(id)[2] == Approx(z_at(0.3)).epsilon(1e-12));
+}

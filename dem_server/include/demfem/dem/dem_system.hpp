@@ -114,7 +114,7 @@ struct ParticleState {
 struct WallMotion {
   enum class Kind : std::uint8_t { fixed, translation, rotation, sinusoid };
   Kind kind = Kind::fixed;
-  std::array<double, 3> velocity{};     ///< translation: m/s
+  std::array<double, 3> velocity{};     ///< translation: m/s; sinusoid: a steady drift added
   std::array<double, 3> axis_point{};   ///< rotation: a point on the axis, m
   std::array<double, 3> axis{0, 0, 1};  ///< rotation axis (unit) / sinusoid direction (unit)
   double angular_velocity = 0.0;        ///< rotation: rad/s
