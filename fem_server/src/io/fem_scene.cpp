@@ -436,7 +436,10 @@ TimeFunction read_time_function(const Table& a) {
         const double k = 1.0 / double(seats);
         s.peak_force *= k, s.cycle_min *= k, s.cycle_max *= k;
       }
+      // a delay before the pattern (the sleeper first settles under its seating load)
+      const double start = a.number("start_time", 0.0, Range::non_negative());
       f = sleeper_load_function(s);
+      if (start > 0.0) f = [g = f, start](double t) { return g(t - start); };
     }
   } catch (const std::invalid_argument& e) {
     a.fail("type", e.what());

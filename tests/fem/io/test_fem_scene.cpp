@@ -266,6 +266,12 @@ TEST_CASE("fem scene: the sleeper pattern by cycle count, per rail seat or in to
                           "2, ramp_duration = 0.5, force_is = \"total\" }\n");
   for (double t : {0.2, 0.75, 1.6, 3.0})
     CHECK(c.problem.pressures[0].amplitude(t) == Approx(0.5 * a.problem.pressures[0].amplitude(t)));
+  const FemScene d = read(base +
+                          "amplitude = { type = \"sleeper\", cycles = 4, cycle_frequency = "
+                          "2, ramp_duration = 0.5, start_time = 0.25 }\n");
+  CHECK(d.problem.pressures[0].amplitude(0.2) == 0.0);
+  for (double t : {0.2, 0.75, 1.6, 3.0})
+    CHECK(d.problem.pressures[0].amplitude(t + 0.25) == a.problem.pressures[0].amplitude(t));
   CHECK_THAT(
       error_of(base + "amplitude = { type = \"sleeper\", cycles = 4, cycle_duration = 1 }\n"),
       Catch::Contains("'fem.pressures[0].amplitude.cycles'") && Catch::Contains("not both"));
