@@ -3,6 +3,7 @@
 
 usage: tools/sleeper_report.py OUTPUT_DIR [--hold T0,T1] [--cell-area 0.0484]
                                [--load-start 0.2] [--cycle-frequency 100] [--time-scale 1]
+                               [--cycles 6]
                                [--ramp 0.03] [--sleeper-mass 72] [--load 22100]
 
 Reads OUTPUT_DIR/fem_monitor.csv (bottom probes b*_uz of the sleeper, total interface force),
@@ -46,6 +47,7 @@ def main(argv):
     ap.add_argument("--ramp", type=float, default=0.03, help="ramp duration (reference), s")
     ap.add_argument("--cycle-frequency", type=float, default=100.0, help="Hz (reference)")
     ap.add_argument("--time-scale", type=float, default=1.0)
+    ap.add_argument("--cycles", type=int, default=6, help="cycles of the pattern (fig. 6.2: 6)")
     ap.add_argument("--sleeper-mass", type=float, default=800.0 * 2.5 * 0.2 * 0.18, help="kg")
     ap.add_argument("--load", type=float, default=2 * 11e3 + 100.0,
                     help="applied load in the hold (both seats + seating), N")
@@ -79,7 +81,7 @@ def main(argv):
     ts = a.time_scale
     cyc = []
     k = 0
-    while True:
+    while k <= a.cycles:
         tk = a.load_start + ts * (a.ramp + k / a.cycle_frequency)
         if tk > t[-1]:
             break
