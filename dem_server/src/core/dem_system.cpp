@@ -34,8 +34,6 @@
 #include <utility>
 
 #include "dem_cuda_backend.hpp"
-#include "polyhedra.hpp"
-#include "shape_table.hpp"
 #include "demfem/dem/physics/contact.hpp"
 #include "demfem/dem/physics/geometry.hpp"
 #include "demfem/dem/physics/integrator.hpp"
@@ -44,6 +42,9 @@
 #include "demfem/dem/physics/wall_contact.hpp"
 #include "demfem/dem/physics/wall_motion.hpp"
 #include "demfem/io/h5_file.hpp"
+#include "polyhedra.hpp"
+#include "rigid_mesh_bodies.hpp"
+#include "shape_table.hpp"
 
 namespace demfem::dem {
 
@@ -336,8 +337,10 @@ struct DemSystem::Impl {
     std::int64_t vbase = 0, tbase = 0;  // offsets in the global vertex / triangle store
     std::array<double, 3> force{}, torque{};
     bool flexible = false;
+    int body = -1;  // index in `bodies` when the wall is moved by its contact forces
   };
   std::vector<Wall> walls;  // rigid walls; the flexible one is `flex`
+  detail::RigidMeshBodies bodies;  // walls moved by their contact forces (rigid_mesh_bodies.hpp)
   bool has_flex = false;
   Wall flex;
   std::vector<double> flex_x, flex_v, flex_a;  // kinematics at the start of advance()
@@ -484,7 +487,7 @@ struct DemSystem::Impl {
       tri_e[edges[k].second] = id;
     }
     nedges = static_cast<std::size_t>(id + 1);
-    walls_moving = has_flex;
+    walls_moving = has_flex || !bodies.empty();
     wall_motions.clear();
     for (auto& w : walls) {
       walls_moving = walls_moving || w.mesh.motion.kind != WallMotion::Kind::fixed;
@@ -499,6 +502,10 @@ struct DemSystem::Impl {
   void update_walls(double tt, double tau) {
     for (std::size_t wi = 0; wi < walls.size(); ++wi) {
       const Wall& w = walls[wi];
+      if (w.body >= 0) {
+        bodies.place(w.body, vpos.data() + 3 * w.vbase, vvel.data() + 3 * w.vbase);
+        continue;
+      }
       if (w.mesh.motion.kind == WallMotion::Kind::fixed) continue;
       const phys::RigidPose pose = phys::rigid_pose(wall_motions[wi], tt);
       const std::size_t nv = w.mesh.vertices.size() / 3;
@@ -1153,6 +1160,7 @@ struct DemSystem::Impl {
   void step(bool last, ForceMode mode, std::int64_t substeps) {
     const double t0 = omp_get_wtime();
     const double disp = kick_drift<Friction>();
+    if (!bodies.empty()) bodies.kick_drift(s.dt);
     t += s.dt;
     flex_tau += s.dt;
     double wdisp = 0.0;
@@ -1196,9 +1204,15 @@ struct DemSystem::Impl {
     else
       forces_and_kick<Friction>();
     // Wall forces and torques are read after advance(): summed at its last step only. The
-    // flexible mesh's node forces are summed every substep when they are averaged.
-    if (!tri_v.empty() && (last || (has_flex && mode == ForceMode::average)))
+    // flexible mesh's node forces are summed every substep when they are averaged, and the
+    // rigid bodies' loads every substep (they move by them).
+    if (!tri_v.empty() && (last || (has_flex && mode == ForceMode::average) || !bodies.empty()))
       wall_reduce(last, mode, substeps);
+    if (!bodies.empty()) {
+      for (const auto& w : walls)
+        if (w.body >= 0) bodies.set_loads(w.body, w.force, w.torque);
+      bodies.kick(s.dt);
+    }
     ++steps;
     const double t3 = omp_get_wtime();
     timing.integration += t1 - t0;
@@ -1574,6 +1588,13 @@ std::int32_t DemSystem::add_wall(WallMesh wall) {
       for (double& c : wall.motion.axis) c /= a;
   }
   Impl::Wall w;
+  if (wall.body.enabled) {
+    if (I.gpu != nullptr || I.s.backend != "cpu")
+      bad(where +
+          ": rigid bodies moved by contact forces run on the CPU backend only (the CUDA "
+          "backend has no kernel for them yet)");
+    w.body = I.bodies.add(wall, I.s.gravity, where);
+  }
   w.mesh = std::move(wall);
   I.walls.push_back(std::move(w));
   I.build_wall_store();
@@ -1604,6 +1625,15 @@ std::vector<double> DemSystem::wall_vertices(std::int32_t wall) const {
   const auto& I = *impl_;
   const auto& w = I.walls[wall];
   return {I.vpos.begin() + 3 * w.vbase, I.vpos.begin() + 3 * w.vbase + w.mesh.vertices.size()};
+}
+
+RigidBodyState DemSystem::body_state(std::int32_t wall) const {
+  check_wall(*impl_, wall);
+  const auto& w = impl_->walls[wall];
+  if (w.body < 0)
+    throw std::invalid_argument("DemSystem: wall " + std::to_string(wall) + " (" + w.mesh.name +
+                                ") is not a rigid body");
+  return impl_->bodies.state(w.body);
 }
 
 void DemSystem::set_flexible_mesh(const InterfaceMesh& mesh, std::int32_t material) {
@@ -1889,9 +1919,12 @@ void save_shapes(const detail::ShapeTable& t, io::H5File& f, const std::string& 
   f.set_attribute(g + "shape_nv", "names", names);
 }
 
-// Replaces the table by the state's (a state without one keeps the system's).
-void restore_shapes(detail::ShapeTable& t, const io::H5File& f, const std::string& g) {
-  if (!f.exists(g + "shape_nv")) return;
+}  // namespace
+
+std::vector<PolyhedronShape> read_state_shapes(const io::H5File& f, const std::string& group) {
+  const std::string g = group + "/";
+  std::vector<PolyhedronShape> out;
+  if (!f.exists(g + "shape_nv")) return out;
   const auto nv = f.read_int64(g + "shape_nv"), ntri = f.read_int64(g + "shape_ntri");
   const auto vert = f.read_doubles(g + "shape_vertices");
   const auto tri = f.read_int64(g + "shape_triangles");
@@ -1900,7 +1933,6 @@ void restore_shapes(detail::ShapeTable& t, const io::H5File& f, const std::strin
   if (ntri.size() != nv.size() || par.size() != 5 * nv.size())
     throw std::invalid_argument("DemSystem: restore: inconsistent shape table in " +
                                 f.path().string());
-  t.clear();
   std::size_t v0 = 0, t0 = 0, name0 = 0;
   for (std::size_t k = 0; k < nv.size(); ++k) {
     PolyhedronShape s;
@@ -1916,8 +1948,17 @@ void restore_shapes(detail::ShapeTable& t, const io::H5File& f, const std::strin
     s.dilation = par[5 * k], s.volume = par[5 * k + 1];
     s.inertia = {par[5 * k + 2], par[5 * k + 3], par[5 * k + 4]};
     v0 += vn, t0 += tn;
-    t.add(s);
+    out.push_back(std::move(s));
   }
+  return out;
+}
+
+namespace {
+// Replaces the table by the state's (a state without one keeps the system's).
+void restore_shapes(detail::ShapeTable& t, const io::H5File& f, const std::string& g) {
+  if (!f.exists(g + "shape_nv")) return;
+  t.clear();
+  for (const auto& s : read_state_shapes(f, g.substr(0, g.size() - 1))) t.add(s);
 }
 }  // namespace
 
@@ -1941,6 +1982,7 @@ void DemSystem::save(io::H5File& f, const std::string& group) const {
   f.write(g + "nbr", std::span<const std::int64_t>(to64(I.nbr)));
   f.write(g + "wkey", std::span<const std::int64_t>(I.wkey));
   f.write(g + "wcount", std::span<const std::uint8_t>(I.wcount));
+  I.bodies.save(f, g);
 }
 
 void DemSystem::restore(const io::H5File& f, const std::string& group) {
@@ -1977,6 +2019,11 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   I.nbr = from64<std::int32_t>(f.read_int64(g + "nbr"));
   I.wkey = f.read_int64(g + "wkey");
   I.wcount = f.read_uint8(g + "wcount");
+  try {
+    I.bodies.restore(f, g);
+  } catch (const std::invalid_argument& e) {
+    bad(std::string("restore: ") + e.what());
+  }
   const std::size_t n = st.px.size();
   if (I.vpos.size() != (I.vbuild.size()) || (nwalls > 0 && I.vpos.size() < 3))
     bad("restore: wall vertex data in '" + group + "' does not match the walls of this system");

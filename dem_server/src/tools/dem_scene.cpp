@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "demfem/dem/dem_output.hpp"
+#include "demfem/dem/shapes/mesh_body.hpp"
 #include "demfem/dem/stl_reader.hpp"
 #include "demfem/io/checkpoint_file.hpp"
 #include "demfem/io/h5_file.hpp"
@@ -65,9 +66,49 @@ WallMotion read_motion(const Table& m) {
     w.amplitude = m.number("amplitude", Range::non_negative());
     w.frequency = m.number("frequency", Range::positive());
     w.phase = m.number("phase", 0.0);
+    w.velocity = m.vec3("velocity", std::array<double, 3>{0, 0, 0});
   }
   m.finish();
   return w;
+}
+
+// [dem.walls.body]: mass properties from a density (the closed mesh's, computed when the mesh
+// is read) or given, constraints, applied force, initial velocities.
+void read_body(const Table& b, WallSpec& ws) {
+  RigidBodySpec& r = ws.body;
+  r.enabled = true;
+  ws.body_where = b.where(b.has("density") ? "density" : "mass");
+  if (b.has("density") == b.has("mass"))
+    b.fail("density",
+           "a body needs exactly one of 'density' (mass properties from the closed "
+           "mesh) and 'mass' (with 'inertia')");
+  if (b.has("density")) {
+    ws.body_density = b.number("density", Range::positive());
+  } else {
+    r.mass = b.number("mass", Range::positive());
+    r.inertia = b.vec3("inertia", Range::positive());
+    if (b.has("centre")) {
+      r.centre = b.vec3("centre");
+      ws.has_body_centre = true;
+    }
+  }
+  r.velocity = b.vec3("velocity", std::array<double, 3>{0, 0, 0});
+  r.angular_velocity = b.vec3("angular_velocity", std::array<double, 3>{0, 0, 0});
+  r.force = b.vec3("force", std::array<double, 3>{0, 0, 0});
+  r.gravity = b.boolean("gravity", true);
+  if (b.has("fixed")) {
+    for (const auto& f : b.strings("fixed")) {
+      if (f == "x" || f == "y" || f == "z") {
+        r.fix_translation[std::size_t(f[0] - 'x')] = true;
+      } else if (f == "rotation") {
+        r.fix_rotation = true;
+      } else {
+        b.fail("fixed",
+               "unknown entry \"" + f + "\" (accepted: \"x\", \"y\", \"z\", \"rotation\")");
+      }
+    }
+  }
+  b.finish();
 }
 
 SizeDistribution read_distribution(const Table& d) {
@@ -271,6 +312,11 @@ DemScene read_dem_scene(const Table& dem) {
       pl->finish();
     }
     if (auto m = w.table("motion")) ws.motion = read_motion(*m);
+    if (auto b = w.table("body")) {
+      if (ws.motion.kind != WallMotion::Kind::fixed)
+        w.fail("body", "a wall moved by its contact forces cannot also have a 'motion'");
+      read_body(*b, ws);
+    }
     w.finish();
     s.walls.push_back(std::move(ws));
   }
@@ -467,6 +513,29 @@ DemScene read_dem_scene(const Table& dem) {
   return s;
 }
 
+namespace {
+// The engine's body of a wall: mass properties from its closed mesh and density, or the given
+// ones (centre: the mesh's volume centroid unless given; principal axes = the world axes).
+RigidBodySpec body_spec(const WallSpec& w, const WallMesh& mesh) {
+  RigidBodySpec r = w.body;
+  try {
+    const auto p = shapes::closed_mesh_properties(
+        mesh.vertices, mesh.triangles, w.body_density > 0 ? w.body_density : 1.0, w.name);
+    if (w.body_density > 0) {
+      r.mass = p.mass;
+      r.inertia = p.moments;
+      r.orientation = p.orientation;
+      r.centre = p.centre;
+    } else if (!w.has_body_centre) {
+      r.centre = p.centre;
+    }
+  } catch (const std::invalid_argument& e) {
+    throw SceneError(w.body_where + ": " + e.what());
+  }
+  return r;
+}
+}  // namespace
+
 DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, std::uint64_t seed,
                double run_output_interval, std::ostream* log, bool defer_output)
     : DemRun(scene, output_dir, seed, run_output_interval, log, defer_output, false) {}
@@ -507,11 +576,17 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
     mesh.name = w.name;
     mesh.material = w.material;
     mesh.motion = w.motion;
+    if (w.body.enabled) mesh.body = body_spec(w, mesh);
     wall_shapes_.push_back({w.name, mesh.vertices, mesh.triangles});
     // The pressure sensors need the area of their wall.
     const double area = mesh_area(mesh.vertices, mesh.triangles);
     if (scene_.load) meshes.push_back(mesh);
-    const auto index = system_->add_wall(std::move(mesh));
+    std::int32_t index = 0;
+    try {
+      index = system_->add_wall(std::move(mesh));
+    } catch (const std::invalid_argument& e) {  // a body the engine refuses (backend, mass)
+      throw SceneError((w.body.enabled ? w.body_where : w.where) + ": " + e.what());
+    }
     for (auto& s : scene_.sensors)
       if (s.kind == SensorSpec::Kind::wall_force && s.wall == index) s.area = area;
   }

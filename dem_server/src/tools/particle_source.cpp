@@ -45,6 +45,7 @@ struct Loaded {
   std::vector<ParticleInit> particles;
   std::vector<std::int64_t> file_material;  // empty: the file has none (CSV)
   std::vector<std::string> origin;          // "file:line" (CSV) or "file: particle i"
+  std::vector<PolyhedronShape> shapes;      // a state's shape table (shape_id indexes it)
 };
 
 [[noreturn]] void data_error(const ParticleSource& s, const std::string& at,
@@ -217,12 +218,41 @@ Loaded read_state_particles(const ParticleSource& s) {
   out.file_material = f.read_int64(g + "material");
   if (out.file_material.size() != n || shape.size() != n)
     data_error(s, s.file.string(), "state arrays of different lengths");
+  // Polyhedra: their shapes, scales and orientations come along (the shape table is added
+  // to this scene's by load_particles).
+  bool any_poly = false;
+  for (std::size_t i = 0; i < n; ++i)
+    any_poly = any_poly || shape[i] == static_cast<std::uint8_t>(ParticleShape::polyhedron);
+  std::vector<std::int64_t> shape_id;
+  std::vector<double> scale, qw, qx, qy, qz;
+  if (any_poly) {
+    try {
+      out.shapes = read_state_shapes(f, s.group);
+    } catch (const std::invalid_argument& e) {
+      data_error(s, s.file.string(), e.what());
+    }
+    shape_id = f.read_int64(g + "shape_id");
+    scale = f.read_doubles(g + "scale");
+    qw = f.read_doubles(g + "qw"), qx = f.read_doubles(g + "qx"), qy = f.read_doubles(g + "qy"),
+    qz = f.read_doubles(g + "qz");
+    for (const auto* a : {&scale, &qw, &qx, &qy, &qz})
+      if (a->size() != n) data_error(s, s.file.string(), "state arrays of different lengths");
+    if (shape_id.size() != n) data_error(s, s.file.string(), "state arrays of different lengths");
+  }
   for (std::size_t i = 0; i < n; ++i) {
-    if (shape[i] != static_cast<std::uint8_t>(ParticleShape::sphere))
-      data_error(s, s.file.string() + ": particle " + std::to_string(i),
-                 "is not a sphere; loading other shapes without their history is not supported "
-                 "(use history = true)");
     ParticleInit p;
+    if (shape[i] == static_cast<std::uint8_t>(ParticleShape::polyhedron)) {
+      if (shape_id[i] < 0 || shape_id[i] >= std::int64_t(out.shapes.size()))
+        data_error(s, s.file.string() + ": particle " + std::to_string(i),
+                   "refers to a shape the state's table does not hold");
+      p.shape = ParticleShape::polyhedron;
+      p.shape_id = static_cast<std::int32_t>(shape_id[i]);  // the file's; remapped when added
+      p.scale = scale[i];
+      p.orientation = {qw[i], qx[i], qy[i], qz[i]};
+    } else if (shape[i] != static_cast<std::uint8_t>(ParticleShape::sphere)) {
+      data_error(s, s.file.string() + ": particle " + std::to_string(i),
+                 "has an unknown shape kind " + std::to_string(int(shape[i])));
+    }
     p.position = {px[i], py[i], pz[i]};
     p.velocity = {vx[i], vy[i], vz[i]};
     p.angular_velocity = {wx[i], wy[i], wz[i]};
@@ -282,14 +312,22 @@ std::string describe_count(std::size_t n) {
 
 // History: the state's walls must be this scene's, at the same place, and its masses this
 // scene's densities; then DemSystem::restore continues it exactly.
-void restore_state(const ParticleSource& s, DemSystem& system) {
+// Walls that move (a prescribed motion, or a rigid body moved by its contacts) are compared
+// by their vertex count only: a body continues from its saved pose, a moving wall takes the
+// pose of the scene's clock (keep a moving wall away from the particles at the save, as a
+// compaction plate parked above the bed).
+void restore_state(const ParticleSource& s, DemSystem& system, std::span<const WallMesh> walls) {
   io::H5File f(s.file, io::H5File::Mode::read);
   require_state_group(f, s);
   const std::string g = s.group + "/";
   std::vector<double> scene_vertices;
+  std::vector<std::uint8_t> compared;  // per coordinate
   for (std::size_t w = 0; w < system.wall_count(); ++w) {
     const auto v = system.wall_vertices(static_cast<std::int32_t>(w));
     scene_vertices.insert(scene_vertices.end(), v.begin(), v.end());
+    const bool moves = w < walls.size() &&
+                       (walls[w].body.enabled || walls[w].motion.kind != WallMotion::Kind::fixed);
+    compared.insert(compared.end(), v.size(), moves ? 0 : 1);
   }
   if (f.exists(g + "flex_x") && !f.read_doubles(g + "flex_x").empty())
     data_error(s, s.file.string(),
@@ -303,7 +341,7 @@ void restore_state(const ParticleSource& s, DemSystem& system) {
                    "; the wall contact history needs the same walls (same [[dem.walls]] in the "
                    "same order), or use history = false");
   for (std::size_t k = 0; k < vpos.size(); ++k)
-    if (vpos[k] != scene_vertices[k])
+    if (compared[k] && vpos[k] != scene_vertices[k])
       data_error(s, s.file.string(),
                  "wall vertex " + std::to_string(k / 3) +
                      " is at another place than in this "
@@ -318,15 +356,20 @@ void restore_state(const ParticleSource& s, DemSystem& system) {
   const auto& mats = system.settings().materials;
   if (mass.size() != radius.size() || material.size() != radius.size())
     data_error(s, s.file.string(), "state arrays of different lengths");
-  // A polyhedron's mass is rho V s^3 (V of its unit shape in the state's shape table, s its
-  // scale), a sphere's that of its radius.
+  // A polyhedron's mass is density x its shape's volume x scale³ (its radius is the bounding
+  // sphere's); states written before polyhedra hold spheres only.
+  std::vector<PolyhedronShape> shapes;
   std::vector<std::int64_t> shape_id;
-  std::vector<double> scale, shape_params;
+  std::vector<double> scale;
   if (f.exists(g + "shape_id")) {
+    try {
+      shapes = read_state_shapes(f, s.group);
+    } catch (const std::invalid_argument& e) {
+      data_error(s, s.file.string(), e.what());
+    }
     shape_id = f.read_int64(g + "shape_id");
     scale = f.read_doubles(g + "scale");
-    if (f.exists(g + "shape_params")) shape_params = f.read_doubles(g + "shape_params");
-    if (shape_id.size() != radius.size() || scale.size() != radius.size())
+    if (shape_id.size() != mass.size() || scale.size() != mass.size())
       data_error(s, s.file.string(), "state arrays of different lengths");
   }
   for (std::size_t i = 0; i < mass.size(); ++i) {
@@ -338,12 +381,11 @@ void restore_state(const ParticleSource& s, DemSystem& system) {
                      " is not a particle material of this scene; with history = true the "
                      "state's material indices are kept (same [[dem.materials]] order)");
     const bool poly = !shape_id.empty() && shape_id[i] >= 0;
-    if (poly && static_cast<std::size_t>(5 * shape_id[i] + 1) >= shape_params.size())
-      data_error(s, at,
-                 "shape index " + std::to_string(shape_id[i]) + " is not in the state's shape table");
+    if (poly && shape_id[i] >= std::int64_t(shapes.size()))
+      data_error(s, at, "refers to a shape the state's table does not hold");
     const double expect =
-        poly ? mats[m].density * shape_params[static_cast<std::size_t>(5 * shape_id[i] + 1)] *
-                   scale[i] * scale[i] * scale[i]
+        poly ? mats[m].density * shapes[std::size_t(shape_id[i])].volume * scale[i] * scale[i] *
+                   scale[i]
              : mats[m].density * 4.0 / 3.0 * std::numbers::pi * radius[i] * radius[i] * radius[i];
     if (!(std::abs(mass[i] - expect) <= 1e-12 * expect))
       data_error(s, at,
@@ -480,10 +522,10 @@ OverlapReport largest_overlap(const ParticleState& p, std::span<const WallMesh> 
   grid.reserve(n);
   for (std::size_t i = 0; i < n; ++i)
     grid[key(p.px[i], p.py[i], p.pz[i])].push_back(std::int64_t(i));
-  // A polyhedron's radius bounds it: its overlaps are not those of its bounding sphere. Only
-  // a state with history holds polyhedra, and its run had them (DemSystem::max_overlap).
+  // Polyhedra are left out: their radius is the bounding sphere's, which overlaps in any
+  // packed bed; the engine's stability guard measures their true overlap at the first steps.
   auto sphere = [&](std::size_t i) {
-    return p.shape.empty() || p.shape[i] == static_cast<std::uint8_t>(ParticleShape::sphere);
+    return p.shape.size() != n || p.shape[i] == static_cast<std::uint8_t>(ParticleShape::sphere);
   };
   auto consider = [&](double depth, double rsmall, std::int64_t i, std::int64_t j) {
     if (!(depth > 0)) return;
@@ -501,6 +543,7 @@ OverlapReport largest_overlap(const ParticleState& p, std::span<const WallMesh> 
           for (std::int64_t j : it->second) {
             if (j <= std::int64_t(i) || !sphere(std::size_t(j))) continue;
             const double ex = p.px[j] - p.px[i], ey = p.py[j] - p.py[i], ez = p.pz[j] - p.pz[i];
+            if (!sphere(i) || !sphere(std::size_t(j))) continue;
             const double d = std::sqrt(ex * ex + ey * ey + ez * ez);
             consider(p.radius[i] + p.radius[j] - d, std::min(p.radius[i], p.radius[j]),
                      std::int64_t(i), j);
@@ -569,7 +612,7 @@ std::size_t load_particles(const ParticleSource& s, DemSystem& system,
   std::vector<std::string> origin;
   try {
     if (s.history) {
-      restore_state(s, system);
+      restore_state(s, system, walls);
     } else {
       Loaded l = s.format == ParticleSource::Format::csv        ? read_csv(s)
                  : s.format == ParticleSource::Format::snapshot ? read_snapshot(s)
@@ -583,6 +626,18 @@ std::size_t load_particles(const ParticleSource& s, DemSystem& system,
       if (l.particles.empty()) data_error(s, s.file.string(), "holds no particles");
       if (l.particles.size() > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
         data_error(s, s.file.string(), "holds more particles than a scene can (2^31 - 1)");
+      if (!l.shapes.empty()) {  // the state's shapes join this scene's table
+        std::vector<std::int32_t> id(l.shapes.size());
+        for (std::size_t k = 0; k < l.shapes.size(); ++k) {
+          try {
+            id[k] = system.add_shape(l.shapes[k]);
+          } catch (const std::invalid_argument& e) {
+            data_error(s, s.file.string() + ": shape " + std::to_string(k), e.what());
+          }
+        }
+        for (auto& p : l.particles)
+          if (p.shape == ParticleShape::polyhedron) p.shape_id = id[std::size_t(p.shape_id)];
+      }
       system.add_particles(l.particles);
       origin = std::move(l.origin);
     }

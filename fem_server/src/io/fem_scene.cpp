@@ -488,11 +488,30 @@ TimeFunction read_time_function(const Table& a) {
       s.cycle_min = a.number("cycle_min", s.cycle_min, Range::non_negative());
       s.cycle_max = a.number("cycle_max", s.cycle_max, Range::non_negative());
       s.ramp_duration = a.number("ramp_duration", s.ramp_duration, Range::positive());
-      s.cycle_duration = a.number("cycle_duration", s.cycle_duration, Range::positive());
       s.cycle_frequency = a.number("cycle_frequency", s.cycle_frequency, Range::positive());
+      // the cyclic stage as a duration or as a whole number of cycles (a long run: 100 or more)
+      if (a.has("cycles") && a.has("cycle_duration"))
+        a.fail("cycles", "give one of 'cycles' and 'cycle_duration', not both");
+      if (a.has("cycles")) {
+        s.cycle_duration = double(a.integer("cycles", 1, 10000000)) / s.cycle_frequency;
+      } else {
+        s.cycle_duration = a.number("cycle_duration", s.cycle_duration, Range::positive());
+      }
       s.time_scale = a.number("time_scale", s.time_scale, Range::positive());
       if (s.cycle_max < s.cycle_min) a.fail("cycle_max", "must not be smaller than cycle_min");
+      // the levels are per rail seat, or the total over `seats` seats (each then gets 1/seats)
+      const std::string per = a.choice("force_is", "per_seat", {"per_seat", "total"});
+      const std::int64_t seats = a.integer("seats", 2, 1, 1000);
+      if (per == "per_seat" && a.has("seats"))
+        a.fail("seats", "is used with force_is = \"total\" only");
+      if (per == "total") {
+        const double k = 1.0 / double(seats);
+        s.peak_force *= k, s.cycle_min *= k, s.cycle_max *= k;
+      }
+      // a delay before the pattern (the sleeper first settles under its seating load)
+      const double start = a.number("start_time", 0.0, Range::non_negative());
       f = sleeper_load_function(s);
+      if (start > 0.0) f = [g = f, start](double t) { return g(t - start); };
     }
   } catch (const std::invalid_argument& e) {
     a.fail("type", e.what());

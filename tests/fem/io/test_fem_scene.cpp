@@ -246,3 +246,37 @@ thickness = 1e-7
 )"),
              Catch::Contains("'fem.mesh'") && Catch::Contains("below 1e-5 of its longest edge"));
 }
+
+TEST_CASE("fem scene: the sleeper pattern by cycle count, per rail seat or in total") {
+  // 4 cycles at 2 Hz after a 0.5 s ramp: the cyclic stage ends at 0.5 + 2 s, the second ramp
+  // reaches the peak at 3 s (as cycle_duration = 2 would)
+  const std::string base = kBox + "[[fem.pressures]]\nsurface = \"zmax\"\ntotal_force = 1.0\n";
+  const FemScene a = read(base +
+                          "amplitude = { type = \"sleeper\", cycles = 4, cycle_frequency = "
+                          "2, ramp_duration = 0.5 }\n");
+  const FemScene b = read(base +
+                          "amplitude = { type = \"sleeper\", cycle_duration = 2, "
+                          "cycle_frequency = 2, ramp_duration = 0.5 }\n");
+  for (double t : {0.2, 0.75, 1.6, 2.4, 2.75, 3.0, 4.0})
+    CHECK(a.problem.pressures[0].amplitude(t) == b.problem.pressures[0].amplitude(t));
+  CHECK(a.problem.pressures[0].amplitude(3.0) == Approx(220e3));  // the peak, in N
+  // in total over two seats: each seat gets half
+  const FemScene c = read(base +
+                          "amplitude = { type = \"sleeper\", cycles = 4, cycle_frequency = "
+                          "2, ramp_duration = 0.5, force_is = \"total\" }\n");
+  for (double t : {0.2, 0.75, 1.6, 3.0})
+    CHECK(c.problem.pressures[0].amplitude(t) == Approx(0.5 * a.problem.pressures[0].amplitude(t)));
+  const FemScene d = read(base +
+                          "amplitude = { type = \"sleeper\", cycles = 4, cycle_frequency = "
+                          "2, ramp_duration = 0.5, start_time = 0.25 }\n");
+  CHECK(d.problem.pressures[0].amplitude(0.2) == 0.0);
+  for (double t : {0.2, 0.75, 1.6, 3.0})
+    CHECK(d.problem.pressures[0].amplitude(t + 0.25) == a.problem.pressures[0].amplitude(t));
+  CHECK_THAT(
+      error_of(base + "amplitude = { type = \"sleeper\", cycles = 4, cycle_duration = 1 }\n"),
+      Catch::Contains("'fem.pressures[0].amplitude.cycles'") && Catch::Contains("not both"));
+  CHECK_THAT(error_of(base + "amplitude = { type = \"sleeper\", cycles = 0 }\n"),
+             Catch::Contains("'fem.pressures[0].amplitude.cycles'"));
+  CHECK_THAT(error_of(base + "amplitude = { type = \"sleeper\", seats = 3 }\n"),
+             Catch::Contains("'fem.pressures[0].amplitude.seats'") && Catch::Contains("force_is"));
+}

@@ -42,6 +42,13 @@ struct WallSpec {
   double size = 0.0;                               ///< plane
   std::int32_t material = 0;
   WallMotion motion;
+  /// [dem.walls.body]: a rigid body moved by its contact forces. Mass properties come from
+  /// the closed mesh and body_density (> 0), or are given (body.mass, body.inertia, and the
+  /// centre unless has_body_centre is false: then the mesh's volume centroid).
+  RigidBodySpec body;
+  double body_density = 0.0;
+  bool has_body_centre = false;
+  std::string body_where;
   std::string where;  ///< file:line of the entry, for errors found later (bad STL)
 };
 

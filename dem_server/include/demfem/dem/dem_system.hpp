@@ -117,7 +117,7 @@ struct ParticleState {
 struct WallMotion {
   enum class Kind : std::uint8_t { fixed, translation, rotation, sinusoid };
   Kind kind = Kind::fixed;
-  std::array<double, 3> velocity{};     ///< translation: m/s
+  std::array<double, 3> velocity{};     ///< translation: m/s; sinusoid: a steady drift added
   std::array<double, 3> axis_point{};   ///< rotation: a point on the axis, m
   std::array<double, 3> axis{0, 0, 1};  ///< rotation axis (unit) / sinusoid direction (unit)
   double angular_velocity = 0.0;        ///< rotation: rad/s
@@ -128,6 +128,32 @@ struct WallMotion {
   double end_time = 1e300;              ///< s
 };
 
+/// @brief Makes a wall a rigid body moved by the particles' contact forces (pressure cells,
+/// a rigid sleeper, a loose plate; physics/rigid_mesh_body.hpp) instead of a prescribed
+/// motion. Mass properties are given here (the scene computes them from the closed mesh and
+/// a density, shapes/mesh_body.hpp). CPU backend only.
+struct RigidBodySpec {
+  bool enabled = false;
+  double mass = 0.0;                              ///< kg, > 0
+  std::array<double, 3> centre{};                 ///< centre of mass at the start, m
+  std::array<double, 3> inertia{};                ///< principal moments, kg m², > 0
+  std::array<double, 4> orientation{1, 0, 0, 0};  ///< principal frame to world (w, x, y, z)
+  std::array<double, 3> velocity{};               ///< m/s, at the start
+  std::array<double, 3> angular_velocity{};       ///< rad/s, world frame, at the start
+  std::array<double, 3> force{};                  ///< constant applied force, N
+  bool gravity = true;                            ///< DemSettings::gravity acts on it
+  std::array<bool, 3> fix_translation{};          ///< components of the centre held in place
+  bool fix_rotation = false;                      ///< the orientation held in place
+};
+
+/// @brief Kinematic state of a rigid mesh body and its loads of the last step.
+struct RigidBodyState {
+  std::array<double, 3> centre{}, velocity{}, angular_velocity{};
+  std::array<double, 4> orientation{1, 0, 0, 0};
+  std::array<double, 3> force{};   ///< of the particles on the body, N
+  std::array<double, 3> torque{};  ///< of the particles, about the centre, N m
+};
+
 /// @brief A rigid triangle mesh (from STL or generated).
 struct WallMesh {
   std::string name;
@@ -135,6 +161,7 @@ struct WallMesh {
   std::vector<std::int32_t> triangles;  ///< 3 vertex indices per triangle
   std::int32_t material = 0;
   WallMotion motion;
+  RigidBodySpec body;  ///< enabled: moved by its contact forces (motion must be fixed)
 };
 
 /// @brief advance() stopped early because its cancellation flag was set (set_cancel_flag()).
@@ -179,6 +206,9 @@ class DemSystem {
   std::array<double, 3> wall_torque(std::int32_t wall) const;
   /// Current vertex positions of a wall (it may move).
   std::vector<double> wall_vertices(std::int32_t wall) const;
+  /// State of a wall that is a rigid body (WallMesh::body); throws std::invalid_argument for
+  /// any other wall.
+  RigidBodyState body_state(std::int32_t wall) const;
 
   /// Sets the flexible coupled mesh (at most one) and its wall material.
   void set_flexible_mesh(const InterfaceMesh& mesh, std::int32_t material);
@@ -252,6 +282,11 @@ class DemSystem {
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+/// The shape table of a saved DEM state (DemSystem::save) in group `group`, in the state's
+/// order (a particle's shape_id indexes it); empty when the state has none. Throws
+/// std::invalid_argument when the table is inconsistent.
+std::vector<PolyhedronShape> read_state_shapes(const io::H5File& file, const std::string& group);
 
 /// @brief True when this build has the CUDA backend and a CUDA device is present.
 bool cuda_available();

@@ -3,8 +3,8 @@
 // the CPU backend (DemSystem::Impl::update_walls, wall_reduce) and the CUDA backend
 // (cuda/dem_cuda.cu):
 //   * rigid motion of a wall (WallMotion: translation, rotation about an axis (Rodrigues),
-//     sinusoid along an axis), active in [start_time, end_time) and at rest with the reached
-//     pose outside; the reference vertices are the pose at start_time;
+//     sinusoid along an axis with an optional steady drift), active in [start_time, end_time) and
+//     at rest with the reached pose outside; the reference vertices are the pose at start_time;
 //   * a node of the flexible mesh within one advance(): x(τ) = x + v τ + a τ²/2,
 //     v(τ) = v + a τ (the constant acceleration of the structure's step);
 //   * the share of a contact force that a node of the touched triangle receives (barycentric
@@ -56,9 +56,10 @@ DEMFEM_HD RigidPose rigid_pose(const RigidMotion& m, double t) {
     const double arg = 2 * pi * m.frequency * el + m.phase;
     const double u = m.amplitude * std::sin(arg);
     const double du = active ? m.amplitude * 2 * pi * m.frequency * std::cos(arg) : 0.0;
+    // plus a steady drift (a compaction plate that descends while it vibrates; 0 = none)
     for (int d = 0; d < 3; ++d) {
-      p.shift[d] = m.axis[d] * u;
-      p.vel[d] = m.axis[d] * du;
+      p.shift[d] = m.axis[d] * u + m.velocity[d] * el;
+      p.vel[d] = m.axis[d] * du + (active ? m.velocity[d] : 0.0);
     }
   } else if (m.kind == kMotionRotation) {
     const Vec3 ax{m.axis[0], m.axis[1], m.axis[2]};
