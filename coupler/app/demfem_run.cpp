@@ -657,6 +657,16 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
           "(sum %.9g N along z) went into one static FEM solve\n",
           summary->time, summary->last.kinetic_energy, summary->last.force_sum_z);
     }
+    if (settings.scheme == Scheme::implicit && summary->steps > 0) {
+      std::printf(
+          "demfem run: implicit (%s): %lld iterations in %lld steps, %.3g per step, at "
+          "most %lld; %lld steps accepted without convergence\n",
+          acceleration_name(settings.implicit.acceleration.kind),
+          static_cast<long long>(summary->iterations), static_cast<long long>(summary->steps),
+          static_cast<double>(summary->iterations) / static_cast<double>(summary->steps),
+          static_cast<long long>(summary->max_iterations),
+          static_cast<long long>(summary->unconverged_steps));
+    }
     print_timing(*summary, remote);
     try {
       write_timing(out_dir, *summary);

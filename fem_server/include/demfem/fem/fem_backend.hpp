@@ -30,6 +30,10 @@ namespace demfem::fem {
 /// the coupling step end nearest to it and labelled with it (io::OutputSchedule; none from
 /// step() when the interval is 0); the caller writes the start and end states with
 /// write_initial_output() and write_final_output().
+///
+/// Iterated steps (implicit coupling, docs/protocol.md): the save point is the solver's state
+/// in memory (u, v, a, forces, time: FemSolver::save_state) with the output step size; a step
+/// with kStepIterate writes its output only when accepted (accept_step()).
 class FemBackend final : public protocol::SolverBackend {
  public:
   explicit FemBackend(FemSolver& solver, FemOutput* output = nullptr, double output_interval = 0.0)
@@ -103,8 +107,29 @@ class FemBackend final : public protocol::SolverBackend {
     r.values[1] = solver_.kinetic_energy();
     r.values[2] = solver_.strain_energy();
     r.values[3] = solver_.time();
-    maybe_write_output();
+    if (cmd.flags & protocol::kStepIterate) {
+      held_back_ = true;  // the output waits until the step is accepted
+    } else {
+      maybe_write_output();
+    }
     return r;
+  }
+
+  bool supports_iteration() const override { return true; }
+  void save_iteration_state() override {
+    accept_step();
+    solver_.save_state(save_point_);
+    save_point_dt_ = step_dt_;
+  }
+  void restore_iteration_state() override {
+    held_back_ = false;
+    solver_.restore_state(save_point_);
+    step_dt_ = save_point_dt_;
+  }
+  void accept_step() override {
+    if (!held_back_) return;
+    held_back_ = false;
+    maybe_write_output();
   }
 
   /// The solver state under group "fem" of an HDF5 file, written under a temporary name and
@@ -127,6 +152,7 @@ class FemBackend final : public protocol::SolverBackend {
   }
 
   void restore_checkpoint(const std::filesystem::path& file, std::int64_t step) override {
+    held_back_ = false;  // a held-back step is not part of the restored state
     const io::H5File h5 = io::open_checkpoint_file(file, step);
     solver_.restore(h5, "fem");
     if (h5.exists("fem_output_schedule")) {
@@ -171,6 +197,9 @@ class FemBackend final : public protocol::SolverBackend {
   io::OutputSchedule schedule_;
   double step_dt_ = 0.0;                ///< dt of the dynamic steps (the coupling step), s
   std::int64_t last_output_step_ = -1;  ///< solver step count of the last output
+  FemStateCopy save_point_;             ///< save_iteration_state()
+  double save_point_dt_ = 0.0;
+  bool held_back_ = false;  ///< an iterated step whose output waits for accept_step()
 };
 
 }  // namespace demfem::fem
