@@ -60,6 +60,7 @@ struct Options {
   bool quiet = false;
   bool in_process = false;
   int wait_spin_us = 0;
+  bool solver_sessions = false;
   bool resume = false;
   std::string resume_from;  // empty: the latest valid checkpoint
   std::string debug_kill;   // ROLE:STEP[:always], fault injection for tests
@@ -496,11 +497,13 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
       std::printf("demfem run: segment %s\n", session->segment_name().c_str());
       if (settings.has_fem) {
         fem_proc = std::make_unique<SolverProcess>("FEM solver", bin / "fem_server", fem_args);
+        fem_proc->set_own_session(opt.solver_sessions);
         fem_pid = fem_proc->start();
         std::printf("demfem run: started fem_server (pid %d)\n", static_cast<int>(*fem_pid));
       }
       if (settings.has_dem) {
         dem_proc = std::make_unique<SolverProcess>("DEM solver", bin / "dem_server", args);
+        dem_proc->set_own_session(opt.solver_sessions);
         dem_pid = dem_proc->start();
         std::printf("demfem run: started dem_server (pid %d)\n", static_cast<int>(*dem_pid));
       }
@@ -746,6 +749,12 @@ int main(int argc, char** argv) {
                  "microseconds the coupler spins before it blocks while waiting for a solver "
                  "(default 0: block at once)")
       ->check(CLI::Range(0, 100000));
+  app.add_flag("--solver-sessions", opt.solver_sessions,
+               "start each solver in a session of its own (setsid), so that under Linux's "
+               "autogroup scheduling each gets a CPU share of its own (the concurrent scheme "
+               "needs both cores while other sessions are busy); signals to the launcher's "
+               "process group then reach only the launcher, which forwards SIGTERM "
+               "(docs/coupling.md)");
   app.add_flag("--in-process", opt.in_process,
                "run the solvers in this process (no servers; same results on the CPU backend)");
   auto* resume = app.add_option("--resume", opt.resume_from,

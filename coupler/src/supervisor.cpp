@@ -71,7 +71,11 @@ pid_t SolverProcess::start() {
   for (auto& a : argv_store) argv.push_back(a.data());
   argv.push_back(nullptr);
   pid_t pid = -1;
-  const int rc = ::posix_spawn(&pid, executable_.c_str(), nullptr, nullptr, argv.data(), environ);
+  posix_spawnattr_t attr;
+  ::posix_spawnattr_init(&attr);
+  if (own_session_) ::posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSID);
+  const int rc = ::posix_spawn(&pid, executable_.c_str(), nullptr, &attr, argv.data(), environ);
+  ::posix_spawnattr_destroy(&attr);
   if (rc != 0) {
     throw std::runtime_error("cannot start the " + label_ + " (" + executable_.string() +
                              "): " + std::strerror(rc));

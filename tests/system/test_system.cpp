@@ -379,6 +379,30 @@ TEST_CASE("two-way dynamic beam settles to the static deflection within 0.5 %") 
   }
 }
 
+TEST_CASE("solver sessions (demfem_run --solver-sessions): Ctrl-C still stops all three") {
+  TempDir d;
+  const auto scene = variant(d.path, "long.toml", "beam_dynamic_ci.toml",
+                             {{"end_time = 0.005 ", "end_time = 100.0 "},
+                              {"scheme = \"just_in_time\"", "scheme = \"concurrent\""}});
+  const pid_t pid = spawn_run(d.path, {scene.string(), "--quiet", "--solver-sessions"}, true);
+  wait_for_rows(d.path / "out/beam_dynamic_ci/coupling.csv", 2);
+  const std::string out = read_text(d.path / "stdout.txt");
+  const auto pids = started_pids(out);
+  REQUIRE(pids.size() == 2);
+  for (pid_t p : pids) {
+    CHECK(getsid(p) == p);  // a session leader: its own autogroup under Linux
+    CHECK(getsid(p) != getsid(pid));
+  }
+  kill(-pid, SIGINT);  // the terminal's Ctrl-C reaches the launcher only; it forwards SIGTERM
+  const Result r = wait_run(d.path, pid);
+  INFO(r.out << r.err);
+  CHECK(r.status == 128 + SIGINT);
+  for (pid_t p : pids) CHECK(pid_gone(p));
+  const std::string segment = segment_of(out);
+  CHECK(!fs::exists(fs::path("/dev/shm") / segment));
+  CHECK(!fs::exists(fs::path("/dev/shm") / (segment + "-bulk")));
+}
+
 TEST_CASE("concurrent scheme: the same bits on every three-process run") {
   // The DEM and the FEM step at the same time in two processes, writing different buffers:
   // the order in which they finish must not change any number.
