@@ -36,6 +36,7 @@
 #include "demfem/coupling/output_folder.hpp"
 #include "demfem/coupling/progress.hpp"
 #include "demfem/coupling/run_record.hpp"
+#include "demfem/coupling/scene_steps.hpp"
 #include "demfem/coupling/solver_link.hpp"
 #include "demfem/coupling/supervisor.hpp"
 #include "demfem/io/atomic_file.hpp"
@@ -59,6 +60,7 @@ struct Options {
   std::string output_dir;
   bool quiet = false;
   bool in_process = false;
+  bool no_post = false;
   int wait_spin_us = 0;
   bool solver_sessions = false;
   bool resume = false;
@@ -265,11 +267,19 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   std::optional<scene::Document> doc;
   CouplingSettings settings;
   SolverSections sections;
+  std::vector<PostStep> post_steps;
+  const fs::path bin = opt.bin_dir.empty() ? self_dir() : fs::path(opt.bin_dir);
   try {
     std::vector<scene::Override> overrides;
     for (const auto& s : opt.sets) overrides.push_back(scene::Override::parse(s));
     doc = scene::Document::load(opt.scene, overrides);
     settings = read_coupling_settings(*doc);
+    post_steps = read_post_steps(*doc, bin);
+    // A [dem.load] scene = ... whose state is missing or stale: that scene runs first, so
+    // that the check of the solver sections (which builds the particles) finds the state.
+    if (!opt.check) {
+      if (const int c = run_prepare_scenes(*doc, bin, opt.quiet, opt.in_process)) return c;
+    }
     sections = check_solver_sections(*doc, settings.run.seed);
   } catch (const scene::SceneError& e) {
     std::fprintf(stderr, "demfem run: scene error: %s\n", e.what());
@@ -457,7 +467,6 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   std::unique_ptr<protocol::CouplerSession> session;
   std::unique_ptr<SolverProcess> dem_proc, fem_proc;
   std::unique_ptr<SolverLink> link;
-  const fs::path bin = opt.bin_dir.empty() ? self_dir() : fs::path(opt.bin_dir);
   int code = 0;
   std::string reason;
   std::optional<RunSummary> summary;
@@ -692,6 +701,14 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
       }
     }
   }
+  // [[post]]: plots and reports of a run that ended well.
+  if (code == 0 && summary && !opt.no_post && !post_steps.empty()) {
+    std::fflush(stdout);
+    if (run_post_steps(post_steps, out_dir, opt.scene, bin) != 0) {
+      code = kExitFailed;
+      reason = "a [[post]] step failed";
+    }
+  }
 
   // ---- the run record: how it ended ---------------------------------------------------------
   record.exit_code = code;
@@ -755,6 +772,7 @@ int main(int argc, char** argv) {
                "needs both cores while other sessions are busy); signals to the launcher's "
                "process group then reach only the launcher, which forwards SIGTERM "
                "(docs/coupling.md)");
+  app.add_flag("--no-post", opt.no_post, "skip the scene's [[post]] steps (plots, reports)");
   app.add_flag("--in-process", opt.in_process,
                "run the solvers in this process (no servers; same results on the CPU backend)");
   auto* resume = app.add_option("--resume", opt.resume_from,

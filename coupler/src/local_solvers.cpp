@@ -76,6 +76,10 @@ class LocalFem final : public protocol::SolverBackend {
     const double interval =
         scene.output.interval > 0.0 ? scene.output.interval : run.output_interval;
     backend_ = std::make_unique<fem::FemBackend>(solver_, output_.get(), interval);
+    if (scene.monitor.enabled) {
+      monitor_ = std::make_unique<fem::FemMonitor>(out, scene.monitor, resume);
+      backend_->set_monitor(monitor_.get());
+    }
     if (!resume) backend_->write_initial_output();  // reference state
   }
   ~LocalFem() override {
@@ -105,6 +109,7 @@ class LocalFem final : public protocol::SolverBackend {
  private:
   fem::FemSolver solver_;
   std::unique_ptr<fem::FemOutput> output_;
+  std::unique_ptr<fem::FemMonitor> monitor_;
   std::unique_ptr<fem::FemBackend> backend_;
 };
 

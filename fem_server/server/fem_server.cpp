@@ -67,6 +67,11 @@ int main(int argc, char** argv) {
       }
       const double interval = fem.output.interval > 0.0 ? fem.output.interval : run.output_interval;
       demfem::fem::FemBackend backend(solver, output.get(), interval);
+      std::unique_ptr<demfem::fem::FemMonitor> monitor;
+      if (fem.monitor.enabled) {
+        monitor = std::make_unique<demfem::fem::FemMonitor>(out_dir, fem.monitor, resume);
+        backend.set_monitor(monitor.get());
+      }
       if (!resume) backend.write_initial_output();  // reference state
       demfem::protocol::ServeOptions options;
       options.segment = segment;

@@ -1775,4 +1775,11 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   I.need_rebuild = true;
 }
 
+void DemSystem::reset_clock() {
+  auto& I = *impl_;
+  I.t = 0.0;
+  I.steps = 0;
+  I.update_walls(I.t, I.flex_tau);
+}
+
 }  // namespace demfem::dem

@@ -12,6 +12,7 @@
 
 #include "demfem/dem/dem_output.hpp"
 #include "demfem/dem/stl_reader.hpp"
+#include "demfem/io/checkpoint_file.hpp"
 #include "demfem/io/h5_file.hpp"
 
 namespace demfem::dem {
@@ -424,9 +425,12 @@ DemScene read_dem_scene(const Table& dem) {
     s.sensors.push_back(ss);
   }
 
+  if (auto l = dem.table("load")) s.load = read_particle_source(*l, st.materials);
+
   if (auto o = dem.table("output")) {
     if (o->has("interval")) s.output_interval = o->number("interval", Range::non_negative());
     s.output_particles = o->boolean("particles", true);
+    s.output_state = o->boolean("state", false);
     o->finish();
   }
   dem.finish();
@@ -452,6 +456,7 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
     // absent, or a feature it lacks).
     throw SceneError(scene_.backend_where + ": " + e.what());
   }
+  std::vector<WallMesh> meshes;  // as added, for the checks of loaded particles
   for (auto& w : scene_.walls) {
     WallMesh mesh;
     switch (w.kind) {
@@ -475,9 +480,14 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
     wall_shapes_.push_back({w.name, mesh.vertices, mesh.triangles});
     // The pressure sensors need the area of their wall.
     const double area = mesh_area(mesh.vertices, mesh.triangles);
+    if (scene_.load) meshes.push_back(mesh);
     const auto index = system_->add_wall(std::move(mesh));
     for (auto& s : scene_.sensors)
       if (s.kind == SensorSpec::Kind::wall_force && s.wall == index) s.area = area;
+  }
+  if (scene_.load) {
+    const std::size_t n = load_particles(*scene_.load, *system_, meshes, log);
+    for (std::size_t i = 0; i < n; ++i) ids_.push_back(next_id_++);
   }
   const WallClearance walls = wall_clearance();
   for (std::size_t i = 0; i < scene_.lattices.size(); ++i) {
@@ -701,6 +711,20 @@ void DemRun::write_snapshot() {
 
 void DemRun::finish() {
   if (output_ && last_snapshot_step_ != system_->step_count()) write_snapshot();
+  write_state();
+}
+
+void DemRun::write_state() const {
+  if (!scene_.output_state || output_dir_.empty()) return;
+  std::filesystem::create_directories(output_dir_);
+  const auto file = output_dir_ / kStateFileName;
+  io::write_checkpoint_file(file, system_->step_count(), [&](io::H5File& h5) {
+    save(h5, "dem");
+    h5.set_attribute("/", "scene_file", scene_.file);
+    h5.set_attribute("/", "scene_hash", scene_text_hash(scene_.file));
+    h5.set_attribute("/", "time", system_->time());
+    h5.set_attribute("/", "count", static_cast<std::int64_t>(system_->particle_count()));
+  });
 }
 
 void DemRun::check_stable() const {

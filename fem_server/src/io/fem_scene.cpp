@@ -527,6 +527,7 @@ FemScene read_fem_scene(const Table& fem) {
     }
     o->finish();
   }
+  if (auto m = fem.table("monitor")) s.monitor = read_fem_monitor(*m, p.mesh);
   if (s.output.fields.empty()) {
     for (const char* k : kFemOutputFields) s.output.fields.emplace_back(k);
   }

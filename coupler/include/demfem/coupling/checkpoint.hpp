@@ -4,6 +4,7 @@
 // at the boundary after N coupling steps, and manifest.json, written last by atomic rename,
 // that lists every part with its size and FNV-1a 64 checksum. A folder without a manifest,
 // or whose parts do not match it, is not a checkpoint and is never resumed from.
+
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -11,10 +12,12 @@
 #include <string>
 #include <vector>
 
+#include "demfem/io/file_hash.hpp"
+
 namespace demfem::coupling {
 
-/// @brief FNV-1a 64 over the bytes of a file. Throws std::runtime_error naming the file.
-std::uint64_t fnv1a64_file(const std::filesystem::path& file);
+/// @brief FNV-1a 64 over the bytes of a file (demfem/io/file_hash.hpp).
+using io::fnv1a64_file;
 
 /// @brief One file of a checkpoint as the manifest lists it.
 struct CheckpointPart {

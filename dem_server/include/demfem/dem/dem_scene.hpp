@@ -17,6 +17,7 @@
 
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/dem/insertion.hpp"
+#include "demfem/dem/particle_source.hpp"
 #include "demfem/dem/sensors.hpp"
 #include "demfem/dem/wall_clearance.hpp"
 #include "demfem/io/output_schedule.hpp"
@@ -79,6 +80,8 @@ struct DemScene {
   std::vector<SensorSpec> sensors;        ///< wall_force: wall = index into walls
   std::optional<double> output_interval;  ///< [dem.output] interval (else the run's)
   bool output_particles = true;
+  bool output_state = false;             ///< [dem.output] state: write dem_state.h5 at the end
+  std::optional<ParticleSource> load;    ///< [dem.load]: particles from a file, loaded first
   std::int32_t interface_material = -1;  ///< -1: not given
   std::string interface_material_where;
 };
@@ -170,8 +173,11 @@ class DemRun {
   /// Writes a particle snapshot of the current state now (no-op without output), labelled as
   /// io::OutputSchedule::label says.
   void write_snapshot();
-  /// The end state: a snapshot unless the last one is of the current time.
+  /// The end state: a snapshot unless the last one is of the current time, and the state
+  /// file when [dem.output] state asks for it.
   void finish();
+  /// Writes <output>/dem_state.h5 (particle_source.hpp) when [dem.output] state asks for it.
+  void write_state() const;
   /// Sensor samples and snapshot due at the current time.
   void after_advance();
   /// Throws Unstable naming the time, the largest overlap against the smallest

@@ -216,12 +216,16 @@ class DemSystem {
   /// history (pair springs and wall slots), flexible-mesh and wall state, clock. The particle
   /// properties (radius, mass, inertia, material, shape) are left out: restore_state() is
   /// only for going back within one coupling step, in which no particle is added or removed.
-  /// Costs a copy of about 330 B per particle (docs/dem.md, "In-memory save point").
+  /// Costs a copy of about 750 B per particle (docs/dem.md, "In-memory save point").
   void save_state(DemStateCopy& copy) const;
   /// Back to the state of save_state(); the neighbour list is rebuilt at the next step, as
   /// after restore() (the springs carry over), so the continuation is bitwise the one that
   /// followed save_state(). Throws std::logic_error when the particle count changed since.
   void restore_state(const DemStateCopy& copy);
+  /// Starts the clock anew at t = 0 with no steps taken (a saved state that begins a new
+  /// scene, docs/scene_dem.md [dem.load]); moving walls take their pose at t = 0. The
+  /// particles and the contact history are left as they are.
+  void reset_clock();
 
  private:
   struct Impl;

@@ -10,7 +10,9 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
+#include "demfem/fem/fem_monitor.hpp"
 #include "demfem/fem/fem_output.hpp"
 #include "demfem/fem/fem_solver.hpp"
 #include "demfem/io/checkpoint_file.hpp"
@@ -60,6 +62,9 @@ class FemBackend final : public protocol::SolverBackend {
     last_output_step_ = solver_.step_count();
   }
 
+  /// [fem.monitor]: sampled after every step, kept in checkpoints (may be null).
+  void set_monitor(FemMonitor* monitor) { monitor_ = monitor; }
+
   std::string name() const override { return "demfem-fem 0.1 (cpu)"; }
 
   std::optional<InterfaceMesh> published_mesh() override { return solver_.interface_mesh(); }
@@ -108,9 +113,13 @@ class FemBackend final : public protocol::SolverBackend {
     r.values[2] = solver_.strain_energy();
     r.values[3] = solver_.time();
     if (cmd.flags & protocol::kStepIterate) {
-      held_back_ = true;  // the output waits until the step is accepted
+      // The output and the monitor's sample wait until the step is accepted; by then the
+      // buffer holds the next step's forces, so the monitor gets a copy of these.
+      held_back_ = true;
+      if (monitor_) held_forces_.assign(forces.begin(), forces.end());
     } else {
       maybe_write_output();
+      if (monitor_) monitor_->sample(solver_, forces);
     }
     return r;
   }
@@ -130,6 +139,7 @@ class FemBackend final : public protocol::SolverBackend {
     if (!held_back_) return;
     held_back_ = false;
     maybe_write_output();
+    if (monitor_) monitor_->sample(solver_, held_forces_);
   }
 
   /// The solver state under group "fem" of an HDF5 file, written under a temporary name and
@@ -138,6 +148,7 @@ class FemBackend final : public protocol::SolverBackend {
     io::write_checkpoint_file(file, step, [this](io::H5File& h5) {
       h5.create_group("fem");
       solver_.save(h5, "fem");
+      if (monitor_) monitor_->save(h5, "fem_monitor");
       // The mesh the state belongs to, so that a resume with a changed mesh is refused before
       // any process starts (demfem_run).
       const auto& mesh = solver_.problem().mesh;
@@ -155,6 +166,7 @@ class FemBackend final : public protocol::SolverBackend {
     held_back_ = false;  // a held-back step is not part of the restored state
     const io::H5File h5 = io::open_checkpoint_file(file, step);
     solver_.restore(h5, "fem");
+    if (monitor_) monitor_->restore(h5, "fem_monitor", solver_.time());
     if (h5.exists("fem_output_schedule")) {
       const auto sched = h5.read_int64("fem_output_schedule");
       const auto dt = h5.read_doubles("fem_output_step");
@@ -194,12 +206,14 @@ class FemBackend final : public protocol::SolverBackend {
 
   FemSolver& solver_;
   FemOutput* output_;
+  FemMonitor* monitor_ = nullptr;
   io::OutputSchedule schedule_;
   double step_dt_ = 0.0;                ///< dt of the dynamic steps (the coupling step), s
   std::int64_t last_output_step_ = -1;  ///< solver step count of the last output
   FemStateCopy save_point_;             ///< save_iteration_state()
   double save_point_dt_ = 0.0;
   bool held_back_ = false;  ///< an iterated step whose output waits for accept_step()
+  std::vector<double> held_forces_;  ///< the forces of the held-back step (for the monitor)
 };
 
 }  // namespace demfem::fem

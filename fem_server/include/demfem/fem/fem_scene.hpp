@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "demfem/fem/fem_monitor.hpp"
 #include "demfem/fem/fem_problem.hpp"
 #include "demfem/scene/scene_reader.hpp"
 
@@ -33,6 +34,7 @@ struct FemScene {
   double dt = 0.0;          ///< s; 0 = not given (a coupled run takes it from the coupler)
   std::string dt_location;  ///< "file:line: key 'fem.dt'", for messages about dt
   FemOutputSettings output;
+  FemMonitorSettings monitor;  ///< [fem.monitor] (fem_monitor.hpp)
   /// What the reader wants the user to know but does not refuse: orphan nodes left out, the
   /// element formulation each .inp type maps to, .inp keywords accepted with a caveat. Each
   /// names the file (and line); fem_server prints them before it starts.

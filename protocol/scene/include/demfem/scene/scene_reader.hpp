@@ -186,6 +186,6 @@ RunSettings read_run_settings(const Document& scene);
 
 /// @brief Top-level sections a scene may have.
 inline constexpr std::string_view kSceneSections[] = {"run", "dem", "fem", "coupling",
-                                                      "checkpoint"};
+                                                      "checkpoint", "post"};
 
 }  // namespace demfem::scene

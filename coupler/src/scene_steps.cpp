@@ -1,0 +1,187 @@
+#include "demfem/coupling/scene_steps.hpp"
+
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+
+#include "demfem/coupling/supervisor.hpp"
+#include "demfem/dem/dem_scene.hpp"
+#include "demfem/dem/particle_source.hpp"
+
+namespace demfem::coupling {
+
+namespace fs = std::filesystem;
+using scene::SceneError;
+
+namespace {
+
+#ifndef DEMFEM_TOOLS_DIR
+#define DEMFEM_TOOLS_DIR "tools"
+#endif
+
+// A prepare scene that (through others) prepares itself would never end.
+constexpr const char* kDepthVariable = "DEMFEM_PREPARE_DEPTH";
+constexpr int kMaxPrepareDepth = 8;
+
+std::string python() {
+  const char* p = std::getenv("DEMFEM_PYTHON");
+  return p && *p ? p : "/usr/bin/python3";
+}
+
+std::string substitute(std::string s, const fs::path& output, const fs::path& scene,
+                       const fs::path& bin) {
+  const std::pair<const char*, std::string> keys[] = {
+      {"{output}", output.string()}, {"{scene}", scene.string()}, {"{bin}", bin.string()}};
+  for (const auto& [key, value] : keys)
+    for (auto at = s.find(key); at != std::string::npos; at = s.find(key, at + value.size()))
+      s.replace(at, std::string(key).size(), value);
+  return s;
+}
+
+// Runs a child to its end; a stop request (Ctrl-C) is forwarded by SignalGuard.
+int run_child(const std::string& label, const fs::path& exe, const std::vector<std::string>& args) {
+  SolverProcess p(label, exe, args);
+  p.start();
+  for (;;) {
+    if (auto c = p.wait_for(std::chrono::milliseconds(500))) return *c;
+  }
+}
+
+}  // namespace
+
+fs::path tools_directory() {
+  const char* d = std::getenv("DEMFEM_TOOLS_DIR");
+  return d && *d ? fs::path(d) : fs::path(DEMFEM_TOOLS_DIR);
+}
+
+std::vector<PostStep> read_post_steps(const scene::Document& doc, const fs::path& bin_dir) {
+  std::vector<PostStep> steps;
+  const scene::Table root = doc.root();
+  if (!root.has("post")) return steps;
+  for (const auto& t : root.tables("post")) {
+    PostStep s;
+    s.tool = t.string("tool");
+    s.where = t.where("tool");
+    if (s.tool.empty() || s.tool.find('/') != std::string::npos || s.tool[0] == '.')
+      t.fail("tool",
+             "must be the bare name of a script in tools/ or a program of the build "
+             "(no folders)");
+    const fs::path script = tools_directory() / s.tool;
+    const fs::path program = bin_dir / s.tool;
+    if (fs::is_regular_file(script)) {
+      s.executable = script;
+      s.python = script.extension() == ".py";
+    } else if (fs::is_regular_file(program)) {
+      s.executable = program;
+    } else {
+      t.fail("tool", "\"" + s.tool + "\" is neither a script in " + tools_directory().string() +
+                         " nor a program in " + bin_dir.string());
+    }
+    if (t.has("args")) s.args = t.strings("args");
+    t.finish();
+    steps.push_back(std::move(s));
+  }
+  return steps;
+}
+
+int run_post_steps(const std::vector<PostStep>& steps, const fs::path& output_dir,
+                   const fs::path& scene_file, const fs::path& bin_dir) {
+  for (const auto& s : steps) {
+    std::vector<std::string> args;
+    for (const auto& a : s.args) args.push_back(substitute(a, output_dir, scene_file, bin_dir));
+    fs::path exe = s.executable;
+    if (s.python) {
+      args.insert(args.begin(), s.executable.string());
+      exe = python();
+    }
+    std::string line = exe.string();
+    for (const auto& a : args) line += " " + a;
+    std::printf("demfem run: post: %s\n", line.c_str());
+    std::fflush(stdout);
+    int code = 0;
+    try {
+      code = run_child("post step " + s.tool, exe, args);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "demfem run: post step %s (%s): %s\n", s.tool.c_str(), s.where.c_str(),
+                   e.what());
+      return 1;
+    }
+    if (code != 0) {
+      std::fprintf(stderr,
+                   "demfem run: post step %s (%s) failed with status %d; the run's own output "
+                   "in %s is complete\n",
+                   s.tool.c_str(), s.where.c_str(), code, output_dir.c_str());
+      return 1;
+    }
+  }
+  return 0;
+}
+
+int run_prepare_scenes(const scene::Document& doc, const fs::path& bin_dir, bool quiet,
+                       bool in_process) {
+  const auto dem = doc.root().table("dem");
+  if (!dem) return 0;
+  const dem::DemScene ds = dem::read_dem_scene(*dem);
+  if (!ds.load || ds.load->prepare_scene.empty()) return 0;
+  const dem::ParticleSource& src = *ds.load;
+  if (dem::state_is_current(src.file, src.prepare_scene)) return 0;
+
+  const char* depth_text = std::getenv(kDepthVariable);
+  const int depth = depth_text ? std::atoi(depth_text) : 0;
+  if (depth >= kMaxPrepareDepth) {
+    std::fprintf(stderr,
+                 "demfem run: %s: prepare scenes nest more than %d deep (a scene that prepares "
+                 "itself?)\n",
+                 src.where.c_str(), kMaxPrepareDepth);
+    return 2;
+  }
+  // One run prepares; another one that needs the same state waits for it and then finds
+  // it current.
+  fs::create_directories(src.file.parent_path().empty() ? fs::path(".") : src.file.parent_path());
+  const fs::path lock = src.file.parent_path() / ".prepare.lock";
+  const int fd = ::open(lock.c_str(), O_CREAT | O_RDWR | O_CLOEXEC, 0644);
+  if (fd < 0 || ::flock(fd, LOCK_EX) != 0) {
+    std::fprintf(stderr, "demfem run: cannot lock %s\n", lock.c_str());
+    if (fd >= 0) ::close(fd);
+    return 1;
+  }
+  int code = 0;
+  if (!dem::state_is_current(src.file, src.prepare_scene)) {
+    std::printf("demfem run: %s needs the end state of %s (%s %s): running that scene first\n",
+                doc.file().c_str(), src.prepare_scene.c_str(), src.file.c_str(),
+                fs::exists(src.file) ? "was made by another version of it" : "does not exist");
+    std::fflush(stdout);
+    std::vector<std::string> args = {"--bin-dir", bin_dir.string(), src.prepare_scene.string()};
+    if (quiet) args.push_back("--quiet");
+    if (in_process) args.push_back("--in-process");
+    ::setenv(kDepthVariable, std::to_string(depth + 1).c_str(), 1);
+    try {
+      code = run_child("prepare run", bin_dir / "demfem_run", args);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "demfem run: %s\n", e.what());
+      code = 1;
+    }
+    if (depth_text)
+      ::setenv(kDepthVariable, depth_text, 1);
+    else
+      ::unsetenv(kDepthVariable);
+    if (code != 0) {
+      std::fprintf(stderr, "demfem run: the prepare scene %s ended with status %d\n",
+                   src.prepare_scene.c_str(), code);
+    } else if (!dem::state_is_current(src.file, src.prepare_scene)) {
+      std::fprintf(stderr, "demfem run: the prepare scene %s ended without writing %s\n",
+                   src.prepare_scene.c_str(), src.file.c_str());
+      code = 1;
+    }
+  }
+  ::flock(fd, LOCK_UN);
+  ::close(fd);
+  return code == 2 ? 2 : (code != 0 ? 1 : 0);
+}
+
+}  // namespace demfem::coupling

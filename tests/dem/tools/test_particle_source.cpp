@@ -1,0 +1,302 @@
+// [dem.load]: a scene starts from particles in a file (CSV, particle snapshot, saved state).
+// The state with its contact history continues bit for bit as the run that saved it; every
+// kind of bad data is refused naming the file and line (or particle).
+
+#include <catch2/catch.hpp>
+
+#include <fstream>
+#include <sstream>
+
+#include "demfem/dem/dem_output.hpp"
+#include "demfem/dem/dem_scene.hpp"
+#include "demfem/dem/particle_source.hpp"
+#include "demfem/io/h5_file.hpp"
+#include "demfem_test/temp_dir.hpp"
+
+using namespace demfem::dem;
+using demfem::scene::Document;
+using demfem::scene::SceneError;
+using demfem::test::TempDir;
+
+namespace {
+
+// A box with a bed of 3-5 mm wheat spheres (the steel sheet's grain, docs/cases.md).
+const char* kHead = R"(
+[run]
+end_time = 0.01
+
+[dem]
+dt = 1e-5
+threads = 1
+
+[[dem.materials]]
+name = "wheat"
+youngs_modulus = 1e8
+poisson_ratio = 0.3
+density = 1242.0
+
+[[dem.materials]]
+name = "steel"
+youngs_modulus = 1.85e11
+poisson_ratio = 0.3
+
+[[dem.pairs]]
+a = "wheat"
+b = "wheat"
+friction = 1.0
+restitution = 0.4
+
+[[dem.pairs]]
+a = "wheat"
+b = "steel"
+friction = 0.22
+restitution = 0.4
+
+[[dem.walls]]
+name = "box"
+material = "steel"
+box = { lo = [0.0, 0.0, 0.0], hi = [0.04, 0.04, 0.1], open_top = true }
+)";
+
+const char* kInsert = R"(
+[[dem.insert]]
+material = "wheat"
+lo = [0.0, 0.0, 0.0]
+hi = [0.04, 0.04, 0.06]
+count = 150
+seed = 5
+distribution = { kind = "uniform", d_min = 0.003, d_max = 0.005 }
+)";
+
+struct Scene {
+  std::filesystem::path file;
+  Document doc;
+  DemScene dem;
+};
+
+Scene scene_file(const TempDir& dir, const std::string& name, const std::string& text) {
+  const auto p = dir / name;
+  std::ofstream(p) << text;
+  Scene s{p, Document::load(p), {}};
+  s.dem = read_dem_scene(s.doc.root().required_table("dem"));
+  return s;
+}
+
+DemScene read(const TempDir& dir, const std::string& text) {
+  return scene_file(dir, "scene.toml", text).dem;
+}
+
+std::string error_of(const TempDir& dir, const std::string& text, bool build = true) {
+  try {
+    auto s = read(dir, text);
+    if (build) DemRun run(s, {}, 1, 0.0, nullptr);
+  } catch (const SceneError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+// Every array of the particle state, bitwise.
+void require_same_state(const ParticleState& a, const ParticleState& b) {
+  REQUIRE(a.size() == b.size());
+  for (auto m : {&ParticleState::px, &ParticleState::py, &ParticleState::pz, &ParticleState::vx,
+                 &ParticleState::vy, &ParticleState::vz, &ParticleState::wx, &ParticleState::wy,
+                 &ParticleState::wz, &ParticleState::fx, &ParticleState::fy, &ParticleState::fz})
+    for (std::size_t i = 0; i < a.size(); ++i) REQUIRE((a.*m)[i] == (b.*m)[i]);
+}
+
+}  // namespace
+
+TEST_CASE("dem.load: a CSV of x, y, z, r [, vx, vy, vz] starts the scene", "[dem][load]") {
+  TempDir dir("load_csv");
+  std::ofstream(dir / "bed.csv") << "# a comment\nx, y, z, r, vx, vy, vz\n"
+                                    "0.01, 0.01, 0.003, 0.002, 0, 0, -1\n"
+                                    "\n0.03,0.03,0.003,0.0015,0.5,0,0\n";
+  const auto s =
+      read(dir, std::string(kHead) + "[dem.load]\nfile = \"bed.csv\"\nmaterial = \"wheat\"\n");
+  DemRun run(s, {}, 1, 0.0, nullptr);
+  const auto& p = run.system().particles();
+  REQUIRE(p.size() == 2);
+  CHECK(p.px[1] == 0.03);
+  CHECK(p.radius[1] == 0.0015);
+  CHECK(p.vz[0] == -1.0);
+  CHECK(p.vx[1] == 0.5);
+  CHECK(p.material[0] == 0);
+  CHECK(p.mass[0] == Approx(1242.0 * 4.0 / 3.0 * 3.141592653589793 * 8e-9).epsilon(1e-12));
+  REQUIRE(run.ids().size() == 2);
+
+  // Without velocity columns, and with velocities = false, the particles are at rest.
+  std::ofstream(dir / "rest.csv") << "r,z,y,x\n0.002,0.003,0.01,0.01\n";
+  const auto r =
+      read(dir, std::string(kHead) + "[dem.load]\nfile = \"rest.csv\"\nmaterial = \"wheat\"\n");
+  DemRun run2(r, {}, 1, 0.0, nullptr);
+  CHECK(run2.system().particles().px[0] == 0.01);
+  CHECK(run2.system().particles().vz[0] == 0.0);
+}
+
+TEST_CASE("dem.load: bad CSV data is refused naming file and line", "[dem][load]") {
+  TempDir dir("load_csv_bad");
+  auto with = [&](const std::string& csv, const std::string& extra = "material = \"wheat\"\n") {
+    std::ofstream(dir / "bed.csv") << csv;
+    return error_of(dir, std::string(kHead) + "[dem.load]\nfile = \"bed.csv\"\n" + extra);
+  };
+  const std::string ok_line = "0.01,0.01,0.003,0.002\n";
+  CHECK_THAT(with("x,y,z,r\n0.01,abc,0.003,0.002\n"),
+             Catch::Contains("bed.csv:2") && Catch::Contains("not a number"));
+  CHECK_THAT(with("x,y,z,r\n" + ok_line + "0.01,0.01,nan,0.002\n"),
+             Catch::Contains("bed.csv:3") && Catch::Contains("not finite"));
+  CHECK_THAT(with("x,y,z,r\n0.01,0.01,0.003,-0.002\n"),
+             Catch::Contains("bed.csv:2") && Catch::Contains("must be > 0"));
+  CHECK_THAT(with("x,y,z,r\n0.01,0.01,0.003\n"),
+             Catch::Contains("bed.csv:2") && Catch::Contains("3 values, the header has 4"));
+  CHECK_THAT(with("x,y,z,radius\n" + ok_line), Catch::Contains("unknown column \"radius\""));
+  CHECK_THAT(with("x,y,z\n"), Catch::Contains("no column \"r\""));
+  CHECK_THAT(with("x,y,z,r,vx\n"), Catch::Contains("vx, vy, vz or none"));
+  CHECK_THAT(with(""), Catch::Contains("is empty"));
+  CHECK_THAT(with("x,y,z,r\n"), Catch::Contains("holds no particles"));
+  CHECK_THAT(with("x,y,z,r\n" + ok_line, ""), Catch::Contains("'dem.load.material'"));
+  // Outside the walls' bounding box: refused, or removed when asked.
+  CHECK_THAT(with("x,y,z,r\n" + ok_line + "0.5,0.01,0.003,0.002\n"),
+             Catch::Contains("bed.csv:3") && Catch::Contains("outside the walls' bounding box"));
+  std::ofstream(dir / "bed.csv") << "x,y,z,r\n" << ok_line << "0.5,0.01,0.003,0.002\n";
+  const auto s = read(dir, std::string(kHead) +
+                               "[dem.load]\nfile = \"bed.csv\"\n"
+                               "material = \"wheat\"\noutside = \"remove\"\n");
+  DemRun run(s, {}, 1, 0.0, nullptr);
+  CHECK(run.system().particle_count() == 1);
+  // Two particles in each other, or one in a wall, beyond max_overlap.
+  CHECK_THAT(
+      with("x,y,z,r\n" + ok_line + "0.0115,0.01,0.003,0.002\n"),
+      Catch::Contains("bed.csv:2") && Catch::Contains("overlaps") && Catch::Contains("bed.csv:3"));
+  CHECK_THAT(with("x,y,z,r\n0.01,0.01,0.0015,0.002\n"),
+             Catch::Contains("overlaps a wall") && Catch::Contains("0.25 of the smaller radius"));
+  // ... but a small overlap passes (a settled bed), and the limit is a key.
+  CHECK(with("x,y,z,r\n0.01,0.01,0.00195,0.002\n") == "(no error)");
+  CHECK(with("x,y,z,r\n0.01,0.01,0.0015,0.002\n", "material = \"wheat\"\nmax_overlap = 0.3\n") ==
+        "(no error)");
+  // Keys that do not fit the source.
+  CHECK_THAT(with("x,y,z,r\n" + ok_line, "material = \"wheat\"\nhistory = true\n"),
+             Catch::Contains("'dem.load.history'") && Catch::Contains("needs a state file"));
+  CHECK_THAT(with("x,y,z,r\n" + ok_line, "material = \"granite\"\n"),
+             Catch::Contains("'dem.load.material'") && Catch::Contains("granite"));
+  CHECK_THAT(error_of(dir, std::string(kHead) + "[dem.load]\nfile = \"none.csv\"\n"),
+             Catch::Contains("'dem.load.file'") && Catch::Contains("does not exist"));
+}
+
+TEST_CASE("dem.load: a particle snapshot of another run, with its materials mapped",
+          "[dem][load]") {
+  TempDir dir("load_snapshot");
+  ParticleState p;
+  auto add = [&](double x, double r, std::int32_t m) {
+    p.px.push_back(x), p.py.push_back(0.02), p.pz.push_back(0.01);
+    p.vx.push_back(0.1), p.vy.push_back(0.0), p.vz.push_back(-0.2);
+    p.wx.push_back(1.0), p.wy.push_back(0.0), p.wz.push_back(0.0);
+    p.radius.push_back(r), p.mass.push_back(1.0), p.material.push_back(m);
+  };
+  add(0.01, 0.002, 3);
+  add(0.03, 0.0025, 3);
+  std::vector<std::int64_t> ids{7, 8};
+  ParticleOutput(dir.path).write(p, ids, 0.5);
+  const std::string load = "[dem.load]\nfile = \"particles_000000.h5\"\n";
+  // The snapshot's material 3 does not exist here: a map is needed.
+  CHECK_THAT(
+      error_of(dir, std::string(kHead) + load),
+      Catch::Contains("particles_000000.h5: particle 0") && Catch::Contains("material index 3"));
+  CHECK_THAT(error_of(dir, std::string(kHead) + load + "material_map = [\"wheat\"]\n"),
+             Catch::Contains("has no entry in dem.load.material_map"));
+  const auto s = read(dir, std::string(kHead) + load +
+                               "material_map = [\"wheat\", \"wheat\", \"wheat\", \"wheat\"]\n"
+                               "velocities = false\n");
+  DemRun run(s, {}, 1, 0.0, nullptr);
+  const auto& q = run.system().particles();
+  REQUIRE(q.size() == 2);
+  CHECK(q.px[1] == 0.03);
+  CHECK(q.radius[1] == 0.0025);
+  CHECK(q.vx[0] == 0.0);
+  CHECK(q.wx[0] == 0.0);
+  CHECK(q.mass[0] == Approx(1242.0 * 4.0 / 3.0 * 3.141592653589793 * 8e-9).epsilon(1e-12));
+  const auto v = read(dir, std::string(kHead) + load +
+                               "material = \"wheat\"\n"
+                               "shift = [0.001, 0, 0]\n");
+  DemRun run2(v, {}, 1, 0.0, nullptr);
+  CHECK(run2.system().particles().px[0] == 0.011);
+  CHECK(run2.system().particles().vz[0] == -0.2);
+  CHECK(run2.system().particles().wx[0] == 1.0);
+}
+
+TEST_CASE("dem.load: a saved state with its contact history continues bit for bit", "[dem][load]") {
+  TempDir dir("load_state");
+  // The uninterrupted run: insert, settle for 20000 steps (0.2 s: the bed has formed), go on for
+  // 400.
+  const std::string fill = std::string(kHead) + kInsert + "[dem.output]\nstate = true\n";
+  const Scene a = scene_file(dir, "fill.toml", fill);
+  DemRun whole(a.dem, {}, 1, 0.0, nullptr);
+  whole.system().advance(20000);
+  DemRun saved(a.dem, dir / "fill", 1, 0.0, nullptr);
+  saved.system().advance(20000);
+  saved.finish();  // writes fill/dem_state.h5
+  REQUIRE(std::filesystem::exists(dir / "fill" / kStateFileName));
+  require_same_state(whole.system().particles(), saved.system().particles());
+  // The bed rests: the history (springs of touching pairs and wall contacts) matters.
+  REQUIRE(saved.system().contact_count() > 100);
+  whole.system().advance(400);
+
+  const std::string load = "[dem.load]\nfile = \"fill/dem_state.h5\"\n";
+  SECTION("history: every particle array equal after 400 more steps, the clock at 0") {
+    const auto s = read(dir, std::string(kHead) + load);
+    REQUIRE(s.load->history);
+    DemRun run(s, {}, 1, 0.0, nullptr);
+    CHECK(run.system().time() == 0.0);
+    run.system().advance(400);
+    require_same_state(whole.system().particles(), run.system().particles());
+    CHECK(run.system().time() == Approx(400 * 1e-5).epsilon(1e-12));
+  }
+  SECTION("keep_time continues the saved clock") {
+    const auto s = read(dir, std::string(kHead) + load + "keep_time = true\n");
+    DemRun run(s, {}, 1, 0.0, nullptr);
+    CHECK(run.system().time() == saved.system().time());
+    run.system().advance(400);
+    require_same_state(whole.system().particles(), run.system().particles());
+    CHECK(run.system().time() == whole.system().time());
+  }
+  SECTION("without history the positions are the saved ones, the continuation is not exact") {
+    const auto s = read(dir, std::string(kHead) + load + "history = false\n");
+    DemRun run(s, {}, 1, 0.0, nullptr);
+    const auto& p = run.system().particles();
+    const auto& q = saved.system().particles();
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      REQUIRE(p.px[i] == q.px[i]);
+      REQUIRE(p.vz[i] == q.vz[i]);
+    }
+    run.system().advance(400);
+    bool differs = false;
+    for (std::size_t i = 0; i < p.size(); ++i)
+      differs = differs || p.px[i] != whole.system().particles().px[i];
+    CHECK(differs);
+  }
+  SECTION("history needs the same walls and materials") {
+    std::string moved = std::string(kHead) + load;
+    moved.replace(moved.find("hi = [0.04, 0.04, 0.1]"), 22, "hi = [0.04, 0.04, 0.2]");
+    CHECK_THAT(error_of(dir, moved),
+               Catch::Contains("wall vertex") && Catch::Contains("history = false"));
+    std::string heavier = std::string(kHead) + load;
+    heavier.replace(heavier.find("density = 1242.0"), 16, "density = 1300.0");
+    CHECK_THAT(error_of(dir, heavier), Catch::Contains("differs from this scene's density") &&
+                                           Catch::Contains("dem_state.h5: particle 0"));
+    CHECK_THAT(error_of(dir, std::string(kHead) + load + "material = \"wheat\"\n", false),
+               Catch::Contains("'dem.load.material'") && Catch::Contains("history = true"));
+  }
+  SECTION("a prepare scene: its state is found and must be current") {
+    const auto s =
+        scene_file(dir, "use.toml", std::string(kHead) + "[dem.load]\nscene = \"fill.toml\"\n");
+    // run.output_dir of fill.toml is out/fill relative to the current folder.
+    CHECK(s.dem.load->file == std::filesystem::path("out/fill") / kStateFileName);
+    CHECK(s.dem.load->prepare_scene == dir / "fill.toml");
+    CHECK(state_is_current(dir / "fill" / kStateFileName, dir / "fill.toml"));
+    std::ofstream(dir / "fill.toml", std::ios::app) << "# changed\n";
+    CHECK_FALSE(state_is_current(dir / "fill" / kStateFileName, dir / "fill.toml"));
+    (void)scene_file(dir, "nostate.toml", std::string(kHead) + kInsert);
+    CHECK_THAT(error_of(dir, std::string(kHead) + "[dem.load]\nscene = \"nostate.toml\"\n", false),
+               Catch::Contains("does not write its end state"));
+  }
+}

@@ -1,0 +1,318 @@
+// The steel sheet under grain flow (thesis ch. 5) as a user runs it: `demfem run
+// cases/sheet_ci.toml` in a fresh folder prepares the fill (cases/sheet_fill_ci.toml), runs
+// the coupled case, and its [[post]] steps write the plots, the report and the static check.
+// Also: the prepare step's reuse and staleness rule, [[post]] failures, and the static check
+// against a FEM-only run whose time-mean answer is known.
+#include <catch2/catch.hpp>
+
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "demfem/io/h5_file.hpp"
+#include "demfem_test/run_output.hpp"
+#include "demfem_test/temp_dir.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+using demfem::test::read_csv;
+using demfem::test::read_text;
+using demfem::test::TempDir;
+
+const fs::path kBin = fs::path(DEMFEM_BINARY_DIR) / "bin";
+const fs::path kCases = fs::path(DEMFEM_SOURCE_DIR) / "cases";
+
+struct Result {
+  int status = -1;
+  std::string out, err;
+};
+
+// demfem_run ARGS in `dir` (the scenes' run.output_dir is relative to it).
+Result run(const fs::path& dir, const std::vector<std::string>& args) {
+  std::vector<std::string> argv_s = {(kBin / "demfem_run").string(), "--bin-dir", kBin.string()};
+  argv_s.insert(argv_s.end(), args.begin(), args.end());
+  std::vector<char*> argv;
+  for (auto& a : argv_s) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  const std::string out = (dir / "stdout.txt").string(), err = (dir / "stderr.txt").string();
+  posix_spawn_file_actions_addopen(&fa, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_addopen(&fa, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  const fs::path old = fs::current_path();
+  fs::current_path(dir);
+  pid_t pid = -1;
+  const int rc = posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ);
+  fs::current_path(old);
+  posix_spawn_file_actions_destroy(&fa);
+  REQUIRE(rc == 0);
+  int st = 0;
+  REQUIRE(waitpid(pid, &st, 0) == pid);
+  Result r;
+  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
+  r.out = read_text(dir / "stdout.txt");
+  r.err = read_text(dir / "stderr.txt");
+  return r;
+}
+
+bool is_png(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  char head[8] = {};
+  in.read(head, 8);
+  return in && std::string(head, 8) == std::string("\x89PNG\r\n\x1a\n", 8);
+}
+
+// Column `name` of a CSV written by the run (header row first).
+std::vector<double> column(const std::vector<std::vector<std::string>>& rows,
+                           const std::string& name) {
+  REQUIRE(!rows.empty());
+  std::size_t k = 0;
+  while (k < rows[0].size() && rows[0][k] != name) ++k;
+  REQUIRE(k < rows[0].size());
+  std::vector<double> v;
+  for (std::size_t i = 1; i < rows.size(); ++i) v.push_back(std::stod(rows[i][k]));
+  return v;
+}
+
+bool have_matplotlib() {
+  return std::system("/usr/bin/python3 -c 'import matplotlib' >/dev/null 2>&1") == 0;
+}
+
+// A box of 60 spheres resting on its floor; the fill writes its state, the use loads it.
+const char* kSmallDem = R"(
+[dem]
+dt = 1e-5
+threads = 1
+[[dem.materials]]
+name = "wheat"
+youngs_modulus = 1e8
+poisson_ratio = 0.3
+density = 1242.0
+[[dem.materials]]
+name = "steel"
+youngs_modulus = 1.85e11
+poisson_ratio = 0.3
+[[dem.pairs]]
+a = "wheat"
+b = "wheat"
+friction = 1.0
+restitution = 0.4
+[[dem.pairs]]
+a = "wheat"
+b = "steel"
+friction = 0.22
+restitution = 0.4
+[[dem.walls]]
+name = "box"
+material = "steel"
+box = { lo = [0.0, 0.0, 0.0], hi = [0.03, 0.03, 0.05], open_top = true }
+)";
+
+}  // namespace
+
+TEST_CASE("sheet CI case: demfem run prepares the fill, runs, plots and checks", "[sheet]") {
+  if (!have_matplotlib()) {
+    WARN("skipped: /usr/bin/python3 has no matplotlib (Debian: python3-matplotlib)");
+    return;
+  }
+  TempDir d("sheet_ci");
+  const Result r = run(d.path, {(kCases / "sheet_ci.toml").string(), "--quiet"});
+  INFO(r.out << r.err);
+  REQUIRE(r.status == 0);
+  // The fill was made first, then loaded with its contact history.
+  CHECK_THAT(r.out, Catch::Contains("running that scene first"));
+  const fs::path fill = d.path / "out/sheet_fill_ci/dem_state.h5";
+  REQUIRE(fs::exists(fill));
+  demfem::io::H5File state(fill, demfem::io::H5File::Mode::read);
+  const auto masses = state.read_doubles("dem/mass");
+  double fill_mass = 0.0;
+  for (double m : masses) fill_mass += m;
+  CHECK(fill_mass == Approx(0.8).margin(0.002));  // 0.8 kg + at most one grain
+  CHECK_THAT(r.err, Catch::Contains("with contact history"));
+  CHECK_THAT(r.err, Catch::Contains("loaded " + std::to_string(masses.size()) + " particles"));
+
+  const fs::path out = d.path / "out/sheet_ci";
+  for (const char* png : {"mass_flow.png", "deflection.png"}) {
+    INFO(png);
+    CHECK(is_png(out / png));
+  }
+  for (const char* f : {"particles.xdmf", "fem.xdmf", "coupling.csv", "timing.csv",
+                        "sheet_report.txt", "sheet_report.json", "fem_mean.h5"})
+    CHECK(fs::exists(out / f));
+
+  // Mass: what crossed the plane under the flaps is part of the fill, and the flow started.
+  const auto flow = read_csv(out / "sensor_outflow.csv");
+  const auto crossed = column(flow, "mass_crossed");
+  REQUIRE(!crossed.empty());
+  CHECK(crossed.back() <= fill_mass);
+  CHECK(crossed.back() > 0.1 * fill_mass);
+  for (std::size_t i = 1; i < crossed.size(); ++i) CHECK(crossed[i] >= crossed[i - 1] - 2e-4);
+  const auto rate = column(flow, "mass_flow");
+  const auto ft = column(flow, "time");
+  // Nothing falls before the flaps open; the peak comes while they open (0-0.2 s) or soon
+  // after, as the initial bulk drops.
+  CHECK(crossed[0] == 0.0);
+  std::size_t peak = 0;
+  for (std::size_t i = 0; i < rate.size(); ++i)
+    if (rate[i] > rate[peak]) peak = i;
+  CHECK(ft[peak] > 0.05);
+  CHECK(ft[peak] < 0.35);
+
+  // The sheet: at rest until the first grains arrive (0.36 m of fall: about 0.27 s after the
+  // flaps start to open), pushed down during the flow.
+  const auto mon = read_csv(out / "fem_monitor.csv");
+  const auto t = column(mon, "time"), uz = column(mon, "lmp_uz"), fz = column(mon, "force_z");
+  double mean_flow = 0.0, lowest = 0.0;
+  std::size_t n_flow = 0;
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    if (t[i] < 0.2) CHECK(uz[i] == 0.0);
+    if (t[i] >= 0.3) mean_flow += uz[i], ++n_flow;
+    lowest = std::min(lowest, uz[i]);
+  }
+  REQUIRE(n_flow > 100);
+  mean_flow /= double(n_flow);
+  CHECK(mean_flow < -1e-3);  // m: down by more than a millimetre on average
+  CHECK(lowest < -5e-3);
+  CHECK(lowest > -0.1);  // bounded: no blow-up
+  double mean_force = 0.0;
+  for (std::size_t i = 0; i < t.size(); ++i)
+    if (t[i] >= 0.3) mean_force += fz[i];
+  CHECK(mean_force / double(n_flow) < 0.0);
+
+  // The static check ran: the mean deflection follows from the mean load within the scatter
+  // that a window of two sheet periods leaves (docs/verification.md).
+  const auto sc = read_csv(out / "static_check.csv");
+  REQUIRE(sc.size() >= 2);
+  CHECK(sc[1][0] == "lmp");
+  CHECK(std::abs(std::stod(sc[1][5])) < 0.3);
+}
+
+TEST_CASE("prepare scenes: made once, reused, made again when the scene changes", "[sheet]") {
+  TempDir d("prepare");
+  std::ofstream(d / "fill.toml") << "[run]\nend_time = 0.002\n"
+                                 << kSmallDem
+                                 << "[[dem.insert]]\nmaterial = \"wheat\"\nlo = [0, 0, 0]\n"
+                                    "hi = [0.03, 0.03, 0.03]\ncount = 60\nseed = 2\n"
+                                    "distribution = { kind = \"constant\", diameter = 0.004 }\n"
+                                    "[dem.output]\nstate = true\nparticles = false\n";
+  std::ofstream(d / "use.toml") << "[run]\nend_time = 0.002\n"
+                                << kSmallDem
+                                << "[dem.load]\nscene = \"fill.toml\"\n"
+                                   "[dem.output]\nparticles = false\n";
+  const std::string use = (d / "use.toml").string();
+  Result r = run(d.path, {use, "--quiet"});
+  INFO(r.out << r.err);
+  REQUIRE(r.status == 0);
+  CHECK_THAT(r.out, Catch::Contains("running that scene first"));
+  CHECK(fs::exists(d.path / "out/fill/dem_state.h5"));
+  r = run(d.path, {use, "--quiet", "--in-process"});
+  REQUIRE(r.status == 0);
+  CHECK_THAT(r.out, !Catch::Contains("running that scene first"));
+  std::ofstream(d / "fill.toml", std::ios::app) << "# changed\n";
+  r = run(d.path, {use, "--quiet"});
+  REQUIRE(r.status == 0);
+  CHECK_THAT(r.out, Catch::Contains("was made by another version of it"));
+  // A state that has gone is made again (in process too).
+  fs::remove(d.path / "out/fill/dem_state.h5");
+  r = run(d.path, {use, "--quiet", "--in-process"});
+  CHECK(r.status == 0);
+  CHECK_THAT(r.out, Catch::Contains("does not exist"));
+  // A prepare scene with bad input ends the run as bad input (2); nothing else starts.
+  std::ofstream(d / "bad.toml") << "[run]\nend_time = 0.002\n"
+                                << kSmallDem << "[dem.output]\nstate = true\nbogus = 1\n";
+  std::ofstream(d / "use_bad.toml") << "[run]\nend_time = 0.002\n"
+                                    << kSmallDem << "[dem.load]\nscene = \"bad.toml\"\n";
+  r = run(d.path, {(d / "use_bad.toml").string(), "--quiet"});
+  CHECK(r.status == 2);
+  CHECK_THAT(r.err, Catch::Contains("bad.toml") && Catch::Contains("ended with status 2"));
+}
+
+TEST_CASE("[[post]] steps: unknown tools are scene errors, a failing tool ends the run with 1",
+          "[sheet]") {
+  TempDir d("post");
+  const std::string base =
+      std::string("[run]\nend_time = 0.001\n") + kSmallDem + "[dem.output]\nparticles = false\n";
+  std::ofstream(d / "unknown.toml") << base << "[[post]]\ntool = \"no_such_tool\"\n";
+  Result r = run(d.path, {(d / "unknown.toml").string(), "--quiet"});
+  CHECK(r.status == 2);
+  CHECK_THAT(r.err, Catch::Contains("post[0].tool") && Catch::Contains("no_such_tool"));
+  // fem_static_check without a [fem] section fails: the run's output is kept, status 1.
+  std::ofstream(d / "fails.toml") << base << "[[post]]\ntool = \"fem_static_check\"\n"
+                                  << "args = [\"--scene\", \"{scene}\", \"--output-dir\", "
+                                     "\"{output}\"]\n";
+  r = run(d.path, {(d / "fails.toml").string(), "--quiet"});
+  CHECK(r.status == 1);
+  CHECK_THAT(r.err, Catch::Contains("post step fem_static_check"));
+  CHECK(fs::exists(d.path / "out/fails/coupling.csv"));
+  r = run(d.path, {(d / "fails.toml").string(), "--quiet", "--no-post"});
+  CHECK(r.status == 0);
+}
+
+TEST_CASE("fem_static_check: the time-mean of a damped oscillation is the static solution",
+          "[sheet]") {
+  // A steel strip 100 x 20 x 1 mm clamped at x = 0, loaded at its tip from t = 0 (a step
+  // load): it oscillates about the static deflection (first mode about 80 Hz) and Rayleigh
+  // damping (about 5 % of critical there) lets the oscillation die out. Over 0.2-0.4 s its
+  // amplitude is below 1e-3 of the static value, so the time-mean displacement equals the
+  // static solution under the mean load to about 1e-3 (the bound of K <u> = <F> - M [u'] / T).
+  TempDir d("static_check");
+  std::ofstream(d / "strip.toml") << R"(
+[run]
+end_time = 0.4
+[fem]
+analysis = "dynamic"
+dt = 1e-4
+[fem.mesh.plate]
+size = [0.1, 0.02]
+cells = [10, 2]
+[[fem.materials]]
+name = "steel"
+youngs_modulus = 1.85e11
+poisson_ratio = 0.3
+density = 7850.0
+[[fem.sections]]
+material = "steel"
+thickness = 0.001
+[[fem.clamps]]
+nodes = "x <= 0"
+[[fem.nodal_loads]]
+nodes = "x >= 0.1"
+force = [0.0, 0.0, -0.1]
+[fem.damping]
+stiffness_factor = 2e-4
+[fem.output]
+write = false
+[fem.monitor]
+interval = 1e-3
+mean_window = [0.2, 0.4]
+[[fem.monitor.probes]]
+name = "tip"
+point = [0.1, 0.01, 0.0]
+[[post]]
+tool = "fem_static_check"
+args = ["--scene", "{scene}", "--output-dir", "{output}"]
+)";
+  const Result r = run(d.path, {(d / "strip.toml").string(), "--quiet"});
+  INFO(r.out << r.err);
+  REQUIRE(r.status == 0);
+  const auto rows = read_csv(d.path / "out/strip/static_check.csv");
+  REQUIRE(rows.size() == 3);
+  CHECK(rows[1][0] == "tip");
+  const double mean = std::stod(rows[1][2]), stat = std::stod(rows[1][3]);
+  CHECK(stat < -1e-4);  // m: the load bends the strip down
+  CHECK(std::abs(std::stod(rows[1][5])) < 1e-3);
+  CHECK(std::abs(std::stod(rows[2][5])) < 1e-3);  // whole field
+  CHECK(mean == Approx(stat).epsilon(1e-3));
+  // The probe series: every 1 ms, the tip going down.
+  const auto mon = read_csv(d.path / "out/strip/fem_monitor.csv");
+  CHECK(mon.size() == 402);  // header, the first step (t = 1e-4 s), then every 1 ms to 0.4 s
+}
