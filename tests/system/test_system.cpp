@@ -428,6 +428,55 @@ TEST_CASE("concurrent scheme: the same bits on every three-process run") {
   CHECK(std::stod(series[0].back()[10]) < -400);  // the load arrived: not two empty runs
 }
 
+TEST_CASE("implicit: a step that does not converge is reported over real processes") {
+  // Two iterations and a displacement tolerance no iteration meets: "stop" ends the run with
+  // status 3 naming the step and both residuals; "accept" goes on, warns, marks the steps
+  // converged = 0 in coupling.csv and counts them in the summary.
+  const std::vector<std::string> sets = {(kCases / "beam_dynamic_ci.toml").string(),
+                                         "--quiet",
+                                         "--set",
+                                         "coupling.scheme=\"implicit\"",
+                                         "--set",
+                                         "coupling.max_iterations=2",
+                                         "--set",
+                                         "coupling.displacement_tolerance=1e-300"};
+  SECTION("stop") {
+    TempDir d;
+    const Result r = run(d.path, sets);
+    INFO(r.out << r.err);
+    CHECK(r.status == 3);
+    CHECK_THAT(r.err, Catch::Contains("did not converge in 2 iterations") &&
+                          Catch::Contains("coupling.displacement_tolerance") &&
+                          Catch::Contains("coupling.on_nonconvergence"));
+    const auto rows = read_csv(d.path / "out/beam_dynamic_ci/coupling.csv");
+    REQUIRE(rows.size() >= 2);
+    std::size_t col = 0;
+    for (std::size_t k = 0; k < rows[0].size(); ++k)
+      if (rows[0][k] == "converged") col = k;
+    REQUIRE(col > 0);
+    CHECK(rows.back()[col] == "0");
+    for (pid_t p : started_pids(r.out)) CHECK(pid_gone(p));
+  }
+  SECTION("accept") {
+    TempDir d;
+    auto args = sets;
+    args.insert(args.end(), {"--set", "coupling.on_nonconvergence=\"accept\""});
+    const Result r = run(d.path, args);
+    INFO(r.out << r.err);
+    REQUIRE(r.status == 0);
+    CHECK_THAT(r.out + r.err, Catch::Contains("accepted (coupling.on_nonconvergence"));
+    const auto rows = read_csv(d.path / "out/beam_dynamic_ci/coupling.csv");
+    REQUIRE(rows.size() == 51);
+    std::size_t col = 0, unconverged = 0;
+    for (std::size_t k = 0; k < rows[0].size(); ++k)
+      if (rows[0][k] == "converged") col = k;
+    REQUIRE(col > 0);
+    for (std::size_t i = 1; i < rows.size(); ++i) unconverged += rows[i][col] == "0";
+    CHECK(unconverged == 50);
+    CHECK_THAT(r.out + r.err, Catch::Contains("50 steps accepted without convergence"));
+  }
+}
+
 TEST_CASE("scene overrides (--set) reach every process and change the run's result") {
   TempDir base, half, bad;
   const std::string scene = (kCases / "beam_fixed_ci.toml").string();
