@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Figures of bench/coupling_schemes (docs/coupling.md, "Choosing a scheme").
 
-usage: /usr/bin/python3 tools/plot_coupling_schemes.py RESULT.json [OUTPUT_DIR]
+usage: /usr/bin/python3 tools/plot_coupling_schemes.py RESULT.json [MORE.json ...] OUTPUT_DIR
 
 Draws, from the benchmark's JSON (one row per run):
   coupling_work_precision.png  error of the quantity of interest against wall time, one curve
@@ -40,7 +40,10 @@ STYLE = {
 TITLES = {
     "beam_drop": "(a) beam under a dropped slab: mid-span deflection",
     "plate_bed": "(b) light plate under a dense bed: centre deflection",
+    "sheet_ci": "(c) sheet CI case: mean deflection at the measurement position",
 }
+# The rows of the work-precision figure: problem (c) is its own part of the benchmark.
+WORK_PARTS = ("work", "sheet")
 
 
 def finite(v):
@@ -48,7 +51,8 @@ def finite(v):
 
 
 def work_precision(rows, out):
-    problems = [p for p in TITLES if any(r["problem"] == p and r["part"] == "work" for r in rows)]
+    problems = [p for p in TITLES
+                if any(r["problem"] == p and r["part"] in WORK_PARTS for r in rows)]
     if not problems:
         return None
     fig, axes = plt.subplots(1, len(problems), figsize=(6.4 * len(problems), 5.0), squeeze=False)
@@ -57,7 +61,7 @@ def work_precision(rows, out):
             pts = sorted(
                 (r["dt"], r["wall_median"], r["error"], r["wall_best"])
                 for r in rows
-                if r["part"] == "work" and r["problem"] == problem and r["scheme"] == scheme
+                if r["part"] in WORK_PARTS and r["problem"] == problem and r["scheme"] == scheme
                 and r["stable"] == 1 and finite(r["wall_median"]) and finite(r["error"])
                 and r["error"] > 0)
             if not pts:
@@ -77,7 +81,8 @@ def work_precision(rows, out):
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("wall time of the run, s (median of the timed runs)")
-        ax.set_ylabel("largest deflection error / largest deflection")
+        ax.set_ylabel("relative error of the mean deflection (last 0.1 s)" if problem == "sheet_ci"
+                      else "largest deflection error / largest deflection")
         ax.set_title(TITLES[problem], fontsize=10)
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
@@ -162,11 +167,15 @@ def main(argv):
     if len(argv) < 2:
         print(__doc__, file=sys.stderr)
         return 2
-    with open(argv[1]) as f:
-        data = json.load(f)
-    out = argv[2] if len(argv) > 2 else os.path.dirname(os.path.abspath(argv[1]))
+    # Several JSON files (the parts of the benchmark run separately) are drawn together; the
+    # last argument is the output folder when it is not a JSON file.
+    files = [a for a in argv[1:] if a.endswith(".json")]
+    out = argv[-1] if not argv[-1].endswith(".json") else os.path.dirname(os.path.abspath(argv[1]))
     os.makedirs(out, exist_ok=True)
-    rows = data["rows"]
+    rows = []
+    for name in files:
+        with open(name) as f:
+            rows += json.load(f)["rows"]
     for path in (work_precision(rows, out), stability(rows, out), iterations(rows, out)):
         if path:
             print("wrote", path)
