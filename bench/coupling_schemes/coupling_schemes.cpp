@@ -792,7 +792,7 @@ int main(int argc, char** argv) try {
   // the scheme goes in by --set, not by a rewritten copy), cut to opt.sheet_end s of flow. The
   // quantity of interest is the deflection of the measurement position (probe "lmp" of
   // fem_monitor.csv, every FEM step): its mean over the last 0.1 s (the grains reach the
-  // sheet at about 0.35 s; a granular flow's details are chaotic, its mean load is not) and
+  // sheet at about 0.26 s; a granular flow's details are chaotic, its mean load less so) and
   // its largest |value|, against implicit IQN-ILS at dt_F = dt_D = 2e-5 s.
   if (opt.parts.count("sheet")) {
     Problem sheet{
