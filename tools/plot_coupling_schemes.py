@@ -42,8 +42,10 @@ TITLES = {
     "plate_bed": "(b) light plate under a dense bed: centre deflection",
     "sheet_ci": "(c) sheet CI case: mean deflection at the measurement position",
 }
-# The rows of the work-precision figure: problem (c) is its own part of the benchmark.
-WORK_PARTS = ("work", "sheet")
+# The rows of the work-precision figure. Problem (c) ("sheet" rows) is left out: the bench's
+# measure for it, the mean over the last 0.1 s, is ill-conditioned (docs/coupling.md,
+# "Problem (c)"; tools/sheet_scheme_errors.py gives the better ones).
+WORK_PARTS = ("work",)
 
 
 def finite(v):
