@@ -32,6 +32,7 @@
 #include "demfem/coupling/checkpoint.hpp"
 #include "demfem/coupling/coupling_run.hpp"
 #include "demfem/coupling/coupling_settings.hpp"
+#include "demfem/coupling/external_backend.hpp"
 #include "demfem/coupling/local_solvers.hpp"
 #include "demfem/coupling/output_folder.hpp"
 #include "demfem/coupling/progress.hpp"
@@ -39,6 +40,9 @@
 #include "demfem/coupling/scene_steps.hpp"
 #include "demfem/coupling/solver_link.hpp"
 #include "demfem/coupling/supervisor.hpp"
+#include "demfem/fem/fem_backend.hpp"
+#include "demfem/fem/fem_scene.hpp"
+#include "demfem/fem/modal_run.hpp"
 #include "demfem/io/atomic_file.hpp"
 #include "demfem/io/folder_lock.hpp"
 #include "demfem/io/h5_file.hpp"
@@ -64,11 +68,12 @@ struct Options {
   int wait_spin_us = 0;
   bool solver_sessions = false;
   bool resume = false;
-  std::string resume_from;  // empty: the latest valid checkpoint
-  std::string debug_kill;   // ROLE:STEP[:always], fault injection for tests
+  std::string resume_from;        // empty: the latest valid checkpoint
+  std::string debug_kill;         // ROLE:STEP[:always], fault injection for tests
   std::vector<std::string> sets;  // --set KEY=VALUE, passed on to the solvers
   bool check = false;             // --check: read and check the scene, start nothing
-  double hello_timeout = 300.0;  // s: a started solver that has not said Hello is killed
+  double hello_timeout = 300.0;   // s: a started solver that has not said Hello is killed
+  std::string fem_backend;        // --fem-backend: overrides fem.backend ("" = the scene's)
 };
 
 // --debug-kill dem:17, fem:5:always, coupler:30 (docs/reliability.md). Testing only.
@@ -206,7 +211,25 @@ std::optional<int> prepare_resume(const fs::path& checkpoint, const CouplingSett
         }
       }
     }
-    if (settings.has_fem) {
+    // The FEM backend that wrote fem.h5 (recorded by the coupler; older checkpoints: the full
+    // FEM). Another backend continues it only where the state maps (docs/backends.md).
+    std::string wrote = "fem";
+    if (settings.has_fem && coupler.has_attribute("/", "fem_backend"))
+      wrote = coupler.attribute_string("/", "fem_backend");
+    if (settings.has_fem && wrote != settings.fem_backend) {
+      const std::string why = fem::checkpoint_swap_refusal(wrote, settings.fem_backend);
+      if (!why.empty())
+        return refuse("checkpoint " + checkpoint.string() + " was taken with the FEM backend \"" +
+                      wrote + "\"; this run's is \"" + settings.fem_backend +
+                      "\" (fem.backend or --fem-backend), which cannot continue it: " + why +
+                      ". Resume with --fem-backend " + wrote + ", or start afresh");
+      std::fprintf(stderr,
+                   "demfem run: note: checkpoint %s was taken with the FEM backend \"%s\"; the run "
+                   "continues with \"%s\", which maps its state (the FEM's note below says how "
+                   "closely)\n",
+                   checkpoint.c_str(), wrote.c_str(), settings.fem_backend.c_str());
+    }
+    if (settings.has_fem && wrote != "external") {
       const io::H5File fem(checkpoint / "fem.h5", io::H5File::Mode::read);
       if (fem.has_attribute("fem", "mesh_nodes")) {
         const auto nodes = fem.attribute_int64("fem", "mesh_nodes");
@@ -230,6 +253,17 @@ std::optional<int> prepare_resume(const fs::path& checkpoint, const CouplingSett
   // Resuming into another folder than the one the checkpoint's run wrote: its series
   // (coupling.csv, the FEM's and the DEM's files) are copied here first, and the run
   // continues them as it would in the original folder.
+  // A folder moved or copied with its checkpoints (mv out/a out/b; an archive unpacked
+  // elsewhere) holds the series of the checkpoint it holds: they are continued in place.
+  if (!origin.empty() && !same_folder(origin, out_dir) && inside(checkpoint, out_dir) &&
+      fs::exists(out_dir / "coupling.csv")) {
+    std::fprintf(stderr,
+                 "demfem run: note: checkpoint %s was taken by a run writing to %s; %s holds it "
+                 "and that run's series (a moved or copied output folder): they are continued "
+                 "here\n",
+                 checkpoint.c_str(), origin.c_str(), out_dir.c_str());
+    origin.clear();
+  }
   if (!origin.empty() && !same_folder(origin, out_dir)) {
     if (!fs::exists(fs::path(origin) / "coupling.csv")) {
       return refuse("checkpoint " + checkpoint.string() + " was taken by a run writing to " +
@@ -272,6 +306,14 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   try {
     std::vector<scene::Override> overrides;
     for (const auto& s : opt.sets) overrides.push_back(scene::Override::parse(s));
+    if (!opt.fem_backend.empty()) {
+      if (!scene::Document::load(opt.scene, overrides).root().table("fem")) {
+        std::fprintf(stderr, "demfem run: --fem-backend %s: %s has no [fem] section\n",
+                     opt.fem_backend.c_str(), opt.scene.c_str());
+        return kExitUsage;
+      }
+      overrides.push_back(scene::Override::parse("fem.backend=\"" + opt.fem_backend + "\""));
+    }
     doc = scene::Document::load(opt.scene, overrides);
     settings = read_coupling_settings(*doc);
     post_steps = read_post_steps(*doc, bin);
@@ -285,9 +327,30 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     std::fprintf(stderr, "demfem run: scene error: %s\n", e.what());
     return kExitUsage;
   }
+  std::optional<ExternalCommand> external;
+  if (settings.has_fem && settings.fem_backend == "external") {
+    if (opt.in_process) {
+      std::fprintf(stderr,
+                   "demfem run: --in-process runs demfem's own FEM backends only; fem.backend = "
+                   "\"external\" starts the program of fem.command in its own process\n");
+      return kExitUsage;
+    }
+    try {
+      external = resolve_external_command(settings);
+    } catch (const scene::SceneError& e) {
+      std::fprintf(stderr, "demfem run: scene error: %s\n", e.what());
+      return kExitUsage;
+    }
+  }
   if (opt.check) {
     std::printf("demfem run: %s: the scene is valid\n", opt.scene.c_str());
     return 0;
+  }
+  if (settings.fem_modal && opt.resume) {
+    std::fprintf(stderr,
+                 "demfem run: --resume: fem.analysis = \"modal\" takes no time steps and no "
+                 "checkpoints; run it afresh\n");
+    return kExitUsage;
   }
   const fs::path out_dir =
       opt.output_dir.empty() ? settings.run.output_dir : fs::path(opt.output_dir);
@@ -307,6 +370,23 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
                  "demfem run: --debug-kill %s needs solver processes (not with --in-process)\n",
                  opt.debug_kill.c_str());
     return kExitUsage;
+  }
+  // The solver executables, before the output folder is touched: one that cannot be started
+  // is reported now, not after the other solver has started and set up.
+  if (remote) {
+    for (const auto& [needed, name] :
+         {std::pair{settings.has_fem, "fem_server"}, std::pair{settings.has_dem, "dem_server"}}) {
+      const fs::path exe = bin / name;
+      std::error_code ec;
+      if (needed && (!fs::is_regular_file(exe, ec) || ::access(exe.c_str(), X_OK) != 0)) {
+        std::fprintf(stderr,
+                     "demfem run: cannot start the solver %s: it is missing or not executable "
+                     "(build it, or give the folder that holds it with --bin-dir; --in-process "
+                     "needs no solver executables)\n",
+                     exe.c_str());
+        return kExitUsage;
+      }
+    }
   }
   // --resume without a [checkpoint] section: nothing was ever checkpointed.
   if (opt.resume && opt.resume_from.empty() && !settings.checkpoint.enabled) {
@@ -348,7 +428,18 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
                  e.what());
     return kExitUsage;
   }
-  if (const auto prev = read_run_status(out_dir); prev && prev->status == "running") {
+  if (const auto prev = read_run_status(out_dir); prev && recorded_run_alive(*prev)) {
+    // Its lock file was removed (the folder deleted and made again, a clean-up of dot files):
+    // the lock above is a new one, but the run is still writing here.
+    std::fprintf(stderr,
+                 "demfem run: %s is in use by process %d (run.json: running since %s, and the "
+                 "process is alive; its lock file %s was removed or replaced while it runs); two "
+                 "runs in one folder would corrupt each other's files: wait for it to end (or "
+                 "stop it), or give this run another folder (--output-dir, run.output_dir)\n",
+                 out_dir.c_str(), static_cast<int>(prev->pid), prev->start_time.c_str(),
+                 (out_dir / io::FolderLock::kFileName).c_str());
+    return kExitUsage;
+  } else if (prev && prev->status == "running") {
     std::fprintf(stderr,
                  "demfem run: note: the previous run in %s (pid %d, started %s) ended without "
                  "writing its end to run.json: it was killed or crashed\n",
@@ -370,6 +461,10 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   }
   record.pid = ::getpid();
   record.dem_backend = sections.dem_backend;
+  if (settings.has_fem) {
+    record.fem_backend = settings.fem_backend;
+    record.fem_command = settings.fem_command;
+  }
   record.dem_threads = sections.dem_threads;
   if (const char* omp = std::getenv("OMP_NUM_THREADS")) record.omp_num_threads = omp;
   record.hardware_threads = std::thread::hardware_concurrency();
@@ -379,10 +474,29 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
 
   // --resume: the checkpoint to start from, verified before any process starts.
   RunControl control;
+  control.fem_backend = settings.has_fem ? settings.fem_backend : std::string();
+  std::optional<std::int64_t> resume_nodes;  // the checkpoint's interface size
   control.report = [](const std::string& m) {
     std::fprintf(stderr, "demfem run: %s\n", m.c_str());
   };
   control.scene_hash = record.scene_hash;
+  // The folder locks are checked now and then while the run goes on: a folder deleted under a
+  // running run (and perhaps made again by another) is no longer this run's to write.
+  auto last_lock_check = std::chrono::steady_clock::now();
+  control.check_output_folder = [&locks, &last_lock_check] {
+    const auto now = std::chrono::steady_clock::now();
+    if (now - last_lock_check < std::chrono::seconds(1)) return;
+    last_lock_check = now;
+    for (const auto& lock : locks) {
+      if (lock.intact()) continue;
+      throw OutputFolderLost(
+          (lock.folder() / io::FolderLock::kFileName).string() +
+          " was removed or replaced while this run was writing " + lock.folder().string() +
+          " (the folder was deleted?); another run may be writing there now, so this one "
+          "stops and writes nothing more there. Its output is incomplete: run it again into a "
+          "folder of its own");
+    }
+  };
   if (opt.resume) {
     const auto parts = checkpoint_parts(settings);
     if (!opt.resume_from.empty()) {
@@ -428,6 +542,25 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
             prepare_resume(*control.resume_from, settings, sections, out_dir, record)) {
       return *code;
     }
+    try {
+      const io::H5File cp(*control.resume_from / "coupler.h5", io::H5File::Mode::read);
+      if (settings.has_fem) resume_nodes = cp.attribute_int64("/", "node_count");
+    } catch (const std::exception&) {
+      // unreadable coupler.h5: the restore names the file and the reason
+    }
+    // demfem's own backends: the scene's interface must be the checkpoint's, checked before
+    // any process starts (an external code's is checked when it says Hello).
+    if (resume_nodes && sections.fem_interface_nodes > 0 && !external &&
+        static_cast<std::size_t>(*resume_nodes) != sections.fem_interface_nodes) {
+      std::fprintf(stderr,
+                   "demfem run: --resume: checkpoint %s cannot be resumed: the checkpoint's "
+                   "interface has %lld nodes, this scene's %zu (the FEM mesh or "
+                   "fem.interface_surface changed): its state cannot be continued with this "
+                   "scene\n",
+                   control.resume_from->c_str(), static_cast<long long>(*resume_nodes),
+                   sections.fem_interface_nodes);
+      return kExitUsage;
+    }
     record.resumed_from = fs::absolute(*control.resume_from).string();
     const std::string folder = control.resume_from->filename().string();
     if (folder.rfind("step-", 0) == 0) record.resumed_step = std::atoll(folder.c_str() + 5);
@@ -453,6 +586,30 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     std::fprintf(stderr, "demfem run: %s; choose a writable output folder\n", e.what());
     return kExitUsage;
   }
+  if (settings.fem_modal) {
+    // Natural frequencies: no solver process and no time steps; the launcher computes them.
+    int code = 0;
+    try {
+      const fem::FemScene fs = fem::read_fem_scene(*doc->root().table("fem"));
+      for (const auto& note : fs.notes) std::fprintf(stderr, "fem: note: %s\n", note.c_str());
+      (void)fem::run_modal_analysis(fs, out_dir, opt.quiet ? nullptr : &std::cout);
+      record.status = "completed";
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "demfem run: modal analysis: %s\n", e.what());
+      code = dynamic_cast<const fem::FemModelError*>(&e) ||
+                     dynamic_cast<const std::invalid_argument*>(&e)
+                 ? kExitUsage
+                 : kExitFailed;
+      record.status = "failed";
+      record.reason = e.what();
+    }
+    record.exit_code = code;
+    record.end_time = utc_now();
+    record.steps_done = 0;
+    record.time_reached = 0.0;
+    write_run_record(out_dir, record);
+    return code;
+  }
   std::printf(
       "demfem run: %s: scheme %s, dt_C = %.6g s (n_D = %lld), %lld coupling steps to "
       "t = %.6g s%s\n",
@@ -467,7 +624,9 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   std::unique_ptr<protocol::CouplerSession> session;
   std::unique_ptr<SolverProcess> dem_proc, fem_proc;
   std::unique_ptr<SolverLink> link;
+  std::string fem_program = "fem_server";  // how messages name the FEM process
   int code = 0;
+  bool folder_lost = false;  // OutputFolderLost: nothing more is written into the folder
   std::string reason;
   std::optional<RunSummary> summary;
   std::int64_t steps_done = -1;
@@ -485,6 +644,8 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
       // machine with few cores, and the blocking round trip costs only a few microseconds.
       protocol::CouplerOptions copt;
       copt.wait.spin = std::chrono::microseconds(opt.wait_spin_us);
+      copt.peer_timeout = std::chrono::milliseconds(
+          static_cast<std::int64_t>(std::ceil(1000.0 * settings.run.peer_timeout)));
       copt.reply_timeout = std::chrono::milliseconds(
           static_cast<std::int64_t>(std::ceil(1000.0 * settings.checkpoint.reply_timeout)));
       copt.hello_timeout = std::chrono::milliseconds(
@@ -504,11 +665,37 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
       if (opt.resume) fem_args.push_back("--resume");
       std::optional<pid_t> dem_pid, fem_pid;
       std::printf("demfem run: segment %s\n", session->segment_name().c_str());
-      if (settings.has_fem) {
+      if (!opt.fem_backend.empty()) {
+        // Every process reads the same scene: the override of --fem-backend goes to all.
+        for (auto* a : {&args, &fem_args})
+          a->insert(a->end(), {"--set", "fem.backend=\"" + opt.fem_backend + "\""});
+      }
+      if (settings.has_fem && external) {
+        // An outside program: the same arguments as fem_server (absolute paths: it runs in the
+        // scene's folder), the same supervision and restarts.
+        std::vector<std::string> ext_args = external->arguments;
+        for (std::size_t k = 0; k < fem_args.size(); ++k) {
+          const bool path =
+              k > 0 && (fem_args[k - 1] == "--scene" || fem_args[k - 1] == "--output-dir");
+          ext_args.push_back(path ? fs::absolute(fem_args[k]).string() : fem_args[k]);
+        }
+        if (const auto py = python_module_dir(bin)) {
+          const char* old = std::getenv("PYTHONPATH");
+          const std::string value = py->string() + (old && *old ? ":" + std::string(old) : "");
+          ::setenv("PYTHONPATH", value.c_str(), 1);
+        }
+        fem_proc = std::make_unique<SolverProcess>("FEM solver", external->program, ext_args);
+        fem_proc->set_working_directory(external->working_directory);
+        fem_program = "external FEM backend '" + external->text + "'";
+        fem_pid = fem_proc->start();
+        std::printf("demfem run: started the external FEM backend %s (pid %d)\n",
+                    external->text.c_str(), static_cast<int>(*fem_pid));
+      } else if (settings.has_fem) {
         fem_proc = std::make_unique<SolverProcess>("FEM solver", bin / "fem_server", fem_args);
         fem_proc->set_own_session(opt.solver_sessions);
         fem_pid = fem_proc->start();
-        std::printf("demfem run: started fem_server (pid %d)\n", static_cast<int>(*fem_pid));
+        std::printf("demfem run: started fem_server (pid %d) with the %s backend\n",
+                    static_cast<int>(*fem_pid), settings.fem_backend.c_str());
       }
       if (settings.has_dem) {
         dem_proc = std::make_unique<SolverProcess>("DEM solver", bin / "dem_server", args);
@@ -517,7 +704,23 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
         std::printf("demfem run: started dem_server (pid %d)\n", static_cast<int>(*dem_pid));
       }
       std::fflush(stdout);
-      link = std::make_unique<RemoteLink>(*session, dem_pid, fem_pid);
+      auto remote_link = std::make_unique<RemoteLink>(*session, dem_pid, fem_pid);
+      if (fem_pid) {
+        remote_link->describe(protocol::Role::fem, (external ? "the " : "") + fem_program +
+                                                       " (pid " + std::to_string(*fem_pid) + ")");
+        // The interface the FEM must report: the checkpoint's when resuming, else the scene's
+        // for demfem's own backends (an external program's is its own).
+        if (resume_nodes) {
+          remote_link->expect_fem_interface(
+              static_cast<std::size_t>(*resume_nodes),
+              "the checkpoint " + control.resume_from->string() + " being resumed");
+        } else if (sections.fem_interface_nodes > 0 && !external) {
+          remote_link->expect_fem_interface(
+              sections.fem_interface_nodes,
+              "the interface of " + opt.scene + " (fem.interface_surface)");
+        }
+      }
+      link = std::move(remote_link);
       // A solver that died is started again and attached to the same segment; the run then
       // rolls back to the last committed checkpoint (CouplingRun).
       control.restart_solver = [&](protocol::Role role) {
@@ -533,11 +736,22 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
         if (role == protocol::Role::fem) p->add_argument("--resume");
         const pid_t pid = p->start();
         std::printf("demfem run: started %s (pid %d)\n",
-                    role == protocol::Role::dem ? "dem_server" : "fem_server",
+                    role == protocol::Role::dem ? "dem_server" : fem_program.c_str(),
                     static_cast<int>(pid));
         std::fflush(stdout);
         session->wait_hello(role, pid);
-        session->reattach(role);
+        try {
+          session->reattach(role);
+        } catch (const protocol::PeerDied&) {
+          throw;
+        } catch (const protocol::ProtocolError& e) {
+          // A restarted process that is not the structure that was running (another interface
+          // size): named, and not restarted again.
+          throw HandshakeFailed(
+              role, "the restarted " +
+                        (role == protocol::Role::dem ? std::string("dem_server") : fem_program) +
+                        " (pid " + std::to_string(pid) + ") was refused: " + e.what());
+        }
       };
       if (debug_kill) {
         control.after_send = [&](protocol::Role role, std::int64_t step) {
@@ -591,34 +805,51 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     failed(kExitRecoveryExhausted,
            std::string(e.what()) + "\n  output so far is in " + out_dir.string());
   } catch (const SolverFailure& e) {
-    // The adapters refuse non-finite numbers and unstable states themselves ("... is not
-    // finite", "the DEM blew up"): that is a blow-up found by the solver, and exits as one.
+    // The solver says what kind of error it found (protocol::ErrorKind): a model that cannot
+    // be solved (a mechanism, displacements larger than the model) is bad input, found late;
+    // a non-finite or unstable state is a blow-up. Errors of a solver that does not classify
+    // them are blow-ups when their text says so ("... is not finite", "blew up").
     if (SignalGuard::stop_flag().load()) {
       failed(128 + SignalGuard::signal_number(), "stopped by signal " +
                                                      std::to_string(SignalGuard::signal_number()) +
                                                      " (" + e.what() + ")");
-    } else if (is_blow_up_report(e.what())) {
+    } else if (e.kind() == protocol::ErrorKind::bad_input) {
+      failed(kExitUsage,
+             "bad model: " + std::string(e.what()) +
+                 "\n  (found by the solver after the run started; output so far is in " +
+                 out_dir.string() + ")");
+    } else if (e.kind() == protocol::ErrorKind::blow_up ||
+               (e.kind() == protocol::ErrorKind::failure && is_blow_up_report(e.what()))) {
       failed(kExitBlowUp,
              "blow-up: " + std::string(e.what()) + "\n  output so far is in " + out_dir.string());
     } else {
       failed(kExitFailed, std::string(e.what()) + "\n  output so far is in " + out_dir.string());
     }
+  } catch (const OutputFolderLost& e) {
+    failed(kExitFailed, e.what());
+    folder_lost = true;
   } catch (const Interrupted& e) {
     failed(128 + SignalGuard::signal_number(), e.what());
   } catch (const ResumeRefused& e) {
     failed(kExitUsage, e.what());
+  } catch (const InterfaceMismatch& e) {
+    failed(kExitUsage, e.what());
+  } catch (const HandshakeFailed& e) {
+    failed(kExitFailed, e.what());
   } catch (const scene::SceneError& e) {
     failed(kExitUsage, std::string("scene error: ") + e.what());
   } catch (const protocol::PeerDied& e) {
     // Only the start (Hello, mesh exchange) lets it through unwrapped: a solver that ended
     // before it attached, or never attached.
     SolverProcess* p = e.role() == protocol::Role::dem ? dem_proc.get() : fem_proc.get();
-    const std::string name = e.role() == protocol::Role::dem ? "dem_server" : "fem_server";
+    const std::string name = e.role() == protocol::Role::dem ? "dem_server" : fem_program;
     if (SignalGuard::stop_flag().load()) {
       failed(128 + SignalGuard::signal_number(), "stopped by signal " +
                                                      std::to_string(SignalGuard::signal_number()) +
                                                      " (" + e.what() + ")");
-    } else if (p && p->running()) {
+    } else if (p && !p->wait_for(std::chrono::milliseconds(1000)) && p->running()) {
+      // (A process seen gone may not be reapable for a moment: the wait tells a death from
+      // a hang.)
       p->signal(SIGKILL);
       const int c = p->stop(std::chrono::milliseconds(1000));
       char limit[32];
@@ -636,6 +867,13 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     } else {
       failed(kExitFailed, e.what());
     }
+  } catch (const protocol::BackendError& e) {
+    // In process, a solver's set-up found it (the FEM's model check before the first step).
+    if (e.kind() == protocol::ErrorKind::bad_input) {
+      failed(kExitUsage, std::string("bad model: ") + e.what());
+    } else {
+      failed(e.kind() == protocol::ErrorKind::blow_up ? kExitBlowUp : kExitFailed, e.what());
+    }
   } catch (const std::exception& e) {
     if (SignalGuard::stop_flag().load()) {
       failed(128 + SignalGuard::signal_number(), "stopped by signal " +
@@ -648,7 +886,17 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
 
   // ---- end the solvers: Shutdown, then wait, then signals ---------------------------------
   // After a stop signal the solvers were sent SIGTERM already: no Shutdown, a short grace.
-  const bool stopping = SignalGuard::stop_flag().load();
+  // A lost folder: the solvers are stopped as by a signal, so that they write no end state
+  // there (in process, the adapters are told so).
+  const bool stopping = SignalGuard::stop_flag().load() || folder_lost;
+  if (folder_lost) {
+    for (auto* p : {dem_proc.get(), fem_proc.get()})
+      if (p) p->signal(SIGTERM);
+    if (auto* local = dynamic_cast<LocalLink*>(link.get())) {
+      for (auto role : {protocol::Role::dem, protocol::Role::fem})
+        drop_end_state(local->backend(role));
+    }
+  }
   if (link && !stopping) link->shutdown();
   for (auto* p : {dem_proc.get(), fem_proc.get()}) {
     if (!p) continue;
@@ -730,7 +978,8 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     record.reason = reason;
   }
   try {
-    write_run_record(out_dir, record);
+    // A lost folder's run.json is another run's now (or gone): it is left alone.
+    if (!folder_lost) write_run_record(out_dir, record);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "demfem run: %s\n", e.what());
     if (code == 0) code = kExitFailed;
@@ -779,6 +1028,12 @@ int main(int argc, char** argv) {
                                 "continue from a committed checkpoint: the given folder, or "
                                 "without a value the latest valid one in the checkpoint folder")
                      ->expected(0, 1);
+  app.add_option("--fem-backend", opt.fem_backend,
+                 "the FEM backend of this run, overriding fem.backend: fem (full FEM), modal "
+                 "(first N modes + static correction), rigid (one rigid body on springs) or "
+                 "external (fem.command); with --resume it continues a checkpoint of another "
+                 "backend where the state maps (docs/backends.md)")
+      ->check(CLI::IsMember({"fem", "modal", "rigid", "external"}));
   app.add_option("--hello-timeout", opt.hello_timeout,
                  "seconds a started solver may take to attach (its Hello) before it is killed "
                  "and the run stops with status 1 (default 300; raise it for models whose "

@@ -65,6 +65,12 @@ void copy(std::span<const double> from, std::span<double> to) {
 
 }  // namespace
 
+protocol::ErrorKind error_kind_of(const std::exception& e) {
+  if (const auto* s = dynamic_cast<const protocol::SolverError*>(&e)) return s->kind();
+  if (const auto* b = dynamic_cast<const protocol::BackendError*>(&e)) return b->kind();
+  return protocol::ErrorKind::failure;
+}
+
 bool is_blow_up_report(const std::string& text) {
   return text.find("not finite") != std::string::npos || text.find("blew up") != std::string::npos;
 }
@@ -225,6 +231,11 @@ RunSummary CouplingRun::run() {
       h5.set_attribute("/", "wall_fem", sum.earlier.fem + sum.wall_fem);
       h5.set_attribute("/", "wall_coupling", sum.earlier.coupling + sum.wall_coupling);
       if (!control_.scene_hash.empty()) h5.set_attribute("/", "scene_hash", control_.scene_hash);
+      if (link_.has(Role::fem)) {
+        h5.set_attribute("/", "fem_backend",
+                         control_.fem_backend.empty() ? std::string("fem") : control_.fem_backend);
+        h5.set_attribute("/", "fem_backend_name", link_.name(Role::fem));
+      }
       h5.set_attribute("/", "output_dir", std::filesystem::absolute(output_dir_).string());
       const auto last = row_of(sum.last);
       h5.write("last_diagnostics", std::span<const double>(last), {last.size()});
@@ -359,11 +370,11 @@ RunSummary CouplingRun::run() {
       try {
         link_.checkpoint(role, file, steps);
       } catch (const std::exception& e) {
-        throw SolverFailure(role, steps, sum.time,
-                            std::string("the ") + role_label(role) +
-                                " solver failed writing checkpoint " + file.string() + ": " +
-                                e.what(),
-                            dynamic_cast<const protocol::PeerDied*>(&e) != nullptr);
+        throw SolverFailure(
+            role, steps, sum.time,
+            std::string("the ") + role_label(role) + " solver failed writing checkpoint " +
+                file.string() + ": " + e.what(),
+            dynamic_cast<const protocol::PeerDied*>(&e) != nullptr, error_kind_of(e));
       }
     }
     save_coupler(folder / "coupler.h5", steps);
@@ -413,7 +424,7 @@ RunSummary CouplingRun::run() {
     m << "the " << role_label(role) << " solver failed in coupling step " << cmd.step
       << " (t = " << fmt(cmd.time) << " s): " << e.what();
     return SolverFailure(role, cmd.step, cmd.time, m.str(),
-                         dynamic_cast<const protocol::PeerDied*>(&e) != nullptr);
+                         dynamic_cast<const protocol::PeerDied*>(&e) != nullptr, error_kind_of(e));
   };
   auto send = [&](Role role, const StepCommand& cmd) {
     try {
@@ -836,6 +847,7 @@ RunSummary CouplingRun::run() {
     // finished run can be continued with a later run.end_time; a solver that dies on the way
     // is recovered in either.
     for (bool done = false; !done;) {
+      if (control_.check_output_folder) control_.check_output_folder();
       if (stop_ && stop_->load()) {
         throw Interrupted("stopped by a signal before coupling step " + std::to_string(i) +
                           " (t = " + fmt(static_cast<double>(i) * s.coupling_dt) + " s)");
@@ -862,6 +874,8 @@ RunSummary CouplingRun::run() {
           " J > coupling.settle.kinetic_energy = " + fmt(s.settle_kinetic_energy) +
           " J); raise run.end_time (and --resume from the last checkpoint) or the threshold");
     }
+  } catch (const OutputFolderLost&) {
+    throw;  // the folder may be another run's now: nothing more is written there
   } catch (...) {
     sum.wall_total = seconds(run_start, Clock::now());
     try {

@@ -171,9 +171,22 @@ CouplingSettings read_coupling_settings(const scene::Document& doc) {
   if (s.has_dem) s.dem_dt = dem->number("dt", Range::positive());
   if (s.has_fem) {
     if (fem->has("analysis")) {
-      s.fem_static = fem->string("analysis") == "static";
+      const std::string analysis = fem->string("analysis");
+      s.fem_static = analysis == "static";
+      s.fem_modal = analysis == "modal";
     }
-    if (!s.fem_static || s.has_dem) s.fem_dt = fem->number("dt", Range::positive());
+    s.fem_backend = fem->choice("backend", "fem", {"fem", "modal", "rigid", "external"});
+    if (s.fem_backend == "external") {
+      s.fem_command = fem->strings("command");
+      s.fem_command_where = fem->where("command");
+    }
+    if (s.fem_modal && s.has_dem)
+      throw SceneError(fem->where("analysis") +
+                       ": \"modal\" computes the natural frequencies of the structure alone; a "
+                       "scene with [dem] couples it in time: use \"dynamic\" or \"static\" (or "
+                       "fem.backend = \"modal\" for a modal-reduced structure)");
+    if (!(s.fem_static || s.fem_modal) || s.has_dem)
+      s.fem_dt = fem->number("dt", Range::positive());
   }
 
   const auto coupling = root.table("coupling");
@@ -201,7 +214,7 @@ CouplingSettings read_coupling_settings(const scene::Document& doc) {
   } else {
     s.scheme = Scheme::fem_only;
     s.dem_substeps = 1;
-    s.coupling_dt = s.fem_static ? s.run.end_time : s.fem_dt;
+    s.coupling_dt = s.fem_static || s.fem_modal ? s.run.end_time : s.fem_dt;
   }
   check_step_counts(s, root);
   s.step_count = steps_to_reach(s.run.end_time, s.coupling_dt);

@@ -3,11 +3,13 @@
 #include <omp.h>
 
 #include <iostream>
+#include <type_traits>
 
 #include "demfem/coupling/solver_link.hpp"
 
 #include "demfem/dem/dem_backend.hpp"
 #include "demfem/dem/dem_scene.hpp"
+#include "demfem/fem/assembly.hpp"
 #include "demfem/fem/fem_backend.hpp"
 #include "demfem/fem/fem_output.hpp"
 #include "demfem/fem/fem_scene.hpp"
@@ -55,19 +57,29 @@ class LocalDem final : public protocol::SolverBackend {
   void save_iteration_state() override { backend_.save_iteration_state(); }
   void restore_iteration_state() override { backend_.restore_iteration_state(); }
   void accept_step() override { backend_.accept_step(); }
+  void drop_end_state() { cancelled_ = true; }
 
  private:
   dem::DemRun run_;
   dem::DemBackend backend_;
-  bool cancelled_ = false;
+  bool cancelled_ = false;  // no end state: a step was cut, or the folder is not ours any more
 };
 
+template <class Solver>
 class LocalFem final : public protocol::SolverBackend {
  public:
-  LocalFem(fem::FemScene scene, const scene::RunSettings& run, const std::filesystem::path& out,
-           bool resume)
-      : solver_(std::move(scene.problem)) {
+  LocalFem(Solver solver, const fem::FemScene& scene, const scene::RunSettings& run,
+           const std::filesystem::path& out, bool resume)
+      : solver_(std::move(solver)) {
     for (const auto& note : scene.notes) std::cerr << "fem: note: " << note << "\n";
+    // The model checks fem_server makes before it attaches (a mechanism, missing clamps).
+    if constexpr (std::is_same_v<Solver, fem::FemSolver>) {
+      try {
+        solver_.prepare(scene.analysis == fem::Analysis::static_analysis);
+      } catch (const fem::FemModelError& e) {
+        throw protocol::BackendError(protocol::ErrorKind::bad_input, e.what());
+      }
+    }
     if (scene.output.enabled) {
       output_ = std::make_unique<fem::FemOutput>(
           out, "fem", solver_.problem().mesh, scene.output,
@@ -75,14 +87,17 @@ class LocalFem final : public protocol::SolverBackend {
     }
     const double interval =
         scene.output.interval > 0.0 ? scene.output.interval : run.output_interval;
-    backend_ = std::make_unique<fem::FemBackend>(solver_, output_.get(), interval);
-    if (scene.monitor.enabled) {
-      monitor_ = std::make_unique<fem::FemMonitor>(out, scene.monitor, resume);
-      backend_->set_monitor(monitor_.get());
+    backend_ = std::make_unique<fem::StructureBackend<Solver>>(solver_, output_.get(), interval);
+    if constexpr (std::is_same_v<Solver, fem::FemSolver>) {
+      if (scene.monitor.enabled) {  // the full FEM only (read_fem_scene refuses it otherwise)
+        monitor_ = std::make_unique<fem::FemMonitor>(out, scene.monitor, resume);
+        backend_->set_monitor(monitor_.get());
+      }
     }
     if (!resume) backend_->write_initial_output();  // reference state
   }
   ~LocalFem() override {
+    if (!write_end_state_) return;
     try {
       backend_->write_final_output();  // the end state
     } catch (const std::exception& e) {
@@ -105,12 +120,14 @@ class LocalFem final : public protocol::SolverBackend {
   void save_iteration_state() override { backend_->save_iteration_state(); }
   void restore_iteration_state() override { backend_->restore_iteration_state(); }
   void accept_step() override { backend_->accept_step(); }
+  void drop_end_state() { write_end_state_ = false; }
 
  private:
-  fem::FemSolver solver_;
+  bool write_end_state_ = true;
+  Solver solver_;
   std::unique_ptr<fem::FemOutput> output_;
   std::unique_ptr<fem::FemMonitor> monitor_;
-  std::unique_ptr<fem::FemBackend> backend_;
+  std::unique_ptr<fem::StructureBackend<Solver>> backend_;
 };
 
 }  // namespace
@@ -119,10 +136,17 @@ SolverSections check_solver_sections(const scene::Document& scene, std::uint64_t
   SolverSections out;
   const scene::Table root = scene.root();
   const auto fem = root.table("fem");
-  if (fem) {
+  // With fem.backend = "external" and no fem.mesh, [fem] belongs to the outside program
+  // (demfem reads only backend, command, dt and analysis: coupling_settings.cpp); with a mesh
+  // it is also a demfem structure (for the beam check, or to resume with another backend).
+  const bool external_only =
+      fem && fem->has("backend") && fem->string("backend") == "external" && !fem->has("mesh");
+  if (fem && !external_only) {
     const fem::FemScene fs = fem::read_fem_scene(*fem);
     out.fem_nodes = fs.problem.mesh.nodes.size();
     out.fem_elements = fs.problem.mesh.elements.size();
+    if (fs.backend != fem::FemBackendKind::external)
+      out.fem_interface_nodes = fem::build_interface(fs.problem).mesh.node_count();
   }
   if (auto dem = root.table("dem")) {
     const dem::DemScene ds = dem::read_dem_scene(*dem);
@@ -139,6 +163,13 @@ SolverSections check_solver_sections(const scene::Document& scene, std::uint64_t
   return out;
 }
 
+void drop_end_state(protocol::SolverBackend* backend) {
+  if (auto* dem = dynamic_cast<LocalDem*>(backend)) dem->drop_end_state();
+  if (auto* fem = dynamic_cast<LocalFem<fem::FemSolver>*>(backend)) fem->drop_end_state();
+  if (auto* fem = dynamic_cast<LocalFem<fem::ModalSolver>*>(backend)) fem->drop_end_state();
+  if (auto* fem = dynamic_cast<LocalFem<fem::RigidSolver>*>(backend)) fem->drop_end_state();
+}
+
 std::unique_ptr<protocol::SolverBackend> make_local_dem(const scene::Document& scene,
                                                         const CouplingSettings& settings,
                                                         const std::filesystem::path& out) {
@@ -153,7 +184,29 @@ std::unique_ptr<protocol::SolverBackend> make_local_fem(const scene::Document& s
                                                         bool resume) {
   const auto fem = scene.root().table("fem");
   if (!fem) return nullptr;
-  return std::make_unique<LocalFem>(fem::read_fem_scene(*fem), settings.run, out, resume);
+  fem::FemScene fs = fem::read_fem_scene(*fem);
+  switch (fs.backend) {
+    case fem::FemBackendKind::modal: {
+      fem::ModalSolver solver(std::move(fs.problem), fs.modal);
+      return std::make_unique<LocalFem<fem::ModalSolver>>(std::move(solver), fs, settings.run, out,
+                                                          resume);
+    }
+    case fem::FemBackendKind::rigid: {
+      fem::RigidSolver solver(std::move(fs.problem), fs.rigid);
+      return std::make_unique<LocalFem<fem::RigidSolver>>(std::move(solver), fs, settings.run, out,
+                                                          resume);
+    }
+    case fem::FemBackendKind::external:
+      throw scene::SceneError(fem->where("backend") +
+                              ": \"external\" runs the program of fem.command in its own "
+                              "process; --in-process runs only demfem's own backends (fem, "
+                              "modal, rigid)");
+    case fem::FemBackendKind::fem:
+      break;
+  }
+  fem::FemSolver solver(std::move(fs.problem));
+  return std::make_unique<LocalFem<fem::FemSolver>>(std::move(solver), fs, settings.run, out,
+                                                    resume);
 }
 
 }  // namespace demfem::coupling

@@ -1,7 +1,10 @@
 #include "demfem/coupling/run_record.hpp"
 
+#include <unistd.h>
+
 #include <cinttypes>
 #include <cstdio>
+#include <cstdlib>
 #include <ctime>
 #include <fstream>
 #include <sstream>
@@ -102,6 +105,8 @@ std::string to_json(const RunRecord& r) {
     << "  \"dem_backend\": " << opt_text(r.dem_backend) << ",\n"
     << "  \"dem_threads\": " << (r.dem_backend.empty() ? "null" : std::to_string(r.dem_threads))
     << ",\n"
+    << "  \"fem_backend\": " << opt_text(r.fem_backend) << ",\n"
+    << "  \"fem_command\": " << (r.fem_command.empty() ? "null" : strings(r.fem_command)) << ",\n"
     << "  \"omp_num_threads\": " << opt_text(r.omp_num_threads) << ",\n"
     << "  \"hardware_threads\": " << r.hardware_threads << ",\n"
     << "  \"start_time\": " << quoted(r.start_time) << ",\n"
@@ -129,8 +134,61 @@ std::optional<RecordedRun> read_run_status(const std::filesystem::path& dir) {
   RecordedRun r;
   r.status = *status;
   if (const auto pid = field(text, "pid")) r.pid = static_cast<pid_t>(std::atol(pid->c_str()));
+  r.host = field(text, "host").value_or("");
   r.start_time = field(text, "start_time").value_or("");
   return r;
+}
+
+namespace {
+
+// Seconds since the epoch when process `pid` started (/proc/<pid>/stat field 22, in clock ticks
+// after boot, plus the boot time of /proc/stat); -1 when it cannot be read.
+double process_start_time(pid_t pid) {
+  std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
+  std::string line;
+  if (!std::getline(stat, line)) return -1.0;
+  const auto close = line.rfind(')');  // the command name may hold spaces and parentheses
+  if (close == std::string::npos) return -1.0;
+  std::istringstream rest(line.substr(close + 2));
+  std::string state, value;
+  rest >> state;
+  if (state == "Z" || state == "X") return -1.0;  // ended, not yet reaped
+  for (int field_no = 4; field_no <= 22 && (rest >> value); ++field_no) {
+    if (field_no == 22) {
+      std::ifstream boot("/proc/stat");
+      std::string key;
+      double btime = -1.0;
+      while (boot >> key) {
+        if (key == "btime") {
+          boot >> btime;
+          break;
+        }
+      }
+      if (btime < 0) return -1.0;
+      return btime + std::atof(value.c_str()) / static_cast<double>(::sysconf(_SC_CLK_TCK));
+    }
+  }
+  return -1.0;
+}
+
+}  // namespace
+
+bool recorded_run_alive(const RecordedRun& run) {
+  if (run.status != "running" || run.pid <= 0 || run.pid == ::getpid()) return false;
+  char host[256] = {};
+  ::gethostname(host, sizeof(host) - 1);
+  if (!run.host.empty() && run.host != host) return false;  // its pid means nothing here
+  std::ifstream cmd("/proc/" + std::to_string(run.pid) + "/cmdline");
+  std::string argv0;
+  if (!std::getline(cmd, argv0, '\0')) return false;
+  const std::string name = std::filesystem::path(argv0).filename().string();
+  if (name != "demfem_run" && name != "coupler") return false;
+  const double started = process_start_time(run.pid);
+  std::tm tm{};
+  if (started < 0 || !::strptime(run.start_time.c_str(), "%Y-%m-%dT%H:%M:%SZ", &tm)) return false;
+  // The record is written after the scene was read: the process started before it (a second
+  // of slack for the rounding of both clocks).
+  return started <= static_cast<double>(::timegm(&tm)) + 1.5;
 }
 
 std::string scene_hash(const std::filesystem::path& scene,

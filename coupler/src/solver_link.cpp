@@ -197,14 +197,51 @@ bool RemoteLink::has(Role role) const {
   return pids_[index(role)].has_value();
 }
 
+std::string RemoteLink::description(Role role) const {
+  const std::string& d = descriptions_[index(role)];
+  return d.empty() ? std::string("the ") + protocol::role_name(role) + " solver" : d;
+}
+
 InterfaceMesh RemoteLink::start() {
   for (Role r : {Role::fem, Role::dem}) {
     if (has(r)) session_.expect(r);
   }
-  for (Role r : {Role::fem, Role::dem}) {
-    if (has(r)) session_.wait_hello(r, pids_[index(r)]);
+  // A process that dies before it attaches is reported by the launcher (PeerDied, with its
+  // exit status); one that answers with an error or breaks the protocol is named here.
+  Role current = Role::fem;
+  auto handshake_failure = [&](const std::exception& e, const char* how) {
+    return HandshakeFailed(current,
+                           description(current) + " " + how + " in its handshake: " + e.what());
+  };
+  try {
+    for (Role r : {Role::fem, Role::dem}) {
+      if (!has(r)) continue;
+      current = r;
+      session_.wait_hello(r, pids_[index(r)]);
+    }
+    if (has(Role::fem) && expected_fem_nodes_ &&
+        session_.peer(Role::fem).node_count != *expected_fem_nodes_) {
+      const auto& p = session_.peer(Role::fem);
+      throw InterfaceMismatch(description(Role::fem) + " (\"" + p.name +
+                              "\") reports an interface of " + std::to_string(p.node_count) +
+                              " nodes, but " + expected_fem_what_ + " has " +
+                              std::to_string(*expected_fem_nodes_) +
+                              "; it is refused (is it the structure of this scene?)");
+    }
+    current = Role::fem;
+    return session_.exchange_mesh();
+  } catch (const protocol::PeerDied&) {
+    throw;
+  } catch (const protocol::VersionMismatch& e) {
+    // Built against another demfem: named, so that the user knows which program to rebuild.
+    throw handshake_failure(e, "was refused");
+  } catch (const InterfaceMismatch&) {
+    throw;
+  } catch (const protocol::SolverError& e) {
+    throw handshake_failure(e, "reported an error");
+  } catch (const protocol::ProtocolError& e) {
+    throw handshake_failure(e, "broke the protocol");
   }
-  return session_.exchange_mesh();
 }
 
 std::string RemoteLink::name(Role role) const {

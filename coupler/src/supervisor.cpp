@@ -74,7 +74,12 @@ pid_t SolverProcess::start() {
   posix_spawnattr_t attr;
   ::posix_spawnattr_init(&attr);
   if (own_session_) ::posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSID);
-  const int rc = ::posix_spawn(&pid, executable_.c_str(), nullptr, &attr, argv.data(), environ);
+  posix_spawn_file_actions_t actions;
+  ::posix_spawn_file_actions_init(&actions);
+  if (!working_directory_.empty())
+    ::posix_spawn_file_actions_addchdir_np(&actions, working_directory_.c_str());
+  const int rc = ::posix_spawn(&pid, executable_.c_str(), &actions, &attr, argv.data(), environ);
+  ::posix_spawn_file_actions_destroy(&actions);
   ::posix_spawnattr_destroy(&attr);
   if (rc != 0) {
     throw std::runtime_error("cannot start the " + label_ + " (" + executable_.string() +
@@ -92,6 +97,12 @@ pid_t SolverProcess::start() {
     }
   }
   return pid;
+}
+
+std::string SolverProcess::command_text() const {
+  std::string text = executable_.string();
+  for (const auto& a : arguments_) text += " " + a;
+  return text;
 }
 
 void SolverProcess::reaped(int status) {
@@ -127,6 +138,9 @@ std::optional<int> SolverProcess::wait_for(std::chrono::milliseconds timeout) {
 }
 
 int SolverProcess::stop(std::chrono::milliseconds grace) {
+  // Never started (its executable could not be spawned): nothing to wait for. waitpid(-1)
+  // below would wait for any child, i.e. for the other solver, which waits for us: a hang.
+  if (pid_ <= 0) return exit_code_.value_or(-1);
   if (auto c = wait_for(grace)) return *c;
   signal(SIGTERM);
   if (auto c = wait_for(grace)) return *c;

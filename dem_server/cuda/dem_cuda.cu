@@ -23,6 +23,8 @@
 #include "demfem/dem/physics/contact.hpp"
 #include "demfem/dem/physics/integrator.hpp"
 #include "demfem/dem/physics/pair.hpp"
+#include "demfem/dem/physics/poly_contact.hpp"
+#include "demfem/dem/physics/rigid_body.hpp"
 
 namespace demfem::dem {
 
@@ -78,7 +80,27 @@ struct Dev {
   int* stop;
   unsigned long long* steps_done;
   unsigned long long* max_ov;
+  // dilated polyhedra (poly): the shape table, per particle shape / scale / principal moments,
+  // per pair the torque on j and the narrow phase's caches
+  bool poly;
+  std::int32_t *vbase, *snv, *fbase, *snf, *floop, *flen, *fvert, *ebase, *sne, *edge;
+  double *vert, *fnormal, *dilation, *bound;
+  std::int32_t* shape_id;
+  double *scale, *ix, *iy, *iz, *ptj, *paxis;
+  std::int32_t* pfeat;
 };
+
+// The physics view of a system with polyhedra (device pointers).
+__device__ phys::PolyView poly_view(const Dev& d) {
+  phys::PolyView v;
+  v.p = phys::ParticleView{d.px, d.py, d.pz, d.vx, d.vy, d.vz, d.wx, d.wy, d.wz, d.radius, d.mass};
+  v.qw = d.qw, v.qx = d.qx, v.qy = d.qy, v.qz = d.qz;
+  v.ix = d.ix, v.iy = d.iy, v.iz = d.iz, v.inertia = d.inertia, v.scale = d.scale;
+  v.shape_id = d.shape_id;
+  v.table = phys::ShapeTableView{d.vbase, d.snv,   d.vert,  d.fbase, d.snf,  d.fnormal,  d.floop,
+                                 d.flen,  d.fvert, d.ebase, d.sne,   d.edge, d.dilation, d.bound};
+  return v;
+}
 
 // Folds v (>= 0) into *dst, the bit pattern of a non-negative double (whose integer order is
 // the order of the values): a shuffle reduction over the warp, then one atomic per warp. Every
@@ -106,10 +128,17 @@ __global__ void k_kick_drift(Dev d, std::size_t n, double dt, double half_skin2,
     d.px[i] += dt * d.vx[i];
     d.py[i] += dt * d.vy[i];
     d.pz[i] += dt * d.vz[i];
-    if (friction)
-      phys::kick(d.wx[i], d.wy[i], d.wz[i], d.tx[i], d.ty[i], d.tz[i], h / d.inertia[i]);
-    if (orientation)
-      phys::rotate_quaternion(d.qw[i], d.qx[i], d.qy[i], d.qz[i], d.wx[i], d.wy[i], d.wz[i], dt);
+    if (d.poly && d.shape_id[i] >= 0) {  // a rigid body: full inertia, NO_SQUISH rotation
+      const phys::Vec3 I{d.ix[i], d.iy[i], d.iz[i]};
+      phys::angular_kick(d.wx[i], d.wy[i], d.wz[i], d.qw[i], d.qx[i], d.qy[i], d.qz[i], I,
+                         phys::Vec3{d.tx[i], d.ty[i], d.tz[i]}, h);
+      phys::free_rotation(d.qw[i], d.qx[i], d.qy[i], d.qz[i], d.wx[i], d.wy[i], d.wz[i], I, dt);
+    } else {
+      if (friction || d.poly)
+        phys::kick(d.wx[i], d.wy[i], d.wz[i], d.tx[i], d.ty[i], d.tz[i], h / d.inertia[i]);
+      if (orientation)
+        phys::rotate_quaternion(d.qw[i], d.qx[i], d.qy[i], d.qz[i], d.wx[i], d.wy[i], d.wz[i], dt);
+    }
     const double dx = d.px[i] - d.bx[i], dy = d.py[i] - d.by[i], dz = d.pz[i] - d.bz[i];
     d2 = dx * dx + dy * dy + dz * dz;
     if (d2 > half_skin2) atomicExch(d.stop + 1, 1);
@@ -185,6 +214,38 @@ __global__ void k_pairs(Dev d, std::size_t n, std::size_t nmat, double dt, bool 
   const std::size_t mrow = static_cast<std::size_t>(d.material[i]) * nmat;
   const phys::ParticleView view{d.px, d.py, d.pz, d.vx,     d.vy,  d.vz,
                                 d.wx, d.wy, d.wz, d.radius, d.mass};
+  if (d.poly) {  // a system with polyhedra: the mixed pair law, torques on both bodies
+    const phys::PolyView pv = poly_view(d);
+    for (std::int64_t p = d.row[i]; p < d.row[i + 1]; ++p) {
+      const std::int32_t j = d.nbr[p];
+      phys::Vec3 sh{0, 0, 0}, rh{0, 0, 0};
+      if (Friction) sh = phys::Vec3{d.shear[3 * p], d.shear[3 * p + 1], d.shear[3 * p + 2]};
+      if (Friction && rolling)
+        rh = phys::Vec3{d.rhist[3 * p], d.rhist[3 * p + 1], d.rhist[3 * p + 2]};
+      phys::Vec3 axis{d.paxis[3 * p], d.paxis[3 * p + 1], d.paxis[3 * p + 2]};
+      phys::Vec3 fij, ti, tj;
+      const double delta = phys::mixed_pair<Friction>(
+          pv, static_cast<int>(i), j, d.pc[mrow + d.material[j]], dt, Friction && rolling, sh, rh,
+          axis, d.pfeat + 6 * p, fij, ti, tj);
+      mo = fmax(mo, delta);
+      d.pf[3 * p] = fij.x, d.pf[3 * p + 1] = fij.y, d.pf[3 * p + 2] = fij.z;
+      d.pt[3 * p] = ti.x, d.pt[3 * p + 1] = ti.y, d.pt[3 * p + 2] = ti.z;
+      d.ptj[3 * p] = tj.x, d.ptj[3 * p + 1] = tj.y, d.ptj[3 * p + 2] = tj.z;
+      d.paxis[3 * p] = axis.x, d.paxis[3 * p + 1] = axis.y, d.paxis[3 * p + 2] = axis.z;
+      if (Friction) d.shear[3 * p] = sh.x, d.shear[3 * p + 1] = sh.y, d.shear[3 * p + 2] = sh.z;
+      if (Friction && rolling)
+        d.rhist[3 * p] = rh.x, d.rhist[3 * p + 1] = rh.y, d.rhist[3 * p + 2] = rh.z;
+      ax += fij.x, ay += fij.y, az += fij.z;
+      qx += ti.x, qy += ti.y, qz += ti.z;
+    }
+    d.acc[3 * i] = ax, d.acc[3 * i + 1] = ay, d.acc[3 * i + 2] = az;
+    d.acct[3 * i] = qx, d.acct[3 * i + 1] = qy, d.acct[3 * i + 2] = qz;
+    if (mo > 0.0) {
+      atomicMax(d.max_ov, static_cast<unsigned long long>(__double_as_longlong(mo)));
+      atomicMax(d.adv_max_ov, static_cast<unsigned long long>(__double_as_longlong(mo)));
+    }
+    return;
+  }
   for (std::int64_t p = d.row[i]; p < d.row[i + 1]; ++p) {
     const std::int32_t j = d.nbr[p];
     double* f = d.pf + 3 * p;
@@ -244,12 +305,14 @@ __global__ void k_gather_kick(Dev d, std::size_t n, std::size_t nmat, double dt,
   if (i >= n) return;
   double fx = d.acc[3 * i], fy = d.acc[3 * i + 1], fz = d.acc[3 * i + 2];
   double qx = 0, qy = 0, qz = 0;
-  if (Friction) qx = d.acct[3 * i], qy = d.acct[3 * i + 1], qz = d.acct[3 * i + 2];
+  if (Friction || d.poly) qx = d.acct[3 * i], qy = d.acct[3 * i + 1], qz = d.acct[3 * i + 2];
   const double ri = d.radius[i];
   for (std::int64_t k = d.trow[i]; k < d.trow[i + 1]; ++k) {
     const std::int64_t p = d.tpair[k];
     fx -= d.pf[3 * p], fy -= d.pf[3 * p + 1], fz -= d.pf[3 * p + 2];
-    if (Friction) {
+    if (d.poly) {
+      qx += d.ptj[3 * p], qy += d.ptj[3 * p + 1], qz += d.ptj[3 * p + 2];
+    } else if (Friction) {
       qx += ri * d.pt[3 * p], qy += ri * d.pt[3 * p + 1], qz += ri * d.pt[3 * p + 2];
       if (rolling) qx -= d.pr[3 * p], qy -= d.pr[3 * p + 1], qz -= d.pr[3 * p + 2];
     }
@@ -263,9 +326,15 @@ __global__ void k_gather_kick(Dev d, std::size_t n, std::size_t nmat, double dt,
     if (d.walls_moving) wv.motion = d.motion, wv.time = d.clock[0];  // clock: this step's time
     phys::Vec3 f{fx, fy, fz}, q{qx, qy, qz};
     double mo = 0.0, fmo = 0.0;
-    phys::wall_contacts<Friction>(view, wv, static_cast<std::int64_t>(i),
-                                  d.pc + static_cast<std::size_t>(d.material[i]) * nmat, dt, f, q,
-                                  mo, fmo);
+    if (d.poly && d.shape_id[i] >= 0)
+      phys::poly_wall_contacts<Friction>(
+          phys::poly_wall_particle(poly_view(d), static_cast<int>(i)), wv,
+          static_cast<std::int64_t>(i), d.pc + static_cast<std::size_t>(d.material[i]) * nmat, dt,
+          f, q, mo, fmo);
+    else
+      phys::wall_contacts<Friction>(view, wv, static_cast<std::int64_t>(i),
+                                    d.pc + static_cast<std::size_t>(d.material[i]) * nmat, dt, f, q,
+                                    mo, fmo);
     fx = f.x, fy = f.y, fz = f.z;
     qx = q.x, qy = q.y, qz = q.z;
     if (mo > 0.0) {
@@ -297,7 +366,11 @@ __global__ void k_gather_kick(Dev d, std::size_t n, std::size_t nmat, double dt,
   d.fx[i] = fx, d.fy[i] = fy, d.fz[i] = fz;
   const double h = 0.5 * dt;
   phys::kick(d.vx[i], d.vy[i], d.vz[i], fx, fy, fz, h / m);
-  if (Friction) {
+  if (d.poly && d.shape_id[i] >= 0) {
+    d.tx[i] = qx, d.ty[i] = qy, d.tz[i] = qz;
+    phys::angular_kick(d.wx[i], d.wy[i], d.wz[i], d.qw[i], d.qx[i], d.qy[i], d.qz[i],
+                       phys::Vec3{d.ix[i], d.iy[i], d.iz[i]}, phys::Vec3{qx, qy, qz}, h);
+  } else if (Friction || d.poly) {
     d.tx[i] = qx, d.ty[i] = qy, d.tz[i] = qz;
     phys::kick(d.wx[i], d.wy[i], d.wz[i], qx, qy, qz, h / d.inertia[i]);
   }
@@ -307,7 +380,7 @@ __global__ void k_gather_kick(Dev d, std::size_t n, std::size_t nmat, double dt,
 
 struct CudaBackend {
   Dev d{};
-  std::size_t cap[64] = {};
+  std::size_t cap[96] = {};
   std::size_t n = 0, npairs = 0, nmat = 0;
   double dt = 0, g[3] = {0, 0, 0};
   bool friction = false, rolling = false, orientation = true;
@@ -371,6 +444,18 @@ void cuda_backend_destroy(CudaBackend* b) {
   cudaFree(b->d.node_buf), cudaFree(b->d.clock), cudaFree(b->d.pdisp2), cudaFree(b->d.wdisp2);
   cudaFree(b->d.flex_max_ov);
   cudaFree(b->d.rhist), cudaFree(b->d.wroll);
+  for (void* p : {static_cast<void*>(b->d.vbase),    static_cast<void*>(b->d.snv),
+                  static_cast<void*>(b->d.fbase),    static_cast<void*>(b->d.snf),
+                  static_cast<void*>(b->d.floop),    static_cast<void*>(b->d.flen),
+                  static_cast<void*>(b->d.fvert),    static_cast<void*>(b->d.ebase),
+                  static_cast<void*>(b->d.sne),      static_cast<void*>(b->d.edge),
+                  static_cast<void*>(b->d.vert),     static_cast<void*>(b->d.fnormal),
+                  static_cast<void*>(b->d.dilation), static_cast<void*>(b->d.bound),
+                  static_cast<void*>(b->d.shape_id), static_cast<void*>(b->d.scale),
+                  static_cast<void*>(b->d.ix),       static_cast<void*>(b->d.iy),
+                  static_cast<void*>(b->d.iz),       static_cast<void*>(b->d.ptj),
+                  static_cast<void*>(b->d.paxis),    static_cast<void*>(b->d.pfeat)})
+    cudaFree(p);
   if (b->stream) cudaStreamDestroy(b->stream);
   delete b;
 }
@@ -405,6 +490,19 @@ void cuda_upload_state(CudaBackend* b, const GpuHostView& v) {
   up(d.inertia, c[21], v.inertia, n), up(d.material, c[22], v.material, n);
   ensure(d.acc, c[23], 3 * n), ensure(d.acct, c[24], 3 * n);
   up(d.pc, c[25], v.pc, v.nmat * v.nmat);
+  d.poly = v.poly;
+  if (v.poly) {
+    up(d.vbase, c[63], v.vbase, v.nshapes), up(d.snv, c[64], v.snv, v.nshapes);
+    up(d.fbase, c[65], v.fbase, v.nshapes), up(d.snf, c[66], v.snf, v.nshapes);
+    up(d.floop, c[67], v.floop, v.nshape_faces), up(d.flen, c[68], v.flen, v.nshape_faces);
+    up(d.fvert, c[69], v.fvert, v.nshape_fverts), up(d.ebase, c[70], v.ebase, v.nshapes);
+    up(d.sne, c[71], v.sne, v.nshapes), up(d.edge, c[72], v.edge, 2 * v.nshape_edges);
+    up(d.vert, c[73], v.vert, 3 * v.nshape_verts);
+    up(d.fnormal, c[74], v.fnormal, 3 * v.nshape_faces);
+    up(d.dilation, c[75], v.dilation, v.nshapes), up(d.bound, c[76], v.bound, v.nshapes);
+    up(d.shape_id, c[77], v.shape_id, n), up(d.scale, c[78], v.scale, n);
+    up(d.ix, c[79], v.ix, n), up(d.iy, c[80], v.iy, n), up(d.iz, c[81], v.iz, n);
+  }
   d.walls = v.ntris > 0;
   if (d.walls) {
     const std::size_t ns = static_cast<std::size_t>(phys::kMaxWallContacts) * n;
@@ -454,6 +552,10 @@ void cuda_upload_lists(CudaBackend* b, const GpuHostView& v) {
   ensure(d.pf, c[33], 3 * np);
   if (v.ntris > 0) up(d.prow, c[53], v.prow, n + 1), up(d.ptri, c[54], v.ptri, v.nptri);
   if (v.ntris > 0 && v.walls_moving) up(d.vbuild, c[55], v.vbuild, 3 * v.nverts);
+  if (v.poly) {
+    up(d.paxis, c[82], v.paxis, 3 * np), up(d.pfeat, c[83], v.pfeat, 6 * np);
+    ensure(d.ptj, c[84], 3 * np), ensure(d.pt, c[35], 3 * np);
+  }
   if (v.friction) {
     up(d.shear, c[34], v.shear, 3 * np);
     ensure(d.pt, c[35], 3 * np), ensure(d.pr, c[36], 3 * np);
@@ -474,6 +576,10 @@ void cuda_download_state(CudaBackend* b, const GpuHostView& v) {
   down(v.tx, d.tx, n), down(v.ty, d.ty, n), down(v.tz, d.tz, n);
   if (v.friction && v.shear && b->npairs == v.npairs) down(v.shear, d.shear, 3 * v.npairs);
   if (v.rhist && b->npairs == v.npairs) down(v.rhist, d.rhist, 3 * v.npairs);
+  if (v.poly && b->npairs == v.npairs) {
+    down(v.paxis, d.paxis, 3 * v.npairs), down(v.pfeat, d.pfeat, 6 * v.npairs);
+    down(v.ptj, d.ptj, 3 * v.npairs);
+  }
   if (v.ntris > 0) {
     const std::size_t ns = static_cast<std::size_t>(phys::kMaxWallContacts) * n;
     down(v.wkey, d.wkey, ns), down(v.wshear, d.wshear, 3 * ns), down(v.wf, d.wf, 3 * ns);

@@ -6,6 +6,7 @@
 #include <CLI/CLI.hpp>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <exception>
 #include <filesystem>
@@ -49,6 +50,11 @@ int main(int argc, char** argv) {
 
   try {
     const bool coupled = !segment.empty();
+    // Alone, the run's length is this process's: refused upfront like the coupler's.
+    if (!coupled) {
+      demfem::scene::check_step_count(run, dem.settings.dt, dem.dt_where,
+                                      demfem::scene::kMaxDemSteps, "DEM");
+    }
     // Served: files are created by the first step, or continued by a restore.
     demfem::dem::DemRun dem_run(dem, out_dir, run.seed, run.output_interval, log, coupled);
     if (coupled) {
@@ -57,6 +63,8 @@ int main(int argc, char** argv) {
       options.segment = segment;
       options.remove_orphaned_segments = true;  // a killed coupler leaves nothing behind
       options.role = demfem::protocol::Role::dem;
+      options.peer_timeout = std::chrono::milliseconds(
+          static_cast<std::int64_t>(std::ceil(1000.0 * run.peer_timeout)));
       const int code = demfem::protocol::serve(backend, options);
       if (code == demfem::protocol::kExitOk) dem_run.finish();  // the end state
       return code;

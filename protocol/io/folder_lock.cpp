@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <sys/file.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -83,6 +84,15 @@ FolderLock::FolderLock(const std::filesystem::path& folder, const std::string& d
     throw std::runtime_error(file.string() + ": cannot write the lock file: " + reason(err));
   }
   fd_ = fd;
+}
+
+bool FolderLock::intact() const {
+  if (fd_ < 0) return false;
+  struct stat locked {
+  }, now{};
+  if (::fstat(fd_, &locked) != 0) return false;
+  if (::stat((folder_ / kFileName).c_str(), &now) != 0) return false;
+  return locked.st_dev == now.st_dev && locked.st_ino == now.st_ino;
 }
 
 FolderLock::~FolderLock() {

@@ -11,9 +11,16 @@ namespace demfem::io {
 namespace {
 
 // HDF5 prints its own error stack by default; our exceptions carry the context instead.
+// H5dont_atexit: HDF5 1.10 leaves a file whose H5Fclose failed (a full disk while it writes its
+// metadata) half-closed in its table of open files, and its exit handler then closes it again
+// and crashes (SIGSEGV after the run's clean error message). Every file is closed by its
+// H5File; at exit there is nothing left for the library to flush.
 void silence_hdf5() {
   static std::once_flag once;
-  std::call_once(once, [] { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); });
+  std::call_once(once, [] {
+    H5dont_atexit();
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  });
 }
 
 template <typename T>

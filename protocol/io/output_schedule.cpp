@@ -20,6 +20,11 @@ double window_begin(double t, double step) {
   return t - step * (0.5 + 1e-9);
 }
 
+// Largest output index (nearest() saturates there) and how many rounding corrections of an
+// index estimate are made; two suffice while k * interval resolves neighbouring outputs.
+constexpr std::int64_t kMaxIndex = 9'000'000'000'000'000'000;
+constexpr int kCorrections = 8;
+
 }  // namespace
 
 double decimal_time(double t) {
@@ -42,7 +47,7 @@ double OutputSchedule::nominal(std::int64_t k) const {
 std::int64_t OutputSchedule::nearest(double t) const {
   const double k = std::round(t / interval_);
   if (!(k >= 0.0)) return 0;
-  if (k > 9.0e18) return static_cast<std::int64_t>(9.0e18);
+  if (k > static_cast<double>(kMaxIndex)) return kMaxIndex;
   return static_cast<std::int64_t>(k);
 }
 
@@ -53,12 +58,16 @@ bool OutputSchedule::due(double t, double step) const {
 double OutputSchedule::take(double t, double step) {
   if (!due(t, step)) return label(t, step);
   const double end = window_end(t, step);
-  // The last nominal time inside the window: start near it, then correct for rounding.
+  // The last nominal time inside the window: start near it, then correct for rounding (one
+  // or two steps). The corrections are bounded: for an interval below the resolution of the
+  // times (run.output_interval = 1e-300: k beyond 1e15, or nearest() saturated) neighbouring
+  // nominal times are equal and the loops would never end (issue 19: a hang).
   std::int64_t k = std::max(next_, nearest(end));
-  while (k > next_ && !(nominal(k) < end)) --k;
-  while (nominal(k + 1) < end) ++k;
+  for (int i = 0; i < kCorrections && k > next_ && !(nominal(k) < end); ++i) --k;
+  for (int i = 0; i < kCorrections && k < kMaxIndex && nominal(k + 1) < end; ++i) ++k;
   next_ = k + 1;
-  return nominal(k);
+  // Saturated, nominal(k) is not a time near t: the state's own time is the label.
+  return k >= kMaxIndex ? decimal_time(t) : nominal(k);
 }
 
 double OutputSchedule::label(double t, double step) const {
@@ -76,8 +85,8 @@ void OutputSchedule::skip_to_after(double t) {
   if (!active()) return;
   std::int64_t k = nearest(t);
   const double limit = t + 1e-9 * interval_;
-  while (k > 0 && nominal(k - 1) > limit) --k;
-  while (!(nominal(k) > limit)) ++k;
+  for (int i = 0; i < kCorrections && k > 0 && nominal(k - 1) > limit; ++i) --k;
+  for (int i = 0; i < kCorrections && k < kMaxIndex && !(nominal(k) > limit); ++i) ++k;
   next_ = k;
 }
 

@@ -600,14 +600,28 @@ RunSettings read_run_settings(const Document& scene) {
   if (s.name.empty()) run.fail("name", "must not be empty");
   if (run.has("name")) check_run_name(run, s.name);
   s.end_time = run.number("end_time", Range::positive());
+  s.end_time_where = run.where("end_time");
   s.output_dir = run.has("output_dir") ? std::filesystem::path(run.string("output_dir"))
                                        : std::filesystem::path("out") / s.name;
   s.seed = static_cast<std::uint64_t>(run.integer("seed", 1, 0, INT64_MAX));
   s.output_interval = run.number("output_interval", 0.0, Range::non_negative());
+  s.peer_timeout = run.number("peer_timeout", s.peer_timeout, Range::closed(0.2, 3600.0));
   run.finish();
   for (auto section : kSceneSections) root.skip(section);
   root.finish();
   return s;
+}
+
+void check_step_count(const RunSettings& run, double dt, const std::string& dt_where, double limit,
+                      const std::string& solver) {
+  const double steps = run.end_time / dt;
+  if (steps <= limit) return;  // NaN (an unset dt) is refused too
+  char text[256];
+  std::snprintf(text, sizeof text,
+                " = %.6g s and %s = %.6g s make %.3g %s steps; at most %.3g are accepted. "
+                "Lower run.end_time or raise the time step (both in seconds)",
+                run.end_time, dt_where.c_str(), dt, steps, solver.c_str(), limit);
+  throw SceneError(run.end_time_where + text);
 }
 
 }  // namespace demfem::scene

@@ -5,9 +5,13 @@
 #include <unistd.h>
 
 #include <csignal>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <string>
+#include <vector>
 
+#include "demfem/io/atomic_file.hpp"
 #include "demfem/io/h5_file.hpp"
 
 using demfem::io::H5Error;
@@ -113,4 +117,70 @@ TEST_CASE("a write cut short by the file size limit fails at the write or the cl
   REQUIRE(WIFEXITED(status));
   CHECK(WEXITSTATUS(status) == 0);  // 1: no error, 2: an error without the reason
   std::filesystem::remove(path);
+}
+
+TEST_CASE("a file whose close failed does not crash the process at exit", "[io]") {
+  // Issue 19 (QA): on a full disk demfem_run printed its error and then died of SIGSEGV (exit
+  // 139) in HDF5 1.10's exit handler, which closed the half-closed file again. The child ends
+  // with std::exit, so that the library's exit handlers run (the test above uses _exit).
+  const auto path = std::filesystem::temp_directory_path() /
+                    ("demfem_test_close_" + std::to_string(::getpid()) + ".h5");
+  const pid_t pid = ::fork();
+  REQUIRE(pid >= 0);
+  if (pid == 0) {
+    ::signal(SIGXFSZ, SIG_IGN);
+    struct rlimit limit {};
+    limit.rlim_cur = limit.rlim_max = 4096;  // the data fits; the metadata at close does not
+    ::setrlimit(RLIMIT_FSIZE, &limit);
+    int code = 3;
+    try {
+      H5File f(path, H5File::Mode::create);
+      const std::vector<double> values(100, 1.0);
+      for (int k = 0; k < 50; ++k) f.write("/d" + std::to_string(k + 10), values);
+      f.close();
+      code = 1;  // no error: the limit did not bite, the test proves nothing
+    } catch (const H5Error& e) {
+      code = std::string(e.what()).find("File too large") != std::string::npos ? 0 : 2;
+    }
+    std::exit(code);
+  }
+  int status = 0;
+  REQUIRE(::waitpid(pid, &status, 0) == pid);
+  INFO("status " << status);
+  REQUIRE_FALSE(WIFSIGNALED(status));  // SIGSEGV before the fix
+  CHECK(WEXITSTATUS(status) == 0);
+  std::filesystem::remove(path);
+}
+
+TEST_CASE("an atomic text file that cannot be written says why and leaves no part file", "[io]") {
+  // Issue 19 (QA): run.json on a full disk said only "run.json.part: write failed".
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("demfem_test_atomic_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const pid_t pid = ::fork();
+  REQUIRE(pid >= 0);
+  if (pid == 0) {
+    ::signal(SIGXFSZ, SIG_IGN);
+    struct rlimit limit {};
+    limit.rlim_cur = limit.rlim_max = 100;
+    ::setrlimit(RLIMIT_FSIZE, &limit);
+    int code = 3;
+    try {
+      demfem::io::write_file_atomic(dir / "run.json", std::string(1000, 'x'));
+      code = 1;
+    } catch (const std::exception& e) {
+      const std::string m = e.what();
+      code = m.find("run.json.part: write failed: File too large; free space") != std::string::npos
+                 ? 0
+                 : 2;
+    }
+    ::_exit(code);
+  }
+  int status = 0;
+  REQUIRE(::waitpid(pid, &status, 0) == pid);
+  REQUIRE(WIFEXITED(status));
+  CHECK(WEXITSTATUS(status) == 0);
+  CHECK_FALSE(std::filesystem::exists(dir / "run.json.part"));
+  CHECK_FALSE(std::filesystem::exists(dir / "run.json"));
+  std::filesystem::remove_all(dir);
 }

@@ -96,3 +96,21 @@ TEST_CASE("labels of unscheduled states and resuming", "[output_schedule]") {
   s.skip_to_after(0.0);
   CHECK(s.next() == 1);
 }
+
+TEST_CASE("an interval below the resolution of the times: every step, labelled with its time",
+          "[output_schedule]") {
+  // Issue 19 (QA): run.output_interval = 1e-300 hung the run in take() (neighbouring nominal
+  // times are equal, the index saturates, and the correction loops never ended).
+  for (const double interval : {1e-300, 1e-20}) {
+    INFO("interval " << interval);
+    OutputSchedule s(interval);
+    s.take(0.0, 1e-4);
+    for (int i = 1; i <= 3; ++i) {
+      const double t = i * 1e-4;
+      REQUIRE(s.due(t, 1e-4));
+      const double label = s.take(t, 1e-4);
+      CHECK(std::abs(label - t) <= 0.5e-4);
+    }
+    s.skip_to_after(0.5);  // returns
+  }
+}

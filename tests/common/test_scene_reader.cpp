@@ -63,6 +63,13 @@ TEST_CASE("run settings: defaults, ranges and unknown sections", "[scene]") {
   CHECK_THROWS_WITH(demfem::scene::read_run_settings(bad), Contains("'demm'"));
   auto neg = Document::parse("[run]\nend_time = -1\n", "s.toml");
   CHECK_THROWS_WITH(demfem::scene::read_run_settings(neg), Contains("'run.end_time'"));
+  CHECK(s.peer_timeout == 10.0);
+  auto quick = Document::parse("[run]\nend_time = 1\npeer_timeout = 0.5\n", "s.toml");
+  CHECK(demfem::scene::read_run_settings(quick).peer_timeout == 0.5);
+  // Below four heartbeat periods (50 ms each) a healthy process would be declared hung.
+  auto tiny = Document::parse("[run]\nend_time = 1\npeer_timeout = 0.1\n", "s.toml");
+  CHECK_THROWS_WITH(demfem::scene::read_run_settings(tiny),
+                    Contains("s.toml:3") && Contains("'run.peer_timeout'") && Contains("0.2"));
 }
 
 TEST_CASE("scene reader guards toml++ against code points it mishandles", "[scene]") {

@@ -24,8 +24,8 @@ flags=(-std=c++20 -O1 -g -fsanitize=fuzzer,address,undefined -fno-sanitize-recov
 
 sources_for() {
   case "$1" in
-    scene) echo "$root/protocol/scene/scene_reader.cpp $root/protocol/io/input_file.cpp" ;;
-    inp) echo "$root/protocol/scene/scene_reader.cpp $root/protocol/io/input_file.cpp $(for f in reader deck model step; do echo "$root/fem_server/src/io/inp_$f.cpp"; done)" ;;
+    scene) echo "$root/protocol/scene/scene_reader.cpp $root/protocol/scene/scene_override.cpp $root/protocol/io/input_file.cpp" ;;
+    inp) echo "$root/protocol/scene/scene_reader.cpp $root/protocol/scene/scene_override.cpp $root/protocol/io/input_file.cpp $(for f in reader deck model step; do echo "$root/fem_server/src/io/inp_$f.cpp"; done)" ;;
     stl) echo "$root/protocol/io/input_file.cpp $(ls "$root"/dem_server/src/tools/stl_reader*.cpp 2>/dev/null)" ;;
   esac
 }

@@ -4,7 +4,8 @@
 //   protocol_test_peer ring-producer SEGMENT COUNT
 //   protocol_test_peer serve SEGMENT dem|fem [--nodes N] [--version V] [--step-sleep-ms S]
 //                      [--iterates 0|1]
-//                      [--throw-at-step K]
+//                      [--throw-at-step K] [--throw-kind 0|1|2]  (a BackendError of that
+//                      protocol::ErrorKind instead of a plain exception)
 //   protocol_test_peer coupler-idle            (prints the segment name, then sleeps)
 //   protocol_test_peer coupler-exit            (prints the segment name, then std::exit(0))
 //   protocol_test_peer coupler-steps           (prints the name, waits for a DEM, steps forever)
@@ -51,6 +52,7 @@ class TestBackend : public proto::SolverBackend {
   std::size_t nodes = 0;
   int step_sleep_ms = 0;
   long throw_at_step = -1;
+  long throw_kind = -1;  // -1: std::runtime_error; else a BackendError of this ErrorKind
   std::size_t mesh_nodes_received = 0;
   std::int64_t restored_step = -1;
   // Iterated steps: a counter advanced by every step is the state; values[7] reports it and
@@ -75,6 +77,9 @@ class TestBackend : public proto::SolverBackend {
     mesh_nodes_received = mesh.node_count();
   }
   proto::StepResult step(const proto::StepCommand& cmd, proto::InterfaceBuffers& b) override {
+    if (cmd.step == throw_at_step && throw_kind >= 0)
+      throw proto::BackendError(static_cast<proto::ErrorKind>(throw_kind),
+                                "injected error at step " + std::to_string(cmd.step));
     if (cmd.step == throw_at_step)
       throw std::runtime_error("injected failure at step " + std::to_string(cmd.step));
     if (step_sleep_ms > 0) std::this_thread::sleep_for(std::chrono::milliseconds(step_sleep_ms));
@@ -190,6 +195,8 @@ int main(int argc, char** argv) {
           backend.throw_at_step = value;
         else if (key == "--iterates")
           backend.iterates = value != 0;
+        else if (key == "--throw-kind")
+          backend.throw_kind = value;
         else
           throw std::invalid_argument("unknown option " + key);
       }

@@ -450,6 +450,54 @@ TEST_CASE("a backend exception reaches the coupler as SolverError and ends the s
   require_removed(names);
 }
 
+TEST_CASE("an error's kind travels with its text (bad input, blow-up, failure)",
+          "[protocol][process]") {
+  // Issue 19: a bad model found by a solver after the start exited 1 like any failure, because
+  // the Error message carried text only.
+  const std::pair<proto::ErrorKind, const char*> kinds[] = {
+      {proto::ErrorKind::bad_input, "1"},
+      {proto::ErrorKind::blow_up, "2"},
+      {proto::ErrorKind::failure, "0"},
+      {proto::ErrorKind::failure, "-1"}};  // a plain exception: failure
+  for (const auto& [kind, arg] : kinds) {
+    INFO("--throw-kind " << arg);
+    std::vector<std::string> names;
+    {
+      proto::CouplerSession session;
+      names = session_names(session);
+      Child fem = spawn({"serve", session.segment_name(), "fem", "--nodes", "4", "--throw-at-step",
+                         "1", "--throw-kind", arg});
+      session.wait_hello(proto::Role::fem, fem.pid);
+      session.exchange_mesh();
+      session.send_step(proto::Role::fem, step_cmd(0, 0));
+      session.wait_step_done(proto::Role::fem);
+      session.send_step(proto::Role::fem, step_cmd(1, 0));
+      try {
+        session.wait_step_done(proto::Role::fem);
+        FAIL("no SolverError");
+      } catch (const proto::SolverError& e) {
+        CHECK(e.kind() == kind);
+        CHECK(e.text().find("at step 1") != std::string::npos);
+        CHECK(std::string(e.what()).find(kind == proto::ErrorKind::bad_input ? "a bad model"
+                                         : kind == proto::ErrorKind::blow_up
+                                             ? "a blow-up"
+                                             : "an error") != std::string::npos);
+      }
+      CHECK(exit_code(wait_exit(fem, 5s)) == proto::kExitBackendError);
+    }
+    require_removed(names);
+  }
+  // The payload keeps the text where a reader of plain text expects it, and a kind this
+  // version does not know reads as a failure.
+  proto::shm::ErrorPayload p{};
+  std::strcpy(p.text, "boom");
+  p.kind = 77;
+  CHECK(proto::shm::error_kind_of(p) == proto::ErrorKind::failure);
+  proto::shm::TextPayload as_text{};
+  std::memcpy(&as_text, &p, sizeof p);
+  CHECK(std::string(as_text.text) == "boom");
+}
+
 TEST_CASE("SIGTERM makes serve() return promptly and the coupler then sees the solver gone",
           "[protocol][process]") {
   std::vector<std::string> names;

@@ -60,7 +60,7 @@ Result run(const fs::path& dir, std::vector<std::string> args, const fs::path& s
 }
 
 // Every solver process of these outputs has ended (a solver whose coupler died leaves within
-// its peer timeout, 2 s) and none of the runs' segments is left in /dev/shm.
+// its peer timeout; a dead coupler's pid within 0.1 s) and none of the runs' segments is left in /dev/shm.
 void check_nothing_left(const std::vector<std::string>& outs) {
   for (const auto& out : outs) {
     for (pid_t p : started_pids(out)) {
@@ -383,7 +383,8 @@ TEST_CASE("a bad [checkpoint] key is refused before any process starts, naming f
 
 TEST_CASE("a hung (SIGSTOP) dem_server is found by its stale heartbeat, killed and replaced") {
   TempDir d;
-  const Result r = run(d.path, {"--debug-kill", "dem:31:stop"});
+  // run.peer_timeout = 1 s (default 10 s): the hang is found within a second.
+  const Result r = run(d.path, {"--debug-kill", "dem:31:stop", "--set", "run.peer_timeout=1"});
   INFO(r.out << r.err);
   REQUIRE(r.status == 0);
   CHECK(r.err.find("SIGSTOP to the DEM solver in step 31") != std::string::npos);

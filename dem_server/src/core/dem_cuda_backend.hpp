@@ -9,6 +9,7 @@
 #include <cstdint>
 
 #include "demfem/dem/physics/contact.hpp"
+#include "demfem/dem/physics/shape_table.hpp"
 #include "demfem/dem/physics/wall_contact.hpp"
 #include "demfem/dem/physics/wall_motion.hpp"
 
@@ -61,6 +62,20 @@ struct GpuHostView {
   double gravity[3] = {0, 0, 0};
   bool friction = false, rolling = false;
   bool orientation = true;  ///< integrate the orientation quaternion
+  // dilated polyhedra (poly: some particle is one): the shape table, per particle the shape
+  // (-1: sphere), scale and principal moments, per pair the torque on j and the narrow
+  // phase's caches
+  bool poly = false;
+  std::size_t nshapes = 0, nshape_verts = 0, nshape_faces = 0, nshape_fverts = 0, nshape_edges = 0;
+  const std::int32_t *vbase = nullptr, *snv = nullptr, *fbase = nullptr, *snf = nullptr,
+                     *floop = nullptr, *flen = nullptr, *fvert = nullptr, *ebase = nullptr,
+                     *sne = nullptr, *edge = nullptr;
+  const double *vert = nullptr, *fnormal = nullptr, *dilation = nullptr, *bound = nullptr;
+  const std::int32_t* shape_id = nullptr;
+  const double *scale = nullptr, *ix = nullptr, *iy = nullptr, *iz = nullptr;
+  double* ptj = nullptr;          // 3 per pair (out)
+  double* paxis = nullptr;        // 3 per pair (in/out)
+  std::int32_t* pfeat = nullptr;  // 6 per pair (in/out)
 };
 
 bool cuda_device_present();

@@ -34,10 +34,13 @@
 #include <utility>
 
 #include "dem_cuda_backend.hpp"
+#include "polyhedra.hpp"
+#include "shape_table.hpp"
 #include "demfem/dem/physics/contact.hpp"
 #include "demfem/dem/physics/geometry.hpp"
 #include "demfem/dem/physics/integrator.hpp"
 #include "demfem/dem/physics/pair.hpp"
+#include "demfem/dem/physics/rigid_body.hpp"
 #include "demfem/dem/physics/wall_contact.hpp"
 #include "demfem/dem/physics/wall_motion.hpp"
 #include "demfem/io/h5_file.hpp"
@@ -86,6 +89,9 @@ void validate(const DemSettings& s) {
       bad(where + ".friction = " + std::to_string(p.friction) + " must be >= 0");
     if (!(p.rolling_friction >= 0.0) || !std::isfinite(p.rolling_friction))
       bad(where + ".rolling_friction = " + std::to_string(p.rolling_friction) + " must be >= 0");
+    if (!(p.rocking_damping >= 0.0 && p.rocking_damping <= 10.0))
+      bad(where + ".rocking_damping = " + std::to_string(p.rocking_damping) +
+          " must be in [0, 10]");
   }
   if (!(s.list_skin >= 0.0 && s.list_skin <= 1.0))
     bad("settings.list_skin = " + std::to_string(s.list_skin) +
@@ -233,6 +239,13 @@ struct DemSystem::Impl {
   bool orientation = false;  // integrate the orientation (settings or a non-spherical particle)
   bool rolling = false;
   std::int64_t uniform_mat = -1;  // the material of every particle, -1 = mixed
+  // Dilated polyhedra (polyhedra.cpp): the shape table, and whether some particle is one. A
+  // system of spheres alone never runs their code (its bits and speed are those of before).
+  detail::ShapeTable shapes;
+  bool poly = false;
+  std::vector<double> ptj;    // 3 per pair: torque on j (poly systems; pt is the torque on i)
+  std::vector<double> paxis;  // 3 per pair: separating-axis cache of the narrow phase
+  std::vector<std::int32_t> pfeat;  // 6 per pair: closest-feature cache (GJK warm start)
 
   ParticleState st;
   std::vector<double> tx, ty, tz;  // torque of the last step
@@ -413,7 +426,8 @@ struct DemSystem::Impl {
         const auto& p = s.pairs[a * nmat + b];
         pc[a * nmat + b] =
             phys::pair_constants(ma.youngs_modulus, ma.poisson_ratio, mb.youngs_modulus,
-                                 mb.poisson_ratio, p.restitution, p.friction, p.rolling_friction);
+                                 mb.poisson_ratio, p.restitution, p.friction, p.rolling_friction,
+                                 p.rocking_damping);
         friction = friction || p.friction > 0.0 || p.rolling_friction > 0.0;
         rolling = rolling || p.rolling_friction > 0.0;
       }
@@ -723,25 +737,33 @@ struct DemSystem::Impl {
     }
     // carry the tangential springs over (merge of the sorted old and new rows)
     const std::size_t npair = nnbr.size();
-    std::vector<double> nshear, nrhist;
+    std::vector<double> nshear, nrhist, naxis;
+    std::vector<std::int32_t> nfeat;
     if (rolling) nrhist.assign(3 * npair, 0.0);  // carried with the springs
-    if (friction) {
-      nshear.assign(3 * npair, 0.0);
-      if (row.size() == np + 1) {
+    if (poly) naxis.assign(3 * npair, 0.0);      // and the narrow phase's caches
+    if (poly) nfeat.assign(6 * npair, -1);
+    if (friction) nshear.assign(3 * npair, 0.0);
+    if ((friction || poly) && row.size() == np + 1) {
+      const bool carry_axis =
+          poly && paxis.size() == 3 * nbr.size() && pfeat.size() == 6 * nbr.size();
 #pragma omp parallel for num_threads(nt()) schedule(static)
-        for (std::int64_t i = 0; i < sn; ++i) {
-          std::int64_t a = row[i], b = nrow[i];
-          while (a < row[i + 1] && b < nrow[i + 1]) {
-            if (nbr[a] < nnbr[b]) {
-              ++a;
-            } else if (nbr[a] > nnbr[b]) {
-              ++b;
-            } else {
+      for (std::int64_t i = 0; i < sn; ++i) {
+        std::int64_t a = row[i], b = nrow[i];
+        while (a < row[i + 1] && b < nrow[i + 1]) {
+          if (nbr[a] < nnbr[b]) {
+            ++a;
+          } else if (nbr[a] > nnbr[b]) {
+            ++b;
+          } else {
+            if (friction)
               for (int d = 0; d < 3; ++d) nshear[3 * b + d] = shear[3 * a + d];
-              if (rolling && rhist.size() == shear.size())
-                for (int d = 0; d < 3; ++d) nrhist[3 * b + d] = rhist[3 * a + d];
-              ++a, ++b;
+            if (friction && rolling && rhist.size() == shear.size())
+              for (int d = 0; d < 3; ++d) nrhist[3 * b + d] = rhist[3 * a + d];
+            if (carry_axis) {
+              for (int d = 0; d < 3; ++d) naxis[3 * b + d] = paxis[3 * a + d];
+              for (int d = 0; d < 6; ++d) nfeat[6 * b + d] = pfeat[6 * a + d];
             }
+            ++a, ++b;
           }
         }
       }
@@ -750,6 +772,8 @@ struct DemSystem::Impl {
     nbr.swap(nnbr);
     shear.swap(nshear);
     rhist.swap(nrhist);
+    paxis.swap(naxis);
+    pfeat.swap(nfeat);
     pown.resize(npair);
 #pragma omp parallel for num_threads(nt()) schedule(static)
     for (std::int64_t i = 0; i < sn; ++i)
@@ -758,10 +782,14 @@ struct DemSystem::Impl {
     for (std::size_t i = 0; i < np && uniform_mat >= 0; ++i)
       if (st.material[i] != uniform_mat) uniform_mat = -1;
     pf.assign(3 * npair, 0.0);
-    if (friction)
+    if (friction || poly)
       pt.assign(3 * npair, 0.0);
     else
       pt.clear();
+    if (poly)
+      ptj.assign(3 * npair, 0.0);
+    else
+      ptj.clear();
     if (rolling)
       pr.assign(3 * npair, 0.0);
     else
@@ -811,7 +839,11 @@ struct DemSystem::Impl {
   // written yet or has already kicked; after the barrier the threads share the waiting
   // particles out evenly. Every sum has a fixed order and every pair is independent, so the
   // result is bitwise identical for any thread count, range bounds and block size.
-  template <bool Friction>
+  // Poly: some particle is a polyhedron (polyhedra.cpp): the pairs go through the narrow
+  // phase, each pair slot holds the torques on both bodies (pt on i, ptj on j), polyhedra have
+  // their own wall contacts and angular kick, and torques are always summed (a normal force
+  // off the centre of mass turns a polyhedron).
+  template <bool Friction, bool Poly = false>
   void forces_and_kick() {
     const std::int64_t sn = static_cast<std::int64_t>(n());
     PairKernelArgs a{};
@@ -830,6 +862,15 @@ struct DemSystem::Impl {
     a.pr = pr.data();
     a.rhist = rhist.data();
     const PairKernel kern = pick_pair_kernel(Friction, Friction && rolling, uniform_mat >= 0);
+    detail::PolyParticles pp{};
+    detail::PolyPairs pa{};
+    if constexpr (Poly) {
+      pp = poly_particles(a.view);
+      pa = detail::PolyPairs{pown.data(), nbr.data(), st.material.data(), pc.data(), nmat,
+                             s.dt,        Friction,   rolling,            shear.data(), rhist.data(),
+                             pf.data(),   pt.data(),  ptj.data(),         paxis.data(),
+                             pfeat.data()};
+    }
 
     const double h = 0.5 * s.dt;
     const double g[3] = {s.gravity[0], s.gravity[1], s.gravity[2]};
@@ -839,6 +880,7 @@ struct DemSystem::Impl {
     const double* PF = pf.data();
     const double* PT = pt.data();
     const double* PR = pr.data();
+    const double* PTJ = ptj.data();
     const bool roll = rolling;
     auto gather = [&](std::int64_t i, double& mo, double& fmo) {
       double fx = 0, fy = 0, fz = 0;
@@ -850,15 +892,22 @@ struct DemSystem::Impl {
         const std::int64_t p = gather_pair[k];
         const double sg = gather_sign[k];
         fx += sg * PF[3 * p], fy += sg * PF[3 * p + 1], fz += sg * PF[3 * p + 2];
-        if constexpr (Friction) {
+        if constexpr (Poly) {
+          const double* T = sg > 0.0 ? PT : PTJ;
+          qx += T[3 * p], qy += T[3 * p + 1], qz += T[3 * p + 2];
+        } else if constexpr (Friction) {
           qx += ri * PT[3 * p], qy += ri * PT[3 * p + 1], qz += ri * PT[3 * p + 2];
           if (roll) qx += sg * PR[3 * p], qy += sg * PR[3 * p + 1], qz += sg * PR[3 * p + 2];
         }
       }
       if (walls_on && (wv.prow[i] != wv.prow[i + 1] || wv.wcount[i] != 0)) {
         Vec3 f{fx, fy, fz}, q{qx, qy, qz};
-        wall_contacts_apart<Friction>(view, wv, i, pc.data() + st.material[i] * nmat, s.dt, f, q,
-                                      mo, fmo);
+        if (Poly && st.shape_id[i] >= 0)
+          detail::poly_wall_contacts(pp, wv, i, pc.data() + st.material[i] * nmat, s.dt, Friction,
+                                     f, q, mo, fmo);
+        else
+          wall_contacts_apart<Friction>(view, wv, i, pc.data() + st.material[i] * nmat, s.dt, f,
+                                        q, mo, fmo);
         fx = f.x, fy = f.y, fz = f.z;
         qx = q.x, qy = q.y, qz = q.z;
       }
@@ -866,7 +915,11 @@ struct DemSystem::Impl {
       fx += m * g[0], fy += m * g[1], fz += m * g[2];
       st.fx[i] = fx, st.fy[i] = fy, st.fz[i] = fz;
       phys::kick(st.vx[i], st.vy[i], st.vz[i], fx, fy, fz, h / m);
-      if constexpr (Friction) {
+      if constexpr (Poly) {
+        tx[i] = qx, ty[i] = qy, tz[i] = qz;
+        detail::poly_angular_kick(pp, i, st.wx.data(), st.wy.data(), st.wz.data(),
+                                  Vec3{qx, qy, qz}, h);
+      } else if constexpr (Friction) {
         tx[i] = qx, ty[i] = qy, tz[i] = qz;
         phys::kick(st.wx[i], st.wy[i], st.wz[i], qx, qy, qz, h / st.inertia[i]);
       }
@@ -889,7 +942,10 @@ struct DemSystem::Impl {
       std::vector<std::int64_t>& waiting = balance.waiting[k];
       for (std::int64_t b0 = lo; b0 < hi; b0 += kBlock) {
         const std::int64_t b1 = std::min(hi, b0 + kBlock);
-        mo = std::max(mo, kern(a, row[b0], row[b1]));
+        if constexpr (Poly)
+          mo = std::max(mo, detail::poly_pair_forces(pp, pa, row[b0], row[b1]));
+        else
+          mo = std::max(mo, kern(a, row[b0], row[b1]));
         for (std::int64_t i = b0; i < b1; ++i)
           if (waits(i))
             waiting.push_back(i);
@@ -915,6 +971,51 @@ struct DemSystem::Impl {
     max_ov = mo;
     adv_max_ov = std::max(adv_max_ov, mo);
     flex_max_ov = std::max(flex_max_ov, fmo);
+  }
+
+  detail::PolyParticles poly_particles(const phys::ParticleView& view) const {
+    return detail::PolyParticles{view,          st.qw.data(),      st.qx.data(),    st.qy.data(),
+                                 st.qz.data(),  st.ix.data(),      st.iy.data(),    st.iz.data(),
+                                 st.inertia.data(), st.scale.data(), st.shape_id.data(),
+                                 shapes.view()};
+  }
+
+  // Kick + drift of a system with polyhedra (polyhedra.cpp): per particle, spheres and rigid
+  // bodies alike.
+  double poly_kick_drift() {
+    const bool have_build = bx.size() == n();
+    detail::PolyDrift d{static_cast<std::int64_t>(n()),
+                        s.dt,
+                        nt(),
+                        st.px.data(),
+                        st.py.data(),
+                        st.pz.data(),
+                        st.vx.data(),
+                        st.vy.data(),
+                        st.vz.data(),
+                        st.wx.data(),
+                        st.wy.data(),
+                        st.wz.data(),
+                        st.qw.data(),
+                        st.qx.data(),
+                        st.qy.data(),
+                        st.qz.data(),
+                        st.fx.data(),
+                        st.fy.data(),
+                        st.fz.data(),
+                        tx.data(),
+                        ty.data(),
+                        tz.data(),
+                        st.mass.data(),
+                        st.inertia.data(),
+                        st.ix.data(),
+                        st.iy.data(),
+                        st.iz.data(),
+                        st.shape_id.data(),
+                        have_build ? bx.data() : nullptr,
+                        have_build ? by.data() : nullptr,
+                        have_build ? bz.data() : nullptr};
+    return detail::poly_kick_drift(d);
   }
 
   phys::WallView wall_view() {
@@ -965,6 +1066,7 @@ struct DemSystem::Impl {
   // same either way.
   template <bool Friction>
   double kick_drift() {
+    if (poly) return poly_kick_drift();
     const std::int64_t sn = static_cast<std::int64_t>(n());
     const double dt = s.dt, h = 0.5 * s.dt;
     double m2 = 0.0, w2max = 0.0;
@@ -1089,7 +1191,10 @@ struct DemSystem::Impl {
       }
     }
     const double t2 = omp_get_wtime();
-    forces_and_kick<Friction>();
+    if (poly)
+      forces_and_kick<Friction, true>();
+    else
+      forces_and_kick<Friction>();
     // Wall forces and torques are read after advance(): summed at its last step only. The
     // flexible mesh's node forces are summed every substep when they are averaged.
     if (!tri_v.empty() && (last || (has_flex && mode == ForceMode::average)))
@@ -1140,6 +1245,21 @@ struct DemSystem::Impl {
     for (int k = 0; k < 3; ++k) v.gravity[k] = s.gravity[k];
     v.friction = friction, v.rolling = rolling;
     v.orientation = orientation;
+    if (poly) {
+      const auto& a = shapes.arrays();
+      v.poly = true;
+      v.nshapes = a.nv.size(), v.nshape_verts = a.vert.size() / 3;
+      v.nshape_faces = a.flen.size(), v.nshape_fverts = a.fvert.size();
+      v.nshape_edges = a.edge.size() / 2;
+      v.vbase = a.vbase.data(), v.snv = a.nv.data(), v.fbase = a.fbase.data(), v.snf = a.nf.data();
+      v.floop = a.floop.data(), v.flen = a.flen.data(), v.fvert = a.fvert.data();
+      v.ebase = a.ebase.data(), v.sne = a.ne.data(), v.edge = a.edge.data();
+      v.vert = a.vert.data(), v.fnormal = a.fnormal.data(), v.dilation = a.dilation.data();
+      v.bound = a.bound.data();
+      v.shape_id = st.shape_id.data(), v.scale = st.scale.data();
+      v.ix = st.ix.data(), v.iy = st.iy.data(), v.iz = st.iz.data();
+      v.ptj = ptj.data(), v.paxis = paxis.data(), v.pfeat = pfeat.data();
+    }
     if (!tri_v.empty()) {
       v.nverts = vpos.size() / 3, v.ntris = tri_v.size() / 3, v.nptri = ptri.size();
       v.vpos = vpos.data(), v.vvel = vvel.data();
@@ -1224,8 +1344,10 @@ struct DemSystem::Impl {
     for (double r : st.radius) rmax = std::max(rmax, r);
     skin = s.skin > 0.0 ? s.skin : 0.2 * rmax;
     orientation = s.track_orientation;
+    poly = false;
     for (std::uint8_t shape : st.shape)
-      orientation = orientation || shape != static_cast<std::uint8_t>(ParticleShape::sphere);
+      poly = poly || shape != static_cast<std::uint8_t>(ParticleShape::sphere);
+    orientation = orientation || poly;
     // The CUDA backend checks the list against the whole skin on the device: one level.
     skin_in = gpu != nullptr ? skin : (s.list_skin > 0.0 ? s.list_skin : kInnerSkin) * skin;
   }
@@ -1253,6 +1375,19 @@ const DemSettings& DemSystem::settings() const {
   return impl_->s;
 }
 
+std::int32_t DemSystem::add_shape(const PolyhedronShape& shape) {
+  return impl_->shapes.add(shape);
+}
+std::size_t DemSystem::shape_count() const {
+  return impl_->shapes.size();
+}
+const PolyhedronShape& DemSystem::shape(std::int32_t id) const {
+  if (id < 0 || static_cast<std::size_t>(id) >= impl_->shapes.size())
+    throw std::out_of_range("DemSystem: shape index " + std::to_string(id) + " outside [0, " +
+                            std::to_string(impl_->shapes.size()) + ")");
+  return impl_->shapes.shape(id);
+}
+
 std::size_t DemSystem::add_particles(std::span<const ParticleInit> particles) {
   auto& I = *impl_;
   auto& st = I.st;
@@ -1262,7 +1397,7 @@ std::size_t DemSystem::add_particles(std::span<const ParticleInit> particles) {
     const std::string where = "add_particles: particle " + std::to_string(k);
     if (!finite3(p.position) || !finite3(p.velocity) || !finite3(p.angular_velocity))
       bad(where + " has a non-finite position, velocity or angular velocity");
-    if (!(p.radius > 0.0) || !std::isfinite(p.radius))
+    if (p.shape == ParticleShape::sphere && (!(p.radius > 0.0) || !std::isfinite(p.radius)))
       bad(where + ".radius = " + std::to_string(p.radius) + " must be > 0 m");
     if (p.material < 0 || static_cast<std::size_t>(p.material) >= I.nmat)
       bad(where + ".material = " + std::to_string(p.material) + " outside [0, " +
@@ -1270,19 +1405,60 @@ std::size_t DemSystem::add_particles(std::span<const ParticleInit> particles) {
     if (!(I.s.materials[p.material].density > 0.0))
       bad(where + ": material '" + I.s.materials[p.material].name +
           "' has density 0 (particles need a density > 0)");
+    if (p.shape == ParticleShape::polyhedron) {
+      if (p.shape_id < 0 || static_cast<std::size_t>(p.shape_id) >= I.shapes.size())
+        bad(where + ".shape_id = " + std::to_string(p.shape_id) + " outside [0, " +
+            std::to_string(I.shapes.size()) + ") (add_shape first)");
+      if (!(p.scale > 0.0) || !std::isfinite(p.scale))
+        bad(where + ".scale = " + std::to_string(p.scale) + " must be > 0");
+    } else if (p.shape != ParticleShape::sphere) {
+      bad(where + ".shape = " + std::to_string(static_cast<int>(p.shape)) +
+          " is not a shape (sphere 0, polyhedron 1)");
+    }
+    const auto& q = p.orientation;
+    const double q2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
+    if (!(std::abs(q2 - 1.0) <= 1e-6))
+      bad(where + ".orientation is not a unit quaternion (|q|^2 = " + std::to_string(q2) +
+          ", accepted 1 +- 1e-6)");
   }
   for (const auto& p : particles) {
     st.px.push_back(p.position[0]), st.py.push_back(p.position[1]), st.pz.push_back(p.position[2]);
     st.vx.push_back(p.velocity[0]), st.vy.push_back(p.velocity[1]), st.vz.push_back(p.velocity[2]);
     st.wx.push_back(p.angular_velocity[0]), st.wy.push_back(p.angular_velocity[1]),
         st.wz.push_back(p.angular_velocity[2]);
-    st.qw.push_back(1.0), st.qx.push_back(0.0), st.qy.push_back(0.0), st.qz.push_back(0.0);
-    const double m = I.s.materials[p.material].density * 4.0 / 3.0 * 3.14159265358979323846 *
-                     p.radius * p.radius * p.radius;
+    const auto& q0 = p.orientation;
+    const double ql =
+        std::sqrt(q0[0] * q0[0] + q0[1] * q0[1] + q0[2] * q0[2] + q0[3] * q0[3]);
+    if (ql == 1.0)  // keep the bits of a unit quaternion as given
+      st.qw.push_back(q0[0]), st.qx.push_back(q0[1]), st.qy.push_back(q0[2]),
+          st.qz.push_back(q0[3]);
+    else
+      st.qw.push_back(q0[0] / ql), st.qx.push_back(q0[1] / ql), st.qy.push_back(q0[2] / ql),
+          st.qz.push_back(q0[3] / ql);
+    const double rho = I.s.materials[p.material].density;
+    double m, radius, inertia;
+    std::array<double, 3> ib;
+    if (p.shape == ParticleShape::polyhedron) {
+      // the shape at scale s: volume s^3, inertia s^5 (principal frame), bounding radius s
+      const PolyhedronShape& sh = I.shapes.shape(p.shape_id);
+      const double sc = p.scale;
+      m = rho * sc * sc * sc * sh.volume;
+      const double s5 = rho * sc * sc * sc * sc * sc;
+      ib = {s5 * sh.inertia[0], s5 * sh.inertia[1], s5 * sh.inertia[2]};
+      radius = sc * I.shapes.bound(p.shape_id);
+      inertia = (ib[0] + ib[1] + ib[2]) / 3.0;
+      st.shape_id.push_back(p.shape_id), st.scale.push_back(sc);
+    } else {
+      m = rho * 4.0 / 3.0 * 3.14159265358979323846 * p.radius * p.radius * p.radius;
+      radius = p.radius;
+      inertia = 0.4 * m * p.radius * p.radius;
+      ib = {inertia, inertia, inertia};
+      st.shape_id.push_back(-1), st.scale.push_back(1.0);
+    }
+    st.ix.push_back(ib[0]), st.iy.push_back(ib[1]), st.iz.push_back(ib[2]);
     st.fx.push_back(m * I.s.gravity[0]), st.fy.push_back(m * I.s.gravity[1]),
         st.fz.push_back(m * I.s.gravity[2]);
-    st.radius.push_back(p.radius), st.mass.push_back(m),
-        st.inertia.push_back(0.4 * m * p.radius * p.radius);
+    st.radius.push_back(radius), st.mass.push_back(m), st.inertia.push_back(inertia);
     st.material.push_back(p.material);
     st.shape.push_back(static_cast<std::uint8_t>(p.shape));
     I.tx.push_back(0), I.ty.push_back(0), I.tz.push_back(0);
@@ -1325,7 +1501,8 @@ void DemSystem::remove_particles(std::span<const std::uint8_t> keep) {
   if (I.row.size() == n + 1) {
     std::vector<std::int64_t> nrow(static_cast<std::size_t>(m) + 1, 0);
     std::vector<std::int32_t> nnbr;
-    std::vector<double> nsh, nrh;
+    std::vector<double> nsh, nrh, nax;
+    std::vector<std::int32_t> nft;
     for (std::size_t i = 0; i < n; ++i) {
       if (!keep[i]) continue;
       for (std::int64_t p = I.row[i]; p < I.row[i + 1]; ++p) {
@@ -1335,18 +1512,26 @@ void DemSystem::remove_particles(std::span<const std::uint8_t> keep) {
           for (int d = 0; d < 3; ++d) nsh.push_back(I.shear[3 * p + d]);
         if (!I.rhist.empty())
           for (int d = 0; d < 3; ++d) nrh.push_back(I.rhist[3 * p + d]);
+        if (!I.paxis.empty())
+          for (int d = 0; d < 3; ++d) nax.push_back(I.paxis[3 * p + d]);
+        if (!I.pfeat.empty())
+          for (int d = 0; d < 6; ++d) nft.push_back(I.pfeat[6 * p + d]);
       }
       nrow[map[i] + 1] = static_cast<std::int64_t>(nnbr.size());
     }
     I.row.swap(nrow), I.nbr.swap(nnbr), I.shear.swap(nsh), I.rhist.swap(nrh);
+    I.paxis.swap(nax);
+    I.pfeat.swap(nft);
   }
   auto& st = I.st;
   for (auto* v : {&st.px,     &st.py,   &st.pz,      &st.vx, &st.vy, &st.vz, &st.wx, &st.wy,
                   &st.wz,     &st.qw,   &st.qx,      &st.qy, &st.qz, &st.fx, &st.fy, &st.fz,
-                  &st.radius, &st.mass, &st.inertia, &I.tx,  &I.ty,  &I.tz})
+                  &st.radius, &st.mass, &st.inertia, &I.tx,  &I.ty,  &I.tz,  &st.scale,
+                  &st.ix,     &st.iy,   &st.iz})
     compact(*v, 1);
   compact(st.material, 1);
   compact(st.shape, 1);
+  compact(st.shape_id, 1);
   compact(I.wkey, kMaxWallContacts), compact(I.wshear, 3 * kMaxWallContacts);
   if (!I.wroll.empty()) compact(I.wroll, 3 * kMaxWallContacts);
   compact(I.wf, 3 * kMaxWallContacts), compact(I.wp, 3 * kMaxWallContacts),
@@ -1530,13 +1715,27 @@ std::int64_t DemSystem::step_count() const {
   return impl_->steps;
 }
 
+double DemSystem::smallest_contact_radius() const {
+  const auto& I = *impl_;
+  double r = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < I.n(); ++i)
+    r = std::min(r, I.st.shape_id[i] >= 0
+                        ? I.st.scale[i] * I.shapes.shape(I.st.shape_id[i]).dilation
+                        : I.st.radius[i]);
+  return r;
+}
+
 double DemSystem::rayleigh_time_step() const {
   const auto& I = *impl_;
   double best = std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < I.n(); ++i) {
     const auto& m = I.s.materials[I.st.material[i]];
     const double g = m.youngs_modulus / (2.0 * (1.0 + m.poisson_ratio));
-    best = std::min(best, phys::rayleigh_time_step(I.st.radius[i], m.density, g, m.poisson_ratio));
+    // a polyhedron: the radius of the sphere of its volume
+    const double r = I.st.shape_id[i] >= 0
+                         ? std::cbrt(3.0 * I.st.mass[i] / (4.0 * 3.14159265358979323846 * m.density))
+                         : I.st.radius[i];
+    best = std::min(best, phys::rayleigh_time_step(r, m.density, g, m.poisson_ratio));
   }
   return best;
 }
@@ -1545,8 +1744,14 @@ double DemSystem::kinetic_energy() const {
   const auto& st = impl_->st;
   double e = 0.0;
   for (std::size_t i = 0; i < st.size(); ++i)
-    e += 0.5 * st.mass[i] * (st.vx[i] * st.vx[i] + st.vy[i] * st.vy[i] + st.vz[i] * st.vz[i]) +
-         0.5 * st.inertia[i] * (st.wx[i] * st.wx[i] + st.wy[i] * st.wy[i] + st.wz[i] * st.wz[i]);
+    if (st.shape_id[i] >= 0)
+      e += 0.5 * st.mass[i] * (st.vx[i] * st.vx[i] + st.vy[i] * st.vy[i] + st.vz[i] * st.vz[i]) +
+           phys::rotational_energy(phys::rotation(st.qw[i], st.qx[i], st.qy[i], st.qz[i]),
+                                   Vec3{st.ix[i], st.iy[i], st.iz[i]},
+                                   Vec3{st.wx[i], st.wy[i], st.wz[i]});
+    else
+      e += 0.5 * st.mass[i] * (st.vx[i] * st.vx[i] + st.vy[i] * st.vy[i] + st.vz[i] * st.vz[i]) +
+           0.5 * st.inertia[i] * (st.wx[i] * st.wx[i] + st.wy[i] * st.wy[i] + st.wz[i] * st.wz[i]);
   return e;
 }
 
@@ -1576,6 +1781,28 @@ std::size_t DemSystem::contact_count() const {
   return c;
 }
 
+std::size_t DemSystem::state_bytes() const {
+  const auto& I = *impl_;
+  const auto& st = I.st;
+  std::size_t b = 0;
+  auto add = [&b](const auto& v) { b += v.size() * sizeof(v[0]); };
+  for (const auto* v : {&st.px, &st.py, &st.pz, &st.vx, &st.vy, &st.vz, &st.wx, &st.wy, &st.wz,
+                        &st.qw, &st.qx, &st.qy, &st.qz, &st.fx, &st.fy, &st.fz, &st.radius,
+                        &st.mass, &st.inertia, &st.scale, &st.ix, &st.iy, &st.iz, &I.tx, &I.ty,
+                        &I.tz, &I.bx, &I.by, &I.bz})
+    add(*v);
+  add(st.material), add(st.shape), add(st.shape_id);
+  add(I.row), add(I.nbr), add(I.pown), add(I.trow), add(I.tpair), add(I.tsrc);
+  add(I.gather_row), add(I.gather_pair), add(I.gather_sign), add(I.shear), add(I.rhist);
+  add(I.pf), add(I.pt), add(I.pr), add(I.ptj), add(I.paxis), add(I.pfeat), add(I.orow),
+      add(I.onbr);
+  add(I.prow), add(I.ptri), add(I.wkey), add(I.wshear), add(I.wroll), add(I.wf), add(I.wp);
+  add(I.wb), add(I.wtri), add(I.wcount);
+  const auto& a = I.shapes.arrays();
+  add(a.vert), add(a.fnormal), add(a.fvert), add(a.edge), add(a.floop), add(a.flen);
+  return b;
+}
+
 // ---------------------------------------------------------------------------------------
 namespace {
 template <class T>
@@ -1597,7 +1824,7 @@ auto double_arrays(ImplT& I) {
   using Vec =
       std::conditional_t<std::is_const_v<ImplT>, const std::vector<double>, std::vector<double>>;
   auto& st = I.st;
-  return std::array<std::pair<const char*, Vec*>, 35>{{{"px", &st.px},
+  return std::array<std::pair<const char*, Vec*>, 39>{{{"px", &st.px},
                                                        {"py", &st.py},
                                                        {"pz", &st.pz},
                                                        {"vx", &st.vx},
@@ -1631,8 +1858,68 @@ auto double_arrays(ImplT& I) {
                                                        {"flex_x", &I.flex_x},
                                                        {"flex_v", &I.flex_v},
                                                        {"flex_a", &I.flex_a},
-                                                       {"flex_force", &I.flex_force}}};
+                                                       {"flex_force", &I.flex_force},
+                                                       {"scale", &st.scale},
+                                                       {"ix", &st.ix},
+                                                       {"iy", &st.iy},
+                                                       {"iz", &st.iz}}};
 }
+
+namespace {
+// The shape table: per shape its vertex and triangle counts, the concatenated vertices and
+// triangles, dilation, volume and principal moments, and the names (one per line).
+void save_shapes(const detail::ShapeTable& t, io::H5File& f, const std::string& g) {
+  std::vector<std::int64_t> nv, ntri, tri;
+  std::vector<double> vert, par;
+  std::string names;
+  for (std::size_t k = 0; k < t.size(); ++k) {
+    const PolyhedronShape& s = t.shape(static_cast<std::int32_t>(k));
+    nv.push_back(static_cast<std::int64_t>(s.vertices.size() / 3));
+    ntri.push_back(static_cast<std::int64_t>(s.triangles.size() / 3));
+    vert.insert(vert.end(), s.vertices.begin(), s.vertices.end());
+    tri.insert(tri.end(), s.triangles.begin(), s.triangles.end());
+    par.insert(par.end(), {s.dilation, s.volume, s.inertia[0], s.inertia[1], s.inertia[2]});
+    names += s.name + "\n";
+  }
+  f.write(g + "shape_nv", std::span<const std::int64_t>(nv));
+  f.write(g + "shape_ntri", std::span<const std::int64_t>(ntri));
+  f.write(g + "shape_vertices", std::span<const double>(vert));
+  f.write(g + "shape_triangles", std::span<const std::int64_t>(tri));
+  f.write(g + "shape_params", std::span<const double>(par));
+  f.set_attribute(g + "shape_nv", "names", names);
+}
+
+// Replaces the table by the state's (a state without one keeps the system's).
+void restore_shapes(detail::ShapeTable& t, const io::H5File& f, const std::string& g) {
+  if (!f.exists(g + "shape_nv")) return;
+  const auto nv = f.read_int64(g + "shape_nv"), ntri = f.read_int64(g + "shape_ntri");
+  const auto vert = f.read_doubles(g + "shape_vertices");
+  const auto tri = f.read_int64(g + "shape_triangles");
+  const auto par = f.read_doubles(g + "shape_params");
+  const std::string names = f.attribute_string(g + "shape_nv", "names");
+  if (ntri.size() != nv.size() || par.size() != 5 * nv.size())
+    throw std::invalid_argument("DemSystem: restore: inconsistent shape table in " +
+                                f.path().string());
+  t.clear();
+  std::size_t v0 = 0, t0 = 0, name0 = 0;
+  for (std::size_t k = 0; k < nv.size(); ++k) {
+    PolyhedronShape s;
+    const std::size_t e = names.find('\n', name0);
+    s.name = names.substr(name0, e == std::string::npos ? std::string::npos : e - name0);
+    name0 = e == std::string::npos ? names.size() : e + 1;
+    const auto vn = static_cast<std::size_t>(3 * nv[k]), tn = static_cast<std::size_t>(3 * ntri[k]);
+    if (v0 + vn > vert.size() || t0 + tn > tri.size())
+      throw std::invalid_argument("DemSystem: restore: inconsistent shape table in " +
+                                  f.path().string());
+    s.vertices.assign(vert.begin() + v0, vert.begin() + v0 + vn);
+    for (std::size_t m = 0; m < tn; ++m) s.triangles.push_back(static_cast<std::int32_t>(tri[t0 + m]));
+    s.dilation = par[5 * k], s.volume = par[5 * k + 1];
+    s.inertia = {par[5 * k + 2], par[5 * k + 3], par[5 * k + 4]};
+    v0 += vn, t0 += tn;
+    t.add(s);
+  }
+}
+}  // namespace
 
 void DemSystem::save(io::H5File& f, const std::string& group) const {
   const auto& I = *impl_;
@@ -1648,6 +1935,8 @@ void DemSystem::save(io::H5File& f, const std::string& group) const {
   for (const auto& [name, v] : double_arrays(I)) f.write(g + name, std::span<const double>(*v));
   f.write(g + "material", std::span<const std::int64_t>(to64(st.material)));
   f.write(g + "shape", std::span<const std::uint8_t>(st.shape));
+  f.write(g + "shape_id", std::span<const std::int64_t>(to64(st.shape_id)));
+  save_shapes(I.shapes, f, g);
   f.write(g + "row", std::span<const std::int64_t>(I.row));
   f.write(g + "nbr", std::span<const std::int64_t>(to64(I.nbr)));
   f.write(g + "wkey", std::span<const std::int64_t>(I.wkey));
@@ -1727,9 +2016,20 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   for (const auto& [name, v] : double_arrays(I)) {
     // the rolling histories are absent in states written before the rolling spring model:
     // they then start at zero (checked against the pair list below)
-    const bool history = std::strcmp(name, "rhist") == 0 || std::strcmp(name, "wroll") == 0;
-    *v = history && !f.exists(g + name) ? std::vector<double>{} : f.read_doubles(g + name);
+    // so are the polyhedron arrays in states written before them (all spheres: set below)
+    const bool optional = std::strcmp(name, "rhist") == 0 || std::strcmp(name, "wroll") == 0 ||
+                          std::strcmp(name, "scale") == 0 || std::strcmp(name, "ix") == 0 ||
+                          std::strcmp(name, "iy") == 0 || std::strcmp(name, "iz") == 0;
+    *v = optional && !f.exists(g + name) ? std::vector<double>{} : f.read_doubles(g + name);
   }
+  if (f.exists(g + "shape_id")) {
+    st.shape_id = from64<std::int32_t>(f.read_int64(g + "shape_id"));
+  } else {
+    st.shape_id.assign(st.px.size(), -1);
+    st.scale.assign(st.px.size(), 1.0);
+    st.ix = st.iy = st.iz = st.inertia;
+  }
+  restore_shapes(I.shapes, f, g);
   st.material = from64<std::int32_t>(f.read_int64(g + "material"));
   st.shape = f.read_uint8(g + "shape");
   I.row = f.read_int64(g + "row");
@@ -1742,6 +2042,15 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   for (std::size_t i = 0; i < n; ++i)
     if (st.material[i] < 0 || static_cast<std::size_t>(st.material[i]) >= I.nmat)
       bad("restore: particle material index out of range in '" + group + "'");
+  if (st.shape_id.size() != n || st.scale.size() != n || st.ix.size() != n || st.iy.size() != n ||
+      st.iz.size() != n)
+    bad("restore: polyhedron arrays in '" + group + "' of " + f.path().string() +
+        " do not match the particle count");
+  for (std::size_t i = 0; i < n; ++i)
+    if (st.shape_id[i] >= static_cast<std::int32_t>(I.shapes.size()) ||
+        (st.shape_id[i] >= 0) != (st.shape[i] == static_cast<std::uint8_t>(ParticleShape::polyhedron)))
+      bad("restore: particle " + std::to_string(i) + " in '" + group + "' of " +
+          f.path().string() + " refers to a shape the state does not hold");
   // the orientation update keeps unit quaternions unit (physics/integrator.hpp), it does not
   // normalise arbitrary ones
   if (st.qw.size() == n && st.qx.size() == n && st.qy.size() == n && st.qz.size() == n)

@@ -1,10 +1,12 @@
 #include "demfem/dem/dem_output.hpp"
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <numeric>
 #include <sstream>
 
+#include "demfem/dem/physics/rigid_body.hpp"
 #include "demfem/io/atomic_file.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem/io/output_schedule.hpp"
@@ -26,11 +28,51 @@ std::filesystem::path ParticleOutput::snapshot_path(std::size_t k) const {
   return dir_ / (stem_ + buf);
 }
 
+void ParticleOutput::set_shapes(const std::vector<PolyhedronShape>& shapes) {
+  surfaces_.clear();
+  for (const auto& sh : shapes) {
+    Surface s;
+    const std::size_t nv = sh.vertices.size() / 3;
+    // per vertex the distinct normals of its faces (coplanar triangles count once), summed
+    std::vector<std::vector<std::array<double, 3>>> normals(nv);
+    for (std::size_t t = 0; t + 2 < sh.triangles.size(); t += 3) {
+      const double* a = &sh.vertices[3 * std::size_t(sh.triangles[t])];
+      const double* b = &sh.vertices[3 * std::size_t(sh.triangles[t + 1])];
+      const double* c = &sh.vertices[3 * std::size_t(sh.triangles[t + 2])];
+      const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+      const double v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+      std::array<double, 3> n{u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
+                              u[0] * v[1] - u[1] * v[0]};
+      const double l = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+      for (double& x : n) x /= l;
+      for (int k = 0; k < 3; ++k) {
+        auto& list = normals[std::size_t(sh.triangles[t + k])];
+        bool seen = false;
+        for (const auto& m : list)
+          seen = seen ||
+                 (std::abs(m[0] - n[0]) + std::abs(m[1] - n[1]) + std::abs(m[2] - n[2]) < 1e-9);
+        if (!seen) list.push_back(n);
+      }
+      for (int k = 0; k < 3; ++k) s.triangles.push_back(sh.triangles[t + k]);
+    }
+    for (std::size_t k = 0; k < nv; ++k) {
+      double n[3] = {0, 0, 0};
+      for (const auto& m : normals[k])
+        for (int d = 0; d < 3; ++d) n[d] += m[d];
+      const double l = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+      for (int d = 0; d < 3; ++d)
+        s.vertices.push_back(sh.vertices[3 * k + d] + (l > 0 ? sh.dilation * n[d] / l : 0.0));
+    }
+    surfaces_.push_back(std::move(s));
+  }
+}
+
 void ParticleOutput::write(const ParticleState& p, std::span<const std::int64_t> ids, double time,
                            double state_time) {
   const std::size_t n = p.size();
   if (ids.size() != n) throw std::logic_error("particle output: ids and particles differ");
   const auto final_path = snapshot_path(entries_.size());
+  Entry entry{time, n};
   {
     io::H5File f(io::partial_path(final_path), io::H5File::Mode::create);
     auto xyz = [&](const std::vector<double>& x, const std::vector<double>& y,
@@ -57,10 +99,48 @@ void ParticleOutput::write(const ParticleState& p, std::span<const std::int64_t>
     f.set_attribute("/", "time", time);
     f.set_attribute("/", "state_time", std::isnan(state_time) ? time : state_time);
     f.set_attribute("/", "count", static_cast<std::int64_t>(n));
+    // the polyhedra as triangle surfaces
+    std::vector<double> pts, pvel;
+    std::vector<std::int64_t> tris, tid, tmat;
+    if (p.shape_id.size() == n && !surfaces_.empty()) {
+      for (std::size_t i = 0; i < n; ++i) {
+        const std::int32_t sid = p.shape_id[i];
+        if (sid < 0 || std::size_t(sid) >= surfaces_.size()) continue;
+        const Surface& sf = surfaces_[std::size_t(sid)];
+        const auto r = phys::rotation(p.qw[i], p.qx[i], p.qy[i], p.qz[i]);
+        const phys::Vec3 x{p.px[i], p.py[i], p.pz[i]}, v{p.vx[i], p.vy[i], p.vz[i]},
+            w{p.wx[i], p.wy[i], p.wz[i]};
+        const auto base = static_cast<std::int64_t>(pts.size() / 3);
+        for (std::size_t k = 0; k < sf.vertices.size(); k += 3) {
+          const phys::Vec3 a =
+              p.scale[i] *
+              phys::to_world(r, phys::Vec3{sf.vertices[k], sf.vertices[k + 1], sf.vertices[k + 2]});
+          const phys::Vec3 q = x + a, u = v + phys::cross(w, a);
+          pts.insert(pts.end(), {q.x, q.y, q.z});
+          pvel.insert(pvel.end(), {u.x, u.y, u.z});
+        }
+        for (std::size_t t = 0; t < sf.triangles.size(); t += 3) {
+          for (int k = 0; k < 3; ++k) tris.push_back(base + sf.triangles[t + std::size_t(k)]);
+          tid.push_back(ids[i]);
+          tmat.push_back(p.material[i]);
+        }
+      }
+    }
+    const std::size_t m = pts.size() / 3, nt = tid.size();
+    if (nt > 0) {
+      f.write("surface_points", std::span<const double>(pts), {m, 3});
+      f.write("surface_velocity", std::span<const double>(pvel), {m, 3});
+      f.write("surface_triangles", std::span<const std::int64_t>(tris), {nt, 3});
+      f.write("surface_id", std::span<const std::int64_t>(tid), {nt});
+      f.write("surface_material", std::span<const std::int64_t>(tmat), {nt});
+      f.set_attribute("/", "surface_points", static_cast<std::int64_t>(m));
+      f.set_attribute("/", "surface_triangles", static_cast<std::int64_t>(nt));
+    }
     f.close();
+    entry.points = m, entry.triangles = nt;
   }
   io::commit_partial(final_path);
-  entries_.push_back({time, n});
+  entries_.push_back(entry);
   write_index();
 }
 
@@ -68,8 +148,13 @@ void ParticleOutput::resume(std::size_t keep) {
   entries_.clear();
   for (std::size_t k = 0; k < keep; ++k) {
     io::H5File f(snapshot_path(k), io::H5File::Mode::read);
-    entries_.push_back({f.attribute_double("/", "time"),
-                        static_cast<std::size_t>(f.attribute_int64("/", "count"))});
+    Entry e{f.attribute_double("/", "time"),
+            static_cast<std::size_t>(f.attribute_int64("/", "count"))};
+    if (f.exists("surface_points")) {
+      e.points = static_cast<std::size_t>(f.attribute_int64("/", "surface_points"));
+      e.triangles = static_cast<std::size_t>(f.attribute_int64("/", "surface_triangles"));
+    }
+    entries_.push_back(e);
   }
   write_index();
 }
@@ -105,13 +190,49 @@ void ParticleOutput::write_sphere_grid(std::ostream& x, std::size_t k,
   x << indent << "</Grid>\n";
 }
 
+void ParticleOutput::write_polyhedron_grid(std::ostream& x, std::size_t k,
+                                           const std::string& indent) const {
+  const auto& e = entries_[k];
+  const std::string h5 = snapshot_path(k).filename().string();
+  auto item = [&](const std::string& ds, const std::string& dims, const char* type) {
+    std::ostringstream s;
+    s << "<DataItem Dimensions=\"" << dims << "\" NumberType=\"" << type
+      << "\" Precision=\"8\" Format=\"HDF\">" << h5 << ":/" << ds << "</DataItem>";
+    return s.str();
+  };
+  const std::string m = std::to_string(e.points), t = std::to_string(e.triangles);
+  x << indent << "<Grid Name=\"polyhedra_" << k << "\" GridType=\"Uniform\">\n"
+    << indent << "  <Time Value=\"" << io::format_time(e.time) << "\"/>\n"
+    << indent << "  <Topology TopologyType=\"Triangle\" NumberOfElements=\"" << t << "\">"
+    << item("surface_triangles", t + " 3", "Int") << "</Topology>\n"
+    << indent << "  <Geometry GeometryType=\"XYZ\">" << item("surface_points", m + " 3", "Float")
+    << "</Geometry>\n"
+    << indent << "  <Attribute Name=\"velocity\" AttributeType=\"Vector\" Center=\"Node\">"
+    << item("surface_velocity", m + " 3", "Float") << "</Attribute>\n"
+    << indent << "  <Attribute Name=\"id\" AttributeType=\"Scalar\" Center=\"Cell\">"
+    << item("surface_id", t, "Int") << "</Attribute>\n"
+    << indent << "  <Attribute Name=\"material\" AttributeType=\"Scalar\" Center=\"Cell\">"
+    << item("surface_material", t, "Int") << "</Attribute>\n"
+    << indent << "</Grid>\n";
+}
+
 void ParticleOutput::write_index() const {
   std::ostringstream x;
   x << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n  <Domain>\n"
     << "    <Grid Name=\"" << stem_ << "\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
   for (std::size_t k = 0; k < entries_.size(); ++k) {
     if (entries_[k].count == 0) continue;  // an empty grid is not valid XDMF
-    write_sphere_grid(x, k, "      ");
+    if (entries_[k].triangles == 0) {
+      write_sphere_grid(x, k, "      ");
+      continue;
+    }
+    // with polyhedra: the particles' points and the surfaces, one spatial collection
+    x << "      <Grid Name=\"snapshot_" << k << "\" GridType=\"Collection\" "
+      << "CollectionType=\"Spatial\">\n"
+      << "        <Time Value=\"" << io::format_time(entries_[k].time) << "\"/>\n";
+    write_sphere_grid(x, k, "        ");
+    write_polyhedron_grid(x, k, "        ");
+    x << "      </Grid>\n";
   }
   x << "    </Grid>\n  </Domain>\n</Xdmf>\n";
   io::write_file_atomic(index_path(), x.str());

@@ -1,6 +1,8 @@
 #include "demfem/dem/dem_scene.hpp"
 #include "demfem/dem/state_check.hpp"
 
+#include "scene_shapes.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -154,6 +156,12 @@ void check_particle_budget(const DemScene& s, const std::vector<std::string>& ke
   if (!too_many && !too_big) return;
   std::ostringstream m;
   m.precision(3);
+  if (!std::isfinite(total)) {
+    m << keys[largest]
+      << ": the scene asks for more particles than can be counted (spheres so small that their "
+         "volume is 0 in double precision); use larger particles";
+    throw SceneError(m.str());
+  }
   m << keys[largest] << ": the scene asks for about " << total << " particles (" << counts[largest]
     << " from this entry), ";
   if (too_many) {
@@ -221,6 +229,7 @@ DemScene read_dem_scene(const Table& dem) {
     mp.friction = p.number("friction", Range::non_negative());
     mp.restitution = p.number("restitution", Range::open_closed(0.0, 1.0));
     mp.rolling_friction = p.number("rolling_friction", 0.0, Range::non_negative());
+    mp.rocking_damping = p.number("rocking_damping", 1.0, Range::closed(0.0, 10.0));
     p.finish();
     st.pairs[std::size_t(a) * n + std::size_t(b)] = mp;
     st.pairs[std::size_t(b) * n + std::size_t(a)] = mp;
@@ -276,6 +285,25 @@ DemScene read_dem_scene(const Table& dem) {
     return st.materials[m].density;
   };
 
+  // Particle shapes (dilated polyhedra).
+  for (const auto& t : dem.tables("shapes")) {
+    ShapeSpec sp = read_shape_spec(t);
+    for (const auto& other : s.shapes)
+      if (other.name == sp.name) t.fail("name", "shape \"" + sp.name + "\" is defined twice");
+    s.shapes.push_back(std::move(sp));
+  }
+  auto shape_index = [&](const Table& t) -> std::int32_t {
+    if (!t.has("shape")) return -1;
+    const std::string name = t.string("shape");
+    std::string list;
+    for (std::size_t k = 0; k < s.shapes.size(); ++k) {
+      if (s.shapes[k].name == name) return static_cast<std::int32_t>(k);
+      list += (list.empty() ? "\"" : ", \"") + s.shapes[k].name + "\"";
+    }
+    t.fail("shape", "names \"" + name + "\", which [[dem.shapes]] does not define" +
+                        (list.empty() ? std::string(" (none is defined)") : " (defined: " + list + ")"));
+  };
+
   // Lattice fills.
   std::vector<std::string> size_keys;  // per lattice, then per insertion: where its size is set
   for (const auto& l : dem.tables("lattice")) {
@@ -323,6 +351,7 @@ DemScene read_dem_scene(const Table& dem) {
     }
     q.velocity = l.vec3("velocity", std::array<double, 3>{0, 0, 0});
     q.max_count = l.integer("max_count", 0, 0, INT64_MAX);
+    ls.shape = shape_index(l);
     l.finish();
     s.lattices.push_back(ls);
   }
@@ -343,6 +372,7 @@ DemScene read_dem_scene(const Table& dem) {
     if (has_mass) q.mass = r.number("mass", Range::positive());
     q.velocity = r.vec3("velocity", std::array<double, 3>{0, 0, 0});
     q.max_attempts = r.integer("max_attempts", 2000, 1, INT64_MAX);
+    is.shape = shape_index(r);
     is.every = r.number("every", 0.0, Range::non_negative());
     if (is.every > 0) {
       is.until = r.number("until", Range::non_negative());
@@ -485,6 +515,10 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
     for (auto& s : scene_.sensors)
       if (s.kind == SensorSpec::Kind::wall_force && s.wall == index) s.area = area;
   }
+  for (std::size_t k = 0; k < scene_.shapes.size(); ++k) {
+    libraries_.push_back(build_shape_library(scene_.shapes[k], seed, k, log));
+    shape_base_.push_back(add_library_shapes(*system_, *libraries_.back(), scene_.shapes[k].name));
+  }
   if (scene_.load) {
     const std::size_t n = load_particles(*scene_.load, *system_, meshes, log);
     for (std::size_t i = 0; i < n; ++i) ids_.push_back(next_id_++);
@@ -494,6 +528,10 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
     const auto& l = scene_.lattices[i];
     LatticeFill q = l.request;
     if (!l.has_seed) q.seed = seed + kLatticeSeedOffset + i;
+    if (l.shape >= 0) {
+      q.library = libraries_[static_cast<std::size_t>(l.shape)].get();
+      q.shape_base = shape_base_[static_cast<std::size_t>(l.shape)];
+    }
     std::vector<ParticleInit> spheres;
     try {
       spheres = lattice_fill(q);
@@ -613,6 +651,10 @@ void DemRun::pour() {
       const bool due = k == 0 || (in.every > 0 && when <= in.until + 1e-9 * in.every);
       if (!due || when > now + eps) break;
       RandomInsertion q = in.request;
+      if (in.shape >= 0) {
+        q.library = libraries_[static_cast<std::size_t>(in.shape)].get();
+        q.shape_base = shape_base_[static_cast<std::size_t>(in.shape)];
+      }
       const std::uint64_t base = in.has_seed ? q.seed : seed_ + i;
       // Repetition k draws from its own stream: 1000003 (prime) apart, so it never meets the
       // stream of another entry's first insertion (entries are 1 apart).
@@ -678,6 +720,10 @@ void DemRun::start_output(bool resume) {
   sensors_ = std::make_unique<SensorSet>(scene_.sensors, output_dir_, *system_, !resume);
   if (!output_dir_.empty() && scene_.output_particles) {
     output_ = std::make_unique<ParticleOutput>(output_dir_);
+    std::vector<PolyhedronShape> shapes;
+    for (std::size_t k = 0; k < system_->shape_count(); ++k)
+      shapes.push_back(system_->shape(static_cast<std::int32_t>(k)));
+    output_->set_shapes(shapes);
   }
   schedule_ = io::OutputSchedule(output_interval_);
   // Outputs due before the output starts (during settle_time) are not taken.
@@ -732,7 +778,9 @@ void DemRun::check_stable() const {
   if (radius.empty()) return;
   const double ke = system_->kinetic_energy();
   const double ov = system_->advance_max_overlap();
-  const double rmin = *std::min_element(radius.begin(), radius.end());
+  // a polyhedron's overlap is measured against its dilation radius (its cores intersect at
+  // an overlap of r_i + r_j)
+  const double rmin = system_->smallest_contact_radius();
   if (std::isfinite(ke) && ov <= kMaxStableOverlap * rmin) return;
   std::ostringstream m;
   m << "DEM run unstable in the steps up to t = " << system_->time() << " s: ";
@@ -740,7 +788,8 @@ void DemRun::check_stable() const {
     m << "the kinetic energy is " << ke << " (the particle state is no longer finite)";
   else
     m << "the largest overlap, " << ov << " m, was " << ov / rmin << " of the smallest radius "
-      << rmin << " m (at most " << kMaxStableOverlap << ")";
+      << rmin << " m (a sphere's radius or a polyhedron's dilation; at most "
+      << kMaxStableOverlap << ")";
   m << ". dt = " << scene_.settings.dt << " s against a Rayleigh time step of "
     << system_->rayleigh_time_step() << " s; reduce dt (" << scene_.dt_where
     << ") or the velocities and loads of the scene. The output holds the states before it.";

@@ -5,6 +5,8 @@
 #include <numbers>
 #include <sstream>
 
+#include "demfem/dem/shapes/shape_library.hpp"
+
 namespace demfem::dem {
 
 std::string Box::describe() const {
@@ -16,6 +18,38 @@ std::string Box::describe() const {
 
 double sphere_mass(double diameter, double density) {
   return density * std::numbers::pi / 6.0 * diameter * diameter * diameter;
+}
+
+PolyhedronShape engine_shape(const shapes::ParticleShape& shape, std::string name) {
+  PolyhedronShape e;
+  e.name = std::move(name);
+  for (const auto& v : shape.core.vertices())
+    e.vertices.insert(e.vertices.end(), v.begin(), v.end());
+  for (const auto& t : shape.core.triangles())
+    e.triangles.insert(e.triangles.end(), t.begin(), t.end());
+  e.dilation = shape.dilation_radius;
+  e.volume = shape.volume;
+  e.inertia = {shape.principal_moments[0], shape.principal_moments[1], shape.principal_moments[2]};
+  return e;
+}
+
+std::int32_t add_library_shapes(DemSystem& system, const shapes::ShapeLibrary& library,
+                                const std::string& name) {
+  std::int32_t first = -1;
+  for (std::size_t k = 0; k < library.size(); ++k) {
+    const std::int32_t id =
+        system.add_shape(engine_shape(library.unit(k), name + "[" + std::to_string(k) + "]"));
+    if (k == 0) first = id;
+  }
+  return first;
+}
+
+std::array<double, 4> random_orientation(Rng& rng) {
+  // Shoemake (Graphics Gems III): uniform on the unit quaternions
+  const double u1 = rng.uniform(), u2 = rng.uniform(), u3 = rng.uniform();
+  const double a = std::sqrt(1.0 - u1), b = std::sqrt(u1);
+  const double t2 = 2.0 * std::numbers::pi * u2, t3 = 2.0 * std::numbers::pi * u3;
+  return {b * std::cos(t3), a * std::sin(t2), a * std::cos(t2), b * std::sin(t3)};
 }
 
 namespace {
@@ -78,7 +112,21 @@ std::vector<ParticleInit> insert_random(
     throw InsertionError("random insertion needs exactly one of a count and a mass");
   }
   if (!(q.density > 0)) throw InsertionError("random insertion needs a density > 0");
-  const double d_max = q.sizes.largest();
+  // Polyhedra are placed by their bounding spheres: a library shape k at size s has the
+  // bounding radius s b_k (b_k at size 1 m); bmax = max b_k, b3 = mean b_k^3.
+  const shapes::ShapeLibrary* lib = q.library;
+  double bmax = 0.5, b3 = 0.125, vmean = std::numbers::pi / 6.0;
+  if (lib) {
+    if (lib->size() == 0) throw InsertionError("random insertion: the shape library is empty");
+    bmax = b3 = vmean = 0.0;
+    for (std::size_t k = 0; k < lib->size(); ++k) {
+      const double b = lib->unit(k).bounding_radius;
+      bmax = std::max(bmax, b);
+      b3 += b * b * b / double(lib->size());
+      vmean += lib->unit(k).volume / double(lib->size());
+    }
+  }
+  const double d_max = 2.0 * bmax * q.sizes.largest();  // the largest bounding diameter
   std::ostringstream asked;
   if (by_count) {
     asked << q.count << " particles";
@@ -89,18 +137,29 @@ std::vector<ParticleInit> insert_random(
   for (int k = 0; k < 3; ++k) {
     if (!(q.region.hi[k] - q.region.lo[k] >= d_max)) {
       throw InsertionError("cannot insert " + asked.str() + ": the region is narrower than the " +
-                           "largest diameter " + std::to_string(d_max) + " m");
+                           std::string(lib ? "largest bounding diameter " : "largest diameter ") +
+                           std::to_string(d_max) + " m");
     }
   }
   // Up-front check of the solid fraction asked for, so an impossible request fails at once
   // with a reason instead of after millions of attempts.
-  const double mean_volume = std::numbers::pi / 6.0 * q.sizes.mean_cube();
+  // (polyhedra: the fraction of their bounding spheres, which are what is placed)
+  const double mean_volume = vmean * q.sizes.mean_cube();
+  if (!(mean_volume > 0) || !std::isfinite(mean_volume)) {
+    // d = 1e-300 m: a mass target would never be reached (each particle weighs 0).
+    throw InsertionError("cannot insert " + asked.str() + ": the " +
+                         std::string(lib ? "rocks'" : "spheres'") +
+                         " volume is not a positive number in double precision "
+                         "(sizes too small or too large)");
+  }
   const double solid = by_count ? double(q.count) * mean_volume : q.mass / q.density;
-  const double fraction = solid / q.region.volume();
+  const double bounding = 4.0 / 3.0 * std::numbers::pi * b3 * q.sizes.mean_cube();
+  const double fraction = solid / q.region.volume() * (lib ? bounding / mean_volume : 1.0);
   if (fraction > kMaxRandomPackingFraction) {
     std::ostringstream s;
     s << "cannot insert " << asked.str() << ": it needs a solid fraction of about " << fraction
-      << " of the region, more than the " << kMaxRandomPackingFraction
+      << (lib ? " (of bounding spheres)" : "") << " of the region, more than the "
+      << kMaxRandomPackingFraction
       << " that random non-overlapping insertion reaches; enlarge the region, or insert in "
          "stages with settling in between";
     throw InsertionError(s.str());
@@ -137,8 +196,16 @@ std::vector<ParticleInit> insert_random(
     return by_count ? std::int64_t(out.size()) >= q.count : placed_mass >= q.mass;
   };
   while (!done()) {
-    const double d = q.sizes.sample(rng);
-    const double r = 0.5 * d;
+    shapes::ScaledShape shp;
+    double d, r;
+    if (lib) {
+      shp = lib->sample(rng, q.sizes);
+      d = shp.scale;
+      r = shp.bounding_radius;
+    } else {
+      d = q.sizes.sample(rng);
+      r = 0.5 * d;
+    }
     bool ok = false;
     for (std::int64_t a = 0; a < q.max_attempts && !ok; ++a) {
       const double x = rng.uniform(q.region.lo[0] + r, q.region.hi[0] - r);
@@ -151,8 +218,16 @@ std::vector<ParticleInit> insert_random(
       p.velocity = q.velocity;
       p.radius = r;
       p.material = q.material;
+      if (lib) {
+        p.shape = ParticleShape::polyhedron;
+        p.shape_id = q.shape_base + static_cast<std::int32_t>(shp.shape);
+        p.scale = shp.scale;
+        p.orientation = random_orientation(rng);
+        placed_mass += q.density * shp.volume;
+      } else {
+        placed_mass += sphere_mass(d, q.density);
+      }
       out.push_back(p);
-      placed_mass += sphere_mass(d, q.density);
       ok = true;
     }
     if (!ok) {
@@ -191,20 +266,35 @@ struct LatticeLayout {
   double count() const { return n[0] * n[1] * n[2]; }
 };
 
+// Bounding diameter per unit size: 1 for spheres, 2 max b_k for a shape library.
+double lattice_bound(const LatticeFill& q) {
+  if (!q.library) return 1.0;
+  if (q.library->size() == 0) throw InsertionError("lattice fill: the shape library is empty");
+  double bmax = 0.0;
+  for (std::size_t k = 0; k < q.library->size(); ++k)
+    bmax = std::max(bmax, q.library->unit(k).bounding_radius);
+  return 2.0 * bmax;
+}
+
 LatticeLayout layout(const LatticeFill& q) {
   if (!(q.diameter > 0)) throw InsertionError("lattice fill needs a diameter > 0");
+  // polyhedra: the bounding diameter of the largest library shape at the size plays the
+  // diameter's part
+  const double bd = lattice_bound(q) * q.diameter;
   LatticeLayout l;
-  l.a = q.spacing > 0 ? q.spacing : 1.001 * q.diameter;
-  if (l.a < q.diameter) {
-    throw InsertionError("lattice spacing " + std::to_string(l.a) + " m is below the diameter " +
-                         std::to_string(q.diameter) + " m: the spheres would overlap");
+  l.a = q.spacing > 0 ? q.spacing : 1.001 * bd;
+  if (l.a < bd) {
+    throw InsertionError("lattice spacing " + std::to_string(l.a) + " m is below the " +
+                         std::string(q.library ? "largest bounding diameter " : "diameter ") +
+                         std::to_string(bd) + " m: the " + (q.library ? "particles" : "spheres") +
+                         " would overlap");
   }
   if (!(q.jitter >= 0.0 && q.jitter < 1.0)) {
     throw InsertionError("lattice jitter " + std::to_string(q.jitter) + " is outside [0, 1)");
   }
   // A sphere of diameter d moves up to jitter (a - d) / 2 from its site: its far side is at most
   // (1 - jitter) d / 2 + jitter a / 2 away, largest for the largest diameter.
-  l.inset = 0.5 * q.diameter + 0.5 * q.jitter * (l.a - q.diameter);
+  l.inset = 0.5 * bd + 0.5 * q.jitter * (l.a - bd);
   for (int k = 0; k < 3; ++k) {
     const double free = q.region.hi[k] - q.region.lo[k] - 2.0 * l.inset;
     l.n[k] = free < 0 ? 0.0 : std::floor(free / l.a + 1e-9) + 1.0;
@@ -222,14 +312,18 @@ double lattice_count(const LatticeFill& q) {
 double expected_count(const RandomInsertion& q) {
   if (q.count > 0) return double(q.count);
   const double mean_mass = q.density * std::numbers::pi / 6.0 * q.sizes.mean_cube();
-  return mean_mass > 0 ? std::ceil(q.mass / mean_mass) : 0.0;
+  if (!(q.mass > 0)) return 0.0;
+  // Spheres so small that their mass underflows to 0 (d = 1e-300 m) would never make up the
+  // mass: unbounded (the budget check refuses it; insertion would loop for ever).
+  return mean_mass > 0 ? std::ceil(q.mass / mean_mass) : INFINITY;
 }
 
 std::vector<ParticleInit> lattice_fill(const LatticeFill& q) {
   const LatticeLayout l = layout(q);
   if (l.count() == 0) {
     throw InsertionError("lattice fill of " + q.region.describe() + " with diameter " +
-                         std::to_string(q.diameter) + " m: not one sphere fits");
+                         std::to_string(lattice_bound(q) * q.diameter) + " m: not one " +
+                         (q.library ? "particle" : "sphere") + " fits");
   }
   if (lattice_count(q) > kMaxParticles) {
     std::ostringstream s;
@@ -254,13 +348,23 @@ std::vector<ParticleInit> lattice_fill(const LatticeFill& q) {
         p.position = {q.region.lo[0] + l.inset + double(i) * l.a,
                       q.region.lo[1] + l.inset + double(j) * l.a,
                       q.region.lo[2] + l.inset + double(k) * l.a};
+        const double bd = lattice_bound(q) * d;
         if (q.jitter > 0) {
-          const double amplitude = 0.5 * q.jitter * (l.a - d);
+          const double amplitude = 0.5 * q.jitter * (l.a - bd);
           for (double& c : p.position) c += amplitude * (2.0 * rng.uniform() - 1.0);
         }
         p.velocity = q.velocity;
         p.radius = 0.5 * d;
         p.material = q.material;
+        if (q.library) {  // then a shape and an orientation
+          const auto shape = q.library->pick(rng);
+          const auto sc = q.library->scaled(shape, d);
+          p.shape = ParticleShape::polyhedron;
+          p.shape_id = q.shape_base + static_cast<std::int32_t>(shape);
+          p.scale = sc.scale;
+          p.radius = sc.bounding_radius;
+          p.orientation = random_orientation(rng);
+        }
         out.push_back(p);
       }
   return out;

@@ -318,6 +318,17 @@ void restore_state(const ParticleSource& s, DemSystem& system) {
   const auto& mats = system.settings().materials;
   if (mass.size() != radius.size() || material.size() != radius.size())
     data_error(s, s.file.string(), "state arrays of different lengths");
+  // A polyhedron's mass is rho V s^3 (V of its unit shape in the state's shape table, s its
+  // scale), a sphere's that of its radius.
+  std::vector<std::int64_t> shape_id;
+  std::vector<double> scale, shape_params;
+  if (f.exists(g + "shape_id")) {
+    shape_id = f.read_int64(g + "shape_id");
+    scale = f.read_doubles(g + "scale");
+    if (f.exists(g + "shape_params")) shape_params = f.read_doubles(g + "shape_params");
+    if (shape_id.size() != radius.size() || scale.size() != radius.size())
+      data_error(s, s.file.string(), "state arrays of different lengths");
+  }
   for (std::size_t i = 0; i < mass.size(); ++i) {
     const std::string at = s.file.string() + ": particle " + std::to_string(i);
     const auto m = material[i];
@@ -326,8 +337,14 @@ void restore_state(const ParticleSource& s, DemSystem& system) {
                  "material index " + std::to_string(m) +
                      " is not a particle material of this scene; with history = true the "
                      "state's material indices are kept (same [[dem.materials]] order)");
+    const bool poly = !shape_id.empty() && shape_id[i] >= 0;
+    if (poly && static_cast<std::size_t>(5 * shape_id[i] + 1) >= shape_params.size())
+      data_error(s, at,
+                 "shape index " + std::to_string(shape_id[i]) + " is not in the state's shape table");
     const double expect =
-        mats[m].density * 4.0 / 3.0 * std::numbers::pi * radius[i] * radius[i] * radius[i];
+        poly ? mats[m].density * shape_params[static_cast<std::size_t>(5 * shape_id[i] + 1)] *
+                   scale[i] * scale[i] * scale[i]
+             : mats[m].density * 4.0 / 3.0 * std::numbers::pi * radius[i] * radius[i] * radius[i];
     if (!(std::abs(mass[i] - expect) <= 1e-12 * expect))
       data_error(s, at,
                  "mass " + std::to_string(mass[i]) + " kg differs from this scene's density (" +
@@ -463,12 +480,18 @@ OverlapReport largest_overlap(const ParticleState& p, std::span<const WallMesh> 
   grid.reserve(n);
   for (std::size_t i = 0; i < n; ++i)
     grid[key(p.px[i], p.py[i], p.pz[i])].push_back(std::int64_t(i));
+  // A polyhedron's radius bounds it: its overlaps are not those of its bounding sphere. Only
+  // a state with history holds polyhedra, and its run had them (DemSystem::max_overlap).
+  auto sphere = [&](std::size_t i) {
+    return p.shape.empty() || p.shape[i] == static_cast<std::uint8_t>(ParticleShape::sphere);
+  };
   auto consider = [&](double depth, double rsmall, std::int64_t i, std::int64_t j) {
     if (!(depth > 0)) return;
     ++r.touching;
     if (depth / rsmall > r.fraction) r.fraction = depth / rsmall, r.depth = depth, r.i = i, r.j = j;
   };
   for (std::size_t i = 0; i < n; ++i) {
+    if (!sphere(i)) continue;
     for (int dx = -1; dx <= 1; ++dx)
       for (int dy = -1; dy <= 1; ++dy)
         for (int dz = -1; dz <= 1; ++dz) {
@@ -476,7 +499,7 @@ OverlapReport largest_overlap(const ParticleState& p, std::span<const WallMesh> 
               grid.find(key(p.px[i] + dx * cell, p.py[i] + dy * cell, p.pz[i] + dz * cell));
           if (it == grid.end()) continue;
           for (std::int64_t j : it->second) {
-            if (j <= std::int64_t(i)) continue;
+            if (j <= std::int64_t(i) || !sphere(std::size_t(j))) continue;
             const double ex = p.px[j] - p.px[i], ey = p.py[j] - p.py[i], ez = p.pz[j] - p.pz[i];
             const double d = std::sqrt(ex * ex + ey * ey + ez * ez);
             consider(p.radius[i] + p.radius[j] - d, std::min(p.radius[i], p.radius[j]),
@@ -501,6 +524,7 @@ OverlapReport largest_overlap(const ParticleState& p, std::span<const WallMesh> 
       // A huge triangle (a floor) over a small bed: walk the particles instead of the cells.
       const bool walk_cells = double(cells(0)) * double(cells(1)) * double(cells(2)) < double(n);
       auto test = [&](std::int64_t i) {
+        if (!sphere(std::size_t(i))) return;
         const phys::Vec3 c{p.px[i], p.py[i], p.pz[i]};
         const auto cp = phys::closest_point_triangle(c, v[0], v[1], v[2]);
         const phys::Vec3 e = c - cp.point;

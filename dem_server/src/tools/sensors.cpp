@@ -284,8 +284,17 @@ void SensorSet::sample(const DemSystem& system, std::span<const std::int64_t> id
       e.csv->flush();
     }
     e.last_time = t;
-    // Next sample on the regular grid of interval multiples after t.
-    while (e.next <= t + eps) e.next += e.spec.interval;
+    // Next sample on the regular grid of interval multiples after t. An interval below the
+    // resolution of the time (1e-300 s: next + interval == next) made this loop endless
+    // (issue 19); such an interval, or a grid far behind, jumps to the first multiple after t
+    // instead (a sample every step), the usual short walk keeps the grid bit for bit.
+    const double after = t + eps;
+    if (e.next + e.spec.interval > e.next && (after - e.next) / e.spec.interval < 1e6) {
+      while (e.next <= after) e.next += e.spec.interval;
+    } else {
+      e.next = std::max(std::nextafter(after, INFINITY),
+                        (std::floor(after / e.spec.interval) + 1.0) * e.spec.interval);
+    }
   }
 }
 

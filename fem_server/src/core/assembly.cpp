@@ -526,4 +526,56 @@ InterfaceMap build_interface(const FemProblem& p) {
   return out;
 }
 
+LoadVectors load_vectors(const FemProblem& p, const DofMap& dofs, const SparseMatrix& mass) {
+  LoadVectors out;
+  out.constant = gravity_load_vector(p, dofs, mass);
+  auto add = [&](Eigen::VectorXd f, const TimeFunction& amp) {
+    if (amp)
+      out.timed.emplace_back(std::move(f), amp);
+    else
+      out.constant += f;
+  };
+  for (const auto& pl : p.pressures) add(pressure_load_vector(p, dofs, pl), pl.amplitude);
+  for (const auto& nl : p.nodal_loads) add(nodal_load_vector(p, dofs, nl), nl.amplitude);
+  return out;
+}
+
+SparseMatrix interface_load_matrix(const DofMap& dofs, const InterfaceMap& iface) {
+  std::vector<Eigen::Triplet<double, int>> trip;
+  for (std::size_t i = 0; i < iface.mesh_node.size(); ++i) {
+    const auto n = static_cast<std::size_t>(iface.mesh_node[i]);
+    const auto off = dofs.node_offset[n];
+    const int col = 3 * static_cast<int>(i);
+    auto add = [&](std::int32_t g, int c, double v) {
+      const std::int32_t r = dofs.reduced[static_cast<std::size_t>(g)];
+      if (r >= 0 && v != 0.0) trip.emplace_back(r, col + c, v);
+    };
+    for (int c = 0; c < 3; ++c) add(off + c, c, 1.0);
+    if (dofs.node_dofs[n] == 6) {
+      // moment = offset x f: column c (unit f_c) gives offset x e_c.
+      const Vec3& r = iface.offset[i];
+      for (int c = 0; c < 3; ++c) {
+        const Vec3 m = r.cross(Vec3::Unit(c));
+        for (int k = 0; k < 3; ++k) add(off + 3 + k, c, m(k));
+      }
+    }
+  }
+  SparseMatrix b(static_cast<Eigen::Index>(dofs.free.size()),
+                 static_cast<Eigen::Index>(3 * iface.mesh_node.size()));
+  b.setFromTriplets(trip.begin(), trip.end());
+  return b;
+}
+
+void check_interface_forces(std::span<const double> forces, std::size_t expected, const char* who) {
+  if (forces.size() != expected)
+    throw std::invalid_argument(std::string(who) + "::set_interface_forces: got " +
+                                std::to_string(forces.size()) + " values, expected " +
+                                std::to_string(expected) + " (3 per interface node)");
+  for (std::size_t i = 0; i < forces.size(); ++i)
+    if (!std::isfinite(forces[i]))
+      throw std::invalid_argument(std::string(who) +
+                                  "::set_interface_forces: non-finite force at entry " +
+                                  std::to_string(i));
+}
+
 }  // namespace demfem::fem

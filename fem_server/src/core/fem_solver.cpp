@@ -347,20 +347,15 @@ FemSolver::FemSolver(FemProblem problem, SolverBackend backend) {
   s.m_full = assemble_mass(p, s.dofs);
   s.k = reduce_matrix(s.k_full, s.dofs);
   s.m = reduce_matrix(s.m_full, s.dofs);
-  s.f_const_full = gravity_load_vector(p, s.dofs, s.m_full);
-  auto add_load = [&](VectorXd f, const TimeFunction& amp) {
-    if (!amp) {
-      s.f_const_full += f;
-    } else {
-      Impl::TimedLoad l;
-      l.reduced = s.reduce(f);
-      l.full = std::move(f);
-      l.amplitude = amp;
-      s.timed.push_back(std::move(l));
-    }
-  };
-  for (const auto& pl : p.pressures) add_load(pressure_load_vector(p, s.dofs, pl), pl.amplitude);
-  for (const auto& nl : p.nodal_loads) add_load(nodal_load_vector(p, s.dofs, nl), nl.amplitude);
+  LoadVectors loads = load_vectors(p, s.dofs, s.m_full);
+  s.f_const_full = std::move(loads.constant);
+  for (auto& [f, amp] : loads.timed) {
+    Impl::TimedLoad l;
+    l.reduced = s.reduce(f);
+    l.full = std::move(f);
+    l.amplitude = std::move(amp);
+    s.timed.push_back(std::move(l));
+  }
   s.f_const = s.reduce(s.f_const_full);
   // Prescribed values of fixed DOFs (*BOUNDARY with a value): K_fc u_c moves to the load side.
   s.u_fixed_full = VectorXd::Zero(s.dofs.total);
@@ -424,17 +419,21 @@ std::int64_t FemSolver::step_count() const {
 
 void FemSolver::set_interface_forces(std::span<const double> forces) {
   Impl& s = *impl_;
-  if (forces.size() != s.iface_forces.size())
-    throw std::invalid_argument("FemSolver::set_interface_forces: got " +
-                                std::to_string(forces.size()) + " values, expected " +
-                                std::to_string(s.iface_forces.size()) + " (3 per interface node)");
-  for (std::size_t i = 0; i < forces.size(); ++i)
-    if (!std::isfinite(forces[i]))
-      throw std::invalid_argument("FemSolver::set_interface_forces: non-finite force at entry " +
-                                  std::to_string(i));
+  check_interface_forces(forces, s.iface_forces.size(), "FemSolver");
   std::copy(forces.begin(), forces.end(), s.iface_forces.begin());
   // The initial acceleration depends on the load; recompute it before the first step.
   if (s.step == 0) s.accel_ready = false;
+}
+
+void FemSolver::prepare(bool static_analysis) {
+  Impl& s = *impl_;
+  if (static_analysis) {
+    if (!s.static_solver.factorized())
+      s.factorize_checked(s.static_solver, s.k, "stiffness matrix", true);
+    return;
+  }
+  s.check_mass();
+  if (!s.mass_solver.factorized()) s.factorize_checked(s.mass_solver, s.m, "mass matrix", false);
 }
 
 void FemSolver::solve_static() {
@@ -456,12 +455,21 @@ void FemSolver::solve_static() {
     const VectorXd d = s.k.diagonal().cwiseAbs().cwiseSqrt();
     std::string list;
     const auto moving = s.moving_nodes(d.cwiseProduct(s.u), list);
-    char head[240];
+    char head[400];
+    const double pivot = s.static_solver.smallest_pivot_ratio();
+    // A well-conditioned stiffness (no pivot anywhere near round-off) has no mechanism: the
+    // loads are too large for it (issue 19: E = 2.1e4 typed for 2.1e11 named 171 "free nodes").
+    constexpr double kMechanismPivot = 1e-8;
     std::snprintf(head, sizeof head,
                   "FEM: the static displacement reaches %.3g m, more than the size of the model "
                   "(%.3g m; smallest pivot ratio %.3g). Linear elasticity does not hold there: "
-                  "check the load magnitudes and units, or ",
-                  umax, s.model_size, s.static_solver.smallest_pivot_ratio());
+                  "check the load magnitudes and units%s",
+                  umax, s.model_size, pivot,
+                  pivot >= kMechanismPivot
+                      ? " (the stiffness is well conditioned, so the loads are too large for it: "
+                        "a Young's modulus in MPa given as Pa is 1e6 times too soft)"
+                      : ", or ");
+    if (pivot >= kMechanismPivot) throw FemModelError(head);
     throw FemModelError(head + s.free_motion_text(moving, list));
   }
   s.v.setZero();
@@ -532,62 +540,7 @@ std::vector<double> FemSolver::reaction_forces() const {
 }
 
 ElementResults FemSolver::element_results() const {
-  const Impl& s = *impl_;
-  const FemProblem& p = s.problem;
-  const VectorXd uf = s.full_u();
-  std::vector<Eigen::Vector3d> directors;
-  std::vector<double> thick;
-  shell_nodal_directors(p, directors, thick);
-  const std::size_t ne = p.mesh.elements.size();
-  ElementResults r;
-  r.strain.resize(6 * ne);
-  r.von_mises.resize(ne);
-  r.max_principal_strain.resize(ne);
-  for (std::size_t e = 0; e < ne; ++e) {
-    const Element& el = p.mesh.elements[e];
-    const Material& mat = p.materials[static_cast<std::size_t>(
-        p.sections[static_cast<std::size_t>(el.section)].material)];
-    const int nn = nodes_per_element(el.type);
-    const int per = el.type == ElementType::quad4 ? 6 : 3;
-    double ue[24] = {};
-    std::array<detail::Vec3, 8> x;
-    for (int a = 0; a < nn; ++a) {
-      const auto n = static_cast<std::size_t>(el.nodes[a]);
-      const auto& pn = p.mesh.nodes[n];
-      x[a] = detail::Vec3(pn[0], pn[1], pn[2]);
-      for (int c = 0; c < per; ++c) ue[per * a + c] = uf(s.dofs.node_offset[n] + c);
-    }
-    detail::Voigt eps, sig;
-    if (el.type == ElementType::hex8) {
-      eps = el.formulation == SolidFormulation::selective_reduced
-                ? detail::hex8_bbar_centroid_strain(x, ue)
-                : detail::hex8_centroid_strain(x, ue);
-      sig = detail::elasticity_matrix(mat.youngs_modulus, mat.poisson_ratio) * eps;
-    } else if (el.type == ElementType::tet4) {
-      eps = detail::tet4_strain({x[0], x[1], x[2], x[3]}, ue);
-      sig = detail::elasticity_matrix(mat.youngs_modulus, mat.poisson_ratio) * eps;
-    } else {
-      // Shells: the more stressed of the two outer fibres (zeta = +-1) at the centre; the
-      // mid-surface of a bent plate is nearly unstressed and says little.
-      detail::ShellGeometry g;
-      for (int a = 0; a < 4; ++a) {
-        g.x[a] = x[a];
-        g.director[a] = directors[static_cast<std::size_t>(el.nodes[a])];
-      }
-      g.thickness = p.sections[static_cast<std::size_t>(el.section)].thickness;
-      detail::Voigt e2, s2;
-      detail::mitc4_strain_stress(g, mat.youngs_modulus, mat.poisson_ratio, 1.0, ue, eps, sig);
-      detail::mitc4_strain_stress(g, mat.youngs_modulus, mat.poisson_ratio, -1.0, ue, e2, s2);
-      if (detail::von_mises(s2) > detail::von_mises(sig)) {
-        eps = e2;
-        sig = s2;
-      }
-    }
-    for (int c = 0; c < 6; ++c) r.strain[6 * e + static_cast<std::size_t>(c)] = eps(c);
-    r.von_mises[e] = detail::von_mises(sig);
-    r.max_principal_strain[e] = detail::max_principal_strain(eps);
-  }
-  return r;
+  return compute_element_results(impl_->problem, impl_->dofs, impl_->full_u());
 }
 
 double FemSolver::kinetic_energy() const {

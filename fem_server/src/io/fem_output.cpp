@@ -244,6 +244,7 @@ void FemOutput::write(const FemFields& f) {
   check_nodes(f.velocity, "velocity");
   check_nodes(f.acceleration, "acceleration");
   check_nodes(f.reaction_force, "reaction_force");
+  for (const auto& [name, v] : f.node_vectors) check_nodes(v, name.c_str());
   std::size_t element_count = 0;
   for (const auto& g : groups_) element_count += g.elements.size();
   if (!f.elements.von_mises.empty() && f.elements.von_mises.size() != element_count) {
@@ -272,6 +273,7 @@ void FemOutput::write(const FemFields& f) {
     for (const auto& [name, data] : node_fields) {
       if (wants(name) && !data->empty()) h5.write(name, *data, {node_count_, 3});
     }
+    for (const auto& [name, data] : f.node_vectors) h5.write(name, data, {node_count_, 3});
     for (const auto& g : groups_) {
       const std::string grp = type_key(g.type);
       h5.create_group(grp);
@@ -323,6 +325,7 @@ std::vector<std::string> FemOutput::present_fields(const FemFields& f) const {
   add("von_mises", !f.elements.von_mises.empty());
   add("strain", !f.elements.strain.empty());
   add("max_principal_strain", !f.elements.max_principal_strain.empty());
+  for (const auto& [name, v] : f.node_vectors) out.push_back(name);
   return out;
 }
 
@@ -363,8 +366,15 @@ void FemOutput::write_xdmf() const {
         << indent << " <Geometry GeometryType=\"XYZ\">\n"
         << indent << "  " << data_item(n + " 3", "Float", mesh_file + ":/nodes") << "\n"
         << indent << " </Geometry>\n";
-      for (const char* f : {"displacement", "velocity", "acceleration", "reaction_force"}) {
-        if (!has(f)) continue;
+      std::vector<std::string> vectors = {"displacement", "velocity", "acceleration",
+                                          "reaction_force"};
+      for (const auto& f : fields) {
+        const bool standard = std::find(std::begin(kFemOutputFields), std::end(kFemOutputFields),
+                                        f) != std::end(kFemOutputFields);
+        if (!standard) vectors.push_back(f);  // FemFields::node_vectors
+      }
+      for (const auto& f : vectors) {
+        if (!has(f.c_str())) continue;
         x << indent << " <Attribute Name=\"" << f
           << "\" AttributeType=\"Vector\" Center=\"Node\">\n"
           << indent << "  " << data_item(n + " 3", "Float", step_file + ":/" + f) << "\n"

@@ -4,6 +4,7 @@
 #include <ostream>
 
 #include "demfem/fem/fem_output.hpp"
+#include "demfem/fem/modal_run.hpp"
 #include "demfem/io/output_schedule.hpp"
 
 namespace demfem::fem {
@@ -18,26 +19,21 @@ double max_norm3(const std::vector<double>& v) {
   return m;
 }
 
-}  // namespace
-
-FemRunSummary run_fem_standalone(const FemScene& scene, double end_time, double output_interval,
-                                 const std::filesystem::path& dir, const std::string& name,
-                                 std::ostream* progress) {
+/// The time loop of a standalone run, for every solver of a FEM backend.
+template <class Solver>
+FemRunSummary run_solver(Solver& solver, const FemScene& scene, double end_time,
+                         double output_interval, const std::filesystem::path& dir,
+                         const std::string& name, std::ostream* progress) {
   using clock = std::chrono::steady_clock;
   const auto start = clock::now();
   FemRunSummary summary;
-  if (scene.analysis == Analysis::dynamic && !(scene.dt > 0.0)) {
-    throw scene::SceneError(scene.dt_location +
-                            ": is required (> 0 s) for a dynamic FEM run without a coupler");
-  }
-  FemSolver solver(scene.problem);
   std::unique_ptr<FemOutput> out;
   if (scene.output.enabled) {
     out = std::make_unique<FemOutput>(dir, name, scene.problem.mesh, scene.output);
   }
   auto write = [&] {
     if (out) {
-      out->write(solver);
+      out->write(gather_fields(solver));
       ++summary.outputs;
     }
   };
@@ -47,6 +43,11 @@ FemRunSummary run_fem_standalone(const FemScene& scene, double end_time, double 
     write();
   } else {
     const double dt = scene.dt;
+    if (!(end_time / dt <= scene::kMaxFemSteps)) {
+      throw scene::SceneError(
+          scene.dt_location + ": run.end_time / dt = " + std::to_string(end_time / dt) +
+          " steps, more than the " + std::to_string(scene::kMaxFemSteps) + " a run may take");
+    }
     const double interval = scene.output.interval > 0.0 ? scene.output.interval : output_interval;
     // The step count that reaches end_time; the 1e-9 keeps an end_time that is a multiple of
     // dt (up to round-off) from taking one step too many.
@@ -95,13 +96,52 @@ FemRunSummary run_fem_standalone(const FemScene& scene, double end_time, double 
   if (progress) {
     char line[240];
     std::snprintf(line, sizeof line,
-                  "fem: done, %s, t = %.6g s, %lld steps, max |u| = %.6g m, %zu outputs, %.2f s\n",
-                  scene.analysis == Analysis::dynamic ? "dynamic" : "static", summary.end_time,
+                  "fem: done, %s (%s backend), t = %.6g s, %lld steps, max |u| = %.6g m, %zu "
+                  "outputs, %.2f s\n",
+                  analysis_name(scene.analysis), backend_kind_name(scene.backend), summary.end_time,
                   static_cast<long long>(summary.steps), summary.max_displacement, summary.outputs,
                   summary.wall_seconds);
     *progress << line << std::flush;
   }
   return summary;
+}
+
+}  // namespace
+
+FemRunSummary run_fem_standalone(const FemScene& scene, double end_time, double output_interval,
+                                 const std::filesystem::path& dir, const std::string& name,
+                                 std::ostream* progress) {
+  if (scene.analysis == Analysis::modal) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const ModalRunSummary m = run_modal_analysis(scene, dir, progress);
+    FemRunSummary summary;
+    summary.outputs = m.frequencies_hz.size();
+    summary.wall_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return summary;
+  }
+  if (scene.analysis == Analysis::dynamic && !(scene.dt > 0.0)) {
+    throw scene::SceneError(scene.dt_location +
+                            ": is required (> 0 s) for a dynamic FEM run without a coupler");
+  }
+  switch (scene.backend) {
+    case FemBackendKind::modal: {
+      ModalSolver solver(scene.problem, scene.modal);
+      return run_solver(solver, scene, end_time, output_interval, dir, name, progress);
+    }
+    case FemBackendKind::rigid: {
+      RigidSolver solver(scene.problem, scene.rigid);
+      return run_solver(solver, scene, end_time, output_interval, dir, name, progress);
+    }
+    case FemBackendKind::external:
+      throw std::invalid_argument(
+          "fem.backend = \"external\": the structure is modelled by the program of "
+          "fem.command, which fem_server cannot run; run the scene with demfem run");
+    case FemBackendKind::fem:
+      break;
+  }
+  FemSolver solver(scene.problem);
+  return run_solver(solver, scene, end_time, output_interval, dir, name, progress);
 }
 
 }  // namespace demfem::fem

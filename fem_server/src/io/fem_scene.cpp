@@ -347,11 +347,15 @@ void check_model(const Table& fem, FemScene& s, const std::vector<MaterialOrigin
                         "range " +
                         range_text(0.0, kMaxDensity) + " kg/m^3");
     if (m.density > 0.0) continue;
-    if (s.analysis == Analysis::dynamic)
-      fail_material(fem, o, "density",
-                    "is 0 (or not given), but fem.analysis = \"dynamic\" needs mass: give a "
-                    "density > 0 kg/m^3 (a massless part has no dynamics; the mass matrix would "
-                    "be singular)");
+    if (s.analysis != Analysis::static_analysis || s.backend != FemBackendKind::fem)
+      fail_material(
+          fem, o, "density",
+          "is 0 (or not given), but " +
+              (s.analysis != Analysis::static_analysis
+                   ? std::string("fem.analysis = \"") + analysis_name(s.analysis) + "\""
+                   : std::string("fem.backend = \"") + backend_kind_name(s.backend) + "\"") +
+              " needs mass: give a density > 0 kg/m^3 (a massless part has no "
+              "dynamics; the mass matrix would be singular)");
     if (gravity)
       fail_material(fem, o, "density",
                     "is 0 (or not given), but fem.gravity is set: the weight of the elements of "
@@ -390,7 +394,75 @@ void check_model(const Table& fem, FemScene& s, const std::vector<MaterialOrigin
   }
 }
 
+/// [fem.modal]: modes of the analysis and of the modal backend.
+void read_modal(const Table& fem, FemScene& s) {
+  auto m = fem.table("modal");
+  if (!m) return;
+  s.modal.modes = static_cast<int>(m->integer("modes", s.modal.modes, 1, 100000));
+  s.modal.shift = m->number("shift", 0.0);
+  s.modal.static_correction = m->boolean("static_correction", true);
+  m->finish();
+}
+
+/// [fem.rigid]: springs, dashpots, fixed DOFs and the reference point of the rigid body.
+void read_rigid(const Table& fem, FemScene& s) {
+  auto r = fem.table("rigid");
+  if (!r) return;
+  for (const Table& t : r->tables("springs")) {
+    RigidSpring sp;
+    sp.point = t.vec3("point");
+    sp.stiffness = t.vec3("stiffness", Range::closed(0.0, 1e15));
+    sp.damping = t.vec3("damping", {0.0, 0.0, 0.0}, Range::closed(0.0, 1e15));
+    t.finish();
+    s.rigid.springs.push_back(sp);
+  }
+  if (r->has("fixed")) {
+    static const char* names[6] = {"x", "y", "z", "rx", "ry", "rz"};
+    for (const auto& d : r->strings("fixed")) {
+      const auto it = std::find(std::begin(names), std::end(names), lower(d));
+      if (it == std::end(names))
+        r->fail("fixed", "\"" + d +
+                             "\" is not a DOF of the body; accepted: \"x\", \"y\", \"z\", \"rx\", "
+                             "\"ry\", \"rz\"");
+      s.rigid.fixed[static_cast<std::size_t>(it - std::begin(names))] = true;
+    }
+    if (std::all_of(s.rigid.fixed.begin(), s.rigid.fixed.end(), [](bool b) { return b; }))
+      r->fail("fixed", "fixes all six DOFs: the body could not move at all");
+  }
+  if (r->has("reference_point")) {
+    s.rigid.reference_point = r->vec3("reference_point");
+    s.rigid.has_reference_point = true;
+  }
+  r->finish();
+}
+
 }  // namespace
+
+const char* analysis_name(Analysis analysis) {
+  switch (analysis) {
+    case Analysis::static_analysis:
+      return "static";
+    case Analysis::dynamic:
+      return "dynamic";
+    case Analysis::modal:
+      return "modal";
+  }
+  return "?";
+}
+
+const char* backend_kind_name(FemBackendKind kind) {
+  switch (kind) {
+    case FemBackendKind::fem:
+      return "fem";
+    case FemBackendKind::modal:
+      return "modal";
+    case FemBackendKind::rigid:
+      return "rigid";
+    case FemBackendKind::external:
+      return "external";
+  }
+  return "?";
+}
 
 TimeFunction read_time_function(const Table& a) {
   const std::string type = a.choice("type", {"constant", "table", "sine", "sleeper"});
@@ -432,9 +504,29 @@ TimeFunction read_time_function(const Table& a) {
 FemScene read_fem_scene(const Table& fem) {
   FemScene s;
   const bool analysis_given = fem.has("analysis");
-  s.analysis = fem.choice("analysis", "dynamic", {"static", "dynamic"}) == "static"
-                   ? Analysis::static_analysis
-                   : Analysis::dynamic;
+  const std::string analysis = fem.choice("analysis", "dynamic", {"static", "dynamic", "modal"});
+  s.analysis = analysis == "static"  ? Analysis::static_analysis
+               : analysis == "modal" ? Analysis::modal
+                                     : Analysis::dynamic;
+  const std::string backend = fem.choice("backend", "fem", {"fem", "modal", "rigid", "external"});
+  s.backend = backend == "modal"      ? FemBackendKind::modal
+              : backend == "rigid"    ? FemBackendKind::rigid
+              : backend == "external" ? FemBackendKind::external
+                                      : FemBackendKind::fem;
+  if (s.analysis == Analysis::modal && s.backend != FemBackendKind::fem)
+    fem.fail("backend", "is \"" + backend +
+                            "\", but fem.analysis = \"modal\" computes the natural frequencies of "
+                            "the FEM model itself: leave fem.backend out (or \"fem\")");
+  if (s.backend == FemBackendKind::external) {
+    s.command = fem.strings("command");
+    if (s.command.front().empty())
+      fem.fail("command", "names no program (its first entry is empty)");
+  } else {
+    // Kept for when the scene runs with fem.backend = "external" (demfem run --fem-backend
+    // chooses per run); unused by demfem's own backends.
+    fem.skip("command");
+  }
+  fem.skip("external");  // the outside program's own keys
   s.dt = fem.number("dt", 0.0, Range::open_closed(0.0, 1e6));
   s.dt_location = fem.where("dt");
 
@@ -486,6 +578,8 @@ FemScene read_fem_scene(const Table& fem) {
         b->number("beta", 0.25 * (1.0 - alpha) * (1.0 - alpha), Range{0.0, 1.0, true, false});
     b->finish();
   }
+  read_modal(fem, s);
+  read_rigid(fem, s);
   if (auto d = fem.table("damping")) {
     // Upper bounds: beyond them every mode of interest is overdamped (a typo guard, and the
     // effective matrix stays finite for any accepted dt).
@@ -527,7 +621,14 @@ FemScene read_fem_scene(const Table& fem) {
     }
     o->finish();
   }
-  if (auto m = fem.table("monitor")) s.monitor = read_fem_monitor(*m, p.mesh);
+  if (auto m = fem.table("monitor")) {
+    if (s.backend != FemBackendKind::fem)
+      fem.fail("monitor", std::string("needs fem.backend = \"fem\" (the full FEM), not \"") +
+                              backend_kind_name(s.backend) +
+                              "\": it reads the whole displacement field every step, which the "
+                              "reduced backends do not hold; remove [fem.monitor] for this run");
+    s.monitor = read_fem_monitor(*m, p.mesh);
+  }
   if (s.output.fields.empty()) {
     for (const char* k : kFemOutputFields) s.output.fields.emplace_back(k);
   }

@@ -14,4 +14,23 @@ FemFields gather_fields(const FemSolver& solver) {
   return f;
 }
 
+FemFields gather_fields(const ModalSolver& solver) {
+  FemFields f;
+  f.time = solver.time();
+  f.displacement = solver.displacements();
+  f.velocity = solver.velocities();
+  f.acceleration = solver.accelerations();
+  f.elements = solver.element_results();
+  return f;
+}
+
+FemFields gather_fields(const RigidSolver& solver) {
+  FemFields f;
+  f.time = solver.time();
+  f.displacement = solver.displacements();
+  f.velocity = solver.velocities();
+  f.acceleration = solver.accelerations();
+  return f;
+}
+
 }  // namespace demfem::fem

@@ -26,7 +26,11 @@ void apply_inp_history(const InpModel& inp, const scene::Table& fem, const scene
   };
   if (step.present) {
     const Analysis deck = step.dynamic ? Analysis::dynamic : Analysis::static_analysis;
-    if (!analysis_given && deck != s.analysis) {
+    if (s.analysis == Analysis::modal) {
+      s.notes.push_back(fem.where("analysis") + ": fem.analysis = \"modal\" computes the natural "
+                        "frequencies; the deck's " + (step.dynamic ? "*DYNAMIC" : "*STATIC") +
+                        " step and its loads do not change them (" + step.procedure_where + ")");
+    } else if (!analysis_given && deck != s.analysis) {
       // The coupler reads fem.analysis from the scene alone: the deck cannot change it.
       fail(step.procedure_where,
            std::string("the deck's step is ") + (step.dynamic ? "*DYNAMIC" : "*STATIC") +
@@ -36,12 +40,12 @@ void apply_inp_history(const InpModel& inp, const scene::Table& fem, const scene
                "value to override it");
     } else if (deck != s.analysis) {
       s.notes.push_back(fem.where("analysis") + ": fem.analysis = \"" +
-                        (s.analysis == Analysis::dynamic ? "dynamic" : "static") +
+                        analysis_name(s.analysis) +
                         "\" overrides the deck's " + (step.dynamic ? "*DYNAMIC" : "*STATIC") +
                         " (" + step.procedure_where + ")");
     }
   }
-  const bool dynamic = s.analysis == Analysis::dynamic;
+  const bool dynamic = s.analysis != Analysis::static_analysis;
   // Abaqus' amplitude semantics in demfem's terms: `factor` multiplies the magnitude, the
   // returned function (empty = constant 1) varies it in time.
   auto amplitude = [&](const std::string& name, const std::string& where, double& factor,

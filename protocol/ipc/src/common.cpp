@@ -45,10 +45,27 @@ const char* message_kind_name(MessageKind kind) {
 PeerDied::PeerDied(Role role, const std::string& why)
     : ProtocolError(std::string(role_name(role)) + " solver died: " + why), role_(role) {}
 
-SolverError::SolverError(Role role, const std::string& text)
-    : ProtocolError(std::string(role_name(role)) + " solver reported an error: " + text),
+const char* error_kind_name(ErrorKind kind) {
+  switch (kind) {
+    case ErrorKind::failure:
+      return "failure";
+    case ErrorKind::bad_input:
+      return "bad_input";
+    case ErrorKind::blow_up:
+      return "blow_up";
+  }
+  return "failure";
+}
+
+SolverError::SolverError(Role role, const std::string& text, ErrorKind kind)
+    : ProtocolError(std::string(role_name(role)) + " solver reported " +
+                    (kind == ErrorKind::bad_input ? "a bad model"
+                     : kind == ErrorKind::blow_up ? "a blow-up"
+                                                  : "an error") +
+                    ": " + text),
       role_(role),
-      text_(text) {}
+      text_(text),
+      kind_(kind) {}
 
 VersionMismatch::VersionMismatch(Role role, std::uint32_t ours, std::uint32_t theirs)
     : ProtocolError(std::string("protocol version mismatch: the ") + role_name(role) +

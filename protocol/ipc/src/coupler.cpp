@@ -15,6 +15,13 @@ namespace demfem::protocol {
 
 namespace {
 
+// A solver's Error message as the exception the caller sees, with its text and kind.
+SolverError solver_error(Role role, const shm::Message& msg) {
+  const auto payload = msg.get<shm::ErrorPayload>();
+  return SolverError(role, shm::read_text(payload.text, shm::kErrorTextLength),
+                     shm::error_kind_of(payload));
+}
+
 // ---- Removal on exit() and fatal signals --------------------------------------------------
 // Segment paths registered by live sessions. A fixed array of plain chars so that the signal
 // handler can read it (unlink() is async-signal-safe; shm_unlink is unlink in /dev/shm).
@@ -151,8 +158,7 @@ struct CouplerSession::Impl {
       };
     }
     shm::Message msg = shm::pop(channel(role).to_coupler, w);
-    if (msg.kind == MessageKind::error)
-      throw SolverError(role, shm::read_text(msg.get<shm::TextPayload>().text, shm::kTextLength));
+    if (msg.kind == MessageKind::error) throw solver_error(role, msg);
     return msg;
   }
 
@@ -275,8 +281,7 @@ void CouplerSession::wait_hello(Role role, std::optional<pid_t> pid) {
     }
   };
   shm::Message msg = shm::pop(s.channel(role).to_coupler, w);
-  if (msg.kind == MessageKind::error)
-    throw SolverError(role, shm::read_text(msg.get<shm::TextPayload>().text, shm::kTextLength));
+  if (msg.kind == MessageKind::error) throw solver_error(role, msg);
   if (msg.kind != MessageKind::hello)
     throw ProtocolError(std::string("expected hello from the ") + role_name(role) +
                         " solver, got " + message_kind_name(msg.kind));
@@ -284,9 +289,9 @@ void CouplerSession::wait_hello(Role role, std::optional<pid_t> pid) {
   if (hello.version != kProtocolVersion) {
     shm::Message err;  // payload left unset: only payload_size bytes travel
     err.kind = MessageKind::error;
-    shm::TextPayload text{};
+    shm::ErrorPayload text{};
     const VersionMismatch mismatch(role, kProtocolVersion, hello.version);
-    shm::copy_text_truncated(text.text, shm::kTextLength, mismatch.what());
+    shm::copy_text_truncated(text.text, shm::kErrorTextLength, mismatch.what());
     err.set(text);
     s.send(role, err);
     throw mismatch;

@@ -65,6 +65,7 @@ struct CouplerGone {
 // An exception from the backend, to be reported as an Error message.
 struct BackendFailure {
   std::string text;
+  ErrorKind kind = ErrorKind::failure;
 };
 
 // Watches the coupler while the solver computes: the serve loop checks the coupler only while
@@ -145,7 +146,7 @@ class Server {
       return kExitCouplerDied;
     } catch (const BackendFailure& f) {
       std::fprintf(stderr, "%s%s\n", prefix.c_str(), f.text.c_str());
-      send_error(f.text);
+      send_error(f.text, f.kind);
       detach();
       return kExitBackendError;
     } catch (const std::exception& e) {
@@ -180,13 +181,14 @@ class Server {
     shm::push(channel().to_coupler, msg, waiter());
   }
 
-  void send_error(const std::string& text) {
+  void send_error(const std::string& text, ErrorKind kind = ErrorKind::failure) {
     if (!attached_) return;
     try {
       shm::Message msg;  // payload left unset: only payload_size bytes travel
       msg.kind = MessageKind::error;
-      shm::TextPayload payload{};
-      shm::copy_text_truncated(payload.text, shm::kTextLength, text);
+      shm::ErrorPayload payload{};
+      shm::copy_text_truncated(payload.text, shm::kErrorTextLength, text);
+      payload.kind = static_cast<std::uint32_t>(kind);
       msg.set(payload);
       // A full ring means the coupler is not listening; do not wait for it.
       msg.role = static_cast<std::uint16_t>(options_.role);
@@ -218,6 +220,9 @@ class Server {
       return f();
     } catch (const ProtocolError&) {
       throw;  // a message the rules refuse (IterationGate): a protocol error, not the backend's
+    } catch (const BackendError& e) {
+      throw_if_cancelled();
+      throw BackendFailure{std::string(what) + " failed: " + e.what(), e.kind()};
     } catch (const std::exception& e) {
       throw_if_cancelled();
       throw BackendFailure{std::string(what) + " failed: " + e.what()};
@@ -423,8 +428,9 @@ class Server {
           detach();
           return kExitOk;
         case MessageKind::error:
-          throw ProtocolError("the coupler refused: " +
-                              shm::read_text(msg.get<shm::TextPayload>().text, shm::kTextLength));
+          throw ProtocolError(
+              "the coupler refused: " +
+              shm::read_text(msg.get<shm::ErrorPayload>().text, shm::kErrorTextLength));
         default:
           throw ProtocolError(std::string("unexpected message from the coupler: ") +
                               message_kind_name(msg.kind));

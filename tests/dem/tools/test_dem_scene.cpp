@@ -120,6 +120,7 @@ TEST_CASE("a complete [dem] section is read into the settings", "[scene]") {
   CHECK(s.settings.pairs[1].friction == 0.22);  // wheat-steel, symmetric
   CHECK(s.settings.pairs[2].friction == 0.22);
   CHECK(s.settings.pairs[2].rolling_friction == 0.01);
+  CHECK(s.settings.pairs[2].rocking_damping == 1.0);  // polyhedra: critical by default
   CHECK(s.settings.pairs[3].restitution == 0.5);  // steel-steel never meet: default
   REQUIRE(s.walls.size() == 1);
   CHECK(s.walls[0].kind == WallSpec::Kind::box);
@@ -153,6 +154,8 @@ TEST_CASE("[dem] mistakes are errors naming file, line and key", "[scene]") {
        "key 'dem.pairs[1].b': names material \"stel\", which [[dem.materials]] does not define"},
       {"friction = 0.22\nrestitution = 0.4", "friction = 0.22\nrestitution = 0.0",
        "key 'dem.pairs[1].restitution': is 0, outside the accepted range (0, 1]"},
+      {"rolling_friction = 0.01", "rolling_friction = 0.01\nrocking_damping = -0.5",
+       "key 'dem.pairs[1].rocking_damping': is -0.5, outside the accepted range [0, 10]"},
       {"count = 200", "count = 200\nmass = 1.0", "key 'dem.insert[0].count': give exactly one"},
       {"d_max = 0.005", "d_max = 0.002",
        "key 'dem.insert[0].distribution.d_max': must be >= d_min"},
@@ -451,6 +454,12 @@ TEST_CASE("impossible particle counts are refused when the scene is read, naming
   // By mass and repeated: 1 t of 4 mm wheat, 1000 times.
   CHECK_THAT(error_of(replace(kBase, "count = 200", "mass = 1000.0\nevery = 0.001\nuntil = 0.999")),
              Catch::Contains("key 'dem.insert[0].mass'"));
+  // Issue 19 (QA): spheres so small that their mass is 0 in double precision made a mass
+  // target unreachable: the insertion looped for ever (the count estimate said 0).
+  CHECK_THAT(error_of(replace(replace(kBase, "count = 200", "mass = 0.25"),
+                              "d_min = 0.003, d_max = 0.005", "d_min = 1e-300, d_max = 1e-300")),
+             Catch::Contains("key 'dem.insert[0].mass'") &&
+                 Catch::Contains("more particles than can be counted"));
   const DemScene ok = parse(kBase);
   CHECK(estimated_particle_count(ok) == 200.0);
 }

@@ -144,6 +144,14 @@ TEST_CASE("fem.monitor: a rollback to a checkpoint rewrites the same series and 
 }
 
 TEST_CASE("fem.monitor: bad keys name file, line and key", "[fem][monitor]") {
+  auto error_of_text = [](const std::string& text) {
+    try {
+      strip(text);
+    } catch (const scene::SceneError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(no error)");
+  };
   auto error_of = [](const std::string& extra) {
     try {
       strip(std::string(kStrip) + extra);
@@ -164,5 +172,13 @@ TEST_CASE("fem.monitor: bad keys name file, line and key", "[fem][monitor]") {
   } catch (const scene::SceneError& e) {
     CHECK_THAT(e.what(),
                Catch::Contains("fem.monitor.mean_window") && Catch::Contains("strip.toml:"));
+  }
+  // The reduced backends do not hold the displacement field every step: refused, naming both.
+  for (const char* backend : {"modal", "rigid"}) {
+    std::string reduced = kStrip;
+    reduced.insert(reduced.find("[fem]\n") + 6, std::string("backend = \"") + backend + "\"\n");
+    CHECK_THAT(error_of_text(reduced), Catch::Contains("fem.monitor") &&
+                                           Catch::Contains("strip.toml:") &&
+                                           Catch::Contains(std::string("not \"") + backend));
   }
 }

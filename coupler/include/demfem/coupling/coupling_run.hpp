@@ -45,11 +45,14 @@ class BlowUp : public std::runtime_error {
 class SolverFailure : public std::runtime_error {
  public:
   SolverFailure(protocol::Role role, std::int64_t step, double time, const std::string& text,
-                bool died = false)
-      : std::runtime_error(text), role_(role), step_(step), time_(time), died_(died) {}
+                bool died = false, protocol::ErrorKind kind = protocol::ErrorKind::failure)
+      : std::runtime_error(text), role_(role), step_(step), time_(time), died_(died), kind_(kind) {}
   /// The solver process died or stopped answering (protocol::PeerDied), as opposed to
   /// reporting an error: only a death is recovered from a checkpoint (an error would repeat).
   bool died() const { return died_; }
+  /// What the solver reported (protocol::SolverError, or a BackendError in process): a bad
+  /// model (exit 2), a blow-up (exit 3) or a failure (exit 1).
+  protocol::ErrorKind kind() const { return kind_; }
   protocol::Role role() const { return role_; }
   std::int64_t step() const { return step_; }
   double time() const { return time_; }
@@ -59,7 +62,12 @@ class SolverFailure : public std::runtime_error {
   std::int64_t step_;
   double time_;
   bool died_;
+  protocol::ErrorKind kind_;
 };
+
+/// @brief The kind of a solver's error as the coupler received it: a protocol::SolverError's
+/// (three processes), a protocol::BackendError's (in process); failure for anything else.
+protocol::ErrorKind error_kind_of(const std::exception& e);
 
 /// @brief A solver kept dying: it was restarted `max_retries` times from the same
 /// checkpoint and died again. what() names the solver, the checkpoint and every failure.
@@ -74,6 +82,14 @@ class Interrupted : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// @brief The run's output folder is no longer its own (its lock file was removed or replaced:
+/// the folder was deleted, perhaps for another run): the run stops and writes nothing more
+/// there, so that it cannot mix its files with another run's.
+class OutputFolderLost : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 /// @brief The checkpoint given to --resume cannot be continued with this scene: a solver or
 /// the coupler refused its state (a changed mesh or particle count, non-finite values, a
 /// changed scheme). Bad input (exit status 2), not a failure of the run.
@@ -84,7 +100,9 @@ class ResumeRefused : public std::runtime_error {
 
 /// @brief A solver's error text reports a blow-up (a non-finite state, an unstable
 /// integration: "not finite", "blew up") rather than a failure; the launcher exits with
-/// status 3 for these, as for the coupler's own blow-up checks.
+/// status 3 for these, as for the coupler's own blow-up checks. Only for errors of kind
+/// failure: a solver that does not classify its errors (an outside backend throwing plain
+/// exceptions); demfem's own solvers send ErrorKind::blow_up.
 bool is_blow_up_report(const std::string& text);
 
 /// @brief Diagnostics of one coupling step (one CSV row).
@@ -158,10 +176,17 @@ struct RunControl {
   std::function<void(protocol::Role role, std::int64_t step)> after_send;
   /// Messages about checkpoints and recovery (stderr in demfem_run).
   std::function<void(const std::string&)> report;
+  /// Called before every coupling step and checkpoint; throws OutputFolderLost when the output
+  /// folder is no longer this run's (demfem_run checks its folder lock, at most once a second).
+  std::function<void()> check_output_folder;
   /// Recorded in every checkpoint (coupler.h5): scene_hash() of the scene, so that a resume
   /// can tell a changed scene; and the absolute output folder, so that a run resumed into
   /// another folder finds the series it continues.
   std::string scene_hash;
+  /// The FEM backend of the run ("fem", "modal", "rigid", "external"), recorded in every
+  /// checkpoint (coupler.h5 attribute fem_backend, with the name the FEM announced in
+  /// fem_backend_name), so that a resume with another backend knows what wrote fem.h5.
+  std::string fem_backend;
 };
 
 /// @brief Counts of the reliability machinery in one run.

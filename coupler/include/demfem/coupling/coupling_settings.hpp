@@ -10,6 +10,7 @@
 #include <limits>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "demfem/coupling/acceleration.hpp"
 #include "demfem/interface/interface_mesh.hpp"
@@ -91,6 +92,16 @@ struct CouplingSettings {
   ImplicitSettings implicit;  ///< scheme == implicit
   /// FEM-only runs: a single static solve (from [fem].analysis = "static").
   bool fem_static = false;
+  /// [fem].analysis = "modal": the natural frequencies, computed by the launcher itself (no
+  /// solver process, no coupling steps).
+  bool fem_modal = false;
+  /// [fem].backend: "fem", "modal", "rigid" (fem_server serves them) or "external" (the
+  /// program of fem.command); `demfem run --fem-backend` overrides it (docs/backends.md).
+  std::string fem_backend = "fem";
+  /// [fem].command of an external backend: program and arguments as the scene gives them, and
+  /// where (for messages).
+  std::vector<std::string> fem_command;
+  std::string fem_command_where;
 
   double dem_dt = 0.0;            ///< [dem].dt, s
   double fem_dt = 0.0;            ///< [fem].dt, s
@@ -126,7 +137,8 @@ inline constexpr double kSubstepTolerance = 1e-9;
 /// (1e300, 1e-20) is refused before any process starts instead of overflowing or hanging.
 inline constexpr std::int64_t kMaxCouplingSteps = 1'000'000'000;  ///< coupling steps of a run
 inline constexpr std::int64_t kMaxDemSubsteps = 1'000'000'000;    ///< n_D of one coupling step
-inline constexpr double kMaxDemSteps = 1e12;                      ///< DEM steps of a run
+inline constexpr double kMaxDemSteps = scene::kMaxDemSteps;       ///< DEM steps of a run
+static_assert(kMaxCouplingSteps == scene::kMaxFemSteps, "a solver alone has the same limit");
 
 /// @brief n_D = fem_dt / dem_dt when it is an integer within kSubstepTolerance (relative)
 /// and at most kMaxDemSubsteps; otherwise throws scene::SceneError naming both keys, their

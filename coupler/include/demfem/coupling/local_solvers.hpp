@@ -19,6 +19,9 @@ struct SolverSections {
   std::size_t dem_setup_particles = 0;  ///< particles of the DEM's set-up (DemRun)
   std::size_t fem_nodes = 0;            ///< nodes and elements of the FEM mesh
   std::size_t fem_elements = 0;
+  /// Interface nodes of demfem's own FEM backends (fem, modal, rigid: one interface
+  /// definition); 0 when not known (an external program's interface is its own).
+  std::size_t fem_interface_nodes = 0;
 };
 
 /// @brief Reads [dem] and [fem] with the solvers' own readers and makes the checks the solvers
@@ -41,5 +44,10 @@ std::unique_ptr<protocol::SolverBackend> make_local_fem(const scene::Document& s
                                                         const CouplingSettings& settings,
                                                         const std::filesystem::path& output_dir,
                                                         bool resume = false);
+
+/// @brief A backend made by make_local_dem / make_local_fem writes no end state when it is
+/// destroyed: its output folder is no longer the run's (OutputFolderLost). No effect on other
+/// backends or nullptr.
+void drop_end_state(protocol::SolverBackend* backend);
 
 }  // namespace demfem::coupling

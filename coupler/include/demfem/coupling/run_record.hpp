@@ -34,7 +34,11 @@ struct RunRecord {
   std::vector<std::string> command_line;
   std::string host;
   pid_t pid = 0;
-  std::string dem_backend;      ///< "" = no DEM
+  std::string dem_backend;  ///< "" = no DEM
+  /// The FEM backend of this run ("fem", "modal", "rigid", "external"; "" = no FEM) and, for an
+  /// external one, its command line.
+  std::string fem_backend;
+  std::vector<std::string> fem_command;
   int dem_threads = 0;          ///< threads of the DEM's CPU backend (dem.threads or OpenMP's)
   std::string omp_num_threads;  ///< the OMP_NUM_THREADS environment variable ("" = unset)
   unsigned hardware_threads = 0;
@@ -52,13 +56,20 @@ std::string to_json(const RunRecord& record);
 /// @brief Writes <dir>/run.json atomically (io::write_file_atomic).
 void write_run_record(const std::filesystem::path& dir, const RunRecord& record);
 
-/// @brief The status, pid and start time of the run.json in `dir`, if there is one.
+/// @brief The status, pid, host and start time of the run.json in `dir`, if there is one.
 struct RecordedRun {
   std::string status;
   pid_t pid = 0;
+  std::string host;
   std::string start_time;
 };
 std::optional<RecordedRun> read_run_status(const std::filesystem::path& dir);
+
+/// @brief The run a record says is `running` is still running: on this host, its pid is a
+/// live demfem_run (or coupler) process that started no later than the record says (a pid
+/// reused by a later process is not it). The folder lock says the same unless its file was
+/// removed (rm -rf of the folder, a clean-up of dot files): then this is what still tells.
+bool recorded_run_alive(const RecordedRun& run);
 
 /// @brief FNV-1a 64 (16 hex digits) of the scene file's bytes followed by every override
 /// ("\n" + KEY=VALUE), so that a change of either changes the hash. Throws naming the file.

@@ -25,6 +25,25 @@ using protocol::Role;
 using protocol::StepCommand;
 using protocol::StepResult;
 
+/// @brief A solver reported an error, or broke the protocol, in its handshake (Hello, mesh
+/// exchange); what() names the process (its program and pid) and the cause.
+class HandshakeFailed : public protocol::ProtocolError {
+ public:
+  HandshakeFailed(Role role, const std::string& text) : ProtocolError(text), role_(role) {}
+  Role role() const { return role_; }
+
+ private:
+  Role role_;
+};
+
+/// @brief The FEM reported another interface size than the run expects (the scene's
+/// interface for demfem's own backends, the checkpoint's for a resume, the first process's for
+/// a restart); what() names the process and both sizes. Bad input: the backend does not fit.
+class InterfaceMismatch : public protocol::ProtocolError {
+ public:
+  using ProtocolError::ProtocolError;
+};
+
 /// @brief The solvers of one run, as the coupling schemes see them.
 class SolverLink {
  public:
@@ -105,6 +124,16 @@ class RemoteLink final : public SolverLink {
   /// without a pid is not part of the run.
   RemoteLink(protocol::CouplerSession& session, std::optional<pid_t> dem_pid,
              std::optional<pid_t> fem_pid);
+  /// How messages name a solver process ("fem_server (pid 123)"); default: the role.
+  void describe(Role role, std::string text) {
+    descriptions_[static_cast<std::size_t>(role)] = std::move(text);
+  }
+  /// The FEM must report `nodes` interface nodes in its Hello (`what`: where that size comes
+  /// from, for the message); start() throws InterfaceMismatch otherwise.
+  void expect_fem_interface(std::size_t nodes, std::string what) {
+    expected_fem_nodes_ = nodes;
+    expected_fem_what_ = std::move(what);
+  }
 
   bool has(Role role) const override;
   InterfaceMesh start() override;
@@ -118,8 +147,12 @@ class RemoteLink final : public SolverLink {
   void restore(Role role, const std::filesystem::path& file, std::int64_t step) override;
 
  private:
+  std::string description(Role role) const;
   protocol::CouplerSession& session_;
   std::optional<pid_t> pids_[protocol::kRoleCount];
+  std::string descriptions_[protocol::kRoleCount];
+  std::optional<std::size_t> expected_fem_nodes_;
+  std::string expected_fem_what_;
 };
 
 }  // namespace demfem::coupling

@@ -40,6 +40,11 @@ class SolverProcess {
   /// or a signal to the launcher's process group: the launcher forwards SIGTERM, and a
   /// solver whose launcher is gone leaves by itself (docs/reliability.md).
   void set_own_session(bool own) { own_session_ = own; }
+  /// The folder the process starts in (empty, the default: the launcher's own).
+  void set_working_directory(std::filesystem::path dir) { working_directory_ = std::move(dir); }
+  const std::filesystem::path& executable() const { return executable_; }
+  /// The command line, for messages: "python3 backend.py --scene ...".
+  std::string command_text() const;
   const std::string& label() const { return label_; }
   /// True while the process runs (reaps it when it has ended).
   bool running();
@@ -58,6 +63,7 @@ class SolverProcess {
   std::string label_;
   std::filesystem::path executable_;
   std::vector<std::string> arguments_;
+  std::filesystem::path working_directory_;
   pid_t pid_ = -1;
   int slot_ = -1;
   bool own_session_ = false;

@@ -85,8 +85,12 @@ class DemBackend final : public protocol::SolverBackend {
       }
     } catch (const Unstable& e) {
       // A blow-up, reported as one (the coupler exits with status 3, docs/coupling.md).
-      throw std::runtime_error("dem: step " + std::to_string(cmd.step) +
-                               ": the DEM blew up: " + e.what());
+      throw protocol::BackendError(
+          protocol::ErrorKind::blow_up,
+          "dem: step " + std::to_string(cmd.step) + ": the DEM blew up: " + e.what());
+    } catch (const scene::SceneError& e) {
+      // Something of the scene that only the run can tell (a sensor, an insertion): bad input.
+      throw protocol::BackendError(protocol::ErrorKind::bad_input, e.what());
     }
     protocol::StepResult r;
     if (coupled) {
@@ -94,9 +98,10 @@ class DemBackend final : public protocol::SolverBackend {
       sys.flexible_forces(forces);
       for (double f : forces) {
         if (!std::isfinite(f)) {
-          throw std::runtime_error("dem: step " + std::to_string(cmd.step) +
-                                   ": an interface force is not finite (the DEM blew up; "
-                                   "reduce dem.dt)");
+          throw protocol::BackendError(protocol::ErrorKind::blow_up,
+                                       "dem: step " + std::to_string(cmd.step) +
+                                           ": an interface force is not finite (the DEM blew up; "
+                                           "reduce dem.dt)");
         }
       }
       const auto x = sys.flexible_positions();
@@ -107,8 +112,10 @@ class DemBackend final : public protocol::SolverBackend {
     r.values[1] = sys.kinetic_energy();
     r.values[2] = sys.max_overlap();
     if (!std::isfinite(r.values[1])) {
-      throw std::runtime_error("dem: step " + std::to_string(cmd.step) +
-                               ": kinetic energy is not finite (the DEM blew up; reduce dem.dt)");
+      throw protocol::BackendError(
+          protocol::ErrorKind::blow_up,
+          "dem: step " + std::to_string(cmd.step) +
+              ": kinetic energy is not finite (the DEM blew up; reduce dem.dt)");
     }
     return r;
   }

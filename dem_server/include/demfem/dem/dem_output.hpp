@@ -23,10 +23,23 @@ namespace demfem::dem {
 /// radius (n), mass (n), material (n, int64), id (n, int64), vertex (n, int64: 0 .. n-1, the
 /// Polyvertex connectivity) and file attributes time (s, the nominal output time),
 /// state_time (s, the time of the state written; see io::OutputSchedule) and count; index
-/// <dir>/<stem>.xdmf.
+/// <dir>/<stem>.xdmf. With polyhedra (set_shapes): also surface_points (m x 3),
+/// surface_velocity (m x 3: the rigid-body velocity at each point), surface_triangles
+/// (t x 3, int64), surface_id and surface_material (t, int64: the particle of each triangle),
+/// attributes surface_points and surface_triangles; the snapshot's index entry is then a
+/// spatial collection of the particles' points and the "polyhedra" surfaces.
 class ParticleOutput {
  public:
   ParticleOutput(std::filesystem::path dir, std::string stem = "particles");
+
+  /// The system's shape table (DemSystem::shape(k), k < shape_count()): the dilated
+  /// polyhedra of a snapshot are then also written as triangle surfaces. Each is its core's
+  /// hull with every vertex moved outwards by r_d along the mean normal of its triangles,
+  /// scaled and placed by the particle's pose: an approximation of the dilated surface (its
+  /// faces lie between r_d cos φ and r_d off the core's, φ the angle between a vertex's mean
+  /// normal and its triangles' normals; edges and corners are cut flat where the true surface
+  /// is round).
+  void set_shapes(const std::vector<PolyhedronShape>& shapes);
 
   /// Writes one snapshot labelled `time`, of the state at `state_time` (NaN: = time); `ids`
   /// has one stable id per particle.
@@ -46,7 +59,16 @@ class ParticleOutput {
   struct Entry {
     double time;
     std::size_t count;
+    std::size_t points = 0, triangles = 0;  ///< of the polyhedron surfaces
   };
+  /// A shape's display surface at scale 1, body frame: vertices (3 each), triangles.
+  struct Surface {
+    std::vector<double> vertices;
+    std::vector<std::int64_t> triangles;
+  };
+  std::vector<Surface> surfaces_;
+  /// The <Grid> of the polyhedron surfaces of snapshot k (triangles).
+  void write_polyhedron_grid(std::ostream& x, std::size_t k, const std::string& indent) const;
   void write_index() const;
   /// One <Grid> of spheres (vertex cells) of snapshot k: the place where another particle
   /// kind (polyhedra) adds its own grid function, the snapshot then becoming a spatial

@@ -25,6 +25,10 @@
 
 namespace demfem::dem {
 
+namespace shapes {
+class ShapeLibrary;
+}
+
 /// @brief One [[dem.walls]] entry.
 struct WallSpec {
   enum class Kind { stl, box, plane };
@@ -41,9 +45,28 @@ struct WallSpec {
   std::string where;  ///< file:line of the entry, for errors found later (bad STL)
 };
 
+/// @brief One [[dem.shapes]] entry: a family of dilated polyhedra (a shape library).
+struct ShapeSpec {
+  enum class Kind { random_rock, stl, box, cube, tetrahedron, octahedron, prism, sphere };
+  Kind kind = Kind::random_rock;
+  std::string name;
+  std::int64_t count = 20;          ///< random_rock: shapes in the library
+  int triangles = 30;               ///< random_rock
+  double elongation = 1.0;          ///< random_rock: I / L
+  double flatness = 1.0;            ///< random_rock: S / I
+  bool has_seed = false;            ///< false: run seed + entry index
+  std::uint64_t seed = 1;           ///< random_rock
+  std::vector<std::filesystem::path> stl;  ///< stl: the scanned rocks (one shape each)
+  std::array<double, 3> aspect{1.0, 1.0, 1.0};  ///< box: side ratios; prism: [1, h/a, -]
+  bool volume_equivalent = false;   ///< size: volume-equivalent diameter (else sieve size)
+  double dilation = 0.1;            ///< r_d as a fraction of the size, (0, 0.5)
+  std::string where;                ///< file:line: key of the entry, for errors found later
+};
+
 /// @brief One [[dem.insert]] entry (material index and density resolved).
 struct InsertSpec {
   RandomInsertion request;
+  std::int32_t shape = -1;  ///< index into DemScene::shapes, -1 = spheres
   bool has_seed = false;  ///< false: seed = run seed + entry index
   double every = 0.0;     ///< > 0: repeated every this many seconds (a pour), s
   double until = 0.0;     ///< last time of a repetition, s
@@ -53,7 +76,8 @@ struct InsertSpec {
 /// @brief One [[dem.lattice]] entry.
 struct LatticeSpec {
   LatticeFill request;
-  bool has_seed = false;  ///< false: seed = run seed + kLatticeSeedOffset + entry index
+  std::int32_t shape = -1;  ///< index into DemScene::shapes, -1 = spheres
+  bool has_seed = false;    ///< false: seed = run seed + kLatticeSeedOffset + entry index
   std::string where;
 };
 
@@ -73,6 +97,7 @@ struct DemScene {
   std::string dt_where;       ///< file:line: key 'dem.dt', for the Rayleigh check
   std::string backend_where;  ///< file:line: key 'dem.backend', for an unavailable backend
   std::vector<WallSpec> walls;
+  std::vector<ShapeSpec> shapes;
   std::vector<LatticeSpec> lattices;
   std::vector<InsertSpec> inserts;
   double settle_time = 0.0;               ///< s of settling after insertion (before remove_above)
@@ -225,6 +250,10 @@ class DemRun {
 
   void add(std::span<const ParticleInit> particles);
   void start_output(bool resume);
+
+  /// Per [[dem.shapes]] entry its library and the engine id of its first shape.
+  std::vector<std::unique_ptr<shapes::ShapeLibrary>> libraries_;
+  std::vector<std::int32_t> shape_base_;
 
   std::filesystem::path output_dir_;
   double run_output_interval_ = 0.0;

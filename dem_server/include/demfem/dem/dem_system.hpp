@@ -34,6 +34,9 @@ struct MaterialPair {
   double friction = 0.0;          ///< Coulomb sliding friction coefficient
   double restitution = 0.5;       ///< coefficient of restitution, (0, 1]
   double rolling_friction = 0.0;  ///< rolling resistance coefficient (0 = off)
+  /// Polyhedra: damping of a face contact's rocking as a ratio to critical (docs/polyhedra.md;
+  /// 0 = off). Only with restitution < 1 (no dashpot, no rocking damping).
+  double rocking_damping = 1.0;
 };
 
 /// @brief Global settings of a DEM system.
@@ -55,18 +58,39 @@ struct DemSettings {
   int threads = 0;              ///< CPU threads; 0 = OpenMP default
 };
 
-/// @brief Shape of a particle. Only spheres exist now; dilated polyhedra come later and
-/// will carry an index into a shape table.
-enum class ParticleShape : std::uint8_t { sphere = 0 };
+/// @brief Shape of a particle: a sphere, or a dilated convex polyhedron (thesis §2.1.1: a
+/// convex core ⊕ a sphere of radius r_d) from the system's shape table (add_shape()).
+enum class ParticleShape : std::uint8_t { sphere = 0, polyhedron = 1 };
+
+/// @brief A dilated convex polyhedron for the shape table (DemSystem::add_shape), at scale 1.
+/// Its body frame is the principal frame of the dilated body with the origin at its centre of
+/// mass (the shape library, demfem/dem/shapes, computes these). A particle scales it by
+/// ParticleInit::scale: core, dilation and size by s, volume by s³, inertia by s⁵.
+struct PolyhedronShape {
+  std::string name;
+  /// Core vertices, body frame, 3 per vertex, m. One vertex is a point core (a sphere of radius
+  /// `dilation`), two a segment (a capsule).
+  std::vector<double> vertices;
+  /// Hull triangles of the core, counter-clockwise seen from outside (outward normals); needed
+  /// for four or more vertices (a closed convex surface), empty for fewer.
+  std::vector<std::int32_t> triangles;
+  double dilation = 0.0;             ///< r_d, m (> 0)
+  double volume = 0.0;               ///< volume of the dilated body, m³
+  std::array<double, 3> inertia{};   ///< principal moments of the dilated body / density, m⁵
+};
 
 /// @brief Initial state of a new particle.
 struct ParticleInit {
   std::array<double, 3> position{};
   std::array<double, 3> velocity{};
   std::array<double, 3> angular_velocity{};
-  double radius = 0.0;
+  double radius = 0.0;  ///< sphere radius, m (polyhedra: ignored, the bounding radius is used)
   std::int32_t material = 0;
   ParticleShape shape = ParticleShape::sphere;
+  std::int32_t shape_id = -1;  ///< polyhedron: index returned by DemSystem::add_shape
+  double scale = 1.0;          ///< polyhedron: scale of the shape (> 0)
+  /// Orientation quaternion (w, x, y, z), body to world; normalised (|q| must be 1 ± 1e-6).
+  std::array<double, 4> orientation{1, 0, 0, 0};
 };
 
 /// @brief Host copy of the particle state, structure of arrays (index = particle).
@@ -78,7 +102,13 @@ struct ParticleState {
   std::vector<double> fx, fy, fz;             ///< force of the last step, N
   std::vector<double> radius, mass, inertia;  ///< m, kg, kg m^2
   std::vector<std::int32_t> material;
-  std::vector<std::uint8_t> shape;
+  std::vector<std::uint8_t> shape;  ///< ParticleShape
+  /// Polyhedra: shape table index and scale; spheres: -1 and 1. A polyhedron's `radius` is
+  /// the radius of its bounding sphere (the broad phase), `inertia` the mean of its principal
+  /// moments.
+  std::vector<std::int32_t> shape_id;
+  std::vector<double> scale;
+  std::vector<double> ix, iy, iz;  ///< principal moments of inertia (body frame), kg m^2
   std::size_t size() const { return px.size(); }
 };
 
@@ -139,6 +169,13 @@ class DemSystem {
 
   const DemSettings& settings() const;
 
+  /// Adds a dilated convex polyhedron to the shape table; returns its index (ParticleInit::
+  /// shape_id). Throws std::invalid_argument naming the field when the shape is not a closed
+  /// convex core with positive dilation and mass properties.
+  std::int32_t add_shape(const PolyhedronShape& shape);
+  std::size_t shape_count() const;
+  const PolyhedronShape& shape(std::int32_t id) const;
+
   /// Adds particles (between steps); returns the index of the first one.
   std::size_t add_particles(std::span<const ParticleInit> particles);
   /// Removes the particles whose keep[i] is false; contact history of the others is kept.
@@ -183,7 +220,12 @@ class DemSystem {
   double time() const;
   std::int64_t step_count() const;
 
-  /// Rayleigh time step (thesis eq. 2.27) of the smallest particle, s.
+  /// Smallest radius that a contact's overlap is measured against: a sphere's radius, a
+  /// polyhedron's dilation radius (its cores intersect when the overlap exceeds r_i + r_j), m.
+  double smallest_contact_radius() const;
+
+  /// Rayleigh time step (thesis eq. 2.27) of the smallest particle, s (polyhedra: the radius
+  /// of the sphere of equal volume).
   double rayleigh_time_step() const;
   /// Total kinetic energy (translational + rotational), J.
   double kinetic_energy() const;
@@ -208,6 +250,9 @@ class DemSystem {
   std::size_t neighbour_pairs() const;
   /// Number of particle-particle pairs in contact in the last step.
   std::size_t contact_count() const;
+  /// Bytes held by the host state: particle arrays, pair list with its histories and
+  /// slots, wall-contact slots, shape table (for benchmarks).
+  std::size_t state_bytes() const;
 
   /// Complete state, contact history included, for a bitwise-identical continuation.
   void save(io::H5File& file, const std::string& group) const;

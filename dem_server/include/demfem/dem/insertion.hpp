@@ -12,6 +12,11 @@
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/dem/size_distribution.hpp"
 
+namespace demfem::dem::shapes {
+class ShapeLibrary;
+struct ParticleShape;
+}  // namespace demfem::dem::shapes
+
 namespace demfem::dem {
 
 /// @brief An axis-aligned box, m.
@@ -39,6 +44,13 @@ struct RandomInsertion {
   std::array<double, 3> velocity{};
   std::uint64_t seed = 1;
   std::int64_t max_attempts = 2000;  ///< random positions tried per particle before giving up
+  /// Dilated polyhedra instead of spheres: each particle takes a shape of the library
+  /// (uniform index) at the size drawn from `sizes` (the library's size definition), a
+  /// uniformly random orientation, and the engine shape id shape_base + index (the order in
+  /// which add_library_shapes() added them). Bounding spheres do not overlap; `mass` counts
+  /// the particles' real masses.
+  const shapes::ShapeLibrary* library = nullptr;
+  std::int32_t shape_base = 0;
 };
 
 /// @brief Solid fraction above which random sequential insertion is refused up front. Random
@@ -62,7 +74,10 @@ std::vector<ParticleInit> insert_random(
 
 /// @brief Lattice fill: spheres on a simple cubic lattice of the given spacing filling the
 /// box, lowest layer first; optionally with diameters drawn from a distribution and each sphere
-/// displaced at random (jitter), so that a bed poured from it does not settle in columns.
+/// displaced at random (jitter), so that a bed poured from it does not settle in columns. With
+/// a shape library: dilated polyhedra, the diameter being their size, each with a shape drawn
+/// uniformly and a random orientation; the bounding diameter (of the library's largest shape
+/// at the size) then plays the diameter's part for the spacing, the jitter and the inset.
 struct LatticeFill {
   Box region;
   double diameter = 0.0;  ///< m; with `has_sizes`, the largest diameter of `sizes`
@@ -74,10 +89,12 @@ struct LatticeFill {
   /// along some axis, so they stay at least (d_i + d_j) / 2 apart: no overlap; the lattice is
   /// inset by the largest such displacement, so the spheres stay inside the box.
   double jitter = 0.0;
-  std::uint64_t seed = 1;  ///< Rng seed of the diameters and displacements
+  std::uint64_t seed = 1;  ///< Rng seed of the diameters, displacements, shapes, orientations
   std::int32_t material = 0;
   std::array<double, 3> velocity{};
   std::int64_t max_count = 0;  ///< 0 = as many as fit
+  const shapes::ShapeLibrary* library = nullptr;
+  std::int32_t shape_base = 0;
 };
 
 /// @brief How many spheres a lattice fill places (in double: a typo can ask for more than
@@ -109,5 +126,18 @@ std::size_t remove_above(DemSystem& system, double height);
 
 /// @brief Mass of a sphere of diameter d and density rho, kg.
 double sphere_mass(double diameter, double density);
+
+/// @brief The engine's description of a shape of the shape library (its core, r_d, volume
+/// and principal moments at the shape's own size).
+PolyhedronShape engine_shape(const shapes::ParticleShape& shape, std::string name);
+
+/// @brief Adds the library's unit shapes to the system's shape table, in order; returns the
+/// engine id of the first (RandomInsertion::shape_base).
+std::int32_t add_library_shapes(DemSystem& system, const shapes::ShapeLibrary& library,
+                                const std::string& name);
+
+/// @brief A uniformly distributed random rotation (unit quaternion w, x, y, z; Shoemake's
+/// method, from three uniforms of rng).
+std::array<double, 4> random_orientation(Rng& rng);
 
 }  // namespace demfem::dem

@@ -81,6 +81,7 @@ struct OverlapReport {
   std::int64_t i = -1, j = -1;
   std::size_t touching = 0;  ///< pairs that touch at all
 };
+/// Spheres only: polyhedra (from a state with history, which ran with them) are skipped.
 OverlapReport largest_overlap(const ParticleState& particles, std::span<const WallMesh> walls);
 
 }  // namespace demfem::dem

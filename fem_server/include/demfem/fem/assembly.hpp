@@ -4,6 +4,7 @@
 // on these; tests (eigenfrequencies) and benchmarks use them directly.
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include <Eigen/Dense>
@@ -49,6 +50,16 @@ Eigen::VectorXd nodal_load_vector(const FemProblem& problem, const DofMap& dofs,
 Eigen::VectorXd gravity_load_vector(const FemProblem& problem, const DofMap& dofs,
                                     const SparseMatrix& mass);
 
+/// @brief The external loads of a problem over all DOFs: `constant` (self weight and the loads
+/// without an amplitude, summed in the order pressures, nodal loads) and one vector per load
+/// with an amplitude, at amplitude 1 (the load is amplitude(t) times the vector).
+struct LoadVectors {
+  Eigen::VectorXd constant;
+  std::vector<std::pair<Eigen::VectorXd, TimeFunction>> timed;
+};
+LoadVectors load_vectors(const FemProblem& problem, const DofMap& dofs,
+                         const SparseMatrix& full_mass);
+
 /// @brief Unit nodal directors of shell nodes (average of the adjacent element normals),
 /// zero for nodes of no shell element; and the mean thickness of their elements.
 void shell_nodal_directors(const FemProblem& problem, std::vector<Eigen::Vector3d>& directors,
@@ -63,5 +74,15 @@ struct InterfaceMap {
   std::vector<Eigen::Vector3d> offset;
 };
 InterfaceMap build_interface(const FemProblem& problem);
+
+/// @brief B (free DOFs x 3 interface nodes): the nodal loads of unit interface forces, i.e.
+/// F = B f for interface forces f; a force on a shell's offset surface also gives the moment
+/// (offset x force) on the mid-surface node. Its transpose maps free-DOF displacements to the
+/// interface node displacements (x = x_mid + u + theta x offset), by virtual work.
+SparseMatrix interface_load_matrix(const DofMap& dofs, const InterfaceMap& iface);
+
+/// @brief Checks interface forces handed to a solver (`who`, for the message): 3 values per
+/// interface node (`expected` in all), all finite. Throws std::invalid_argument.
+void check_interface_forces(std::span<const double> forces, std::size_t expected, const char* who);
 
 }  // namespace demfem::fem

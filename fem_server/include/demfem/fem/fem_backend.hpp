@@ -12,9 +12,15 @@
 #include <string>
 #include <vector>
 
+#include <cstdio>
+#include <iostream>
+#include <type_traits>
+
 #include "demfem/fem/fem_monitor.hpp"
 #include "demfem/fem/fem_output.hpp"
 #include "demfem/fem/fem_solver.hpp"
+#include "demfem/fem/modal_solver.hpp"
+#include "demfem/fem/rigid_solver.hpp"
 #include "demfem/io/checkpoint_file.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem/io/output_schedule.hpp"
@@ -22,7 +28,74 @@
 
 namespace demfem::fem {
 
-/// @brief protocol::SolverBackend around a FemSolver.
+// What distinguishes the solvers of demfem's FEM backends for their protocol adapter: the
+// name in Hello, the kind recorded in a checkpoint (docs/backends.md) and the largest
+// displacement of the step diagnostic.
+inline const char* backend_kind(const FemSolver&) {
+  return "fem";
+}
+inline const char* backend_kind(const ModalSolver&) {
+  return "modal";
+}
+inline const char* backend_kind(const RigidSolver&) {
+  return "rigid";
+}
+inline std::string backend_label(const FemSolver&) {
+  return "demfem-fem 0.1 (cpu)";
+}
+inline std::string backend_label(const ModalSolver& s) {
+  return "demfem-modal 0.1 (" + std::to_string(s.mode_count()) + " modes" +
+         (s.settings().static_correction ? " + static correction)" : ")");
+}
+inline std::string backend_label(const RigidSolver&) {
+  return "demfem-rigid 0.1 (rigid body)";
+}
+/// Largest nodal |u| (FEM: every node; the reduced models: the interface nodes).
+inline double step_max_displacement(const FemSolver& s) {
+  const auto u = s.displacements();
+  double umax = 0.0;
+  for (std::size_t i = 0; i + 2 < u.size(); i += 3)
+    umax = std::max(umax, std::sqrt(u[i] * u[i] + u[i + 1] * u[i + 1] + u[i + 2] * u[i + 2]));
+  return umax;
+}
+inline double step_max_displacement(const ModalSolver& s) {
+  return s.max_interface_displacement();
+}
+inline double step_max_displacement(const RigidSolver& s) {
+  return s.max_interface_displacement();
+}
+/// A note about a state restored from another backend's checkpoint (stderr).
+inline std::string restore_note(const FemSolver&) {
+  return {};
+}
+inline std::string restore_note(const ModalSolver& s) {
+  return s.restore_report();
+}
+inline std::string restore_note(const RigidSolver&) {
+  return {};
+}
+
+/// @brief Whether a checkpoint written by the backend `from` can be restored by `to`, and why
+/// not (empty = it can). The full FEM and the modal backend share the full state (fem.h5's
+/// group "fem": the modal backend writes its reconstruction there); the rigid body has six
+/// coordinates of its own; an external program's file is its own format.
+inline std::string checkpoint_swap_refusal(const std::string& from, const std::string& to) {
+  if (from == to) return {};
+  const bool full_from = from == "fem" || from == "modal", full_to = to == "fem" || to == "modal";
+  if (full_from && full_to) return {};
+  if (from == "external" || to == "external")
+    return "an external program's checkpoint part is in its own format, which demfem's backends "
+           "cannot read, and demfem's state is one an external program cannot take over";
+  if (to == "rigid")
+    return "the rigid-body backend has six coordinates; the deformed state of the " + from +
+           " backend has no rigid-body equivalent (its interface would jump)";
+  return "the rigid-body backend's state is a rigid motion on springs, not a displacement of the "
+         "clamped structure that the " +
+         to + " backend models";
+}
+
+/// @brief protocol::SolverBackend around a FemSolver (FemBackend), a ModalSolver
+/// (ModalBackend) or a RigidSolver (RigidBackend).
 ///
 /// step(): takes the interface forces from buffers.forces(cmd.buffer); runs a static solve
 /// when cmd.flags has kStepStatic, else one Bossak step of cmd.dt; writes the interface
@@ -34,11 +107,13 @@ namespace demfem::fem {
 /// write_initial_output() and write_final_output().
 ///
 /// Iterated steps (implicit coupling, docs/protocol.md): the save point is the solver's state
-/// in memory (u, v, a, forces, time: FemSolver::save_state) with the output step size; a step
-/// with kStepIterate writes its output only when accepted (accept_step()).
-class FemBackend final : public protocol::SolverBackend {
+/// in memory (u, v, a, forces, time: FemSolver::save_state; the full FEM only) with the output step
+/// size; a step with kStepIterate writes its output only when accepted (accept_step()).
+template <class Solver>
+class StructureBackend final : public protocol::SolverBackend {
  public:
-  explicit FemBackend(FemSolver& solver, FemOutput* output = nullptr, double output_interval = 0.0)
+  explicit StructureBackend(Solver& solver, FemOutput* output = nullptr,
+                            double output_interval = 0.0)
       : solver_(solver), output_(output), schedule_(output_interval) {}
 
   /// The reference state (output 0, at t = 0) of a new series.
@@ -62,10 +137,14 @@ class FemBackend final : public protocol::SolverBackend {
     last_output_step_ = solver_.step_count();
   }
 
-  /// [fem.monitor]: sampled after every step, kept in checkpoints (may be null).
-  void set_monitor(FemMonitor* monitor) { monitor_ = monitor; }
+  /// [fem.monitor]: sampled after every step, kept in checkpoints (may be null). The full
+  /// FEM only: the monitor reads the whole displacement field every step, which the reduced
+  /// models do not hold (the scene reader refuses [fem.monitor] with them).
+  void set_monitor(FemMonitor* monitor) requires std::is_same_v<Solver, FemSolver> {
+    monitor_ = monitor;
+  }
 
-  std::string name() const override { return "demfem-fem 0.1 (cpu)"; }
+  std::string name() const override { return backend_label(solver_); }
 
   std::optional<InterfaceMesh> published_mesh() override { return solver_.interface_mesh(); }
 
@@ -82,30 +161,34 @@ class FemBackend final : public protocol::SolverBackend {
     const auto forces = buffers.forces(cmd.buffer);
     for (double f : forces) {
       if (!std::isfinite(f)) {
-        throw std::runtime_error("fem: step " + std::to_string(cmd.step) +
-                                 ": interface force is not finite");
+        throw protocol::BackendError(
+            protocol::ErrorKind::blow_up,
+            "fem: step " + std::to_string(cmd.step) + ": interface force is not finite");
       }
     }
     solver_.set_interface_forces(forces);
-    if (cmd.flags & protocol::kStepStatic) {
-      solver_.solve_static();
-    } else {
-      if (!(cmd.dt > 0.0) || !std::isfinite(cmd.dt)) {
-        throw std::runtime_error("fem: step " + std::to_string(cmd.step) + ": dt must be > 0");
+    if (!(cmd.flags & protocol::kStepStatic) && (!(cmd.dt > 0.0) || !std::isfinite(cmd.dt))) {
+      throw std::runtime_error("fem: step " + std::to_string(cmd.step) + ": dt must be > 0");
+    }
+    try {
+      if (cmd.flags & protocol::kStepStatic) {
+        solver_.solve_static();
+      } else {
+        solver_.advance(cmd.dt);
+        step_dt_ = cmd.dt;
       }
-      solver_.advance(cmd.dt);
-      step_dt_ = cmd.dt;
+    } catch (const FemModelError& e) {
+      // A model the solver cannot solve (a mechanism, a displacement larger than the model):
+      // bad input found late, not a failure of the run (the coupler exits with status 2).
+      throw protocol::BackendError(protocol::ErrorKind::bad_input, e.what());
     }
     solver_.interface_kinematics(buffers.positions(cmd.buffer), buffers.velocities(cmd.buffer),
                                  buffers.accelerations(cmd.buffer));
-    const auto u = solver_.displacements();
-    double umax = 0.0;
-    for (std::size_t i = 0; i + 2 < u.size(); i += 3) {
-      umax = std::max(umax, std::sqrt(u[i] * u[i] + u[i + 1] * u[i + 1] + u[i + 2] * u[i + 2]));
-    }
+    const double umax = step_max_displacement(solver_);
     if (!std::isfinite(umax)) {
-      throw std::runtime_error("fem: step " + std::to_string(cmd.step) +
-                               ": displacement is not finite (the structure blew up)");
+      throw protocol::BackendError(protocol::ErrorKind::blow_up,
+                                   "fem: step " + std::to_string(cmd.step) +
+                                       ": displacement is not finite (the structure blew up)");
     }
     protocol::StepResult r;
     r.values[0] = umax;
@@ -119,33 +202,51 @@ class FemBackend final : public protocol::SolverBackend {
       if (monitor_) held_forces_.assign(forces.begin(), forces.end());
     } else {
       maybe_write_output();
-      if (monitor_) monitor_->sample(solver_, forces);
+      if constexpr (std::is_same_v<Solver, FemSolver>)
+        if (monitor_) monitor_->sample(solver_, forces);
     }
     return r;
   }
 
-  bool supports_iteration() const override { return true; }
+  /// The reduced models (modal, rigid) have no in-memory save point yet: the coupler refuses
+  /// implicit coupling with them at the handshake.
+  bool supports_iteration() const override { return std::is_same_v<Solver, FemSolver>; }
   void save_iteration_state() override {
-    accept_step();
-    solver_.save_state(save_point_);
-    save_point_dt_ = step_dt_;
+    if constexpr (std::is_same_v<Solver, FemSolver>) {
+      accept_step();
+      solver_.save_state(save_point_);
+      save_point_dt_ = step_dt_;
+    } else {
+      throw std::logic_error(std::string("the ") + backend_kind(solver_) +
+                             " backend cannot iterate a coupling step");
+    }
   }
   void restore_iteration_state() override {
-    held_back_ = false;
-    solver_.restore_state(save_point_);
-    step_dt_ = save_point_dt_;
+    if constexpr (std::is_same_v<Solver, FemSolver>) {
+      held_back_ = false;
+      solver_.restore_state(save_point_);
+      step_dt_ = save_point_dt_;
+    } else {
+      throw std::logic_error(std::string("the ") + backend_kind(solver_) +
+                             " backend cannot iterate a coupling step");
+    }
   }
   void accept_step() override {
     if (!held_back_) return;
     held_back_ = false;
     maybe_write_output();
-    if (monitor_) monitor_->sample(solver_, held_forces_);
+    if constexpr (std::is_same_v<Solver, FemSolver>)
+      if (monitor_) monitor_->sample(solver_, held_forces_);
   }
 
   /// The solver state under group "fem" of an HDF5 file, written under a temporary name and
   /// renamed when complete; attribute "step" on "/" records the coupling step.
   void write_checkpoint(const std::filesystem::path& file, std::int64_t step) override {
     io::write_checkpoint_file(file, step, [this](io::H5File& h5) {
+      // Which backend wrote the part: a resume with another backend maps the state or says
+      // why it cannot (checkpoint_swap_refusal).
+      h5.set_attribute("/", "backend", std::string(backend_kind(solver_)));
+      h5.set_attribute("/", "backend_name", name());
       h5.create_group("fem");
       solver_.save(h5, "fem");
       if (monitor_) monitor_->save(h5, "fem_monitor");
@@ -165,7 +266,21 @@ class FemBackend final : public protocol::SolverBackend {
   void restore_checkpoint(const std::filesystem::path& file, std::int64_t step) override {
     held_back_ = false;  // a held-back step is not part of the restored state
     const io::H5File h5 = io::open_checkpoint_file(file, step);
+    // Parts written before the attribute existed are the full FEM's.
+    const std::string from =
+        h5.has_attribute("/", "backend") ? h5.attribute_string("/", "backend") : "fem";
+    const std::string refusal = checkpoint_swap_refusal(from, backend_kind(solver_));
+    if (!refusal.empty())
+      throw std::runtime_error(file.string() + " was written by the " + from + " backend; the " +
+                               backend_kind(solver_) + " backend cannot continue it: " + refusal);
     solver_.restore(h5, "fem");
+    if (from != backend_kind(solver_)) {
+      std::string note = restore_note(solver_);
+      if (note.empty())
+        note = "the full state written by the " + from + " backend" +
+               (from == "modal" ? " (reconstructed from its modes and static correction)" : "");
+      std::cerr << "fem: note: " << backend_kind(solver_) << " backend took over " << note << "\n";
+    }
     if (monitor_) monitor_->restore(h5, "fem_monitor", solver_.time());
     if (h5.exists("fem_output_schedule")) {
       const auto sched = h5.read_int64("fem_output_schedule");
@@ -204,7 +319,7 @@ class FemBackend final : public protocol::SolverBackend {
     last_output_step_ = solver_.step_count();
   }
 
-  FemSolver& solver_;
+  Solver& solver_;
   FemOutput* output_;
   FemMonitor* monitor_ = nullptr;
   io::OutputSchedule schedule_;
@@ -212,8 +327,12 @@ class FemBackend final : public protocol::SolverBackend {
   std::int64_t last_output_step_ = -1;  ///< solver step count of the last output
   FemStateCopy save_point_;             ///< save_iteration_state()
   double save_point_dt_ = 0.0;
-  bool held_back_ = false;  ///< an iterated step whose output waits for accept_step()
+  bool held_back_ = false;           ///< an iterated step whose output waits for accept_step()
   std::vector<double> held_forces_;  ///< the forces of the held-back step (for the monitor)
 };
+
+using FemBackend = StructureBackend<FemSolver>;
+using ModalBackend = StructureBackend<ModalSolver>;
+using RigidBackend = StructureBackend<RigidSolver>;
 
 }  // namespace demfem::fem

@@ -55,10 +55,18 @@ struct FemFields {
   std::vector<double> acceleration;
   std::vector<double> reaction_force;
   ElementResults elements;
+  /// Further point arrays (name, 3 per node), written as they are (the mode shapes of a
+  /// modal analysis); their names must differ from the fields above.
+  std::vector<std::pair<std::string, std::vector<double>>> node_vectors;
 };
 
 /// @brief The solver's current fields.
 FemFields gather_fields(const FemSolver& solver);
+/// @brief The modal-reduced solver's fields reconstructed from its modes (displacement,
+/// velocity, acceleration and the element fields; no reaction forces).
+FemFields gather_fields(const ModalSolver& solver);
+/// @brief The rigid body's motion of every node (displacement, velocity, acceleration).
+FemFields gather_fields(const RigidSolver& solver);
 
 /// @brief Scalar summary of a step (the CSV row).
 struct FemScalars {

@@ -8,11 +8,26 @@
 
 #include "demfem/fem/fem_monitor.hpp"
 #include "demfem/fem/fem_problem.hpp"
+#include "demfem/fem/modal_solver.hpp"
+#include "demfem/fem/rigid_solver.hpp"
 #include "demfem/scene/scene_reader.hpp"
 
 namespace demfem::fem {
 
-enum class Analysis : std::uint8_t { static_analysis, dynamic };
+/// @brief fem.analysis: one static solve, Bossak-Newmark time steps, or natural frequencies.
+enum class Analysis : std::uint8_t { static_analysis, dynamic, modal };
+/// @brief "static", "dynamic", "modal".
+const char* analysis_name(Analysis analysis);
+
+/// @brief fem.backend: which program models the structure in a run (docs/backends.md).
+enum class FemBackendKind : std::uint8_t {
+  fem,       ///< FemSolver, the full FEM (fem_server)
+  modal,     ///< ModalSolver, the first N modes plus a static correction (fem_server)
+  rigid,     ///< RigidSolver, one rigid body on springs (fem_server)
+  external,  ///< an outside program started with fem.command (Python or C++ SDK)
+};
+/// @brief "fem", "modal", "rigid", "external".
+const char* backend_kind_name(FemBackendKind kind);
 
 /// @brief [fem.output]: what FemOutput writes and how often.
 struct FemOutputSettings {
@@ -34,6 +49,11 @@ struct FemScene {
   double dt = 0.0;          ///< s; 0 = not given (a coupled run takes it from the coupler)
   std::string dt_location;  ///< "file:line: key 'fem.dt'", for messages about dt
   FemOutputSettings output;
+  FemBackendKind backend = FemBackendKind::fem;
+  ModalSettings modal;  ///< [fem.modal]: the modal analysis and the modal backend
+  RigidSettings rigid;  ///< [fem.rigid]: the rigid-body backend
+  /// fem.command (backend = "external"): program and arguments, as written in the scene.
+  std::vector<std::string> command;
   FemMonitorSettings monitor;  ///< [fem.monitor] (fem_monitor.hpp)
   /// What the reader wants the user to know but does not refuse: orphan nodes left out, the
   /// element formulation each .inp type maps to, .inp keywords accepted with a caveat. Each

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "demfem/fem/element_results.hpp"
 #include "demfem/fem/fem_problem.hpp"
 #include "demfem/fem/sparse_solver.hpp"
 #include "demfem/interface/interface_mesh.hpp"
@@ -32,13 +33,6 @@ class FemModelError : public std::runtime_error {
 /// an undamped oscillator at omega dt = `omega_dt` (>= 0): above 1 the step amplifies that
 /// frequency, i.e. the scheme is unstable there. Used to check user-set gamma and beta.
 double bossak_spectral_radius(const BossakParameters& bossak, double omega_dt);
-
-/// @brief Element results for output (per element, at its centroid).
-struct ElementResults {
-  std::vector<double> strain;     ///< 6 per element: exx, eyy, ezz, gxy, gyz, gzx (engineering)
-  std::vector<double> von_mises;  ///< Pa, one per element
-  std::vector<double> max_principal_strain;  ///< one per element
-};
 
 /// @brief An in-memory copy of a FemSolver's state (FemSolver::save_state): what save()
 /// writes, for going back to the start of an iterated coupling step (implicit coupling).
@@ -75,6 +69,12 @@ class FemSolver {
   /// Forces on the interface nodes (3 * interface node count, N); held until replaced.
   void set_interface_forces(std::span<const double> forces);
 
+  /// The model checks that need a factorisation, done at set-up instead of in the first step
+  /// (fem_server calls it before it attaches, so a coupled run with a bad model stops before
+  /// the DEM computes anything): static, K is factorised (a mechanism or a structure the
+  /// clamps do not hold throws FemModelError naming the free nodes); dynamic, the masses are
+  /// checked and M is factorised. The factorisations are kept for the solves: no extra cost.
+  void prepare(bool static_analysis);
   /// Static solve K u = F(t) for the current time's external and interface loads. Throws
   /// FemModelError for a singular stiffness (naming the free nodes) and for a solution larger
   /// than the model (a mechanism that survived the factorisation's pivot check).

@@ -36,11 +36,15 @@ struct PairConstants {
   double friction;  ///< μ
   double rolling;   ///< μ_r (0 = off)
   double t_over_n;  ///< sqrt(S_t / S_n) = sqrt(4 G* / E*): γ_t = γ_n sqrt(S_t / S_n)
+  /// ζ_r: damping of a polyhedron face contact's rocking mode as a ratio to critical
+  /// (poly_contact.hpp, dilated_law; 0 = off; spheres and point contacts ignore it).
+  double rocking;
 };
 
 /// E*, G*, β of a pair from the two materials and the restitution coefficient e ∈ (0, 1].
 inline PairConstants pair_constants(double e1, double nu1, double e2, double nu2,
-                                    double restitution, double friction, double rolling) {
+                                    double restitution, double friction, double rolling,
+                                    double rocking = 1.0) {
   PairConstants c{};
   c.e_star = 1.0 / ((1.0 - nu1 * nu1) / e1 + (1.0 - nu2 * nu2) / e2);
   // 1/G* = (2 - ν1)/G1 + (2 - ν2)/G2 with G = E / (2(1 + ν)) (Mindlin; the form used by
@@ -56,6 +60,7 @@ inline PairConstants pair_constants(double e1, double nu1, double e2, double nu2
   c.friction = friction;
   c.rolling = rolling;
   c.t_over_n = std::sqrt(4.0 * c.g_star / c.e_star);
+  c.rocking = rocking;
   return c;
 }
 
@@ -75,10 +80,13 @@ DEMFEM_HD Vec3 rotate_into_tangent_plane(Vec3 v, Vec3 n) {
 
 /// Result of one contact evaluation: the force on body i (the other body gets -force).
 struct ContactResult {
-  Vec3 force;   ///< total contact force on i, N
-  Vec3 torque;  ///< n × F_t: torque on i is a_i (n × F_t) with lever a_i (n points i → j)
-  Vec3 roll;    ///< rolling-resistance torque on i (j gets -roll), N m
-  double fn;    ///< magnitude of the normal force (≥ 0 or damped), N
+  Vec3 force;      ///< total contact force on i, N
+  Vec3 torque;     ///< n × F_t: torque on i is a_i (n × F_t) with lever a_i (n points i → j)
+  Vec3 roll;       ///< rolling-resistance torque on i (j gets -roll), N m
+  double fn;       ///< magnitude of the normal force (≥ 0 or damped), N
+  double gamma_n;  ///< normal damping coefficient γ_n of this contact, N s/m
+  double gamma_t;  ///< tangential damping coefficient γ_t (Friction only), N s/m
+  double sn;       ///< tangent normal stiffness S_n = dF_n/dδ, N/m
 };
 
 /// Evaluates the contact law.
@@ -113,6 +121,8 @@ DEMFEM_HD ContactResult hertz_mindlin(const PairConstants& c, Vec3 n, double del
   const double gamma_n = damp == 0.0 ? 0.0 : gamma_any;
   const double fn = kn * delta + gamma_n * vn;  // magnitude pushing i along -n
   out.fn = fn;
+  out.gamma_n = gamma_n;
+  out.sn = sn;
   out.force = (-fn) * n;
   out.torque = Vec3{0, 0, 0};
   out.roll = Vec3{0, 0, 0};
@@ -122,6 +132,7 @@ DEMFEM_HD ContactResult hertz_mindlin(const PairConstants& c, Vec3 n, double del
     s = s + dt * vt;
     const double st = 8.0 * c.g_star * sqrt_rd;
     const double gamma_t = gamma_n * c.t_over_n;
+    out.gamma_t = gamma_t;
     Vec3 ft = (-st) * s - gamma_t * vt;
     const double ft2 = norm2(ft);
     const double fmax = c.friction * (fn > 0.0 ? fn : -fn);

@@ -7,6 +7,9 @@
 
 #if defined(__CUDACC__)
 #define DEMFEM_HD __host__ __device__ __forceinline__
+#elif defined(DEMFEM_PROFILE_NOINLINE)
+// profiling builds only (-DDEMFEM_PROFILE_NOINLINE): each physics function shows in a profile
+#define DEMFEM_HD inline __attribute__((noinline))
 #elif defined(__GNUC__) || defined(__clang__)
 // Forced inlining as on the device: the CPU pair loop is vectorised only when the whole
 // contact law is inlined into it.

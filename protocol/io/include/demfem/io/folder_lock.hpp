@@ -45,6 +45,11 @@ class FolderLock {
   FolderLock& operator=(const FolderLock&) = delete;
 
   bool held() const { return fd_ >= 0; }
+  /// The lock still guards the folder: <folder>/.demfem.lock is the file this object locked.
+  /// False once the file or the folder was removed or replaced (rm -rf of the folder while
+  /// the run writes it): a new run there would take a lock of its own, and both would write
+  /// the same files. A stat() of the path; call it now and then, not per message.
+  bool intact() const;
   const std::filesystem::path& folder() const { return folder_; }
   /// Releases the lock (the destructor does too).
   void release();

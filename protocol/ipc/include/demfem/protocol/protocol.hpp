@@ -61,6 +61,19 @@ enum class MessageKind : std::uint32_t {
 /// @brief "hello", "step_done", ...
 const char* message_kind_name(MessageKind kind);
 
+/// @brief What an Error message reports, so that the coupler can tell a bad model from a
+/// failure (docs/protocol.md, "Errors"). Sent with the text; a peer that does not set it sends
+/// zeros, and a value this version does not know reads as `failure`.
+enum class ErrorKind : std::uint32_t {
+  failure = 0,    ///< the solver failed (I/O, a bug, an unknown cause): the run failed
+  bad_input = 1,  ///< the model or scene is wrong, found only by the solver (a mechanism,
+                  ///< displacements larger than the model): bad input, like a scene error
+  blow_up = 2,    ///< the state became non-finite or unstable (a time step too large)
+};
+
+/// @brief "failure", "bad_input" or "blow_up".
+const char* error_kind_name(ErrorKind kind);
+
 // Step flags (generic: the coupler's schemes give them meaning).
 inline constexpr std::uint32_t kStepStatic = 1;         ///< FEM: static solve, not a dynamic step
 inline constexpr std::uint32_t kStepSetKinematics = 2;  ///< DEM: take the buffer's kinematics
@@ -141,9 +154,21 @@ class InterfaceBuffers {
   double* arrays_ = nullptr;  // [buffer][which][3n]
 };
 
+/// @brief An exception a backend throws to say what kind of error it is: serve() sends the kind
+/// with the Error message (every other exception is reported as ErrorKind::failure), and the
+/// coupler's in-process link passes it on as it is.
+class BackendError : public std::runtime_error {
+ public:
+  BackendError(ErrorKind kind, const std::string& text) : std::runtime_error(text), kind_(kind) {}
+  ErrorKind kind() const { return kind_; }
+
+ private:
+  ErrorKind kind_;
+};
+
 /// @brief Solver side: implemented by each solver (dem_server, fem_server, or an outside code).
-/// Exceptions thrown by these functions are sent to the coupler as an Error message and end
-/// serve() with a non-zero code.
+/// Exceptions thrown by these functions are sent to the coupler as an Error message (with the
+/// kind of a BackendError) and end serve() with a non-zero code.
 class SolverBackend {
  public:
   virtual ~SolverBackend() = default;
@@ -263,16 +288,18 @@ class PeerDied : public ProtocolError {
   Role role_;
 };
 
-/// @brief An Error message from a solver, with its text.
+/// @brief An Error message from a solver, with its text and kind.
 class SolverError : public ProtocolError {
  public:
-  SolverError(Role role, const std::string& text);
+  SolverError(Role role, const std::string& text, ErrorKind kind = ErrorKind::failure);
   Role role() const { return role_; }
   const std::string& text() const { return text_; }
+  ErrorKind kind() const { return kind_; }
 
  private:
   Role role_;
   std::string text_;
+  ErrorKind kind_;
 };
 
 /// @brief A solver of another protocol version tried to attach; the message names both.

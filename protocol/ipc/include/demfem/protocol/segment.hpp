@@ -101,6 +101,20 @@ struct FilePayload {
 struct TextPayload {
   char text[kTextLength];
 };
+/// The Error message: the text where TextPayload has it (so a peer that reads the payload as
+/// text still reads it whole), then the kind (protocol::ErrorKind; 0 = failure).
+inline constexpr std::size_t kErrorTextLength = kTextLength - 8;
+struct ErrorPayload {
+  char text[kErrorTextLength];
+  std::uint32_t kind;
+  std::uint32_t reserved;
+};
+static_assert(sizeof(ErrorPayload) == kTextLength);
+/// The kind of a received Error message; values this version does not know are failures.
+inline ErrorKind error_kind_of(const ErrorPayload& p) {
+  return p.kind <= static_cast<std::uint32_t>(ErrorKind::blow_up) ? static_cast<ErrorKind>(p.kind)
+                                                                  : ErrorKind::failure;
+}
 
 /// @brief A single-producer single-consumer ring. head and tail count messages (mod 2^32)
 /// and double as futex words.

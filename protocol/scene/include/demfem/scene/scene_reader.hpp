@@ -174,15 +174,32 @@ class Document {
 struct RunSettings {
   std::string name;                    ///< run.name (default: the scene file's stem)
   double end_time = 0.0;               ///< run.end_time, s, > 0
+  std::string end_time_where;          ///< "file:line:col: key 'run.end_time'", for messages
   std::filesystem::path output_dir;    ///< run.output_dir (default "out/<name>", relative to
                                        ///< the current directory)
   std::uint64_t seed = 1;              ///< run.seed, for random insertion
   double output_interval = 0.0;        ///< run.output_interval, s (0 = only the end state)
+  /// run.peer_timeout, s: a process whose heartbeat has not advanced for this long is hung.
+  /// Long enough that a loaded machine (a heartbeat thread not scheduled for seconds: 3.8 s
+  /// measured with ten compilers on two cores) does not end a healthy run; a dead pid is
+  /// found within 0.1 s regardless.
+  double peer_timeout = 10.0;
 };
 
 /// @brief Reads and checks [run] (required) of a scene; the other top-level sections are
 /// left for their owners, and an unknown top-level section is an error.
 RunSettings read_run_settings(const Document& scene);
+
+/// @brief Largest step counts of a run (docs/coupling.md, "Time steps"): beyond them a run
+/// would not end in any useful time, and an end_time or dt typed wrong by orders of magnitude
+/// (1e300, 1e-20) is refused upfront instead of overflowing a counter or never ending.
+inline constexpr double kMaxDemSteps = 1e12;  ///< DEM time steps of a run
+inline constexpr double kMaxFemSteps = 1e9;   ///< FEM time steps (= coupling steps) of a run
+
+/// @brief Refuses (SceneError naming run.end_time and the dt key, with the count and the
+/// limit) a run whose run.end_time / dt steps exceed `limit`. `solver`: "DEM" or "FEM".
+void check_step_count(const RunSettings& run, double dt, const std::string& dt_where, double limit,
+                      const std::string& solver);
 
 /// @brief Top-level sections a scene may have.
 inline constexpr std::string_view kSceneSections[] = {"run", "dem", "fem", "coupling",

@@ -1,0 +1,238 @@
+// Polyhedron throughput: polyhedron-steps per second of settled ballast beds of dilated
+// convex rocks (10, 30 or 40 triangles) from 10^3 to 10^5 rocks, on the CPU with 1 and 2
+// threads and, where available, on the GPU; beside spheres of the same sizes in the same box
+// (the cost ratio), and the bytes of state per particle.
+//
+// The bed: rocks of a shape library (50 random rocks, elongation 0.8, flatness 0.8, r_d 0.1
+// of the sieve size) with sieve sizes from the thesis's ballast distribution (normal, mean
+// 40 mm, sd 10 mm, in [20, 80] mm), packed by their bounding spheres (make_bed) in a box of
+// triangle-mesh walls (floor + 4 sides, open top), fallen and settled under gravity
+// (restitution 0.1) until the
+// kinetic energy is below --settle-ke N m g d of the mean rock; saved (cached in --cache)
+// and restored into one system per backend and thread count. The sphere bed is made and
+// settled the same way with spheres whose diameters are drawn from the same distribution.
+// Material as the sphere benchmark (dem_throughput): E 100 MPa, nu 0.3, rho 2600, e 0.2,
+// mu 0.6, dt 1e-5 s.
+
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+
+#include "ballast_bed.hpp"
+#include "bench_report.hpp"
+#include "demfem/dem/dem_system.hpp"
+#include "demfem/dem/insertion.hpp"
+#include "demfem/dem/shapes/shape_library.hpp"
+#include "demfem/io/h5_file.hpp"
+
+using namespace demfem::dem;
+using demfem::bench::Bed;
+using demfem::bench::make_bed;
+
+namespace {
+
+constexpr double kRho = 2600.0;
+
+DemSettings settings(int threads, const std::string& backend, double restitution) {
+  DemSettings s;
+  s.dt = 1e-5;
+  s.gravity = {0, 0, -9.81};
+  s.materials = {{"rock", 1e8, 0.3, kRho}, {"wall", 1e8, 0.3, 0.0}};
+  s.pairs.assign(4, MaterialPair{0.6, restitution, 0.0});
+  s.threads = threads;
+  s.backend = backend;
+  return s;
+}
+
+struct Result {
+  double rate = 0, cpu_rate = 0, det = 0, force = 0, integ = 0, contacts = 0, pairs = 0;
+  double bytes = 0;
+  bool ok = false;
+  std::string note;
+};
+
+DemSystem make_system(const Bed& bed, const shapes::ShapeLibrary* lib, int threads,
+                      const std::string& backend, double restitution) {
+  DemSystem sys(settings(threads, backend, restitution));
+  if (lib) add_library_shapes(sys, *lib, "rock");
+  for (const auto& w : bed.walls) sys.add_wall(w);
+  sys.add_particles(bed.particles);
+  return sys;
+}
+
+Result measure(const Bed& bed, const shapes::ShapeLibrary* lib, const std::filesystem::path& state,
+               int threads, const std::string& backend, std::int64_t steps) {
+  Result r;
+  try {
+    DemSystem sys = make_system(bed, lib, threads, backend, 0.2);
+    {
+      demfem::io::H5File f(state, demfem::io::H5File::Mode::read);
+      sys.restore(f, "/bed");
+    }
+    sys.advance(10);
+    const auto t0 = sys.timings();
+    const auto c0 = std::chrono::steady_clock::now();
+    const std::clock_t k0 = std::clock();
+    sys.advance(steps);
+    const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - c0).count();
+    const double cpu = static_cast<double>(std::clock() - k0) / CLOCKS_PER_SEC;
+    const auto t1 = sys.timings();
+    const double tot =
+        (t1.detection - t0.detection) + (t1.forces - t0.forces) + (t1.integration - t0.integration);
+    const double n = static_cast<double>(sys.particle_count());
+    r.rate = n * static_cast<double>(steps) / el;
+    r.cpu_rate = n * static_cast<double>(steps) / cpu;
+    r.det = (t1.detection - t0.detection) / tot;
+    r.force = (t1.forces - t0.forces) / tot;
+    r.integ = (t1.integration - t0.integration) / tot;
+    r.pairs = static_cast<double>(sys.neighbour_pairs()) / n;
+    r.contacts = 2.0 * static_cast<double>(sys.contact_count()) / n;
+    r.bytes = static_cast<double>(sys.state_bytes()) / n;
+    r.ok = true;
+  } catch (const std::exception& e) {
+    r.note = e.what();
+  }
+  return r;
+}
+
+// Settles (or loads from the cache) and returns the settling time and KE / (N m g d).
+std::pair<double, double> settle(const Bed& bed, const shapes::ShapeLibrary* lib,
+                                 const std::filesystem::path& state, bool cached, int threads,
+                                 double settle_min, double settle_max, double settle_ke) {
+  DemSystem sys = make_system(bed, lib, threads, "cpu", 0.1);
+  const double m1 = kRho * 3.14159265358979 / 6.0 * 0.04 * 0.04 * 0.04;
+  auto unit = [&] { return static_cast<double>(sys.particle_count()) * m1 * 9.81 * 0.04; };
+  if (cached) {
+    demfem::io::H5File f(state, demfem::io::H5File::Mode::read);
+    sys.restore(f, "/bed");
+  } else {
+    while (sys.time() < settle_max - 1e-12) {
+      sys.advance(1000);
+      std::fprintf(stderr, "  settling %zu: t = %.3f s, KE/(N m g d) = %.3g\n",
+                   sys.particle_count(), sys.time(), sys.kinetic_energy() / unit());
+      if (sys.time() >= settle_min - 1e-12 && sys.kinetic_energy() < settle_ke * unit()) break;
+    }
+    demfem::io::H5File f(state, demfem::io::H5File::Mode::create);
+    sys.save(f, "/bed");
+  }
+  return {sys.time(), sys.kinetic_energy() / unit()};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Polyhedron throughput (polyhedron-steps per second) of settled ballast beds"};
+  std::vector<std::size_t> counts = {1000, 10000, 100000};
+  std::vector<int> triangles = {10, 30, 40};
+  std::vector<int> threads = {1, 2};
+  double settle_min = 0.1, settle_max = 1.0, settle_ke = 1e-3, work = 4e6;
+  int settle_threads = 2, repeat = 1;
+  bool gpu = true, spheres = true;
+  std::string json;
+  std::string cache_dir =
+      (std::filesystem::temp_directory_path() / "demfem_poly_throughput_cache").string();
+  app.add_option("--counts", counts, "rocks per bed (default 1000 10000 100000)");
+  app.add_option("--triangles", triangles, "triangles per rock (default 10 30 40)");
+  app.add_option("--threads", threads, "CPU thread counts (default 1 2)");
+  app.add_option("--settle-time", settle_min, "least settling time, s");
+  app.add_option("--settle-max", settle_max, "longest settling time, s");
+  app.add_option("--settle-ke", settle_ke, "settled below this KE / (N m g d)");
+  app.add_option("--settle-threads", settle_threads, "threads for settling");
+  app.add_option("--work", work, "particle-steps per measurement (steps: 100 to 20000)");
+  app.add_option("--repeat", repeat, "measurements per configuration, in turns (best and median)")
+      ->check(CLI::Range(1, 1000));
+  app.add_option("--cache", cache_dir, "folder for settled beds (empty: no cache)");
+  app.add_option("--json", json, "write the results as JSON");
+  app.add_flag("!--no-gpu", gpu, "skip the GPU even when one is present");
+  app.add_flag("!--no-spheres", spheres, "skip the sphere beds");
+  CLI11_PARSE(app, argc, argv);
+
+  demfem::bench::Report rep(
+      "poly_throughput",
+      {"particles", "shape", "settled s", "KE/(N m g d)", "backend", "threads", "contacts/particle",
+       "list pairs/particle", "particle-steps/s", "per cpu-s", "runs", "median", "ratio to spheres",
+       "bytes/particle", "detection", "forces", "integration"});
+  rep.set_info("dt", 1e-5);
+  rep.set_info("model",
+               std::string("dilated polyhedra, E 100 MPa, nu 0.3, rho 2600, e 0.2, mu 0.6; "
+                           "sizes normal(40, 10) mm in [20, 80] (sieve), r_d 0.1"));
+  rep.set_info("machine", demfem::bench::machine_description());
+  const bool have_gpu = gpu && cuda_available();
+  const bool cache = !cache_dir.empty();
+  if (cache) std::filesystem::create_directories(cache_dir);
+  const auto tmp = std::filesystem::temp_directory_path() /
+                   ("demfem_poly_throughput_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(tmp);
+  for (std::size_t n : counts) {
+    // spheres of the same sizes first: the reference rate of the ratio column
+    double sphere_rate[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    std::vector<std::string> kinds;
+    if (spheres) kinds.push_back("spheres");
+    for (int t : triangles) kinds.push_back(std::to_string(t) + " triangles");
+    for (const auto& kind : kinds) {
+      const bool rock = kind != "spheres";
+      std::unique_ptr<shapes::ShapeLibrary> lib;
+      if (rock) {
+        shapes::RockParams p;
+        p.triangles = std::stoi(kind);
+        p.elongation = 0.8;
+        p.flatness = 0.8;
+        lib = std::make_unique<shapes::ShapeLibrary>(
+            shapes::ShapeLibrary::random_rocks(p, 50, 2024, shapes::SizeKind::sieve, 0.1));
+      }
+      const Bed bed = make_bed(n, lib.get(), 0);
+      char key[160];
+      std::snprintf(key, sizeof key, "poly_bed_%zu_%s_%.3g_%.3g_%.3g_v2.h5", n,
+                    rock ? std::to_string(std::stoi(kind)).c_str() : "spheres", settle_min,
+                    settle_max, settle_ke);
+      const auto state = cache ? std::filesystem::path(cache_dir) / key : tmp / key;
+      const auto [settled, ke] =
+          settle(bed, lib.get(), state, cache && std::filesystem::exists(state), settle_threads,
+                 settle_min, settle_max, settle_ke);
+      const std::int64_t steps = std::clamp<std::int64_t>(
+          static_cast<std::int64_t>(work / static_cast<double>(n)), 100, 20000);
+      std::vector<std::pair<std::string, int>> runs;
+      for (int t : threads) runs.push_back({"cpu", t});
+      if (have_gpu) runs.push_back({"cuda", 0});
+      std::vector<std::vector<Result>> done(runs.size());
+      for (int k = 0; k < repeat; ++k)
+        for (std::size_t c = 0; c < runs.size(); ++c) {
+          Result r = measure(bed, lib.get(), state, runs[c].second, runs[c].first,
+                             runs[c].first == "cuda" ? 20 * steps : steps);
+          if (!r.ok) {
+            std::fprintf(stderr, "%zu %s, %s: %s\n", n, kind.c_str(), runs[c].first.c_str(),
+                         r.note.c_str());
+            continue;
+          }
+          done[c].push_back(std::move(r));
+        }
+      for (std::size_t c = 0; c < runs.size(); ++c) {
+        auto& rs = done[c];
+        if (rs.empty()) continue;
+        std::sort(rs.begin(), rs.end(),
+                  [](const Result& a, const Result& b) { return a.rate > b.rate; });
+        const std::size_t m = rs.size();
+        const double median =
+            m % 2 == 1 ? rs[m / 2].rate : 0.5 * (rs[m / 2 - 1].rate + rs[m / 2].rate);
+        const Result& r = rs.front();
+        if (!rock && c < 8) sphere_rate[c] = r.rate;
+        const double ratio = rock && c < 8 && sphere_rate[c] > 0 ? sphere_rate[c] / r.rate : 1.0;
+        rep.add_row({static_cast<long long>(n), kind, settled, ke, runs[c].first,
+                     static_cast<long long>(runs[c].second), r.contacts, r.pairs, r.rate,
+                     r.cpu_rate, static_cast<long long>(m), median, ratio, r.bytes, r.det, r.force,
+                     r.integ});
+      }
+      if (!cache) std::filesystem::remove(state);
+    }
+  }
+  std::filesystem::remove_all(tmp);
+  rep.print();
+  rep.write_json(json);
+  return 0;
+}

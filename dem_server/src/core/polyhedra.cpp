@@ -1,0 +1,101 @@
+// CPU loops for systems with dilated polyhedra (see polyhedra.hpp).
+
+#include "polyhedra.hpp"
+
+#include <omp.h>
+
+#include <cmath>
+
+#include "demfem/dem/physics/integrator.hpp"
+#include "demfem/dem/physics/poly_contact.hpp"
+#include "demfem/dem/physics/rigid_body.hpp"
+
+namespace demfem::dem::detail {
+
+using phys::Vec3;
+
+namespace {
+
+template <bool Friction>
+double pair_range(const PolyParticles& p, const PolyPairs& a, std::int64_t begin,
+                  std::int64_t end) {
+  double mo = 0.0;
+  for (std::int64_t k = begin; k < end; ++k) {
+    const std::int32_t i = a.pi[k], j = a.pj[k];
+    const phys::PairConstants& c =
+        a.pc[static_cast<std::size_t>(a.material[i]) * a.nmat + a.material[j]];
+    Vec3 sh{0, 0, 0}, rh{0, 0, 0};
+    if constexpr (Friction) sh = Vec3{a.shear[3 * k], a.shear[3 * k + 1], a.shear[3 * k + 2]};
+    if (a.rolling) rh = Vec3{a.rhist[3 * k], a.rhist[3 * k + 1], a.rhist[3 * k + 2]};
+    Vec3 axis{a.paxis[3 * k], a.paxis[3 * k + 1], a.paxis[3 * k + 2]};
+    Vec3 force, ti, tj;
+    const double delta = phys::mixed_pair<Friction>(p, i, j, c, a.dt, a.rolling, sh, rh, axis,
+                                                    a.pfeat + 6 * k, force, ti, tj);
+    mo = mo > delta ? mo : delta;
+    a.pf[3 * k] = force.x, a.pf[3 * k + 1] = force.y, a.pf[3 * k + 2] = force.z;
+    a.pt[3 * k] = ti.x, a.pt[3 * k + 1] = ti.y, a.pt[3 * k + 2] = ti.z;
+    a.ptj[3 * k] = tj.x, a.ptj[3 * k + 1] = tj.y, a.ptj[3 * k + 2] = tj.z;
+    a.paxis[3 * k] = axis.x, a.paxis[3 * k + 1] = axis.y, a.paxis[3 * k + 2] = axis.z;
+    if constexpr (Friction)
+      a.shear[3 * k] = sh.x, a.shear[3 * k + 1] = sh.y, a.shear[3 * k + 2] = sh.z;
+    if (a.rolling) a.rhist[3 * k] = rh.x, a.rhist[3 * k + 1] = rh.y, a.rhist[3 * k + 2] = rh.z;
+  }
+  return mo;
+}
+
+}  // namespace
+
+double poly_pair_forces(const PolyParticles& p, const PolyPairs& a, std::int64_t begin,
+                        std::int64_t end) {
+  return a.friction ? pair_range<true>(p, a, begin, end) : pair_range<false>(p, a, begin, end);
+}
+
+void poly_wall_contacts(const PolyParticles& p, const phys::WallView& w, std::int64_t i,
+                        const phys::PairConstants* pc_row, double dt, bool friction, Vec3& f,
+                        Vec3& q, double& mo, double& fmo) {
+  const phys::PolyWallParticle pw = phys::poly_wall_particle(p, static_cast<int>(i));
+  if (friction)
+    phys::poly_wall_contacts<true>(pw, w, i, pc_row, dt, f, q, mo, fmo);
+  else
+    phys::poly_wall_contacts<false>(pw, w, i, pc_row, dt, f, q, mo, fmo);
+}
+
+void poly_angular_kick(const PolyParticles& p, std::int64_t i, double* wx, double* wy, double* wz,
+                       Vec3 t, double h) {
+  if (p.shape_id[i] >= 0) {
+    phys::angular_kick(wx[i], wy[i], wz[i], p.qw[i], p.qx[i], p.qy[i], p.qz[i],
+                       Vec3{p.ix[i], p.iy[i], p.iz[i]}, t, h);
+  } else {
+    phys::kick(wx[i], wy[i], wz[i], t.x, t.y, t.z, h / p.inertia[i]);
+  }
+}
+
+double poly_kick_drift(const PolyDrift& d) {
+  const double dt = d.dt, h = 0.5 * d.dt;
+  double m2 = 0.0;
+  const bool have_build = d.bx != nullptr;
+#pragma omp parallel for num_threads(d.threads) schedule(static) reduction(max : m2)
+  for (std::int64_t i = 0; i < d.n; ++i) {
+    phys::kick(d.vx[i], d.vy[i], d.vz[i], d.fx[i], d.fy[i], d.fz[i], h / d.mass[i]);
+    d.px[i] += dt * d.vx[i];
+    d.py[i] += dt * d.vy[i];
+    d.pz[i] += dt * d.vz[i];
+    const Vec3 t{d.tx[i], d.ty[i], d.tz[i]};
+    if (d.shape_id[i] >= 0) {
+      const Vec3 I{d.ix[i], d.iy[i], d.iz[i]};
+      phys::angular_kick(d.wx[i], d.wy[i], d.wz[i], d.qw[i], d.qx[i], d.qy[i], d.qz[i], I, t, h);
+      phys::free_rotation(d.qw[i], d.qx[i], d.qy[i], d.qz[i], d.wx[i], d.wy[i], d.wz[i], I, dt);
+    } else {
+      phys::kick(d.wx[i], d.wy[i], d.wz[i], t.x, t.y, t.z, h / d.inertia[i]);
+      phys::rotate_quaternion(d.qw[i], d.qx[i], d.qy[i], d.qz[i], d.wx[i], d.wy[i], d.wz[i], dt);
+    }
+    if (have_build) {
+      const double dx = d.px[i] - d.bx[i], dy = d.py[i] - d.by[i], dz = d.pz[i] - d.bz[i];
+      const double d2 = dx * dx + dy * dy + dz * dz;
+      m2 = m2 > d2 ? m2 : d2;
+    }
+  }
+  return have_build ? std::sqrt(m2) : 1e300;
+}
+
+}  // namespace demfem::dem::detail

@@ -1,0 +1,63 @@
+#pragma once
+// The CPU backend's loops for systems with dilated polyhedra (DemSystem::Impl calls them when
+// some particle is not a sphere; spheres alone keep their vectorised path untouched): pair
+// forces over a range of the pair list, a particle's wall contacts, and the kick + drift with
+// the rigid-body rotation. The physics is in physics/poly_contact.hpp, narrow_phase.hpp and
+// rigid_body.hpp, shared with the CUDA backend.
+
+#include <cstdint>
+
+#include "demfem/dem/physics/poly_contact.hpp"
+
+namespace demfem::dem::detail {
+
+/// Particle arrays of a mixed system (host pointers): the shared physics view.
+using PolyParticles = phys::PolyView;
+
+/// The pair list and its per-pair slots.
+struct PolyPairs {
+  const std::int32_t *pi, *pj;  ///< i and j of each pair
+  const std::int32_t* material;
+  const phys::PairConstants* pc;  ///< nmat x nmat
+  std::size_t nmat;
+  double dt;
+  bool friction, rolling;
+  double* shear;        ///< 3 per pair (friction)
+  double* rhist;        ///< 3 per pair (rolling, sphere pairs only)
+  double* pf;           ///< 3 per pair: force on i
+  double* pt;           ///< 3 per pair: torque on i
+  double* ptj;          ///< 3 per pair: torque on j
+  double* paxis;        ///< 3 per pair: separating-axis cache (unit, i -> j, or zero)
+  std::int32_t* pfeat;  ///< 6 per pair: closest-feature cache (GJK warm start)
+};
+
+/// Forces of the pairs [begin, end) into their slots; returns the largest overlap.
+double poly_pair_forces(const PolyParticles& p, const PolyPairs& a, std::int64_t begin,
+                        std::int64_t end);
+
+/// Wall contacts of polyhedron i (adds to f and q, fills its wall slots).
+void poly_wall_contacts(const PolyParticles& p, const phys::WallView& w, std::int64_t i,
+                        const phys::PairConstants* pc_row, double dt, bool friction, phys::Vec3& f,
+                        phys::Vec3& q, double& mo, double& fmo);
+
+/// Half kick of the angular velocity of particle i by torque t (rigid body or sphere).
+void poly_angular_kick(const PolyParticles& p, std::int64_t i, double* wx, double* wy, double* wz,
+                       phys::Vec3 t, double h);
+
+/// Arrays of the kick + drift of a mixed system.
+struct PolyDrift {
+  std::int64_t n;
+  double dt;
+  int threads;
+  double *px, *py, *pz, *vx, *vy, *vz, *wx, *wy, *wz, *qw, *qx, *qy, *qz;
+  const double *fx, *fy, *fz, *tx, *ty, *tz, *mass, *inertia, *ix, *iy, *iz;
+  const std::int32_t* shape_id;
+  const double *bx, *by, *bz;  ///< positions at the last list update (null: none)
+};
+
+/// First half kick (last forces and torques), drift, rotation (spheres: the exact rotation of
+/// ω Δt; polyhedra: NO_SQUISH); returns the largest displacement since the last list update
+/// (1e300 without one).
+double poly_kick_drift(const PolyDrift& d);
+
+}  // namespace demfem::dem::detail

@@ -1,0 +1,126 @@
+// [[dem.shapes]]: dilated convex polyhedra in a scene (docs/scene_dem.md).
+
+#include "scene_shapes.hpp"
+
+#include <ostream>
+#include <stdexcept>
+
+#include "demfem/dem/shapes/mesh_hull.hpp"
+
+namespace demfem::dem {
+
+using scene::Range;
+using scene::SceneError;
+using scene::Table;
+
+ShapeSpec read_shape_spec(const Table& t) {
+  ShapeSpec s;
+  s.name = t.string("name");
+  if (s.name.empty()) t.fail("name", "must not be empty");
+  s.where = t.where("kind");
+  const std::string kind = t.choice("kind", {"random_rock", "stl", "box", "cube", "tetrahedron",
+                                             "octahedron", "prism", "sphere"});
+  using K = ShapeSpec::Kind;
+  s.kind = kind == "random_rock" ? K::random_rock
+           : kind == "stl"       ? K::stl
+           : kind == "box"       ? K::box
+           : kind == "cube"      ? K::cube
+           : kind == "tetrahedron" ? K::tetrahedron
+           : kind == "octahedron"  ? K::octahedron
+           : kind == "prism"       ? K::prism
+                                   : K::sphere;
+  if (s.kind == K::random_rock) {
+    s.count = t.integer("count", 20, 1, 100000);
+    s.triangles = static_cast<int>(t.integer("triangles", 30, 4, 100000));
+    if (s.triangles % 2 != 0)
+      t.fail("triangles", "is " + std::to_string(s.triangles) +
+                              ": a closed triangulated convex hull has an even number of "
+                              "triangles (2 V - 4), at least 4");
+    s.elongation = t.number("elongation", 1.0, Range::open_closed(0.0, 1.0));
+    s.flatness = t.number("flatness", 1.0, Range::open_closed(0.0, 1.0));
+    if (t.has("seed")) {
+      s.seed = static_cast<std::uint64_t>(t.integer("seed", 0, INT64_MAX));
+      s.has_seed = true;
+    }
+  } else if (s.kind == K::stl) {
+    if (!t.has("stl")) t.fail("stl", "is required for kind = \"stl\" (a file or an array of files)");
+    // one path or an array of paths
+    try {
+      const auto names = t.strings("stl");
+      for (std::size_t k = 0; k < names.size(); ++k) {
+        std::filesystem::path p = names[k];
+        if (p.is_relative()) p = std::filesystem::path(t.file()).parent_path() / p;
+        s.stl.push_back(p);
+      }
+    } catch (const SceneError&) {
+      s.stl = {t.path("stl")};
+    }
+  } else if (s.kind == K::box) {
+    s.aspect = t.vec3("aspect", Range::positive());
+  } else if (s.kind == K::prism) {
+    s.aspect = {1.0, t.number("height", 1.0, Range::positive()), 1.0};
+  }
+  const std::string size = t.choice("size", "sieve", {"sieve", "volume_equivalent"});
+  s.volume_equivalent = size == "volume_equivalent";
+  s.dilation = t.number("dilation", 0.1, Range{0.0, 0.5, true, true});
+  t.finish();
+  return s;
+}
+
+std::unique_ptr<shapes::ShapeLibrary> build_shape_library(const ShapeSpec& spec,
+                                                          std::uint64_t run_seed,
+                                                          std::size_t entry, std::ostream* log) {
+  using K = ShapeSpec::Kind;
+  const auto kind = spec.volume_equivalent ? shapes::SizeKind::volume_equivalent
+                                           : shapes::SizeKind::sieve;
+  try {
+    if (spec.kind == K::random_rock) {
+      shapes::RockParams p;
+      p.triangles = spec.triangles;
+      p.elongation = spec.elongation;
+      p.flatness = spec.flatness;
+      const std::uint64_t seed = spec.has_seed ? spec.seed : run_seed + entry;
+      return std::make_unique<shapes::ShapeLibrary>(shapes::ShapeLibrary::random_rocks(
+          p, static_cast<std::size_t>(spec.count), seed, kind, spec.dilation));
+    }
+    std::vector<shapes::ConvexPolyhedron> cores;
+    switch (spec.kind) {
+      case K::stl:
+        for (const auto& f : spec.stl) {
+          shapes::MeshHull h = shapes::hull_of_stl(f);
+          if (!h.warning.empty() && log)
+            *log << "dem: warning: " << spec.where << ": " << f.string() << ": " << h.warning
+                 << "\n";
+          cores.push_back(std::move(h.core));
+        }
+        break;
+      case K::box:
+        cores.push_back(shapes::make_box(spec.aspect[0], spec.aspect[1], spec.aspect[2]));
+        break;
+      case K::cube:
+        cores.push_back(shapes::make_cube(1.0));
+        break;
+      case K::tetrahedron:
+        cores.push_back(shapes::make_regular_tetrahedron(1.0));
+        break;
+      case K::octahedron:
+        cores.push_back(shapes::make_octahedron(1.0));
+        break;
+      case K::prism:
+        cores.push_back(shapes::make_triangular_prism(1.0, spec.aspect[1]));
+        break;
+      case K::sphere:
+        cores.push_back(shapes::ConvexPolyhedron::point());
+        break;
+      case K::random_rock:
+        break;
+    }
+    return std::make_unique<shapes::ShapeLibrary>(cores, kind, spec.dilation);
+  } catch (const shapes::ShapeError& e) {
+    throw SceneError(spec.where + ": shape '" + spec.name + "': " + e.what());
+  } catch (const std::runtime_error& e) {  // an unreadable STL (StlError)
+    throw SceneError(spec.where + ": shape '" + spec.name + "': " + e.what());
+  }
+}
+
+}  // namespace demfem::dem

@@ -1,0 +1,295 @@
+// [[dem.shapes]] in a scene: rock libraries, STL hulls and simple solids, inserted by count
+// and by mass with random orientations and on a lattice; bad shape input is an error naming
+// file, line and key.
+
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "demfem/dem/dem_output.hpp"
+#include "demfem/dem/dem_scene.hpp"
+#include "demfem/dem/stl_reader.hpp"
+#include "demfem/io/h5_file.hpp"
+#include "demfem_test/temp_dir.hpp"
+
+using namespace demfem::dem;
+using demfem::scene::Document;
+using demfem::scene::SceneError;
+using demfem::test::TempDir;
+
+namespace {
+
+const char* kRocks = R"(
+[run]
+end_time = 0.01
+
+[dem]
+dt = 1e-5
+threads = 1
+
+[[dem.materials]]
+name = "rock"
+youngs_modulus = 1e8
+poisson_ratio = 0.3
+density = 2600.0
+
+[[dem.materials]]
+name = "steel"
+youngs_modulus = 1e8
+poisson_ratio = 0.3
+
+[[dem.pairs]]
+a = "rock"
+b = "rock"
+friction = 0.6
+restitution = 0.2
+
+[[dem.pairs]]
+a = "rock"
+b = "steel"
+friction = 0.5
+restitution = 0.2
+
+[[dem.walls]]
+name = "box"
+material = "steel"
+box = { lo = [0.0, 0.0, 0.0], hi = [0.3, 0.3, 1.0], open_top = true }
+
+[[dem.shapes]]
+name = "ballast"
+kind = "random_rock"
+count = 6
+triangles = 10
+elongation = 0.8
+flatness = 0.7
+seed = 5
+size = "sieve"
+dilation = 0.1
+
+[[dem.insert]]
+material = "rock"
+shape = "ballast"
+lo = [0.0, 0.0, 0.0]
+hi = [0.3, 0.3, 1.0]
+count = 60
+seed = 3
+distribution = { kind = "normal", mean = 0.04, stddev = 0.01, d_min = 0.02, d_max = 0.06 }
+)";
+
+std::string replace(std::string s, const std::string& from, const std::string& to) {
+  const auto p = s.find(from);
+  REQUIRE(p != std::string::npos);
+  return s.replace(p, from.size(), to);
+}
+
+int line_of(const std::string& text, const std::string& what) {
+  const auto p = text.find(what);
+  return 1 + int(std::count(text.begin(), text.begin() + long(p), '\n'));
+}
+
+DemScene parse(const std::string& text) {
+  Document d = Document::parse(text, "rocks.toml");
+  demfem::scene::read_run_settings(d);
+  return read_dem_scene(d.root().required_table("dem"));
+}
+
+// The message of building the scene (reading, then DemRun), or "(no error)".
+std::string error_of(const std::string& text) {
+  try {
+    const DemScene s = parse(text);
+    DemRun run(s, "", 1, 0.0, nullptr);
+  } catch (const SceneError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+}  // namespace
+
+TEST_CASE("[[dem.shapes]]: random rocks inserted by count and by mass", "[scene][poly]") {
+  const DemScene s = parse(kRocks);
+  REQUIRE(s.shapes.size() == 1);
+  CHECK(s.shapes[0].triangles == 10);
+  CHECK(s.inserts[0].shape == 0);
+  std::ostringstream log;
+  DemRun run(s, "", 1, 0.0, &log);
+  const auto& st = run.system().particles();
+  REQUIRE(st.size() == 60);
+  CHECK(run.system().shape_count() == 6);
+  double mass = 0.0;
+  for (std::size_t i = 0; i < st.size(); ++i) {
+    CHECK(st.shape[i] == static_cast<std::uint8_t>(ParticleShape::polyhedron));
+    CHECK(st.shape_id[i] >= 0);
+    CHECK(st.shape_id[i] < 6);
+    CHECK(st.scale[i] >= 0.02);  // the unit shape has size 1 m: scale = sieve size
+    CHECK(st.scale[i] <= 0.06);
+    mass += st.mass[i];
+  }
+  // orientations differ (random)
+  CHECK(st.qw[0] != st.qw[1]);
+  CHECK_THAT(log.str(), Catch::Contains("Rayleigh time step"));
+  run.run_to(0.002);
+  CHECK(run.system().time() == Approx(0.002));
+  SECTION("by mass") {
+    const DemScene m = parse(replace(kRocks, "count = 60", "mass = 5.0"));
+    DemRun r2(m, "", 1, 0.0, nullptr);
+    double total = 0.0;
+    for (double x : r2.system().particles().mass) total += x;
+    CHECK(total >= 5.0);
+    CHECK(total < 5.0 + 2600.0 * 0.06 * 0.06 * 0.06);  // less than one more rock
+  }
+  SECTION("a lattice of rocks and simple solids") {
+    std::string t = replace(kRocks, "[[dem.insert]]", R"([[dem.shapes]]
+name = "cubes"
+kind = "cube"
+dilation = 0.2
+
+[[dem.lattice]]
+material = "rock"
+shape = "cubes"
+lo = [0.0, 0.0, 0.0]
+hi = [0.3, 0.3, 0.2]
+diameter = 0.03
+spacing = 0.06
+seed = 4
+
+[[dem.insert]])");
+    t = replace(t, "count = 60", "count = 5");
+    const DemScene l = parse(t);
+    DemRun r3(l, "", 1, 0.0, nullptr);
+    const auto& p = r3.system().particles();
+    std::size_t cubes = 0;
+    for (std::size_t i = 0; i < p.size(); ++i)
+      cubes += p.shape_id[i] == 6 ? 1 : 0;  // after 6 rocks
+    CHECK(cubes == 5 * 5 * 3);              // spacing 0.06 m in a 0.3 x 0.3 x 0.2 box
+    CHECK(p.size() == cubes + 5);
+  }
+}
+
+TEST_CASE("[[dem.shapes]]: an STL scan becomes its hull; bad input names file, line and key",
+          "[scene][poly]") {
+  TempDir dir;
+  // a closed tetrahedron (an STL "scan"), an open mesh, a flat one
+  WallMesh tet;
+  tet.vertices = {0, 0, 0, 0.01, 0, 0, 0, 0.01, 0, 0, 0, 0.01};
+  tet.triangles = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};
+  write_stl_binary(dir / "rock.stl", tet);
+  WallMesh open = tet;
+  open.triangles.resize(9);
+  write_stl_binary(dir / "open.stl", open);
+  const std::string stl_entry = R"(kind = "stl"
+stl = "rock.stl")";
+  std::string text = replace(kRocks, R"(kind = "random_rock"
+count = 6
+triangles = 10
+elongation = 0.8
+flatness = 0.7
+seed = 5)",
+                             stl_entry);
+  {
+    std::ofstream(dir / "scene.toml") << text;
+    Document d = Document::load(dir / "scene.toml");
+    const DemScene s = read_dem_scene(d.root().required_table("dem"));
+    DemRun run(s, "", 1, 0.0, nullptr);
+    CHECK(run.system().shape_count() == 1);
+    CHECK(run.system().shape(0).triangles.size() == 12);
+  }
+  auto load_error = [&](const std::string& t) {
+    std::ofstream(dir / "scene.toml") << t;
+    try {
+      Document d = Document::load(dir / "scene.toml");
+      const DemScene s = read_dem_scene(d.root().required_table("dem"));
+      DemRun run(s, "", 1, 0.0, nullptr);
+    } catch (const SceneError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(no error)");
+  };
+  const std::string e1 = load_error(replace(text, "rock.stl", "open.stl"));
+  CHECK_THAT(
+      e1, Catch::Contains("scene.toml:" + std::to_string(line_of(text, "kind = \"stl\"")) + ":") &&
+              Catch::Contains("dem.shapes[0].kind") && Catch::Contains("open.stl"));
+  // keys checked when read
+  CHECK_THAT(
+      error_of(replace(kRocks, "dilation = 0.1", "dilation = 0.5")),
+      Catch::Contains("rocks.toml:" + std::to_string(line_of(kRocks, "dilation = 0.1")) + ":") &&
+          Catch::Contains("dem.shapes[0].dilation") && Catch::Contains("(0, 0.5)"));
+  CHECK_THAT(error_of(replace(kRocks, "triangles = 10", "triangles = 11")),
+             Catch::Contains("dem.shapes[0].triangles") && Catch::Contains("even"));
+  CHECK_THAT(error_of(replace(kRocks, "elongation = 0.8", "elongation = 0.0")),
+             Catch::Contains("dem.shapes[0].elongation"));
+  CHECK_THAT(error_of(replace(kRocks, "shape = \"ballast\"", "shape = \"gravel\"")),
+             Catch::Contains("dem.insert[0].shape") && Catch::Contains("\"ballast\""));
+  CHECK_THAT(error_of(replace(kRocks, "size = \"sieve\"", "size = \"mesh\"")),
+             Catch::Contains("dem.shapes[0].size"));
+  CHECK_THAT(error_of(replace(kRocks, "kind = \"random_rock\"", "kind = \"blob\"")),
+             Catch::Contains("dem.shapes[0].kind"));
+  CHECK_THAT(error_of(replace(kRocks, "seed = 5", "seed = 5\ncolour = 3")),
+             Catch::Contains("dem.shapes[0].colour"));
+  // a gradation that does not sum to 1
+  CHECK_THAT(
+      error_of(replace(kRocks,
+                       "distribution = { kind = \"normal\", mean = 0.04, stddev = 0.01, d_min = "
+                       "0.02, d_max = 0.06 }",
+                       "distribution = { kind = \"gradation\", sieves = [0.02, 0.04, 0.06], "
+                       "mass_fractions = [0.5, 0.4] }")),
+      Catch::Contains("dem.insert[0].distribution") && Catch::Contains("sum"));
+}
+
+TEST_CASE("polyhedra are written as triangle surfaces beside the particles' points",
+          "[scene][poly][output]") {
+  // Reference: the pose. A cube (r_d 0.2 of the size) at a known position and orientation:
+  // its 12 surface triangles; each surface point at distance |R (v + r_d n_v)| s from the
+  // centre, where n_v is the vertex's mean normal (a cube corner: (1, 1, 1)/sqrt(3)); the
+  // index is a spatial collection of the points grid and a Triangle grid. Tolerance 1e-12.
+  TempDir dir;
+  DemSettings st;
+  st.dt = 1e-5;
+  st.materials = {{"rock", 1e8, 0.3, 2600.0}};
+  st.pairs = {MaterialPair{0.5, 0.5, 0.0}};
+  DemSystem sys(st);
+  PolyhedronShape cube;
+  cube.name = "cube";
+  for (int k = 0; k < 8; ++k)
+    cube.vertices.insert(cube.vertices.end(),
+                         {k & 1 ? 0.3 : -0.3, k & 2 ? 0.3 : -0.3, k & 4 ? 0.3 : -0.3});
+  const int q[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
+                       {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  for (const auto& f : q)
+    cube.triangles.insert(cube.triangles.end(), {f[0], f[1], f[2], f[0], f[2], f[3]});
+  cube.dilation = 0.2, cube.volume = 1.0, cube.inertia = {0.1, 0.1, 0.1};
+  sys.add_shape(cube);
+  ParticleInit p;
+  p.shape = ParticleShape::polyhedron;
+  p.shape_id = 0;
+  p.scale = 0.05;
+  p.position = {1.0, 2.0, 3.0};
+  p.orientation = {std::cos(0.3), std::sin(0.3), 0.0, 0.0};
+  ParticleInit s2;
+  s2.radius = 0.01;
+  s2.position = {0, 0, 0};
+  sys.add_particles(std::vector<ParticleInit>{p, s2});
+  ParticleOutput out(dir.path);
+  out.set_shapes({sys.shape(0)});
+  const std::vector<std::int64_t> ids{7, 8};
+  out.write(sys.particles(), ids, 0.0);
+  demfem::io::H5File f(out.snapshot_path(0), demfem::io::H5File::Mode::read);
+  const auto pts = f.read_doubles("surface_points");
+  REQUIRE(pts.size() == 8 * 3);
+  CHECK(f.read_int64("surface_triangles").size() == 12 * 3);
+  CHECK(f.read_int64("surface_id") == std::vector<std::int64_t>(12, 7));
+  const double expect = 0.05 * (0.3 * std::sqrt(3.0) + 0.2);
+  for (int k = 0; k < 8; ++k) {
+    const double d = std::sqrt((pts[3 * k] - 1.0) * (pts[3 * k] - 1.0) +
+                               (pts[3 * k + 1] - 2.0) * (pts[3 * k + 1] - 2.0) +
+                               (pts[3 * k + 2] - 3.0) * (pts[3 * k + 2] - 3.0));
+    CHECK(d == Approx(expect).epsilon(1e-12));
+  }
+  std::ifstream in(out.index_path());
+  std::stringstream text;
+  text << in.rdbuf();
+  CHECK_THAT(text.str(), Catch::Contains("CollectionType=\"Spatial\"") &&
+                             Catch::Contains("TopologyType=\"Triangle\" NumberOfElements=\"12\"") &&
+                             Catch::Contains("TopologyType=\"Polyvertex\" NumberOfElements=\"2\""));
+}

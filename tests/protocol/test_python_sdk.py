@@ -1,0 +1,160 @@
+"""ctest checks of the Python SDK (protocol/python) through real coupled runs: demfem_run starts
+the minimal Python backend examples/python_spring_plate/spring_plate.py (fem.backend =
+"external") beside dem_server.
+
+  static        the settled spheres' weight gives the plate z = F_z / k exactly
+  restart       the Python backend killed in step 15 is restarted from the last checkpoint
+                like fem_server, and the run equals the uninterrupted one (coupling.csv)
+  handshake     backends that exit before attaching, raise or die in their handshake are
+                refused with a message naming the program and pid
+  interface     a backend that reports another interface size when resumed or restarted is
+                refused (exit 2 on --resume, 1 on a restart), naming it
+  version       a backend that speaks another protocol version is refused, naming the program,
+                its pid and both versions
+
+Usage: test_python_sdk.py CASE DEMFEM_RUN SOURCE_DIR. Nothing may be left in /dev/shm.
+"""
+
+import csv
+import os
+import re
+import subprocess
+import sys
+import tempfile
+
+failures = []
+
+
+def check(ok, what):
+    if not ok:
+        failures.append(what)
+    return ok
+
+
+def run(demfem_run, scene, out, *extra, env=None):
+    r = subprocess.run([demfem_run, scene, "--output-dir", out, "--quiet", *extra],
+                       capture_output=True, text=True, timeout=300, env=env)
+    for seg in re.findall(r"segment /(demfem-[0-9a-f]+)", r.stdout):
+        check(not os.path.exists("/dev/shm/" + seg), f"segment {seg} left in /dev/shm")
+    return r
+
+
+def rows(out):
+    with open(os.path.join(out, "coupling.csv")) as f:
+        return list(csv.DictReader(f))
+
+
+def case_static(demfem_run, source, d):
+    r = run(demfem_run, os.path.join(source, "examples/python_spring_plate/static_ci.toml"), d)
+    if not check(r.returncode == 0, f"static run failed ({r.returncode}): {r.stderr[-2000:]}"):
+        return
+    last = rows(d)[-1]
+    f, z = float(last["force_sum_z"]), float(last["fem_max_displacement"])
+    print(f"static: F_z = {f!r} N, plate z = {z!r} m, F_z / k = {abs(f) / 1e7!r} m")
+    check(abs(f + 51.0 * 9.81) < 1e-6 * 500, f"the settled weight is {f} N, not 51 kg x 9.81")
+    check(abs(z - abs(f) / 1e7) <= 1e-15 * z, f"plate z = {z}, F_z / k = {abs(f) / 1e7}")
+
+
+def case_restart(demfem_run, source, d):
+    scene = os.path.join(source, "examples/python_spring_plate/dynamic_ci.toml")
+    a, b = os.path.join(d, "straight"), os.path.join(d, "killed")
+    ra = run(demfem_run, scene, a)
+    rb = run(demfem_run, scene, b, "--debug-kill", "fem:15")
+    if not (check(ra.returncode == 0, f"uninterrupted run failed: {ra.stderr[-2000:]}") and
+            check(rb.returncode == 0, f"killed run failed: {rb.stderr[-2000:]}")):
+        return
+    check("restarting it" in rb.stderr and "recovered" in rb.stderr,
+          f"no restart reported: {rb.stderr[-1500:]}")
+    check("started the external FEM backend" in rb.stdout, "the restart did not start the backend")
+    keys = ["step", "time", "drift", "work_dem", "work_fem", "max_overlap", "kinetic_energy",
+            "fem_max_displacement", "force_sum_z"]
+    xa, xb = rows(a), rows(b)
+    check(len(xa) == len(xb) == 40, f"rows {len(xa)} and {len(xb)}, expected 40")
+    same = all(ra_[k] == rb_[k] for ra_, rb_ in zip(xa, xb) for k in keys)
+    check(same, "the restarted run differs from the uninterrupted one")
+    print(f"restart: 40 steps, final plate displacement {xb[-1]['fem_max_displacement']} m in both")
+
+
+def case_handshake(demfem_run, source, d):
+    scene = os.path.join(source, "examples/python_spring_plate/static_ci.toml")
+    faulty = os.path.join(source, "tests/protocol/python/misbehaving_backend.py")
+    expect = {
+        "exit-before-attach": (1, "ended with status 3 before it attached"),
+        "raise-in-mesh": (1, "reported an error in its handshake"),
+        "die-in-mesh": (1, "ended with status 7 before it attached"),
+    }
+    for fault, (code, text) in expect.items():
+        r = run(demfem_run, scene, os.path.join(d, fault), "--set",
+                f'fem.command=["{{python}}", "{faulty}", "--fault", "{fault}"]', env=ENV)
+        msg = r.stderr.strip().splitlines()
+        named = [m for m in msg if "external FEM backend" in m and "misbehaving_backend.py" in m]
+        print(f"{fault}: exit {r.returncode}: {named[-1][:300] if named else msg[-1:]}")
+        check(r.returncode == code, f"{fault}: exit {r.returncode}, expected {code}")
+        check(any(text in m for m in named), f"{fault}: no message naming the backend with '{text}'")
+        check(re.search(r"pid [0-9]+", " ".join(named)) is not None, f"{fault}: pid not named")
+    r = run(demfem_run, scene, os.path.join(d, "raise"), "--set",
+            f'fem.command=["{{python}}", "{faulty}", "--fault", "raise-in-mesh"]', env=ENV)
+    check("ValueError: the mesh file is broken" in r.stderr, "the Python exception text is lost")
+
+
+def case_interface(demfem_run, source, d):
+    scene = os.path.join(source, "examples/python_spring_plate/dynamic_ci.toml")
+    faulty = os.path.join(source, "tests/protocol/python/misbehaving_backend.py")
+    cmd = f'fem.command=["{{python}}", "{faulty}", "--fault", "other-size-on-resume"]'
+    out = os.path.join(d, "a")
+    r = run(demfem_run, scene, out, "--set", cmd, env=ENV)
+    if not check(r.returncode == 0, f"first run failed: {r.stderr[-1500:]}"):
+        return
+    r = run(demfem_run, scene, out, "--set", cmd, "--resume", env=ENV)
+    line = [m for m in r.stderr.splitlines() if "reports an interface of 33 nodes" in m]
+    print(f"resume: exit {r.returncode}: {line[-1][:300] if line else r.stderr[-300:]}")
+    check(r.returncode == 2, f"resume with another interface: exit {r.returncode}, expected 2")
+    check(bool(line) and "external FEM backend" in line[-1] and "has 63" in line[-1],
+          "resume: the refusal does not name the backend and both sizes")
+    r = run(demfem_run, scene, os.path.join(d, "b"), "--set", cmd, "--debug-kill", "fem:15",
+            env=ENV)
+    line = [m for m in r.stderr.splitlines() if "was refused" in m]
+    print(f"restart: exit {r.returncode}: {line[-1][:300] if line else r.stderr[-300:]}")
+    check(r.returncode == 1, f"restart with another interface: exit {r.returncode}, expected 1")
+    check(bool(line) and "external FEM backend" in line[-1] and "33 interface nodes" in line[-1],
+          "restart: the refusal does not name the backend and the size")
+
+
+def case_version(demfem_run, source, d):
+    scene = os.path.join(source, "examples/python_spring_plate/static_ci.toml")
+    other = os.path.join(source, "tests/protocol/python/other_version_backend.py")
+    r = run(demfem_run, scene, os.path.join(d, "v"), "--set",
+            f'fem.command=["{{python}}", "{other}"]', env=ENV)
+    line = [m for m in r.stderr.splitlines() if "protocol version mismatch" in m
+            and "external FEM backend" in m]
+    print(f"version: exit {r.returncode}: {line[-1][:300] if line else r.stderr[-600:]}")
+    check(r.returncode == 1, f"another protocol version: exit {r.returncode}, expected 1")
+    check(bool(line), "the refusal does not name the external FEM backend")
+    if line:
+        check("other_version_backend.py" in line[-1], "the program is not named")
+        check(re.search(r"pid [0-9]+", line[-1]) is not None, "the pid is not named")
+        check("speaks protocol version 999" in line[-1], "the backend's version is not named")
+    check("refusing to attach" in r.stderr, "the backend's own refusal is lost")
+    check(not os.path.exists(os.path.join(d, "v", "coupling.csv")) or
+          len(open(os.path.join(d, "v", "coupling.csv")).read().splitlines()) <= 1,
+          "the refused run wrote coupling steps")
+
+
+CASES = {"static": case_static, "restart": case_restart, "handshake": case_handshake,
+         "interface": case_interface, "version": case_version}
+ENV = None
+
+
+def main():
+    global ENV
+    case, demfem_run, source = sys.argv[1], sys.argv[2], os.path.abspath(sys.argv[3])
+    ENV = dict(os.environ, DEMFEM_EXAMPLES=os.path.join(source, "examples/python_spring_plate"))
+    with tempfile.TemporaryDirectory() as d:
+        CASES[case](demfem_run, source, d)
+    for f in failures:
+        print("FAILED:", f)
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
