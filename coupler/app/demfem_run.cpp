@@ -66,6 +66,7 @@ struct Options {
   bool in_process = false;
   bool no_post = false;
   int wait_spin_us = 0;
+  bool solver_sessions = false;
   bool resume = false;
   std::string resume_from;        // empty: the latest valid checkpoint
   std::string debug_kill;         // ROLE:STEP[:always], fault injection for tests
@@ -691,12 +692,14 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
                     external->text.c_str(), static_cast<int>(*fem_pid));
       } else if (settings.has_fem) {
         fem_proc = std::make_unique<SolverProcess>("FEM solver", bin / "fem_server", fem_args);
+        fem_proc->set_own_session(opt.solver_sessions);
         fem_pid = fem_proc->start();
         std::printf("demfem run: started fem_server (pid %d) with the %s backend\n",
                     static_cast<int>(*fem_pid), settings.fem_backend.c_str());
       }
       if (settings.has_dem) {
         dem_proc = std::make_unique<SolverProcess>("DEM solver", bin / "dem_server", args);
+        dem_proc->set_own_session(opt.solver_sessions);
         dem_pid = dem_proc->start();
         std::printf("demfem run: started dem_server (pid %d)\n", static_cast<int>(*dem_pid));
       }
@@ -914,6 +917,16 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
           "(sum %.9g N along z) went into one static FEM solve\n",
           summary->time, summary->last.kinetic_energy, summary->last.force_sum_z);
     }
+    if (settings.scheme == Scheme::implicit && summary->steps > 0) {
+      std::printf(
+          "demfem run: implicit (%s): %lld iterations in %lld steps, %.3g per step, at "
+          "most %lld; %lld steps accepted without convergence\n",
+          acceleration_name(settings.implicit.acceleration.kind),
+          static_cast<long long>(summary->iterations), static_cast<long long>(summary->steps),
+          static_cast<double>(summary->iterations) / static_cast<double>(summary->steps),
+          static_cast<long long>(summary->max_iterations),
+          static_cast<long long>(summary->unconverged_steps));
+    }
     print_timing(*summary, remote);
     try {
       write_timing(out_dir, *summary);
@@ -1002,6 +1015,12 @@ int main(int argc, char** argv) {
                  "microseconds the coupler spins before it blocks while waiting for a solver "
                  "(default 0: block at once)")
       ->check(CLI::Range(0, 100000));
+  app.add_flag("--solver-sessions", opt.solver_sessions,
+               "start each solver in a session of its own (setsid), so that under Linux's "
+               "autogroup scheduling each gets a CPU share of its own (the concurrent scheme "
+               "needs both cores while other sessions are busy); signals to the launcher's "
+               "process group then reach only the launcher, which forwards SIGTERM "
+               "(docs/coupling.md)");
   app.add_flag("--no-post", opt.no_post, "skip the scene's [[post]] steps (plots, reports)");
   app.add_flag("--in-process", opt.in_process,
                "run the solvers in this process (no servers; same results on the CPU backend)");

@@ -9,6 +9,8 @@
 #include <optional>
 #include <sstream>
 
+#include "coupling_series.hpp"
+#include "demfem/coupling/acceleration.hpp"
 #include "demfem/coupling/checkpoint.hpp"
 #include "demfem/io/atomic_file.hpp"
 #include "demfem/io/checkpoint_file.hpp"
@@ -29,28 +31,6 @@ std::string fmt(double v) {
   s.precision(6);
   s << v;
   return s.str();
-}
-
-const std::vector<std::string> kColumns = {
-    "step",         "time",        "drift",           "work_dem",       "work_fem",
-    "energy_error", "max_overlap", "dem_max_overlap", "kinetic_energy", "fem_max_displacement",
-    "force_sum_z",  "wall_dem",    "wall_fem",        "wall_coupling"};
-
-std::vector<double> row_of(const StepDiagnostics& d) {
-  return {static_cast<double>(d.step),
-          d.time,
-          d.drift,
-          d.work_dem,
-          d.work_fem,
-          d.energy_error,
-          d.max_overlap,
-          d.dem_max_overlap,
-          d.kinetic_energy,
-          d.fem_max_displacement,
-          d.force_sum_z,
-          d.wall_dem,
-          d.wall_fem,
-          d.wall_coupling};
 }
 
 // Trapezoidal work of node forces that change linearly from f0 to f1 over the node
@@ -82,68 +62,6 @@ std::ptrdiff_t first_non_finite(std::span<const double> v) {
 void copy(std::span<const double> from, std::span<double> to) {
   std::copy(from.begin(), from.end(), to.begin());
 }
-
-// coupling.csv, one row per coupling step. Numbers are written with std::to_chars in their
-// shortest form that reads back as the same double (exact, like CsvWriter's %.17g, but about
-// five times faster: at one row per step, formatting was most of the coupler's own time).
-class SeriesFile {
- public:
-  SeriesFile(const std::filesystem::path& path, const std::vector<std::string>& columns)
-      : path_(path), out_(path, std::ios::trunc) {
-    if (!out_) throw std::runtime_error("cannot write " + path.string());
-    for (std::size_t k = 0; k < columns.size(); ++k) out_ << (k ? "," : "") << columns[k];
-    out_ << '\n';
-  }
-  /// Continues an existing series: keeps the header and the first `keep_rows` rows (those
-  /// of a checkpoint being resumed), drops the rest.
-  SeriesFile(const std::filesystem::path& path, std::size_t keep_rows) : path_(path) {
-    std::string kept;
-    {
-      std::ifstream in(path, std::ios::binary);
-      if (!in) {
-        throw std::runtime_error(path.string() +
-                                 ": cannot read the series to continue (the output folder does "
-                                 "not hold the output of the run that took the checkpoint: resume "
-                                 "into that run's output folder)");
-      }
-      std::string line;
-      std::size_t lines = 0;
-      while (lines < keep_rows + 1 && std::getline(in, line)) {
-        kept += line;
-        kept += '\n';
-        ++lines;
-      }
-      if (lines < keep_rows + 1) {
-        throw std::runtime_error(path.string() + ": has " +
-                                 std::to_string(lines == 0 ? 0 : lines - 1) +
-                                 " rows, the checkpoint counts " + std::to_string(keep_rows));
-      }
-    }
-    io::write_file_atomic(path, kept);
-    out_.open(path, std::ios::app);
-    if (!out_) throw std::runtime_error("cannot write " + path.string());
-  }
-  void row(std::span<const double> values) {
-    char text[40];
-    line_.clear();
-    for (std::size_t k = 0; k < values.size(); ++k) {
-      if (k) line_ += ',';
-      const auto r = std::to_chars(text, text + sizeof(text), values[k]);
-      line_.append(text, r.ptr);
-    }
-    line_ += '\n';
-    out_ << line_;
-  }
-  void flush() {
-    out_.flush();
-    if (!out_) throw std::runtime_error("cannot write " + path_.string());
-  }
-
- private:
-  std::filesystem::path path_;
-  std::ofstream out_;
-  std::string line_;
-};
 
 }  // namespace
 
@@ -202,25 +120,6 @@ std::vector<std::string> checkpoint_parts(const CouplingSettings& s) {
 
 namespace {
 
-StepDiagnostics diagnostics_of(std::span<const double> r) {
-  StepDiagnostics d;
-  d.step = static_cast<std::int64_t>(r[0]);
-  d.time = r[1];
-  d.drift = r[2];
-  d.work_dem = r[3];
-  d.work_fem = r[4];
-  d.energy_error = r[5];
-  d.max_overlap = r[6];
-  d.dem_max_overlap = r[7];
-  d.kinetic_energy = r[8];
-  d.fem_max_displacement = r[9];
-  d.force_sum_z = r[10];
-  d.wall_dem = r[11];
-  d.wall_fem = r[12];
-  d.wall_coupling = r[13];
-  return d;
-}
-
 const char* role_label(Role role) {
   return role == Role::dem ? "DEM" : "FEM";
 }
@@ -231,7 +130,7 @@ RunSummary CouplingRun::run() {
   const CouplingSettings& s = settings_;
   std::filesystem::create_directories(output_dir_);
   std::optional<SeriesFile> csv;
-  if (!control_.resume_from) csv.emplace(output_dir_ / "coupling.csv", kColumns);
+  if (!control_.resume_from) csv.emplace(output_dir_ / "coupling.csv", coupling_columns());
   auto report = [&](const std::string& m) {
     if (control_.report) control_.report(m);
   };
@@ -242,7 +141,24 @@ RunSummary CouplingRun::run() {
   const std::size_t n3 = 3 * sum.mesh.node_count();
   const bool coupled = s.has_dem && s.has_fem;
   InterfaceBuffers& buf = link_.buffers();
-  constexpr std::uint32_t b = 0;  // one buffer: the schemes here are sequential
+  // Buffer 0 for every scheme; the concurrent one gives the FEM buffer 1, so that the two
+  // solvers, stepping at the same time, never touch the same array.
+  constexpr std::uint32_t b = 0;
+  constexpr std::uint32_t b_fem_concurrent = 1;
+  if (s.scheme == Scheme::implicit) {
+    for (Role role : {Role::dem, Role::fem}) {
+      if (link_.supports_iteration(role)) continue;
+      throw scene::SceneError(s.scene_file.string() +
+                              ": coupling.scheme = \"implicit\" iterates every coupling step, "
+                              "which needs solvers that can go back to a step's start; the " +
+                              role_label(role) + " solver '" + link_.name(role) +
+                              "' cannot (its Hello does not announce the capability "
+                              "'iteration', docs/protocol.md): choose an explicit scheme");
+    }
+  }
+  // The implicit scheme's accelerator (its history is part of a checkpoint) and counters.
+  std::unique_ptr<Acceleration> accel;
+  if (s.scheme == Scheme::implicit) accel = make_acceleration(s.implicit.acceleration, n3);
 
   // The coupler's own copies: the FEM interface state at t_i (P, V, A), the forces the FEM
   // was last given and the DEM's last forces, for the schemes and the work diagnostics.
@@ -331,6 +247,10 @@ RunSummary CouplingRun::run() {
           {"scheme/dem_force", &dem_force}, {"scheme/dem_force_prev", &dem_force_prev},
           {"scheme/fem_force", &fem_force}, {"scheme/fem_force_prev", &fem_force_prev}};
       for (const auto& [name, v] : arrays) h5.write(name, std::span<const double>(*v), {v->size()});
+      h5.set_attribute("/", "iterations", sum.iterations);
+      h5.set_attribute("/", "max_iterations", sum.max_iterations);
+      h5.set_attribute("/", "unconverged_steps", sum.unconverged_steps);
+      if (accel) accel->save(h5, "acceleration");
       if (n3 > 0) {
         // The interface buffer as the solvers left it (the schemes rewrite it before every
         // read, but a restored run starts from exactly the same bytes).
@@ -340,6 +260,14 @@ RunSummary CouplingRun::run() {
         h5.write("buffer/accelerations", std::span<const double>(buf.accelerations(b)), {n3});
         h5.write("buffer/forces", std::span<const double>(buf.forces(b)), {n3});
         h5.write("buffer/dem_positions", std::span<const double>(buf.dem_positions(b)), {n3});
+        if (s.scheme == Scheme::concurrent) {  // the FEM's buffer
+          const std::uint32_t f = b_fem_concurrent;
+          h5.create_group("buffer1");
+          h5.write("buffer1/positions", std::span<const double>(buf.positions(f)), {n3});
+          h5.write("buffer1/velocities", std::span<const double>(buf.velocities(f)), {n3});
+          h5.write("buffer1/accelerations", std::span<const double>(buf.accelerations(f)), {n3});
+          h5.write("buffer1/forces", std::span<const double>(buf.forces(f)), {n3});
+        }
       }
     });
   };
@@ -376,7 +304,11 @@ RunSummary CouplingRun::run() {
                               : sum.earlier.dem + sum.earlier.fem + sum.earlier.coupling;
     }
     const auto last = h5.read_doubles("last_diagnostics");
-    need(last.size() == kColumns.size(), "dataset 'last_diagnostics' has the wrong size");
+    need(last.size() == coupling_columns().size(),
+         "dataset 'last_diagnostics' has " + std::to_string(last.size()) +
+             " values, coupling.csv " + std::to_string(coupling_columns().size()) +
+             " columns (a checkpoint of an older demfem, whose series had other columns: start "
+             "the run afresh)");
     sum.last = diagnostics_of(last);
     const std::pair<const char*, std::vector<double>*> arrays[] = {
         {"scheme/positions", &pos},       {"scheme/velocities", &vel},
@@ -403,7 +335,24 @@ RunSummary CouplingRun::run() {
         need(data.size() == n3, std::string("dataset '") + name + "' has the wrong size");
         copy(data, to);
       }
+      if (s.scheme == Scheme::concurrent) {
+        const std::uint32_t f = b_fem_concurrent;
+        const std::pair<const char*, std::span<double>> bufs1[] = {
+            {"buffer1/positions", buf.positions(f)},
+            {"buffer1/velocities", buf.velocities(f)},
+            {"buffer1/accelerations", buf.accelerations(f)},
+            {"buffer1/forces", buf.forces(f)}};
+        for (const auto& [name, to] : bufs1) {
+          const auto data = h5.read_doubles(name);
+          need(data.size() == n3, std::string("dataset '") + name + "' has the wrong size");
+          copy(data, to);
+        }
+      }
     }
+    sum.iterations = h5.attribute_int64("/", "iterations");
+    sum.max_iterations = h5.attribute_int64("/", "max_iterations");
+    sum.unconverged_steps = h5.attribute_int64("/", "unconverged_steps");
+    if (accel) accel->load(h5, "acceleration");
     sum.steps = steps;
   };
 
@@ -470,36 +419,56 @@ RunSummary CouplingRun::run() {
   };
 
   // A solver that fails or dies inside a step: name it, the step and the time.
-  auto solver_step = [&](Role role, const StepCommand& cmd) {
+  auto solver_failure = [&](Role role, const StepCommand& cmd, const std::exception& e) {
+    std::ostringstream m;
+    m << "the " << role_label(role) << " solver failed in coupling step " << cmd.step
+      << " (t = " << fmt(cmd.time) << " s): " << e.what();
+    return SolverFailure(role, cmd.step, cmd.time, m.str(),
+                         dynamic_cast<const protocol::PeerDied*>(&e) != nullptr, error_kind_of(e));
+  };
+  auto send = [&](Role role, const StepCommand& cmd) {
     try {
       link_.send_step(role, cmd);
       if (control_.after_send) control_.after_send(role, cmd.step);
-      return link_.wait_step_done(role);
     } catch (const std::exception& e) {
-      std::ostringstream m;
-      m << "the " << role_label(role) << " solver failed in coupling step " << cmd.step
-        << " (t = " << fmt(cmd.time) << " s): " << e.what();
-      throw SolverFailure(role, cmd.step, cmd.time, m.str(),
-                          dynamic_cast<const protocol::PeerDied*>(&e) != nullptr, error_kind_of(e));
+      throw solver_failure(role, cmd, e);
     }
   };
-  auto dem_step = [&](const StepCommand& cmd, StepDiagnostics& d) {
-    const auto t0 = Clock::now();
-    const StepResult r = solver_step(Role::dem, cmd);
-    d.wall_dem += seconds(t0, Clock::now());
+  auto wait = [&](Role role, const StepCommand& cmd) {
+    try {
+      return link_.wait_step_done(role);
+    } catch (const std::exception& e) {
+      throw solver_failure(role, cmd, e);
+    }
+  };
+  // The outcome of a DEM step (forces and mesh positions in buffer `bb`) and of a FEM step.
+  auto dem_done = [&](const StepResult& r, std::uint32_t bb, StepDiagnostics& d) {
     d.max_overlap = r.values[0];
     d.kinetic_energy = r.values[1];
     d.dem_max_overlap = r.values[2];
+    d.wall_dem_compute += r.compute_seconds;
     if (n3 > 0) {
-      copy(buf.forces(b), dem_force);
-      copy(buf.dem_positions(b), dem_end);
+      copy(buf.forces(bb), dem_force);
+      copy(buf.dem_positions(bb), dem_end);
     }
+  };
+  auto fem_done = [&](const StepResult& r, StepDiagnostics& d) {
+    d.fem_max_displacement = r.values[0];
+    d.wall_fem_compute += r.compute_seconds;
+  };
+  auto dem_step = [&](const StepCommand& cmd, StepDiagnostics& d) {
+    const auto t0 = Clock::now();
+    send(Role::dem, cmd);
+    const StepResult r = wait(Role::dem, cmd);
+    d.wall_dem += seconds(t0, Clock::now());
+    dem_done(r, cmd.buffer, d);
   };
   auto fem_step = [&](const StepCommand& cmd, StepDiagnostics& d) {
     const auto t0 = Clock::now();
-    const StepResult r = solver_step(Role::fem, cmd);
+    send(Role::fem, cmd);
+    const StepResult r = wait(Role::fem, cmd);
     d.wall_fem += seconds(t0, Clock::now());
-    d.fem_max_displacement = r.values[0];
+    fem_done(r, d);
   };
   auto fail = [&](const StepDiagnostics& d, const std::string& quantity, double value, double bound,
                   const std::string& why) {
@@ -538,6 +507,96 @@ RunSummary CouplingRun::run() {
       fail(d, "energy_error", d.energy_error, s.max_energy_error,
            "interface energy error |W_dem - W_fem| = " + fmt(std::abs(d.energy_error)) +
                " J exceeds coupling.blowup.max_energy_error = " + fmt(s.max_energy_error) + " J");
+    }
+  };
+
+  // The wall time of a step spent waiting for the solvers: in the concurrent scheme their
+  // steps overlap, and the FEM's (from the common send to its reply) covers both.
+  auto solver_wall = [&](const StepDiagnostics& d) {
+    return s.scheme == Scheme::concurrent ? std::max(d.wall_dem, d.wall_fem)
+                                          : d.wall_dem + d.wall_fem;
+  };
+
+  // The implicit scheme (docs/coupling.md): the step from t_i to t_i+1 is iterated as a
+  // Dirichlet-Neumann fixed point on the interface displacement at t_i+1. Iteration k gives
+  // the DEM the displacement u^k (its mesh moves linearly in time from the accepted P_i to
+  // X + u^k, eq. 3.5-3.7 with the iterate for P_i+1), the DEM's forces F^k drive the FEM step,
+  // whose displacement u~^k = H(u^k) closes the loop. u^0 is the FEM's own extrapolation
+  // P_i + dt V_i + dt^2/2 A_i; later ones come from the accelerator. Both solvers keep the
+  // step's start in memory and go back to it for every new iteration (kStepIterate,
+  // kStepRedo); the last iteration's states are the accepted ones.
+  const std::vector<double>& ref = sum.mesh.reference_positions;
+  std::vector<double> u_in(n3), u_out(n3), u_next(n3), force_before(n3), fem_vel(n3), fem_acc(n3);
+  std::string nonconvergence;  // set by a step that did not converge and must stop the run
+  auto implicit_step = [&](StepCommand dem_cmd, StepCommand fem_cmd, StepDiagnostics& d) {
+    const ImplicitSettings& im = s.implicit;
+    const double dt = s.coupling_dt;
+    for (std::size_t k = 0; k < n3; ++k)
+      u_in[k] = pos[k] + dt * vel[k] + 0.5 * dt * dt * acc[k] - ref[k];
+    force_before = dem_force_prev;  // F^{-1}: the last step's (preCICE's first measure)
+    dem_start = pos;
+    dem_cmd.flags |= protocol::kStepSetKinematics | protocol::kStepIterate;
+    fem_cmd.flags |= protocol::kStepIterate;
+    std::int64_t it = 0;
+    bool converged = false;
+    for (;;) {
+      if (it > 0) {
+        dem_cmd.flags |= protocol::kStepRedo;
+        fem_cmd.flags |= protocol::kStepRedo;
+      }
+      copy(pos, buf.positions(b));
+      auto v = buf.velocities(b);
+      for (std::size_t k = 0; k < n3; ++k) v[k] = (ref[k] + u_in[k] - pos[k]) / dt;
+      std::fill(buf.accelerations(b).begin(), buf.accelerations(b).end(), 0.0);
+      dem_step(dem_cmd, d);
+      fem_force = dem_force;  // the FEM reads them in the buffer, where the DEM left them
+      fem_step(fem_cmd, d);
+      copy(buf.positions(b), next_pos);
+      copy(buf.velocities(b), fem_vel);
+      copy(buf.accelerations(b), fem_acc);
+      for (std::size_t k = 0; k < n3; ++k) u_out[k] = next_pos[k] - ref[k];
+      double abs_u = 0.0, abs_f = 0.0;
+      d.residual_displacement = relative_change(u_out, u_in, &abs_u);
+      d.residual_force = relative_change(dem_force, force_before, &abs_f);
+      ++it;
+      converged = (d.residual_displacement <= im.displacement_tolerance ||
+                   abs_u <= im.displacement_abs_tolerance) &&
+                  (d.residual_force <= im.force_tolerance || abs_f <= im.force_abs_tolerance);
+      if (converged || it >= im.max_iterations) break;
+      force_before = dem_force;
+      accel->next(u_in, u_out, u_next);
+      u_in.swap(u_next);
+    }
+    accel->end_step(u_in, u_out);
+    vel = fem_vel;
+    acc = fem_acc;
+    d.iterations = it;
+    d.converged = converged;
+    sum.iterations += it;
+    sum.max_iterations = std::max(sum.max_iterations, it);
+    if (!converged) {
+      std::ostringstream m;
+      m << "coupling step " << d.step << " (t = " << fmt(d.time) << " s) did not converge in " << it
+        << " iterations (coupling.max_iterations): relative residuals "
+        << fmt(d.residual_displacement)
+        << " (displacement, coupling.displacement_tolerance = " << fmt(im.displacement_tolerance)
+        << ") and " << fmt(d.residual_force)
+        << " (force, coupling.force_tolerance = " << fmt(im.force_tolerance) << ")";
+      if (im.on_nonconvergence == NonConvergence::stop) {
+        nonconvergence = m.str() +
+                         "; coupling.on_nonconvergence = \"stop\" (raise max_iterations, lower "
+                         "the coupling step, or set \"accept\" to go on with a warning)";
+      } else {
+        // Counted in the summary and marked in coupling.csv (converged = 0); the first few are
+        // also reported, not every one of a long run.
+        constexpr std::int64_t kReported = 5;
+        if (++sum.unconverged_steps <= kReported) {
+          report("warning: " + m.str() + "; accepted (coupling.on_nonconvergence = \"accept\")" +
+                 (sum.unconverged_steps == kReported
+                      ? "; further unconverged steps are counted, not reported"
+                      : ""));
+        }
+      }
     }
   };
 
@@ -632,6 +691,52 @@ RunSummary CouplingRun::run() {
         dem_step(dem_cmd, d);
         break;
       }
+      case Scheme::concurrent: {
+        // Both at once, each from the other's data at t_i: the DEM moves the mesh from the
+        // FEM's state at t_i (x + v tau + a tau^2/2, as just-in-time) in buffer 0, while the
+        // FEM advances with the DEM's last forces (F_i, as predictive) in buffer 1.
+        copy(pos, buf.positions(b));
+        copy(vel, buf.velocities(b));
+        copy(acc, buf.accelerations(b));
+        dem_start = pos;
+        dem_cmd.flags |= protocol::kStepSetKinematics;
+        fem_force = dem_force_prev;
+        fem_cmd.buffer = b_fem_concurrent;
+        copy(fem_force, buf.forces(fem_cmd.buffer));
+        const auto t0 = Clock::now();
+        send(Role::dem, dem_cmd);
+        try {
+          send(Role::fem, fem_cmd);
+        } catch (...) {
+          try {
+            (void)link_.wait_step_done(Role::dem);  // the DEM's reply must not stay behind
+          } catch (...) {
+          }
+          throw;
+        }
+        StepResult rd;
+        try {
+          rd = wait(Role::dem, dem_cmd);
+        } catch (...) {
+          try {
+            (void)link_.wait_step_done(Role::fem);  // as above: its reply is drained
+          } catch (...) {
+          }
+          throw;
+        }
+        d.wall_dem = seconds(t0, Clock::now());
+        const StepResult rf = wait(Role::fem, fem_cmd);
+        d.wall_fem = seconds(t0, Clock::now());
+        dem_done(rd, b, d);
+        fem_done(rf, d);
+        copy(buf.positions(fem_cmd.buffer), next_pos);
+        copy(buf.velocities(fem_cmd.buffer), vel);
+        copy(buf.accelerations(fem_cmd.buffer), acc);
+        break;
+      }
+      case Scheme::implicit:
+        implicit_step(dem_cmd, fem_cmd, d);
+        break;
     }
 
     if (coupled && s.scheme != Scheme::one_way_static) {
@@ -651,7 +756,16 @@ RunSummary CouplingRun::run() {
     d.energy_error = work_dem - work_fem;
     for (std::size_t k = 2; k < n3; k += 3) d.force_sum_z += dem_force[k];
     check(d);
-    d.wall_coupling = std::max(0.0, seconds(step_start, Clock::now()) - d.wall_dem - d.wall_fem);
+    if (!nonconvergence.empty()) {  // coupling.on_nonconvergence = "stop": exit status 3
+      const std::string why = std::move(nonconvergence);
+      nonconvergence.clear();
+      write_row(d);
+      csv->flush();
+      sum.last = d;
+      throw BlowUp(d.step, d.time, "iterations", static_cast<double>(d.iterations),
+                   static_cast<double>(s.implicit.max_iterations), why);
+    }
+    d.wall_coupling = std::max(0.0, seconds(step_start, Clock::now()) - solver_wall(d));
     sum.steps = i + 1;
     sum.time = d.time;
     sum.wall_dem += d.wall_dem;
@@ -659,7 +773,7 @@ RunSummary CouplingRun::run() {
     const bool row_due = (i + 1) % s.diagnostics_interval == 0 || i + 1 == s.step_count || settled;
     if (row_due) write_row(d);
     // The row's own write is part of the coupler's time; account it to the totals.
-    d.wall_coupling = std::max(0.0, seconds(step_start, Clock::now()) - d.wall_dem - d.wall_fem);
+    d.wall_coupling = std::max(0.0, seconds(step_start, Clock::now()) - solver_wall(d));
     sum.wall_coupling += d.wall_coupling;
     sum.last = d;
     if (observer_) observer_(d, s);

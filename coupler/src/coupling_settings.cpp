@@ -24,6 +24,10 @@ const char* scheme_name(Scheme scheme) {
       return "just_in_time";
     case Scheme::predictive:
       return "predictive";
+    case Scheme::concurrent:
+      return "concurrent";
+    case Scheme::implicit:
+      return "implicit";
   }
   return "?";
 }
@@ -67,6 +71,56 @@ void check_step_counts(const CouplingSettings& s, const Table& root) {
                        " s make " + count_text(dem_steps) + " DEM steps; at most " +
                        count_text(kMaxDemSteps) +
                        " are accepted. Lower run.end_time or raise dem.dt (both in seconds)");
+    }
+  }
+}
+
+constexpr const char* kImplicitKeys[] = {"acceleration",
+                                         "max_iterations",
+                                         "displacement_tolerance",
+                                         "force_tolerance",
+                                         "displacement_abs_tolerance",
+                                         "force_abs_tolerance",
+                                         "on_nonconvergence",
+                                         "initial_relaxation",
+                                         "reuse_steps",
+                                         "max_columns",
+                                         "qr_filter"};
+
+// The implicit scheme's keys of [coupling]; any of them with another scheme, or an IQN-ILS key
+// with another acceleration, is refused (it would be silently without effect).
+void read_implicit_settings(CouplingSettings& s, const Table& c) {
+  if (s.scheme != Scheme::implicit) {
+    for (const char* key : kImplicitKeys) {
+      if (c.has(key)) c.fail(key, "is only used by scheme = \"implicit\"");
+    }
+    return;
+  }
+  ImplicitSettings& im = s.implicit;
+  AccelerationSettings& a = im.acceleration;
+  const std::string kind = c.choice("acceleration", "iqn-ils", {"iqn-ils", "aitken", "constant"});
+  a.kind = kind == "iqn-ils"  ? AccelerationKind::iqn_ils
+           : kind == "aitken" ? AccelerationKind::aitken
+                              : AccelerationKind::constant;
+  im.max_iterations = c.integer("max_iterations", im.max_iterations, 1, 1000);
+  im.displacement_tolerance =
+      c.number("displacement_tolerance", im.displacement_tolerance, Range::positive());
+  im.force_tolerance = c.number("force_tolerance", im.force_tolerance, Range::positive());
+  im.displacement_abs_tolerance =
+      c.number("displacement_abs_tolerance", 0.0, Range::non_negative());
+  im.force_abs_tolerance = c.number("force_abs_tolerance", 0.0, Range::non_negative());
+  im.on_nonconvergence = c.choice("on_nonconvergence", "stop", {"stop", "accept"}) == "stop"
+                             ? NonConvergence::stop
+                             : NonConvergence::accept;
+  a.initial_relaxation =
+      c.number("initial_relaxation", a.initial_relaxation, Range::open_closed(0.0, 1.0));
+  if (a.kind == AccelerationKind::iqn_ils) {
+    a.reuse_steps = c.integer("reuse_steps", a.reuse_steps, 0, 1000);
+    a.max_columns = c.integer("max_columns", a.max_columns, 1, 10000);
+    a.qr_filter = c.number("qr_filter", a.qr_filter, Range{0.0, 1.0, false, true});
+  } else {
+    for (const char* key : {"reuse_steps", "max_columns", "qr_filter"}) {
+      if (c.has(key)) c.fail(key, "is only used by acceleration = \"iqn-ils\"");
     }
   }
 }
@@ -140,13 +194,16 @@ CouplingSettings read_coupling_settings(const scene::Document& doc) {
     if (!coupling) {
       throw SceneError(doc.file().string() +
                        ": a scene with both [dem] and [fem] needs a [coupling] section with "
-                       "at least 'scheme' (one_way_static, just_in_time or predictive)");
+                       "at least 'scheme' (one_way_static, just_in_time, predictive, concurrent "
+                       "or implicit)");
     }
-    const std::string scheme =
-        coupling->choice("scheme", {"one_way_static", "just_in_time", "predictive"});
+    const std::string scheme = coupling->choice(
+        "scheme", {"one_way_static", "just_in_time", "predictive", "concurrent", "implicit"});
     s.scheme = scheme == "one_way_static" ? Scheme::one_way_static
                : scheme == "just_in_time" ? Scheme::just_in_time
-                                          : Scheme::predictive;
+               : scheme == "predictive"   ? Scheme::predictive
+               : scheme == "concurrent"   ? Scheme::concurrent
+                                          : Scheme::implicit;
     s.dem_substeps = dem_substeps(s.fem_dt, s.dem_dt, fem->where("dt"), dem->where("dt"));
     s.coupling_dt = s.fem_dt;
   } else if (s.has_dem) {
@@ -171,8 +228,10 @@ CouplingSettings read_coupling_settings(const scene::Document& doc) {
       coupling->skip("settle");
       coupling->skip("blowup");
       coupling->skip("beam_check");
+      for (const char* key : kImplicitKeys) coupling->skip(key);
     } else {
       s.force_averaging = coupling->boolean("force_averaging", false);
+      read_implicit_settings(s, *coupling);
       if (auto settle = coupling->table("settle")) {
         if (s.scheme != Scheme::one_way_static) {
           coupling->fail("settle", "is only used by scheme = \"one_way_static\"");

@@ -53,6 +53,10 @@ class LocalDem final : public protocol::SolverBackend {
     backend_.restore_checkpoint(f, s);
   }
   void set_cancel_flag(const std::atomic<bool>* flag) override { backend_.set_cancel_flag(flag); }
+  bool supports_iteration() const override { return backend_.supports_iteration(); }
+  void save_iteration_state() override { backend_.save_iteration_state(); }
+  void restore_iteration_state() override { backend_.restore_iteration_state(); }
+  void accept_step() override { backend_.accept_step(); }
   void drop_end_state() { cancelled_ = true; }
 
  private:
@@ -112,6 +116,10 @@ class LocalFem final : public protocol::SolverBackend {
   void restore_checkpoint(const std::filesystem::path& f, std::int64_t s) override {
     backend_->restore_checkpoint(f, s);
   }
+  bool supports_iteration() const override { return backend_->supports_iteration(); }
+  void save_iteration_state() override { backend_->save_iteration_state(); }
+  void restore_iteration_state() override { backend_->restore_iteration_state(); }
+  void accept_step() override { backend_->accept_step(); }
   void drop_end_state() { write_end_state_ = false; }
 
  private:

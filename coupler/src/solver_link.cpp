@@ -1,7 +1,12 @@
 #include "demfem/coupling/solver_link.hpp"
 
 #include <algorithm>
+#include <condition_variable>
+#include <cstdio>
+#include <functional>
+#include <mutex>
 #include <stdexcept>
+#include <thread>
 
 namespace demfem::coupling {
 
@@ -11,6 +16,55 @@ std::size_t index(Role role) {
 }
 }  // namespace
 
+// One long-lived thread that runs a task at a time: a thread per step would cost its start
+// every step, and the OpenMP team of a solver that uses one would be made afresh each time.
+class LocalLink::Worker {
+ public:
+  Worker() : thread_([this] { loop(); }) {}
+  ~Worker() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stop_ = true;
+    }
+    wake_.notify_all();
+    thread_.join();
+  }
+  void start(std::function<void()> task) {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      task_ = std::move(task);
+      busy_ = true;
+    }
+    wake_.notify_all();
+  }
+  void wait() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    wake_.wait(lock, [this] { return !busy_; });
+  }
+
+ private:
+  void loop() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    for (;;) {
+      wake_.wait(lock, [this] { return stop_ || task_; });
+      if (stop_) return;
+      auto task = std::move(task_);
+      task_ = nullptr;
+      lock.unlock();
+      task();  // run_step() catches everything
+      lock.lock();
+      busy_ = false;
+      wake_.notify_all();
+    }
+  }
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::function<void()> task_;
+  bool busy_ = false;
+  bool stop_ = false;
+  std::thread thread_;
+};
+
 LocalLink::LocalLink(std::unique_ptr<protocol::SolverBackend> dem,
                      std::unique_ptr<protocol::SolverBackend> fem) {
   backends_[index(Role::dem)] = std::move(dem);
@@ -18,6 +72,11 @@ LocalLink::LocalLink(std::unique_ptr<protocol::SolverBackend> dem,
 }
 
 LocalLink::~LocalLink() = default;
+
+bool LocalLink::supports_iteration(Role role) const {
+  auto* b = backend(role);
+  return b != nullptr && b->supports_iteration();
+}
 
 bool LocalLink::has(Role role) const {
   return backends_[index(role)] != nullptr;
@@ -59,25 +118,72 @@ std::string LocalLink::name(Role role) const {
 void LocalLink::send_step(Role role, const StepCommand& cmd) {
   auto* b = backend(role);
   if (!b) throw std::logic_error(std::string("no ") + protocol::role_name(role) + " solver");
-  // Executed at once: the in-process link has no concurrency, which is what makes it the
-  // reference for the three-process run.
-  pending_[index(role)] = b->step(cmd, buffers_);
+  const std::size_t r = index(role);
+  if (sent_[r] || results_[r] || errors_[r])
+    throw std::logic_error("send_step while a step of that solver is in progress");
+  sent_[r] = cmd;
+}
+
+// Runs the sent step of `role` through its gate (as serve() would) and keeps the outcome.
+void LocalLink::run_step(Role role) {
+  const std::size_t r = index(role);
+  const StepCommand cmd = *sent_[r];
+  sent_[r].reset();
+  try {
+    results_[r] = gates_[r].step(*backends_[r], cmd, buffers_);
+  } catch (...) {
+    errors_[r] = std::current_exception();
+  }
 }
 
 StepResult LocalLink::wait_step_done(Role role) {
-  auto& p = pending_[index(role)];
-  if (!p) throw std::logic_error("wait_step_done without send_step");
-  StepResult r = *p;
-  p.reset();
-  return r;
+  const std::size_t r = index(role);
+  if (sent_[r]) {
+    const std::size_t other = 1 - r;
+    if (sent_[other]) {
+      // Both solvers have a step to do: the FEM's on the worker, the DEM's here.
+      if (!worker_) worker_ = std::make_unique<Worker>();
+      worker_->start([this] { run_step(Role::fem); });
+      run_step(Role::dem);
+      worker_->wait();
+    } else {
+      run_step(role);
+    }
+  }
+  if (errors_[r]) {
+    std::exception_ptr e = errors_[r];
+    errors_[r] = nullptr;
+    std::rethrow_exception(e);
+  }
+  if (!results_[r]) throw std::logic_error("wait_step_done without send_step");
+  StepResult out = *results_[r];
+  results_[r].reset();
+  return out;
 }
 
 void LocalLink::checkpoint(Role role, const std::filesystem::path& file, std::int64_t step) {
+  gates_[index(role)].accept(*backend(role));  // a checkpoint holds an accepted step
   backend(role)->write_checkpoint(file, step);
 }
 
 void LocalLink::restore(Role role, const std::filesystem::path& file, std::int64_t step) {
+  const std::size_t r = index(role);
+  gates_[r].discard();
+  sent_[r].reset(), results_[r].reset(), errors_[r] = nullptr;
   backend(role)->restore_checkpoint(file, step);
+}
+
+void LocalLink::shutdown() {
+  for (Role role : {Role::dem, Role::fem}) {
+    auto* b = backend(role);
+    if (!b) continue;
+    try {
+      gates_[index(role)].accept(*b);
+    } catch (const std::exception& e) {  // never throws, as serve() answers Shutdown
+      std::fprintf(stderr, "%s: accepting the last step failed: %s\n", protocol::role_name(role),
+                   e.what());
+    }
+  }
 }
 
 RemoteLink::RemoteLink(protocol::CouplerSession& session, std::optional<pid_t> dem_pid,
@@ -140,6 +246,10 @@ InterfaceMesh RemoteLink::start() {
 
 std::string RemoteLink::name(Role role) const {
   return has(role) ? session_.peer(role).name : std::string();
+}
+
+bool RemoteLink::supports_iteration(Role role) const {
+  return has(role) && (session_.peer(role).capabilities & protocol::kCapabilityIteration) != 0;
 }
 
 void RemoteLink::send_step(Role role, const StepCommand& cmd) {

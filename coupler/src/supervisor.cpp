@@ -71,12 +71,16 @@ pid_t SolverProcess::start() {
   for (auto& a : argv_store) argv.push_back(a.data());
   argv.push_back(nullptr);
   pid_t pid = -1;
+  posix_spawnattr_t attr;
+  ::posix_spawnattr_init(&attr);
+  if (own_session_) ::posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSID);
   posix_spawn_file_actions_t actions;
   ::posix_spawn_file_actions_init(&actions);
   if (!working_directory_.empty())
     ::posix_spawn_file_actions_addchdir_np(&actions, working_directory_.c_str());
-  const int rc = ::posix_spawn(&pid, executable_.c_str(), &actions, nullptr, argv.data(), environ);
+  const int rc = ::posix_spawn(&pid, executable_.c_str(), &actions, &attr, argv.data(), environ);
   ::posix_spawn_file_actions_destroy(&actions);
+  ::posix_spawnattr_destroy(&attr);
   if (rc != 0) {
     throw std::runtime_error("cannot start the " + label_ + " (" + executable_.string() +
                              "): " + std::strerror(rc));

@@ -59,9 +59,10 @@ TEST_CASE("n_D within the relative tolerance is accepted; just outside is not") 
 TEST_CASE("[coupling] errors name file, line and key") {
   const std::string base = std::string(kRun) + "[dem]\ndt = 1e-6\n[fem]\ndt = 1e-4\n";
   CHECK_THAT(error_of(base), Catch::Contains("[coupling]"));
-  std::string msg = error_of(base + "[coupling]\nscheme = \"implicit\"\n");
+  std::string msg = error_of(base + "[coupling]\nscheme = \"staggered\"\n");
   CHECK_THAT(msg, Catch::Contains("coupling.scheme"));
   CHECK_THAT(msg, Catch::Contains("just_in_time"));
+  CHECK_THAT(msg, Catch::Contains("implicit"));
   msg = error_of(base + "[coupling]\nscheme = \"predictive\"\nforce_averagin = true\n");
   CHECK_THAT(msg, Catch::Contains("coupling.force_averagin"));
   CHECK_THAT(msg, Catch::Contains("scene.toml:9"));
@@ -123,4 +124,62 @@ TEST_CASE("step counts beyond the stated limits are refused upfront, naming the 
   s = read("[run]\nend_time = 1e3\n[dem]\ndt = 1e-6\n");
   CHECK(s.step_count == 1'000'000);  // slices of 1 ms
   CHECK(coupling::steps_to_reach(1e300, 1e-300) == INT64_MAX);
+}
+
+TEST_CASE("concurrent and implicit schemes; the implicit keys and their ranges") {
+  const std::string base = std::string(kRun) + "[dem]\ndt = 1e-6\n[fem]\ndt = 1e-4\n[coupling]\n";
+  CHECK(read(base + "scheme = \"concurrent\"\n").scheme == coupling::Scheme::concurrent);
+  // Defaults (docs/coupling.md): IQN-ILS, 50 iterations, stop when not converged.
+  auto s = read(base + "scheme = \"implicit\"\n");
+  CHECK(s.scheme == coupling::Scheme::implicit);
+  CHECK(s.implicit.acceleration.kind == coupling::AccelerationKind::iqn_ils);
+  CHECK(s.implicit.max_iterations == 50);
+  CHECK(s.implicit.on_nonconvergence == coupling::NonConvergence::stop);
+  s = read(base +
+           "scheme = \"implicit\"\nacceleration = \"aitken\"\nmax_iterations = 7\n"
+           "displacement_tolerance = 1e-5\nforce_tolerance = 2e-3\n"
+           "displacement_abs_tolerance = 1e-12\nforce_abs_tolerance = 1e-6\n"
+           "initial_relaxation = 0.25\non_nonconvergence = \"accept\"\n");
+  CHECK(s.implicit.acceleration.kind == coupling::AccelerationKind::aitken);
+  CHECK(s.implicit.max_iterations == 7);
+  CHECK(s.implicit.displacement_tolerance == 1e-5);
+  CHECK(s.implicit.force_tolerance == 2e-3);
+  CHECK(s.implicit.displacement_abs_tolerance == 1e-12);
+  CHECK(s.implicit.force_abs_tolerance == 1e-6);
+  CHECK(s.implicit.acceleration.initial_relaxation == 0.25);
+  CHECK(s.implicit.on_nonconvergence == coupling::NonConvergence::accept);
+  s = read(base + "scheme = \"implicit\"\nreuse_steps = 0\nmax_columns = 12\nqr_filter = 0\n");
+  CHECK(s.implicit.acceleration.reuse_steps == 0);
+  CHECK(s.implicit.acceleration.max_columns == 12);
+  CHECK(s.implicit.acceleration.qr_filter == 0.0);
+
+  // Every key names itself and its range (or the scheme it belongs to).
+  struct Bad {
+    const char* text;
+    const char* key;
+    const char* says;
+  };
+  const Bad bad[] = {
+      {"scheme = \"implicit\"\nmax_iterations = 0\n", "coupling.max_iterations", "1"},
+      {"scheme = \"implicit\"\ndisplacement_tolerance = 0\n", "coupling.displacement_tolerance",
+       "> 0"},
+      {"scheme = \"implicit\"\nforce_tolerance = -1\n", "coupling.force_tolerance", "> 0"},
+      {"scheme = \"implicit\"\ninitial_relaxation = 1.5\n", "coupling.initial_relaxation", "1"},
+      {"scheme = \"implicit\"\ninitial_relaxation = 0\n", "coupling.initial_relaxation", "0"},
+      {"scheme = \"implicit\"\nacceleration = \"broyden\"\n", "coupling.acceleration", "iqn-ils"},
+      {"scheme = \"implicit\"\non_nonconvergence = \"ignore\"\n", "coupling.on_nonconvergence",
+       "accept"},
+      {"scheme = \"implicit\"\nqr_filter = 1\n", "coupling.qr_filter", "1"},
+      {"scheme = \"implicit\"\nacceleration = \"aitken\"\nreuse_steps = 4\n",
+       "coupling.reuse_steps", "iqn-ils"},
+      {"scheme = \"just_in_time\"\nmax_iterations = 4\n", "coupling.max_iterations", "implicit"},
+      {"scheme = \"concurrent\"\nacceleration = \"aitken\"\n", "coupling.acceleration", "implicit"},
+  };
+  for (const auto& b : bad) {
+    INFO(b.text);
+    const std::string msg = error_of(base + b.text);
+    CHECK_THAT(msg, Catch::Contains(b.key));
+    CHECK_THAT(msg, Catch::Contains(b.says));
+    CHECK_THAT(msg, Catch::Contains("scene.toml:"));
+  }
 }

@@ -3,11 +3,13 @@
 // the one-way static settle logic, the diagnostics and the blow-up stops.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -23,8 +25,14 @@ namespace {
 constexpr double kWeight = 10.0;    // N per node from the fake DEM
 constexpr double kStiffness = 1e4;  // N/m per node in the fake FEM
 
+// Written by both solvers, which may step at the same time (the concurrent scheme).
 struct Log {
   std::vector<std::string> calls;  // "dem 3", "fem 3"
+  std::mutex mutex;
+  void add(std::string call) {
+    std::lock_guard<std::mutex> lock(mutex);
+    calls.push_back(std::move(call));
+  }
 };
 
 InterfaceMesh triangle() {
@@ -43,7 +51,7 @@ class FakeFem : public protocol::SolverBackend {
   std::optional<InterfaceMesh> published_mesh() override { return triangle(); }
   void on_mesh(const InterfaceMesh&) override {}
   StepResult step(const StepCommand& cmd, InterfaceBuffers& buf) override {
-    log_.calls.push_back("fem " + std::to_string(cmd.step));
+    log_.add("fem " + std::to_string(cmd.step));
     commands.push_back(cmd);
     auto f = buf.forces(cmd.buffer);
     forces_seen.emplace_back(f.begin(), f.end());
@@ -66,9 +74,15 @@ class FakeFem : public protocol::SolverBackend {
   }
   void write_checkpoint(const std::filesystem::path&, std::int64_t) override {}
   void restore_checkpoint(const std::filesystem::path&, std::int64_t) override {}
+  // Its state is the buffer's (it has none of its own): nothing to save.
+  bool supports_iteration() const override { return iterates; }
+  void save_iteration_state() override { log_.add("fem save"); }
+  void restore_iteration_state() override { log_.add("fem restore"); }
+  void accept_step() override { log_.add("fem accept"); }
 
   std::vector<StepCommand> commands;
   std::vector<std::vector<double>> forces_seen;
+  bool iterates = true;
 
  private:
   Log& log_;
@@ -83,7 +97,7 @@ class FakeDem : public protocol::SolverBackend {
   std::optional<InterfaceMesh> published_mesh() override { return std::nullopt; }
   void on_mesh(const InterfaceMesh& m) override { mesh_ = m.reference_positions; }
   StepResult step(const StepCommand& cmd, InterfaceBuffers& buf) override {
-    log_.calls.push_back("dem " + std::to_string(cmd.step));
+    log_.add("dem " + std::to_string(cmd.step));
     if (cmd.step == throw_step) throw std::runtime_error("dem: injected failure");
     commands.push_back(cmd);
     const auto b = cmd.buffer;
@@ -96,8 +110,11 @@ class FakeDem : public protocol::SolverBackend {
         mesh_[j] = p[j] + v[j] * cmd.dt + 0.5 * a[j] * cmd.dt * cmd.dt;
     }
     const double scale = 1.0 + std::pow(0.5, static_cast<double>(cmd.step));
+    const auto ref = buf.reference_mesh().reference_positions;
     for (std::size_t j = 0; j < mesh_.size(); ++j) {
-      buf.forces(b)[j] = (j % 3 == 2) ? -kWeight * scale : 0.0;
+      // A contact spring of `stiffness` (0 by default) under the load pushes back on a mesh
+      // that moves down: the two-way part of the implicit tests.
+      buf.forces(b)[j] = (j % 3 == 2) ? -kWeight * scale - stiffness * (mesh_[j] - ref[j]) : 0.0;
       buf.dem_positions(b)[j] = mesh_[j];
     }
     if (cmd.step == nan_step) buf.forces(b)[4] = std::numeric_limits<double>::quiet_NaN();
@@ -109,9 +126,15 @@ class FakeDem : public protocol::SolverBackend {
   }
   void write_checkpoint(const std::filesystem::path&, std::int64_t) override {}
   void restore_checkpoint(const std::filesystem::path&, std::int64_t) override {}
+  // Stateless between steps when it is given the kinematics (as the implicit scheme does).
+  bool supports_iteration() const override { return true; }
+  void save_iteration_state() override { log_.add("dem save"); }
+  void restore_iteration_state() override { log_.add("dem restore"); }
+  void accept_step() override { log_.add("dem accept"); }
 
   std::vector<StepCommand> commands;
   std::vector<std::vector<double>> given_positions, given_velocities, given_accelerations;
+  double stiffness = 0.0;  // N/m per node
   std::int64_t nan_step = -1;
   std::int64_t overlap_step = -1;
   std::int64_t throw_step = -1;
@@ -341,4 +364,148 @@ TEST_CASE("DEM alone: slices of n substeps, the last one cut to end at run.end_t
   CHECK(d->commands.back().dt == Approx(5e-4).epsilon(1e-12));
   CHECK(d->commands.back().flags == 0);
   CHECK(sum.time == Approx(0.0125).epsilon(1e-12));
+}
+
+TEST_CASE("concurrent: both solvers step together, each from the other's data at t_i") {
+  Fixture fx(Scheme::concurrent, 3);
+  auto sum = fx.run();
+  REQUIRE(fx.dem->commands.size() == 3);
+  REQUIRE(fx.fem->commands.size() == 3);
+  for (std::size_t i = 0; i < 3; ++i) {
+    // Two buffers: the DEM reads kinematics from 0 and writes forces there, the FEM reads
+    // forces from 1 and writes kinematics there.
+    CHECK(fx.dem->commands[i].buffer == 0);
+    CHECK(fx.fem->commands[i].buffer == 1);
+    CHECK(fx.dem->commands[i].flags == kStepSetKinematics);
+    CHECK(fx.fem->commands[i].flags == 0);
+  }
+  // FEM i gets the DEM's forces of step i - 1 (F_i; none at step 0), as predictive does.
+  CHECK(fx.fem->forces_seen[0][2] == 0.0);
+  CHECK(fx.fem->forces_seen[1][2] == Approx(-2.0 * kWeight));
+  CHECK(fx.fem->forces_seen[2][2] == Approx(-1.5 * kWeight));
+  // DEM i gets the FEM's state at t_i, as just-in-time does: P_2 from FEM 1.
+  const double p2 = -2.0 * kWeight / kStiffness;
+  CHECK(fx.dem->given_positions[2][2] == Approx(p2).epsilon(1e-14));
+  CHECK(fx.dem->given_accelerations[2][2] == 0.25);
+  CHECK(std::isfinite(sum.last.energy_error));
+  CHECK(fx.csv_rows() == 3);
+}
+
+TEST_CASE("concurrent: the in-process link runs the two at once, with the same bits") {
+  // Run twice: every result bitwise equal (the solvers write different buffers).
+  std::vector<double> first;
+  for (int run = 0; run < 2; ++run) {
+    Fixture fx(Scheme::concurrent, 5);
+    fx.dem->stiffness = 0.5 * kStiffness;
+    const auto sum = fx.run();
+    std::vector<double> all = sum.positions;
+    all.insert(all.end(), sum.forces.begin(), sum.forces.end());
+    all.push_back(sum.last.work_dem);
+    all.push_back(sum.last.work_fem);
+    if (run == 0) {
+      first = all;
+    } else {
+      CHECK(all == first);
+    }
+  }
+}
+
+TEST_CASE("implicit: a stiff two-way step converges to the fixed point, iterating in memory") {
+  // H(u) = (-W s - k_c u) / k with k_c = 3 k: plain iteration diverges (factor -3).
+  for (auto kind : {AccelerationKind::aitken, AccelerationKind::iqn_ils}) {
+    INFO(acceleration_name(kind));
+    Fixture fx(Scheme::implicit, 4);
+    fx.dem->stiffness = 3.0 * kStiffness;
+    fx.settings.implicit.acceleration.kind = kind;
+    fx.settings.implicit.displacement_tolerance = 1e-10;
+    fx.settings.implicit.force_tolerance = 1e-10;
+    const auto sum = fx.run();
+    CHECK(sum.steps == 4);
+    CHECK(sum.unconverged_steps == 0);
+    CHECK(sum.iterations > 4);
+    // The last step's fixed point, u = -W s / (k + k_c) with s = 1 + 0.5^3.
+    const double u = -kWeight * (1.0 + 0.125) / (4.0 * kStiffness);
+    for (std::size_t n = 0; n < 3; ++n) CHECK(sum.positions[3 * n + 2] == Approx(u).epsilon(1e-9));
+    CHECK(sum.last.converged);
+    CHECK(sum.last.residual_displacement <= 1e-10);
+    // The flags: the first try of a step saves (kStepIterate), the others restore (+ kStepRedo).
+    std::int64_t step = -1;
+    for (const auto& c : fx.dem->commands) {
+      const bool first = c.step != step;
+      step = c.step;
+      CHECK((c.flags & protocol::kStepIterate) != 0);
+      CHECK((c.flags & protocol::kStepSetKinematics) != 0);
+      CHECK(((c.flags & protocol::kStepRedo) != 0) == !first);
+    }
+    // save / restore / accept through the gate, as serve() does: per step one save, a restore
+    // per further iteration, and the step accepted before the next one's save.
+    const auto count = [&](const std::string& what) {
+      return std::count(fx.log.calls.begin(), fx.log.calls.end(), what);
+    };
+    CHECK(count("dem save") == 4);
+    CHECK(count("fem save") == 4);
+    CHECK(count("dem restore") == static_cast<long>(sum.iterations - 4));
+    CHECK(count("dem accept") == 3);
+    fx.link->shutdown();  // the last step is accepted at the end, as serve() does on Shutdown
+    CHECK(count("dem accept") == 4);
+    CHECK(count("fem accept") == 4);
+    // The DEM's mesh moves linearly from P_i to the iterate: A = 0 (eq. 3.7).
+    for (const auto& a : fx.dem->given_accelerations) CHECK(a[2] == 0.0);
+    // The DEM's copy ends where the accepted FEM state is, within the tolerance.
+    CHECK(sum.last.drift < 1e-9 * std::abs(u));
+  }
+}
+
+TEST_CASE("implicit: a step that does not converge stops the run (exit 3) or is counted") {
+  SECTION("stop") {
+    Fixture fx(Scheme::implicit, 4);
+    fx.dem->stiffness = 3.0 * kStiffness;
+    fx.settings.implicit.acceleration.kind = AccelerationKind::constant;  // diverges here
+    fx.settings.implicit.max_iterations = 5;
+    try {
+      fx.run();
+      FAIL("no stop");
+    } catch (const BlowUp& e) {
+      CHECK(e.step() == 0);
+      CHECK(e.quantity() == "iterations");
+      CHECK_THAT(e.what(), Catch::Contains("did not converge in 5 iterations") &&
+                               Catch::Contains("coupling.max_iterations") &&
+                               Catch::Contains("on_nonconvergence"));
+    }
+    CHECK(fx.csv_rows() == 1);  // the step's row, with converged = 0
+  }
+  SECTION("accept") {
+    Fixture fx(Scheme::implicit, 4);
+    fx.dem->stiffness = 3.0 * kStiffness;
+    fx.settings.implicit.acceleration.kind = AccelerationKind::constant;
+    fx.settings.implicit.acceleration.initial_relaxation = 1.0;
+    fx.settings.implicit.max_iterations = 3;
+    fx.settings.implicit.on_nonconvergence = NonConvergence::accept;
+    const auto sum = fx.run();
+    CHECK(sum.steps == 4);
+    CHECK(sum.unconverged_steps == 4);
+    CHECK(sum.iterations == 12);
+    CHECK(sum.max_iterations == 3);
+    CHECK_FALSE(sum.last.converged);
+    std::ifstream in(fx.dir / "coupling.csv");
+    std::string header;
+    std::getline(in, header);
+    CHECK_THAT(header,
+               Catch::Contains("iterations,residual_displacement,residual_force,converged"));
+  }
+}
+
+TEST_CASE("implicit: refused at the start when a solver cannot iterate a step") {
+  Fixture fx(Scheme::implicit, 2);
+  fx.fem->iterates = false;
+  CHECK_THROWS_AS(fx.run(), scene::SceneError);
+  try {
+    Fixture fx2(Scheme::implicit, 2);
+    fx2.fem->iterates = false;
+    fx2.run();
+  } catch (const scene::SceneError& e) {
+    CHECK_THAT(e.what(), Catch::Contains("FEM solver 'fake-fem'") && Catch::Contains("implicit") &&
+                             Catch::Contains("iteration"));
+  }
+  CHECK(fx.fem->commands.empty());
 }

@@ -3,6 +3,7 @@
 //
 //   protocol_test_peer ring-producer SEGMENT COUNT
 //   protocol_test_peer serve SEGMENT dem|fem [--nodes N] [--version V] [--step-sleep-ms S]
+//                      [--iterates 0|1]
 //                      [--throw-at-step K] [--throw-kind 0|1|2]  (a BackendError of that
 //                      protocol::ErrorKind instead of a plain exception)
 //   protocol_test_peer coupler-idle            (prints the segment name, then sleeps)
@@ -54,6 +55,14 @@ class TestBackend : public proto::SolverBackend {
   long throw_kind = -1;  // -1: std::runtime_error; else a BackendError of this ErrorKind
   std::size_t mesh_nodes_received = 0;
   std::int64_t restored_step = -1;
+  // Iterated steps: a counter advanced by every step is the state; values[7] reports it and
+  // the number of accepted steps (1000 each), so the coupler can see saves and restores.
+  bool iterates = true;
+  long state = 0, saved = -1, accepted = 0;
+  bool supports_iteration() const override { return iterates; }
+  void save_iteration_state() override { saved = state; }
+  void restore_iteration_state() override { state = saved; }
+  void accept_step() override { ++accepted; }
 
   std::string name() const override { return std::string("test-peer ") + proto::role_name(role); }
   std::optional<demfem::InterfaceMesh> published_mesh() override {
@@ -81,6 +90,8 @@ class TestBackend : public proto::SolverBackend {
     r.values[4] = static_cast<double>(mesh_nodes_received);
     r.values[5] = static_cast<double>(restored_step);
     r.values[6] = static_cast<double>(cmd.flags);
+    ++state;
+    r.values[7] = static_cast<double>(state + 1000 * accepted);
     if (b.empty()) return r;
     auto pos = b.positions(cmd.buffer);
     double sum = 0.0;
@@ -182,6 +193,8 @@ int main(int argc, char** argv) {
           backend.step_sleep_ms = static_cast<int>(value);
         else if (key == "--throw-at-step")
           backend.throw_at_step = value;
+        else if (key == "--iterates")
+          backend.iterates = value != 0;
         else if (key == "--throw-kind")
           backend.throw_kind = value;
         else

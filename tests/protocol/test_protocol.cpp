@@ -646,3 +646,128 @@ TEST_CASE("reply_timeout catches a live solver that hangs inside step()", "[prot
   }
   require_removed(names);
 }
+
+TEST_CASE("a peer of protocol version 1 (before iterated steps) is refused naming both",
+          "[protocol][process]") {
+  std::vector<std::string> names;
+  {
+    proto::CouplerSession session;
+    names = session_names(session);
+    Child dem = spawn({"serve", session.segment_name(), "dem", "--version", "1"});
+    session.expect(proto::Role::dem);
+    try {
+      session.wait_hello(proto::Role::dem, dem.pid);
+      FAIL("no VersionMismatch");
+    } catch (const proto::VersionMismatch& e) {
+      CHECK(e.theirs() == 1);
+      CHECK(e.ours() == proto::kProtocolVersion);
+      CHECK(proto::kProtocolVersion >= 2);
+      CHECK_THAT(e.what(),
+                 Catch::Contains("version 1") &&
+                     Catch::Contains("version " + std::to_string(proto::kProtocolVersion)));
+    }
+    CHECK(exit_code(wait_exit(dem, 5s)) == proto::kExitVersionMismatch);
+  }
+  require_removed(names);
+}
+
+TEST_CASE("iterated steps: save at the first try, restore on redo, accept on the next message",
+          "[protocol][process]") {
+  std::vector<std::string> names;
+  {
+    proto::CouplerSession session;
+    names = session_names(session);
+    Child dem = spawn({"serve", session.segment_name(), "dem", "--step-sleep-ms", "20"});
+    Child fem = spawn({"serve", session.segment_name(), "fem", "--nodes", "5", "--iterates", "0"});
+    session.expect(proto::Role::dem);
+    session.expect(proto::Role::fem);
+    session.wait_hello(proto::Role::dem, dem.pid);
+    session.wait_hello(proto::Role::fem, fem.pid);
+    // The Hello announces the capability (or not).
+    CHECK((session.peer(proto::Role::dem).capabilities & proto::kCapabilityIteration) != 0);
+    CHECK((session.peer(proto::Role::fem).capabilities & proto::kCapabilityIteration) == 0);
+    session.exchange_mesh();
+    auto step = [&](std::int64_t i, std::uint32_t flags) {
+      proto::StepCommand cmd = step_cmd(i, 0);
+      cmd.flags = flags;
+      session.send_step(proto::Role::dem, cmd);
+      return session.wait_step_done(proto::Role::dem);
+    };
+    const std::uint32_t it = proto::kStepIterate, redo = proto::kStepIterate | proto::kStepRedo;
+    // values[7] = state + 1000 x accepted steps.
+    CHECK(step(0, it).values[7] == 1.0);    // saved 0, stepped to 1
+    CHECK(step(0, redo).values[7] == 1.0);  // back to 0, stepped to 1 again
+    CHECK(step(0, redo).values[7] == 1.0);
+    CHECK(step(1, it).values[7] == 1002.0);  // step 0 accepted, saved 1, stepped to 2
+    // serve() measured the solver's own step time (20 ms of sleep).
+    const proto::StepResult r = step(1, redo);
+    CHECK(r.values[7] == 1002.0);
+    CHECK(r.compute_seconds >= 0.019);
+    CHECK(r.compute_seconds < 5.0);
+    CHECK(step(2, 0).values[7] == 2003.0);  // a plain step accepts the held-back one first
+    CHECK(step(3, it).values[7] == 2004.0);
+    // A checkpoint holds an accepted step.
+    const auto ckpt = std::filesystem::temp_directory_path() /
+                      ("demfem_protocol_iter_" + std::to_string(::getpid()) + ".txt");
+    session.checkpoint(proto::Role::dem, ckpt, 4);
+    session.wait_done(proto::Role::dem);
+    CHECK(step(4, it).values[7] == 3005.0);
+    std::filesystem::remove(ckpt);
+    // A redo of another step than the saved one is a protocol error that names both.
+    proto::StepCommand bad = step_cmd(6, 0);
+    bad.flags = redo;
+    session.send_step(proto::Role::dem, bad);
+    CHECK_THROWS_WITH(session.wait_step_done(proto::Role::dem),
+                      Catch::Contains("kStepRedo") && Catch::Contains("step 4"));
+    CHECK(exit_code(wait_exit(dem, 5s)) == proto::kExitProtocolError);
+    // A solver without the capability refuses an iterated step instead of pretending.
+    proto::StepCommand to_fem = step_cmd(0, 0);
+    to_fem.flags = it;
+    session.send_step(proto::Role::fem, to_fem);
+    CHECK_THROWS_WITH(session.wait_step_done(proto::Role::fem),
+                      Catch::Contains("does not support iterated steps"));
+    wait_exit(fem, 5s);
+  }
+  require_removed(names);
+}
+
+TEST_CASE("IterationGate: the rules without processes") {
+  struct Backend : proto::SolverBackend {
+    std::vector<std::string> calls;
+    std::string name() const override { return "gate-test"; }
+    std::optional<demfem::InterfaceMesh> published_mesh() override { return std::nullopt; }
+    void on_mesh(const demfem::InterfaceMesh&) override {}
+    proto::StepResult step(const proto::StepCommand& c, proto::InterfaceBuffers&) override {
+      calls.push_back("step " + std::to_string(c.step));
+      return {};
+    }
+    void write_checkpoint(const std::filesystem::path&, std::int64_t) override {}
+    void restore_checkpoint(const std::filesystem::path&, std::int64_t) override {}
+    bool supports_iteration() const override { return true; }
+    void save_iteration_state() override { calls.push_back("save"); }
+    void restore_iteration_state() override { calls.push_back("restore"); }
+    void accept_step() override { calls.push_back("accept"); }
+  } b;
+  proto::InterfaceBuffers buffers;
+  proto::IterationGate gate;
+  auto cmd = [](std::int64_t step, std::uint32_t flags) {
+    proto::StepCommand c;
+    c.step = step;
+    c.flags = flags;
+    return c;
+  };
+  const std::uint32_t it = proto::kStepIterate, redo = it | proto::kStepRedo;
+  gate.step(b, cmd(0, it), buffers);
+  CHECK(gate.tentative());
+  gate.step(b, cmd(0, redo), buffers);
+  gate.accept(b);
+  CHECK_FALSE(gate.tentative());
+  gate.accept(b);  // nothing held back: nothing to accept
+  gate.step(b, cmd(1, it), buffers);
+  gate.discard();  // a Restore drops it, unaccepted
+  CHECK_THROWS_WITH(gate.step(b, cmd(1, redo), buffers), Catch::Contains("no step start"));
+  CHECK_THROWS_WITH(gate.step(b, cmd(1, proto::kStepRedo), buffers),
+                    Catch::Contains("without kStepIterate"));
+  CHECK(b.calls == std::vector<std::string>{"save", "step 0", "restore", "step 0", "accept", "save",
+                                            "step 1"});
+}

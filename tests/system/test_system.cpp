@@ -108,6 +108,20 @@ TEST_CASE("CI beam: three processes equal the in-process run bitwise") {
                      {"force_averaging = false", "force_averaging = true"}})
                 .string();
   }
+  // Issue 13: the in-process link runs the concurrent scheme's two solvers on two threads,
+  // the three-process run in two processes; the implicit scheme iterates with save points.
+  SECTION("concurrent") {
+    scene = variant(a.path, "concurrent.toml", "beam_dynamic_ci.toml",
+                    {{"scheme = \"just_in_time\"", "scheme = \"concurrent\""}})
+                .string();
+  }
+  SECTION("implicit IQN-ILS") {
+    scene =
+        variant(
+            a.path, "implicit.toml", "beam_dynamic_ci.toml",
+            {{"scheme = \"just_in_time\"", "scheme = \"implicit\"\ndisplacement_tolerance = 1e-7"}})
+            .string();
+  }
   const Result remote = run(a.path, {scene, "--quiet"});
   INFO(remote.out << remote.err);
   REQUIRE(remote.status == 0);
@@ -332,10 +346,23 @@ TEST_CASE("a closed output pipe (demfem run | head) stops all three cleanly") {
 }
 
 TEST_CASE("two-way dynamic beam settles to the static deflection within 0.5 %") {
-  for (const char* name : {"beam_dynamic_jit", "beam_dynamic_predictive"}) {
+  for (const char* name : {"beam_dynamic_jit", "beam_dynamic_predictive", "beam_dynamic_concurrent",
+                           "beam_dynamic_implicit"}) {
     DYNAMIC_SECTION(name) {
       TempDir d;
-      const Result r = run(d.path, {(kCases / (std::string(name) + ".toml")).string()});
+      // The schemes of issue 13 on the case of the just-in-time one.
+      const std::string file = std::string(name) + ".toml";
+      const fs::path scene =
+          std::string(name) == "beam_dynamic_concurrent"
+              ? variant(d.path, file, "beam_dynamic_jit.toml",
+                        {{"scheme = \"just_in_time\"", "scheme = \"concurrent\""},
+                         {"name = \"beam_dynamic_jit\"", "name = \"beam_dynamic_concurrent\""}})
+          : std::string(name) == "beam_dynamic_implicit"
+              ? variant(d.path, file, "beam_dynamic_jit.toml",
+                        {{"scheme = \"just_in_time\"", "scheme = \"implicit\""},
+                         {"name = \"beam_dynamic_jit\"", "name = \"beam_dynamic_implicit\""}})
+              : kCases / file;
+      const Result r = run(d.path, {scene.string()});
       INFO(r.out << r.err);
       REQUIRE(r.status == 0);
       // Not on a terminal: plain progress lines.
@@ -349,6 +376,104 @@ TEST_CASE("two-way dynamic beam settles to the static deflection within 0.5 %") 
       REQUIRE(timing.size() == 2);
       CHECK(std::stod(timing[1][6]) < 0.5);  // coupling share recorded (a fraction)
     }
+  }
+}
+
+TEST_CASE("solver sessions (demfem_run --solver-sessions): Ctrl-C still stops all three") {
+  TempDir d;
+  const auto scene = variant(d.path, "long.toml", "beam_dynamic_ci.toml",
+                             {{"end_time = 0.005 ", "end_time = 100.0 "},
+                              {"scheme = \"just_in_time\"", "scheme = \"concurrent\""}});
+  const pid_t pid = spawn_run(d.path, {scene.string(), "--quiet", "--solver-sessions"}, true);
+  wait_for_rows(d.path / "out/beam_dynamic_ci/coupling.csv", 2);
+  const std::string out = read_text(d.path / "stdout.txt");
+  const auto pids = started_pids(out);
+  REQUIRE(pids.size() == 2);
+  for (pid_t p : pids) {
+    CHECK(getsid(p) == p);  // a session leader: its own autogroup under Linux
+    CHECK(getsid(p) != getsid(pid));
+  }
+  kill(-pid, SIGINT);  // the terminal's Ctrl-C reaches the launcher only; it forwards SIGTERM
+  const Result r = wait_run(d.path, pid);
+  INFO(r.out << r.err);
+  CHECK(r.status == 128 + SIGINT);
+  for (pid_t p : pids) CHECK(pid_gone(p));
+  const std::string segment = segment_of(out);
+  CHECK(!fs::exists(fs::path("/dev/shm") / segment));
+  CHECK(!fs::exists(fs::path("/dev/shm") / (segment + "-bulk")));
+}
+
+TEST_CASE("concurrent scheme: the same bits on every three-process run") {
+  // The DEM and the FEM step at the same time in two processes, writing different buffers:
+  // the order in which they finish must not change any number.
+  TempDir dir;
+  const fs::path scene = variant(dir.path, "concurrent.toml", "beam_dynamic_ci.toml",
+                                 {{"scheme = \"just_in_time\"", "scheme = \"concurrent\""}});
+  std::vector<std::vector<std::vector<std::string>>> series;
+  for (int k = 0; k < 3; ++k) {
+    TempDir d;
+    const Result r = run(d.path, {scene.string(), "--quiet"});
+    INFO(r.out << r.err);
+    REQUIRE(r.status == 0);
+    auto rows = read_csv(d.path / "out/beam_dynamic_ci/coupling.csv");
+    REQUIRE(rows.size() == 51);
+    const auto header = rows[0];
+    for (auto& row : rows)
+      for (std::size_t c = 0; c < row.size(); ++c)
+        if (header[c].rfind("wall_", 0) == 0) row[c].clear();  // wall-clock times
+    series.push_back(std::move(rows));
+  }
+  CHECK(series[1] == series[0]);
+  CHECK(series[2] == series[0]);
+  CHECK(std::stod(series[0].back()[10]) < -400);  // the load arrived: not two empty runs
+}
+
+TEST_CASE("implicit: a step that does not converge is reported over real processes") {
+  // Two iterations and a displacement tolerance no iteration meets: "stop" ends the run with
+  // status 3 naming the step and both residuals; "accept" goes on, warns, marks the steps
+  // converged = 0 in coupling.csv and counts them in the summary.
+  const std::vector<std::string> sets = {(kCases / "beam_dynamic_ci.toml").string(),
+                                         "--quiet",
+                                         "--set",
+                                         "coupling.scheme=\"implicit\"",
+                                         "--set",
+                                         "coupling.max_iterations=2",
+                                         "--set",
+                                         "coupling.displacement_tolerance=1e-300"};
+  SECTION("stop") {
+    TempDir d;
+    const Result r = run(d.path, sets);
+    INFO(r.out << r.err);
+    CHECK(r.status == 3);
+    CHECK_THAT(r.err, Catch::Contains("did not converge in 2 iterations") &&
+                          Catch::Contains("coupling.displacement_tolerance") &&
+                          Catch::Contains("coupling.on_nonconvergence"));
+    const auto rows = read_csv(d.path / "out/beam_dynamic_ci/coupling.csv");
+    REQUIRE(rows.size() >= 2);
+    std::size_t col = 0;
+    for (std::size_t k = 0; k < rows[0].size(); ++k)
+      if (rows[0][k] == "converged") col = k;
+    REQUIRE(col > 0);
+    CHECK(rows.back()[col] == "0");
+    for (pid_t p : started_pids(r.out)) CHECK(pid_gone(p));
+  }
+  SECTION("accept") {
+    TempDir d;
+    auto args = sets;
+    args.insert(args.end(), {"--set", "coupling.on_nonconvergence=\"accept\""});
+    const Result r = run(d.path, args);
+    INFO(r.out << r.err);
+    REQUIRE(r.status == 0);
+    CHECK_THAT(r.out + r.err, Catch::Contains("accepted (coupling.on_nonconvergence"));
+    const auto rows = read_csv(d.path / "out/beam_dynamic_ci/coupling.csv");
+    REQUIRE(rows.size() == 51);
+    std::size_t col = 0, unconverged = 0;
+    for (std::size_t k = 0; k < rows[0].size(); ++k)
+      if (rows[0][k] == "converged") col = k;
+    REQUIRE(col > 0);
+    for (std::size_t i = 1; i < rows.size(); ++i) unconverged += rows[i][col] == "0";
+    CHECK(unconverged == 50);
+    CHECK_THAT(r.out + r.err, Catch::Contains("50 steps accepted without convergence"));
   }
 }
 

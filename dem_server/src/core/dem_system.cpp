@@ -1985,6 +1985,65 @@ void DemSystem::save(io::H5File& f, const std::string& group) const {
   I.bodies.save(f, g);
 }
 
+namespace {
+// Arrays of save() that a state copy within one coupling step leaves out: the particle
+// properties do not change there, and the build positions are reset by the rebuild that
+// follows restore_state().
+bool constant_within_step(const char* name) {
+  for (const char* c : {"radius", "mass", "inertia", "bx", "by", "bz"})
+    if (std::strcmp(name, c) == 0) return true;
+  return false;
+}
+}  // namespace
+
+void DemSystem::save_state(DemStateCopy& c) const {
+  const auto& I = *impl_;
+  c.time = I.t;
+  c.steps = I.steps;
+  c.flex_tau = I.flex_tau;
+  c.max_overlap = I.max_ov;
+  c.flex_max_overlap = I.flex_max_ov;
+  c.particles = I.n();
+  const auto arrays = double_arrays(I);
+  c.arrays.resize(arrays.size());
+  for (std::size_t k = 0; k < arrays.size(); ++k) {
+    if (constant_within_step(arrays[k].first)) continue;
+    c.arrays[k].assign(arrays[k].second->begin(), arrays[k].second->end());
+  }
+  c.row.assign(I.row.begin(), I.row.end());
+  c.nbr.assign(I.nbr.begin(), I.nbr.end());
+  c.wkey.assign(I.wkey.begin(), I.wkey.end());
+  c.wcount.assign(I.wcount.begin(), I.wcount.end());
+}
+
+void DemSystem::restore_state(const DemStateCopy& c) {
+  auto& I = *impl_;
+  if (c.steps < 0 || c.particles != I.n()) {
+    throw std::logic_error("DemSystem::restore_state: " +
+                           (c.steps < 0 ? std::string("nothing was saved")
+                                        : "the state copy has " + std::to_string(c.particles) +
+                                              " particles, the system " + std::to_string(I.n())));
+  }
+  I.t = c.time;
+  I.steps = c.steps;
+  I.flex_tau = c.flex_tau;
+  I.max_ov = c.max_overlap;
+  I.flex_max_ov = c.flex_max_overlap;
+  const auto arrays = double_arrays(I);
+  for (std::size_t k = 0; k < arrays.size(); ++k) {
+    if (constant_within_step(arrays[k].first)) continue;
+    arrays[k].second->assign(c.arrays[k].begin(), c.arrays[k].end());
+  }
+  I.row.assign(c.row.begin(), c.row.end());
+  I.nbr.assign(c.nbr.begin(), c.nbr.end());
+  I.wkey.assign(c.wkey.begin(), c.wkey.end());
+  I.wcount.assign(c.wcount.begin(), c.wcount.end());
+  // As restore(): the list is rebuilt from the restored positions and springs.
+  I.bx.clear(), I.by.clear(), I.bz.clear();
+  I.refresh_particle_derived();
+  I.need_rebuild = true;
+}
+
 void DemSystem::restore(const io::H5File& f, const std::string& group) {
   auto& I = *impl_;
   auto& st = I.st;

@@ -873,6 +873,10 @@ void DemRun::check_stable() const {
 
 void DemRun::after_advance() {
   check_stable();  // before anything of this state is sampled or written
+  take_step_outputs();
+}
+
+void DemRun::take_step_outputs() {
   pour();
   if (!sensors_) {
     start_output(false);  // samples the current state itself
@@ -896,6 +900,31 @@ void DemRun::advance(std::int64_t substeps, ForceMode mode) {
   system_->advance(substeps, mode);
   chunk_steps_ = std::max<std::int64_t>(substeps, 1);  // a coupling step, when coupled
   after_advance();
+}
+
+void DemRun::advance_tentative(std::int64_t substeps, ForceMode mode) {
+  start_deferred_output();
+  held_back_ = false;
+  system_->advance(substeps, mode);
+  chunk_steps_ = std::max<std::int64_t>(substeps, 1);
+  check_stable();
+  held_back_ = true;
+}
+
+void DemRun::accept_step() {
+  if (!held_back_) return;
+  held_back_ = false;
+  take_step_outputs();
+}
+
+void DemRun::take_save_point() {
+  accept_step();
+  system_->save_state(save_point_);
+}
+
+void DemRun::restore_save_point() {
+  held_back_ = false;
+  system_->restore_state(save_point_);
 }
 
 void DemRun::run_to(double end_time, const std::function<void(double)>& progress) {
@@ -956,6 +985,7 @@ void DemRun::save(io::H5File& file, const std::string& group) const {
 }
 
 void DemRun::restore(const io::H5File& file, const std::string& group) {
+  held_back_ = false;  // a held-back step is not part of the restored state
   const std::string g = group + "_tools";
   // The scene must be the one the checkpoint was taken with, as far as the particles go: a
   // changed lattice or insertion would be silently replaced by the checkpoint's particles.

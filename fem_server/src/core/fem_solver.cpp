@@ -574,6 +574,32 @@ void FemSolver::save(io::H5File& file, const std::string& group) const {
   file.set_attribute(group, "free_dof_count", static_cast<std::int64_t>(s.dofs.free.size()));
 }
 
+void FemSolver::save_state(FemStateCopy& c) const {
+  const Impl& s = *impl_;
+  c.u.assign(s.u.data(), s.u.data() + s.u.size());
+  c.v.assign(s.v.data(), s.v.data() + s.v.size());
+  c.a.assign(s.a.data(), s.a.data() + s.a.size());
+  c.interface_forces = s.iface_forces;
+  c.time = s.time;
+  c.step = s.step;
+  c.acceleration_ready = s.accel_ready;
+}
+
+void FemSolver::restore_state(const FemStateCopy& c) {
+  Impl& s = *impl_;
+  if (c.step < 0 || c.u.size() != static_cast<std::size_t>(s.u.size()))
+    throw std::logic_error(
+        "FemSolver::restore_state: " +
+        std::string(c.step < 0 ? "nothing was saved" : "the copy belongs to another model"));
+  s.u = Eigen::Map<const VectorXd>(c.u.data(), s.u.size());
+  s.v = Eigen::Map<const VectorXd>(c.v.data(), s.v.size());
+  s.a = Eigen::Map<const VectorXd>(c.a.data(), s.a.size());
+  s.iface_forces = c.interface_forces;
+  s.time = c.time;
+  s.step = c.step;
+  s.accel_ready = c.acceleration_ready;
+}
+
 void FemSolver::restore(const io::H5File& file, const std::string& group) {
   Impl& s = *impl_;
   const auto where = file.path().string() + ":" + group;

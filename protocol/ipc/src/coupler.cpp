@@ -305,6 +305,7 @@ void CouplerSession::wait_hello(Role role, std::optional<pid_t> pid) {
   info.name = shm::read_text(hello.name, shm::kNameLength);
   info.node_count = hello.node_count;
   info.triangle_count = hello.triangle_count;
+  info.capabilities = hello.capabilities;
   s.hello[r] = true;
   // From now on watch the pid the solver announced as well.
   if (s.known_pid[r] == 0) s.known_pid[r] = hello.pid;

@@ -218,6 +218,8 @@ class Server {
   auto call_backend(const char* what, F&& f) {
     try {
       return f();
+    } catch (const ProtocolError&) {
+      throw;  // a message the rules refuse (IterationGate): a protocol error, not the backend's
     } catch (const BackendError& e) {
       throw_if_cancelled();
       throw BackendFailure{std::string(what) + " failed: " + e.what(), e.kind()};
@@ -357,6 +359,10 @@ class Server {
       hello.pid = ::getpid();
       hello.node_count = mesh_ ? mesh_->node_count() : 0;
       hello.triangle_count = mesh_ ? mesh_->triangle_count() : 0;
+      hello.capabilities =
+          call_backend("supports_iteration", [&] { return backend_.supports_iteration(); })
+              ? kCapabilityIteration
+              : 0;
       shm::copy_text_truncated(hello.name, shm::kNameLength,
                                call_backend("name", [&] { return backend_.name(); }));
       shm::Message msg;  // payload left unset: only payload_size bytes travel
@@ -385,7 +391,7 @@ class Server {
           time_ = cmd.time;
           shm::StepDonePayload done{};
           done.step = cmd.step;
-          done.result = call_backend("step", [&] { return backend_.step(cmd, buffers_); });
+          done.result = call_backend("step", [&] { return gate_.step(backend_, cmd, buffers_); });
           throw_if_cancelled();
           reply.kind = MessageKind::step_done;
           reply.set(done);
@@ -397,11 +403,13 @@ class Server {
           const std::filesystem::path path = shm::read_text(file.path, shm::kPathLength);
           if (msg.kind == MessageKind::checkpoint) {
             call_backend("write_checkpoint", [&] {
+              gate_.accept(backend_);  // a checkpoint holds an accepted step
               backend_.write_checkpoint(path, file.step);
               return 0;
             });
             reply.kind = MessageKind::checkpoint_done;
           } else {
+            gate_.discard();  // a held-back step is not part of the restored state
             call_backend("restore_checkpoint", [&] {
               backend_.restore_checkpoint(path, file.step);
               return 0;
@@ -411,6 +419,10 @@ class Server {
           break;
         }
         case MessageKind::shutdown:
+          call_backend("accept_step", [&] {
+            gate_.accept(backend_);  // the last step is final
+            return 0;
+          });
           reply.kind = MessageKind::shutdown;
           send(reply);
           detach();
@@ -439,6 +451,7 @@ class Server {
   bool attached_ = false;
   std::optional<InterfaceMesh> mesh_;
   InterfaceBuffers buffers_;
+  IterationGate gate_;
   double time_ = 0.0;
 };
 

@@ -129,6 +129,77 @@ TEST_CASE("Save/restore mid-run continues bitwise identically", "[dem][restart]"
   std::filesystem::remove_all(dir);
 }
 
+TEST_CASE("In-memory save point: a step redone from it gives the bits of its first try",
+          "[dem][restart]") {
+  // Implicit coupling goes back to a coupling step's start (save_state / restore_state) and
+  // redoes it with other mesh kinematics. Reference: the same steps without going back.
+  // Tolerance: none (bitwise). The floor is the flexible mesh, so that its kinematics, node
+  // forces and wall contact slots (friction history) are part of the state; the bed has
+  // friction and rolling resistance (pair springs). On the CUDA backend (where there is one,
+  // or in the emulator build) the state goes to the device at every advance(): the same rule.
+  std::string backend = "cpu";
+  SECTION("CPU backend") {}
+  SECTION("CUDA backend") {
+    if (!cuda_available()) {
+      WARN("the CUDA save point is not checked here: no CUDA device (or built without CUDA)");
+      return;
+    }
+    backend = "cuda";
+  }
+  auto make = [](const std::string& backend) {
+    DemSystem sys = make_scene(2, false, backend);
+    const WallMesh floor = plane_mesh(0.08, 4);
+    demfem::InterfaceMesh mesh;
+    mesh.reference_positions = floor.vertices;
+    mesh.triangles = floor.triangles;
+    for (std::size_t k = 2; k < mesh.reference_positions.size(); k += 3)
+      mesh.reference_positions[k] = -0.02;  // below the converging cloud
+    sys.set_flexible_mesh(mesh, 1);
+    return sys;
+  };
+  const std::size_t n3 = plane_mesh(0.08, 4).vertices.size();
+  auto kinematics = [&](DemSystem& sys, double v) {
+    std::vector<double> x = sys.flexible_positions(), vel(n3, 0.0), acc(n3, 0.0);
+    for (std::size_t k = 2; k < n3; k += 3) vel[k] = v;
+    sys.set_flexible_kinematics(x, vel, acc);
+  };
+  auto forces = [&](const DemSystem& sys) {
+    std::vector<double> f(n3);
+    sys.flexible_forces(f);
+    return f;
+  };
+  DemSystem ref = make(backend), sys = make(backend);
+  ref.advance(400);
+  sys.advance(400);
+  REQUIRE(ref.max_overlap() > 0.0);  // in contact (contact_count() is the CPU backend's)
+  if (backend == "cpu") REQUIRE(ref.contact_count() > 50);
+  kinematics(ref, 0.5);
+  ref.advance(50, demfem::ForceMode::average);
+  const ParticleState first = ref.particles();
+  const auto first_forces = forces(ref);
+  ref.advance(100);
+
+  DemStateCopy copy;
+  sys.save_state(copy);
+  for (double v : {0.5, -2.0, 0.5}) {  // the first try, another one, the first again
+    sys.restore_state(copy);
+    kinematics(sys, v);
+    sys.advance(50, demfem::ForceMode::average);
+  }
+  CHECK(same_state(first, sys.particles()));
+  CHECK(forces(sys) == first_forces);
+  CHECK(sys.step_count() == 450);
+  sys.advance(100);
+  CHECK(same_state(ref.particles(), sys.particles()));
+  CHECK(ref.time() == sys.time());
+  CHECK(forces(sys) == forces(ref));
+  // A copy of another particle count is refused.
+  std::vector<std::uint8_t> keep(sys.particle_count(), 1);
+  keep[0] = 0;
+  sys.remove_particles(keep);
+  CHECK_THROWS_WITH(sys.restore_state(copy), Catch::Contains("particles"));
+}
+
 TEST_CASE("Neighbour list is reused until two particles may have closed the skin",
           "[dem][detection]") {
   // A still row without gravity: one build, no rebuild. Then spheres at 1 m/s (0.01 mm per

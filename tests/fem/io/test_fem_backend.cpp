@@ -7,6 +7,8 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <vector>
 
 #include "demfem/fem/fem_backend.hpp"
@@ -120,5 +122,53 @@ TEST_CASE("FemBackend: checkpoint/restore continues bitwise identically, bad inp
   local.buffers.forces(0)[0] = std::nan("");
   CHECK_THROWS_WITH(backend.step(cmd, local.buffers), Catch::Contains("not finite"));
   std::filesystem::remove_all(dir);
+}
+TEST_CASE("FemBackend: iterated steps leave the results and output of plain steps") {
+  // Implicit coupling: each step tried three times through the IterationGate (save point in
+  // memory, restore on redo), the last try with the forces the plain run uses. Reference: the
+  // plain run. Tolerance: none (bitwise kinematics, the same output series, text for text).
+  const auto base =
+      std::filesystem::temp_directory_path() / ("demfem_fem_iter_" + std::to_string(::getpid()));
+  std::vector<std::vector<double>> runs;
+  for (const bool iterated : {false, true}) {
+    const auto dir = base / (iterated ? "iterated" : "plain");
+    std::filesystem::remove_all(dir);
+    FemSolver solver(plate_problem());
+    FemOutput output(dir, "fem", solver.problem().mesh);
+    FemBackend backend(solver, &output, 5e-4);  // an output every 5 steps
+    backend.write_initial_output();
+    protocol::IterationGate gate;
+    LocalBuffers local(*backend.published_mesh());
+    std::vector<double> kin;
+    for (std::int64_t k = 0; k < 12; ++k) {
+      protocol::StepCommand cmd;
+      cmd.step = k;
+      cmd.dt = 1e-4;
+      for (int t = 0; t < (iterated ? 3 : 1); ++t) {
+        cmd.flags = iterated ? protocol::kStepIterate | (t > 0 ? protocol::kStepRedo : 0u) : 0u;
+        const double fz = (iterated && t == 1) ? 500.0 : -20.0 * static_cast<double>(k + 1);
+        const auto f = downward(local.buffers.node_count(), fz);
+        std::copy(f.begin(), f.end(), local.buffers.forces(0).begin());
+        gate.step(backend, cmd, local.buffers);
+      }
+      for (auto a : {local.buffers.positions(0), local.buffers.velocities(0),
+                     local.buffers.accelerations(0)})
+        kin.insert(kin.end(), a.begin(), a.end());
+    }
+    gate.accept(backend);  // as on Shutdown
+    backend.write_final_output();
+    runs.push_back(kin);
+    CHECK(output.steps() == 4);  // t = 0, 0.5, 1.0 ms and the end state
+  }
+  CHECK(runs[0] == runs[1]);
+  for (const char* file : {"fem.xdmf", "fem_series.csv"}) {
+    INFO(file);
+    std::ifstream a(base / "plain" / file), b(base / "iterated" / file);
+    const std::string ta((std::istreambuf_iterator<char>(a)), {}),
+        tb((std::istreambuf_iterator<char>(b)), {});
+    CHECK(ta.size() > 50);
+    CHECK(ta == tb);
+  }
+  std::filesystem::remove_all(base);
 }
 #endif

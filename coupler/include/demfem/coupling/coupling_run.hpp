@@ -122,6 +122,12 @@ struct StepDiagnostics {
   double wall_fem = 0.0;              ///< s in the FEM step
   double wall_coupling = 0.0;         ///< s in the coupler for this step (mapping, bookkeeping,
                                       ///< diagnostics, output)
+  std::int64_t iterations = 1;        ///< iterations of the step (implicit; 1 otherwise)
+  double residual_displacement = 0.0;  ///< implicit: |u~ - u| / |u~| of the last iteration
+  double residual_force = 0.0;         ///< implicit: |F^k - F^{k-1}| / |F^k| of the last one
+  bool converged = true;               ///< implicit: both tolerances met
+  double wall_dem_compute = 0.0;       ///< s the DEM computed (its own step() time, summed)
+  double wall_fem_compute = 0.0;       ///< s the FEM computed
 };
 
 /// @brief Wall-clock totals, s.
@@ -146,6 +152,11 @@ struct RunSummary {
   /// from (coupler.h5); zero for a fresh run. The whole run so far is earlier + this session.
   WallTimes earlier;
   bool settled = false;  ///< one_way_static: the settle criterion was met
+  // The implicit scheme, over the whole run (a resumed run counts the earlier sessions' steps
+  // up to its checkpoint too).
+  std::int64_t iterations = 0;         ///< iterations of all steps
+  std::int64_t max_iterations = 0;     ///< most iterations of one step
+  std::int64_t unconverged_steps = 0;  ///< accepted without convergence (on_nonconvergence)
   StepDiagnostics last;
   InterfaceMesh mesh;
   std::vector<double> positions;  ///< FEM interface positions at the end (3n)

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "demfem/coupling/acceleration.hpp"
 #include "demfem/interface/interface_mesh.hpp"
 #include "demfem/scene/scene_reader.hpp"
 
@@ -24,6 +25,25 @@ enum class Scheme : std::uint8_t {
   one_way_static,  ///< DEM to rest on a fixed mesh, then its forces once into a static FEM solve
   just_in_time,    ///< thesis Algorithm 3: DEM then FEM each coupling step
   predictive,      ///< thesis eq. 3.4-3.7: FEM then DEM with the predicted velocity
+  concurrent,      ///< DEM and FEM at the same time, each from the other's last data
+  implicit,        ///< each step iterated to convergence (Dirichlet-Neumann, accelerated)
+};
+
+/// @brief What an implicit step does when it has not converged in max_iterations.
+enum class NonConvergence : std::uint8_t {
+  stop,    ///< the run stops (exit status 3), as for a blow-up
+  accept,  ///< the last iterate is accepted with a warning; counted in the summary
+};
+
+/// @brief The implicit scheme's keys of [coupling] (docs/coupling.md, "Implicit coupling").
+struct ImplicitSettings {
+  AccelerationSettings acceleration;
+  std::int64_t max_iterations = 50;       ///< iterations of one step (>= 1)
+  double displacement_tolerance = 1e-4;   ///< relative: |u~ - u| <= tol |u~| (2-norms)
+  double force_tolerance = 1e-3;          ///< relative: |F^k - F^{k-1}| <= tol |F^k|
+  double displacement_abs_tolerance = 0;  ///< m: |u~ - u| at most this also converges
+  double force_abs_tolerance = 0;         ///< N: |F^k - F^{k-1}| at most this also converges
+  NonConvergence on_nonconvergence = NonConvergence::stop;
 };
 
 /// @brief "one_way_static", "just_in_time", ...
@@ -69,6 +89,7 @@ struct CouplingSettings {
   bool has_fem = false;
   Scheme scheme = Scheme::dem_only;
   bool force_averaging = false;
+  ImplicitSettings implicit;  ///< scheme == implicit
   /// FEM-only runs: a single static solve (from [fem].analysis = "static").
   bool fem_static = false;
   /// [fem].analysis = "modal": the natural frequencies, computed by the launcher itself (no

@@ -6,6 +6,7 @@
 // the same order, so a run through three processes equals the in-process run bit for bit.
 
 #include <cstdint>
+#include <exception>
 #include <filesystem>
 #include <memory>
 #include <optional>
@@ -54,7 +55,11 @@ class SolverLink {
   virtual InterfaceMesh start() = 0;
   /// The solver's name as it reported it ("demfem-fem 0.1 (cpu)").
   virtual std::string name(Role role) const = 0;
-  /// Starts one step; the solver reads and writes buffers() (cmd.buffer) in place.
+  /// The solver can iterate a coupling step (protocol::kCapabilityIteration in its Hello).
+  virtual bool supports_iteration(Role role) const = 0;
+  /// Starts one step; the solver reads and writes buffers() (cmd.buffer) in place. The DEM and
+  /// the FEM may each have a step in progress at once (the concurrent scheme, with different
+  /// buffers).
   virtual void send_step(Role role, const StepCommand& cmd) = 0;
   /// Waits for the step started by send_step(). Throws protocol::ProtocolError subclasses.
   virtual StepResult wait_step_done(Role role) = 0;
@@ -68,7 +73,12 @@ class SolverLink {
   virtual void restore(Role role, const std::filesystem::path& file, std::int64_t step) = 0;
 };
 
-/// @brief Solvers in this process, driven through their SolverBackend adapters.
+/// @brief Solvers in this process, driven through their SolverBackend adapters. A step runs
+/// when it is waited for; when both solvers have a step sent and not yet run (the concurrent
+/// scheme), the FEM's runs on a worker thread while the DEM's runs on the calling thread
+/// (whose OpenMP team the DEM keeps), so the two overlap here too. The solvers share nothing
+/// but the interface buffers, in which they use different buffers, so the results are the
+/// same bits as one after the other.
 class LocalLink final : public SolverLink {
  public:
   /// Either pointer may be null (a run without that solver).
@@ -79,18 +89,27 @@ class LocalLink final : public SolverLink {
   bool has(Role role) const override;
   InterfaceMesh start() override;
   std::string name(Role role) const override;
+  bool supports_iteration(Role role) const override;
   void send_step(Role role, const StepCommand& cmd) override;
   StepResult wait_step_done(Role role) override;
   InterfaceBuffers& buffers() override { return buffers_; }
-  void shutdown() override {}
+  /// Accepts a held-back (iterated) step, as serve() does on Shutdown.
+  void shutdown() override;
   void checkpoint(Role role, const std::filesystem::path& file, std::int64_t step) override;
   void restore(Role role, const std::filesystem::path& file, std::int64_t step) override;
 
   protocol::SolverBackend* backend(Role role) const;
 
  private:
+  class Worker;
+  void run_step(Role role);
+
   std::unique_ptr<protocol::SolverBackend> backends_[protocol::kRoleCount];
-  std::optional<StepResult> pending_[protocol::kRoleCount];
+  protocol::IterationGate gates_[protocol::kRoleCount];
+  std::optional<StepCommand> sent_[protocol::kRoleCount];    // sent, not yet run
+  std::optional<StepResult> results_[protocol::kRoleCount];  // run, not yet waited for
+  std::exception_ptr errors_[protocol::kRoleCount];
+  std::unique_ptr<Worker> worker_;
   InterfaceBuffers buffers_;
   // Process-local storage behind buffers_, laid out as the bulk segment is.
   std::vector<double> reference_;
@@ -119,6 +138,7 @@ class RemoteLink final : public SolverLink {
   bool has(Role role) const override;
   InterfaceMesh start() override;
   std::string name(Role role) const override;
+  bool supports_iteration(Role role) const override;
   void send_step(Role role, const StepCommand& cmd) override;
   StepResult wait_step_done(Role role) override;
   InterfaceBuffers& buffers() override;

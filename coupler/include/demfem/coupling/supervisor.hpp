@@ -31,6 +31,15 @@ class SolverProcess {
   pid_t pid() const { return pid_; }
   /// Adds an argument for the next start() (e.g. --resume for a restarted solver), once.
   void add_argument(const std::string& argument);
+  /// Start the process in a session of its own (setsid; demfem_run --solver-sessions). Under
+  /// Linux's autogroup scheduling (sched_autogroup_enabled = 1, the default of desktop
+  /// kernels) the processes of one session share one CPU share against other sessions: two
+  /// solvers in the launcher's session then get one core between them as soon as another
+  /// session keeps the CPUs busy, which the concurrent scheme cannot afford. In a session of
+  /// its own each gets its share. The process then no longer receives the terminal's signals
+  /// or a signal to the launcher's process group: the launcher forwards SIGTERM, and a
+  /// solver whose launcher is gone leaves by itself (docs/reliability.md).
+  void set_own_session(bool own) { own_session_ = own; }
   /// The folder the process starts in (empty, the default: the launcher's own).
   void set_working_directory(std::filesystem::path dir) { working_directory_ = std::move(dir); }
   const std::filesystem::path& executable() const { return executable_; }
@@ -57,6 +66,7 @@ class SolverProcess {
   std::filesystem::path working_directory_;
   pid_t pid_ = -1;
   int slot_ = -1;
+  bool own_session_ = false;
   std::optional<int> exit_code_;
 };
 

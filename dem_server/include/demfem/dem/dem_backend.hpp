@@ -28,6 +28,10 @@ namespace demfem::dem {
 /// buffers.dem_positions(cmd.buffer). StepResult values: [0] largest overlap with the
 /// flexible mesh (m), [1] kinetic energy (J), [2] largest overlap of any contact (m).
 /// Sensors and particle output advance with the run.
+///
+/// Iterated steps (implicit coupling, docs/protocol.md): the save point is the system's state
+/// in memory (DemRun::take_save_point); a step with kStepIterate holds back its insertions,
+/// sensor samples and snapshots until accept_step().
 class DemBackend final : public protocol::SolverBackend {
  public:
   explicit DemBackend(DemRun& run) : run_(run) {}
@@ -74,7 +78,11 @@ class DemBackend final : public protocol::SolverBackend {
                                   buffers.accelerations(cmd.buffer));
     }
     try {
-      run_.advance(cmd.substeps, cmd.force_mode);
+      if (cmd.flags & protocol::kStepIterate) {
+        run_.advance_tentative(cmd.substeps, cmd.force_mode);
+      } else {
+        run_.advance(cmd.substeps, cmd.force_mode);
+      }
     } catch (const Unstable& e) {
       // A blow-up, reported as one (the coupler exits with status 3, docs/coupling.md).
       throw protocol::BackendError(
@@ -129,6 +137,11 @@ class DemBackend final : public protocol::SolverBackend {
 
   /// A long coupling step (n_D substeps) stops within one substep when the flag is set.
   void set_cancel_flag(const std::atomic<bool>* flag) override { run_.set_cancel_flag(flag); }
+
+  bool supports_iteration() const override { return true; }
+  void save_iteration_state() override { run_.take_save_point(); }
+  void restore_iteration_state() override { run_.restore_save_point(); }
+  void accept_step() override { run_.accept_step(); }
 
  private:
   DemRun& run_;

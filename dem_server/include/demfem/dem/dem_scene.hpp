@@ -186,6 +186,19 @@ class DemRun {
 
   /// advance(substeps) of the system, then the sensors and output that are due.
   void advance(std::int64_t substeps, ForceMode mode = ForceMode::last_substep);
+  /// An iterated coupling step (implicit coupling): advance() whose insertions, sensor
+  /// samples and snapshots wait for accept_step(), so that a step that is redone from
+  /// restore_save_point() leaves no trace of its earlier tries. The stability check runs at
+  /// once, as in advance().
+  void advance_tentative(std::int64_t substeps, ForceMode mode = ForceMode::last_substep);
+  /// The held-back part of advance_tentative() (insertions, samples, snapshots), for the state
+  /// it reached; does nothing when no step is held back.
+  void accept_step();
+  /// Keeps the system's state in memory (DemSystem::save_state) to return to with
+  /// restore_save_point(); the tools' state needs no copy, since a held-back step has not
+  /// touched it. Accepts a held-back step first.
+  void take_save_point();
+  void restore_save_point();
   /// Advances to `end_time` in pieces that end on the sensor and output times;
   /// `progress(time)` is called after each piece.
   void run_to(double end_time, const std::function<void(double)>& progress = {});
@@ -232,6 +245,11 @@ class DemRun {
   io::OutputSchedule schedule_;           ///< particle snapshots at k * output_interval_
   std::int64_t last_snapshot_step_ = -1;  ///< DemSystem::step_count() of the last snapshot
   std::int64_t chunk_steps_ = 1;          ///< steps between the chances to take an output
+
+  DemStateCopy save_point_;  ///< take_save_point()
+  bool held_back_ = false;   ///< advance_tentative() whose outputs wait for accept_step()
+  /// after_advance() without the stability check: insertions, sensor samples, snapshot.
+  void take_step_outputs();
 
   /// The DEM clock for output: step count x dt (not the running sum of dt).
   double output_clock() const;

@@ -10,6 +10,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <cstdio>
 #include <iostream>
@@ -104,6 +105,10 @@ inline std::string checkpoint_swap_refusal(const std::string& from, const std::s
 /// the coupling step end nearest to it and labelled with it (io::OutputSchedule; none from
 /// step() when the interval is 0); the caller writes the start and end states with
 /// write_initial_output() and write_final_output().
+///
+/// Iterated steps (implicit coupling, docs/protocol.md): the save point is the solver's state
+/// in memory (u, v, a, forces, time: FemSolver::save_state; the full FEM only) with the output step
+/// size; a step with kStepIterate writes its output only when accepted (accept_step()).
 template <class Solver>
 class StructureBackend final : public protocol::SolverBackend {
  public:
@@ -190,10 +195,48 @@ class StructureBackend final : public protocol::SolverBackend {
     r.values[1] = solver_.kinetic_energy();
     r.values[2] = solver_.strain_energy();
     r.values[3] = solver_.time();
+    if (cmd.flags & protocol::kStepIterate) {
+      // The output and the monitor's sample wait until the step is accepted; by then the
+      // buffer holds the next step's forces, so the monitor gets a copy of these.
+      held_back_ = true;
+      if (monitor_) held_forces_.assign(forces.begin(), forces.end());
+    } else {
+      maybe_write_output();
+      if constexpr (std::is_same_v<Solver, FemSolver>)
+        if (monitor_) monitor_->sample(solver_, forces);
+    }
+    return r;
+  }
+
+  /// The reduced models (modal, rigid) have no in-memory save point yet: the coupler refuses
+  /// implicit coupling with them at the handshake.
+  bool supports_iteration() const override { return std::is_same_v<Solver, FemSolver>; }
+  void save_iteration_state() override {
+    if constexpr (std::is_same_v<Solver, FemSolver>) {
+      accept_step();
+      solver_.save_state(save_point_);
+      save_point_dt_ = step_dt_;
+    } else {
+      throw std::logic_error(std::string("the ") + backend_kind(solver_) +
+                             " backend cannot iterate a coupling step");
+    }
+  }
+  void restore_iteration_state() override {
+    if constexpr (std::is_same_v<Solver, FemSolver>) {
+      held_back_ = false;
+      solver_.restore_state(save_point_);
+      step_dt_ = save_point_dt_;
+    } else {
+      throw std::logic_error(std::string("the ") + backend_kind(solver_) +
+                             " backend cannot iterate a coupling step");
+    }
+  }
+  void accept_step() override {
+    if (!held_back_) return;
+    held_back_ = false;
     maybe_write_output();
     if constexpr (std::is_same_v<Solver, FemSolver>)
-      if (monitor_) monitor_->sample(solver_, forces);
-    return r;
+      if (monitor_) monitor_->sample(solver_, held_forces_);
   }
 
   /// The solver state under group "fem" of an HDF5 file, written under a temporary name and
@@ -221,6 +264,7 @@ class StructureBackend final : public protocol::SolverBackend {
   }
 
   void restore_checkpoint(const std::filesystem::path& file, std::int64_t step) override {
+    held_back_ = false;  // a held-back step is not part of the restored state
     const io::H5File h5 = io::open_checkpoint_file(file, step);
     // Parts written before the attribute existed are the full FEM's.
     const std::string from =
@@ -281,6 +325,10 @@ class StructureBackend final : public protocol::SolverBackend {
   io::OutputSchedule schedule_;
   double step_dt_ = 0.0;                ///< dt of the dynamic steps (the coupling step), s
   std::int64_t last_output_step_ = -1;  ///< solver step count of the last output
+  FemStateCopy save_point_;             ///< save_iteration_state()
+  double save_point_dt_ = 0.0;
+  bool held_back_ = false;           ///< an iterated step whose output waits for accept_step()
+  std::vector<double> held_forces_;  ///< the forces of the held-back step (for the monitor)
 };
 
 using FemBackend = StructureBackend<FemSolver>;

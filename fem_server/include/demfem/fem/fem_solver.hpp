@@ -2,6 +2,7 @@
 // The in-process API of the FEM engine. fem_server is a thin protocol loop around it; tests
 // and benchmarks drive it directly.
 
+#include <cstdint>
 #include <memory>
 #include <span>
 #include <stdexcept>
@@ -32,6 +33,17 @@ class FemModelError : public std::runtime_error {
 /// an undamped oscillator at omega dt = `omega_dt` (>= 0): above 1 the step amplifies that
 /// frequency, i.e. the scheme is unstable there. Used to check user-set gamma and beta.
 double bossak_spectral_radius(const BossakParameters& bossak, double omega_dt);
+
+/// @brief An in-memory copy of a FemSolver's state (FemSolver::save_state): what save()
+/// writes, for going back to the start of an iterated coupling step (implicit coupling).
+/// Reuse one object: its vectors keep their capacity.
+struct FemStateCopy {
+  std::vector<double> u, v, a;  ///< free DOFs: displacement, velocity, acceleration
+  std::vector<double> interface_forces;
+  double time = 0.0;
+  std::int64_t step = -1;  ///< -1: nothing saved yet
+  bool acceleration_ready = false;
+};
 
 /// @brief Linear-elastic FEM solver: static and Bossak-Newmark dynamic analysis.
 class FemSolver {
@@ -91,6 +103,11 @@ class FemSolver {
   /// Complete state for a bitwise-identical continuation (u, v, a, time, step, forces).
   void save(io::H5File& file, const std::string& group) const;
   void restore(const io::H5File& file, const std::string& group);
+  /// The state of save() in memory: u, v, a (the Bossak history), interface forces, time and
+  /// step. 3 doubles per free DOF; the factorisation is kept (the step size does not change).
+  void save_state(FemStateCopy& copy) const;
+  /// Back to the state of save_state(): the continuation is bitwise the one that followed it.
+  void restore_state(const FemStateCopy& copy);
 
  private:
   struct Impl;

@@ -32,8 +32,9 @@
 namespace demfem::protocol {
 
 /// @brief Version of the segment layout and the messages. Peers of different versions are
-/// refused at the handshake.
-inline constexpr std::uint32_t kProtocolVersion = 1;
+/// refused at the handshake. Version 2 added iterated steps (kStepIterate, kStepRedo, the
+/// Hello's capabilities) and the solver's compute time in StepDone (docs/protocol.md).
+inline constexpr std::uint32_t kProtocolVersion = 2;
 
 /// @brief Which solver a process is.
 enum class Role : std::uint8_t { dem = 0, fem = 1 };
@@ -77,6 +78,18 @@ const char* error_kind_name(ErrorKind kind);
 inline constexpr std::uint32_t kStepStatic = 1;         ///< FEM: static solve, not a dynamic step
 inline constexpr std::uint32_t kStepSetKinematics = 2;  ///< DEM: take the buffer's kinematics
                                                         ///< before stepping
+/// An iteration of an implicit coupling step (docs/protocol.md, "Iterated steps"): the solver
+/// keeps its state at the step's start in memory (SolverBackend::save_iteration_state) and
+/// holds back the step's lasting effects (output files, sensor samples, insertions) until the
+/// step is accepted. Only sent to a solver whose Hello announced kCapabilityIteration.
+inline constexpr std::uint32_t kStepIterate = 4;
+/// With kStepIterate: the previous iteration of this step is discarded; the solver returns to
+/// the state saved at the step's start, then steps again with the buffer's new inputs.
+inline constexpr std::uint32_t kStepRedo = 8;
+
+// Capabilities a solver announces in its Hello (bits).
+/// The solver can iterate a coupling step (kStepIterate, kStepRedo): implicit coupling.
+inline constexpr std::uint32_t kCapabilityIteration = 1;
 
 /// @brief What a Step message asks a solver to do.
 struct StepCommand {
@@ -93,6 +106,9 @@ struct StepCommand {
 /// overlap, kinetic energy).
 struct StepResult {
   std::array<double, 8> values{};
+  /// Wall time of the solver's step() in its own process, s (serve() measures it; the
+  /// coupler's own timing adds the waiting and the message round trip).
+  double compute_seconds = 0.0;
 };
 
 /// @brief In-place views of the bulk interface arrays of one run (both buffers). Arrays are
@@ -173,6 +189,42 @@ class SolverBackend {
   /// serve() then exits as for the signal or the dead coupler. The default ignores it: the
   /// step is then abandoned only when it ends.
   virtual void set_cancel_flag(const std::atomic<bool>* flag) { (void)flag; }
+
+  // Iterated steps (implicit coupling; docs/protocol.md, "Iterated steps"). serve() calls
+  // these through IterationGate; a backend that returns false from supports_iteration() is
+  // never sent kStepIterate (the coupler refuses an implicit scheme at the start instead).
+  /// Announced in Hello as kCapabilityIteration.
+  virtual bool supports_iteration() const { return false; }
+  /// Keep the state at the start of the coupling step in memory (no file): the first
+  /// iteration of an iterated step. step() then sees kStepIterate and must hold back the
+  /// step's lasting effects (output, sensor samples, insertions) until accept_step().
+  virtual void save_iteration_state();
+  /// Return to the state of save_iteration_state() (the previous iteration is discarded).
+  virtual void restore_iteration_state();
+  /// The last iterated step is final: write what it held back.
+  virtual void accept_step() {}
+};
+
+/// @brief The rules of iterated steps (docs/protocol.md), applied between the messages and a
+/// backend by serve() and by the coupler's in-process link alike: a Step with kStepIterate
+/// saves the state first (or, with kStepRedo, restores it); any other Step, a Checkpoint or a
+/// Shutdown accepts a held-back step first; a Restore discards it. Also measures
+/// StepResult::compute_seconds.
+class IterationGate {
+ public:
+  /// Applies the flags of `cmd`, then backend.step(). Throws ProtocolError for a kStepRedo
+  /// without a save point of the same step, or kStepIterate to a backend without support.
+  StepResult step(SolverBackend& backend, const StepCommand& cmd, InterfaceBuffers& buffers);
+  /// Before a Checkpoint or a Shutdown: a held-back step is accepted.
+  void accept(SolverBackend& backend);
+  /// Before a Restore: a held-back step and the save point are dropped.
+  void discard();
+  /// A step is held back (iterated, not yet accepted).
+  bool tentative() const { return tentative_; }
+
+ private:
+  bool tentative_ = false;
+  std::int64_t saved_step_ = -1;  ///< step whose start state is saved, -1 = none
 };
 
 /// @brief How a waiting process waits: spin for `spin` then block on a futex in slices,
@@ -296,6 +348,7 @@ struct PeerInfo {
   std::string name;
   std::size_t node_count = 0;
   std::size_t triangle_count = 0;
+  std::uint32_t capabilities = 0;  ///< kCapability* bits
 };
 
 /// @brief Coupler side of one run.
@@ -348,6 +401,16 @@ class CouplerSession {
  private:
   std::unique_ptr<Impl> impl_;
 };
+
+// Defined here, not in the library, so that SolverBackend stays header-only (no key function).
+inline void SolverBackend::save_iteration_state() {
+  throw ProtocolError("the solver '" + name() +
+                      "' cannot iterate a coupling step (it keeps no in-memory save point)");
+}
+inline void SolverBackend::restore_iteration_state() {
+  throw ProtocolError("the solver '" + name() +
+                      "' cannot iterate a coupling step (it keeps no in-memory save point)");
+}
 
 /// @brief Removes "demfem-*" segments in /dev/shm whose owner process is gone. Returns how
 /// many were removed. CouplerSession calls it on construction.

@@ -75,7 +75,7 @@ struct HelloPayload {
   std::uint32_t version;
   std::uint32_t role;
   std::int32_t pid;
-  std::uint32_t reserved;
+  std::uint32_t capabilities;  ///< kCapability* bits (protocol 2; "reserved" in protocol 1)
   std::uint64_t node_count;
   std::uint64_t triangle_count;
   char name[kNameLength];

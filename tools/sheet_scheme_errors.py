@@ -1,0 +1,66 @@
+#!/usr/bin/python3
+"""Errors of the sheet CI runs of bench/coupling_schemes (--parts sheet) in two more measures
+than the bench's JSON (docs/coupling.md, "Problem (c)").
+
+usage: /usr/bin/python3 tools/sheet_scheme_errors.py RUNS_DIR
+
+RUNS_DIR is the bench's --work folder (default out/bench/coupling_schemes_runs). For every run
+folder sheet_ci_<scheme>_<dt_F> that completed, against sheet_ci_implicit-iqn_2e-05_reference,
+from fem_monitor.csv (probe lmp, u_z):
+  series  largest |w - w_ref| at the common times over the largest |w_ref| (the measure of
+          problems a and b);
+  mean    |mean w - mean w_ref| / |mean w_ref| over 0.3-0.6 s (the flow on the sheet, a window
+          three times the bench's, so less sensitive to the phase of the sheet's oscillation).
+"""
+import csv
+import math
+import os
+import sys
+
+
+def series(folder):
+    path = os.path.join(folder, "fem_monitor.csv")
+    if not os.path.exists(path):
+        return None
+    with open(path) as f:
+        return [(float(r["time"]), float(r["lmp_uz"])) for r in csv.DictReader(f)]
+
+
+def main(argv):
+    runs = argv[1] if len(argv) > 1 else "out/bench/coupling_schemes_runs"
+    ref = series(os.path.join(runs, "sheet_ci_implicit-iqn_2e-05_reference"))
+    if not ref:
+        print("no reference run in", runs, file=sys.stderr)
+        return 2
+    at = {round(t / 2e-5): w for t, w in ref}
+    scale = max(abs(w) for _, w in ref)
+
+    def mean(s, a=0.3, b=0.6):
+        v = [w for t, w in s if a - 1e-9 <= t <= b + 1e-9]
+        return sum(v) / len(v)
+
+    ref_mean = mean(ref)
+    print("reference: largest |w| %.4g m, mean over 0.3-0.6 s %.4g m" % (scale, ref_mean))
+    print("%-20s %8s %10s %10s" % ("scheme", "dt_F", "series", "mean"))
+    for name in sorted(os.listdir(runs)):
+        folder = os.path.join(runs, name)
+        if not name.startswith("sheet_ci_") or "reference" in name or not os.path.isdir(folder):
+            continue
+        if not os.path.exists(os.path.join(folder, "timing.csv")):
+            continue  # did not complete (blow-up, no convergence)
+        s = series(folder)
+        if not s or s[-1][0] < 0.6 - 1e-9:
+            continue
+        scheme, dt = name[len("sheet_ci_"):].rsplit("_", 1)
+        err = 0.0
+        for t, w in s:
+            k = round(t / 2e-5)
+            if abs(t / 2e-5 - k) < 1e-6 and k in at:
+                err = max(err, abs(w - at[k]))
+        print("%-20s %8s %10.3g %10.3g" % (scheme, dt, err / scale,
+                                            abs(mean(s) - ref_mean) / abs(ref_mean)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))
