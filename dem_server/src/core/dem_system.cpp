@@ -2014,6 +2014,7 @@ void DemSystem::save_state(DemStateCopy& c) const {
   c.nbr.assign(I.nbr.begin(), I.nbr.end());
   c.wkey.assign(I.wkey.begin(), I.wkey.end());
   c.wcount.assign(I.wcount.begin(), I.wcount.end());
+  c.bodies = I.bodies.pack();
 }
 
 void DemSystem::restore_state(const DemStateCopy& c) {
@@ -2038,6 +2039,9 @@ void DemSystem::restore_state(const DemStateCopy& c) {
   I.nbr.assign(c.nbr.begin(), c.nbr.end());
   I.wkey.assign(c.wkey.begin(), c.wkey.end());
   I.wcount.assign(c.wcount.begin(), c.wcount.end());
+  if (!I.bodies.unpack(c.bodies))
+    throw std::logic_error("DemSystem::restore_state: the state copy holds another number of "
+                           "rigid bodies");
   // As restore(): the list is rebuilt from the restored positions and springs.
   I.bx.clear(), I.by.clear(), I.bz.clear();
   I.refresh_particle_derived();

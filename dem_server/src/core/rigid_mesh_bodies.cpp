@@ -90,8 +90,7 @@ RigidBodyState RigidMeshBodies::state(int bi) const {
   return s;
 }
 
-void RigidMeshBodies::save(io::H5File& f, const std::string& g) const {
-  if (bodies_.empty()) return;
+std::vector<double> RigidMeshBodies::pack() const {
   std::vector<double> out;
   out.reserve(kSaved * bodies_.size());
   for (const auto& b : bodies_) {
@@ -99,6 +98,26 @@ void RigidMeshBodies::save(io::H5File& f, const std::string& g) const {
                            b.q[3], b.w[0], b.w[1], b.w[2], b.force[0], b.force[1], b.force[2],
                            b.torque[0], b.torque[1], b.torque[2]});
   }
+  return out;
+}
+
+bool RigidMeshBodies::unpack(std::span<const double> in) {
+  if (in.size() != kSaved * bodies_.size()) return false;
+  for (std::size_t k = 0; k < bodies_.size(); ++k) {
+    auto& b = bodies_[k];
+    const double* p = in.data() + kSaved * k;
+    for (int d = 0; d < 3; ++d) {
+      b.c[d] = p[d], b.v[d] = p[3 + d], b.w[d] = p[10 + d];
+      b.force[d] = p[13 + d], b.torque[d] = p[16 + d];
+    }
+    for (int m = 0; m < 4; ++m) b.q[m] = p[6 + m];
+  }
+  return true;
+}
+
+void RigidMeshBodies::save(io::H5File& f, const std::string& g) const {
+  if (bodies_.empty()) return;
+  const std::vector<double> out = pack();
   f.write(g + "rigid_bodies", std::span<const double>(out));
 }
 
@@ -109,19 +128,10 @@ void RigidMeshBodies::restore(const io::H5File& f, const std::string& g) {
                                 " holds no rigid-body state, but this system has " +
                                 std::to_string(bodies_.size()) + " rigid bodies");
   const auto in = f.read_doubles(g + "rigid_bodies");
-  if (in.size() != kSaved * bodies_.size())
+  if (!unpack(in))
     throw std::invalid_argument("DemSystem: restore: " + f.path().string() + " holds " +
                                 std::to_string(in.size() / kSaved) +
                                 " rigid bodies, this system has " + std::to_string(bodies_.size()));
-  for (std::size_t k = 0; k < bodies_.size(); ++k) {
-    auto& b = bodies_[k];
-    const double* p = in.data() + kSaved * k;
-    for (int d = 0; d < 3; ++d) {
-      b.c[d] = p[d], b.v[d] = p[3 + d], b.w[d] = p[10 + d];
-      b.force[d] = p[13 + d], b.torque[d] = p[16 + d];
-    }
-    for (int m = 0; m < 4; ++m) b.q[m] = p[6 + m];
-  }
 }
 
 }  // namespace demfem::dem::detail

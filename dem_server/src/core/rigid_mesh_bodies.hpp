@@ -7,6 +7,7 @@
 
 #include <array>
 #include <cstddef>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -37,6 +38,11 @@ class RigidMeshBodies {
   void place(int b, double* x, double* v) const;
   RigidBodyState state(int b) const;
 
+  /// The bodies' state, 19 numbers per body (pose, velocities, last loads): what save()
+  /// writes and DemSystem::save_state() keeps in memory.
+  std::vector<double> pack() const;
+  /// Back to a packed state; false if `in` holds another number of bodies.
+  bool unpack(std::span<const double> in);
   /// Appends the state to a saved DEM state (dataset "<group>/rigid_bodies", 19 per body).
   void save(io::H5File& f, const std::string& g) const;
   /// Reads it back; a state without bodies or with another count is refused (message names

@@ -184,6 +184,7 @@ struct DemStateCopy {
   std::vector<std::int64_t> row, wkey;
   std::vector<std::int32_t> nbr;
   std::vector<std::uint8_t> wcount;
+  std::vector<double> bodies;  ///< rigid mesh bodies ([dem.walls.body]), 19 per body
 };
 
 /// @brief A DEM system of particles, walls and (optionally) the flexible coupled mesh.
