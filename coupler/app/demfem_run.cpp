@@ -73,6 +73,7 @@ struct Options {
   std::vector<std::string> sets;  // --set KEY=VALUE, passed on to the solvers
   bool check = false;             // --check: read and check the scene, start nothing
   double hello_timeout = 300.0;   // s: a started solver that has not said Hello is killed
+  bool hello_timeout_given = false;
   std::string fem_backend;        // --fem-backend: overrides fem.backend ("" = the scene's)
 };
 
@@ -650,6 +651,16 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
           static_cast<std::int64_t>(std::ceil(1000.0 * settings.checkpoint.reply_timeout)));
       copt.hello_timeout = std::chrono::milliseconds(
           static_cast<std::int64_t>(std::ceil(1000.0 * opt.hello_timeout)));
+      // dem_server runs dem.settle_time before it attaches, which may take hours: then a
+      // solver may take as long as it lives (a dead one is still found within 0.1 s), unless
+      // the user gave --hello-timeout.
+      if (settings.dem_settle_time > 0.0 && !opt.hello_timeout_given) {
+        copt.hello_timeout = std::chrono::milliseconds(0);
+        if (!opt.quiet)
+          std::printf("demfem run: dem.settle_time = %g s runs before the DEM attaches: no limit "
+                      "on the time to attach (--hello-timeout sets one)\n",
+                      settings.dem_settle_time);
+      }
       // After Ctrl-C / SIGTERM (forwarded to the solvers) a solver that has not ended within
       // copt.stop_grace is not waited for any longer.
       copt.stop = &SignalGuard::stop_flag();
@@ -1037,13 +1048,15 @@ int main(int argc, char** argv) {
   app.add_option("--hello-timeout", opt.hello_timeout,
                  "seconds a started solver may take to attach (its Hello) before it is killed "
                  "and the run stops with status 1 (default 300; raise it for models whose "
-                 "set-up takes longer)")
+                 "set-up takes longer; without it a scene with dem.settle_time has no limit, "
+                 "the settling running before the DEM attaches)")
       ->check(CLI::Range(0.1, 1e6));
   app.add_option("--debug-kill", opt.debug_kill,
                  "testing only: SIGKILL (or with :stop SIGSTOP) a process at a coupling step, "
                  "ROLE:STEP[:always|:stop] with ROLE dem, fem or coupler (docs/reliability.md)");
   try {
     app.parse(argc, argv);
+    opt.hello_timeout_given = app.count("--hello-timeout") > 0;
     opt.resume = resume->count() > 0;
   } catch (const CLI::CallForHelp& e) {
     return app.exit(e);

@@ -220,3 +220,20 @@ TEST_CASE("output and sensor intervals below the resolution of the time: every s
     }
   }
 }
+
+TEST_CASE("dem.settle_time runs before the DEM attaches: only a given --hello-timeout limits it") {
+  // dem_server settles before it says Hello; the default attach limit (300 s) killed long
+  // preparation scenes (the sleeper bed), so without the option such a scene has none. A
+  // limit the user gives still applies: 2 s of settling (10^6 steps) against 1 s.
+  TempDir d;
+  const fs::path scene = variant(d.path, "settle.toml",
+                                 {{"dt = 2e-6                  # s; Rayleigh",
+                                   "settle_time = 2.0\ndt = 2e-6                  # s; Rayleigh"}});
+  const auto t0 = std::chrono::steady_clock::now();
+  const Ended r = run(d.path, {scene.string(), "--hello-timeout", "1"});
+  INFO(r.out << r.err);
+  CHECK(r.status == 1);
+  CHECK(seconds_since(t0) < 60.0);
+  CHECK_THAT(r.err, Catch::Contains("did not attach within 1 s"));
+  check_nothing_left(r.out);
+}

@@ -104,6 +104,7 @@ struct CouplingSettings {
   std::string fem_command_where;
 
   double dem_dt = 0.0;            ///< [dem].dt, s
+  double dem_settle_time = 0.0;   ///< [dem].settle_time, s: run before the DEM attaches
   double fem_dt = 0.0;            ///< [fem].dt, s
   double coupling_dt = 0.0;       ///< dt_C, s
   std::int64_t dem_substeps = 1;  ///< n_D per coupling step
