@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "demfem/fem/element_topology.hpp"
+#include "demfem/io/h5_file.hpp"
 #include "elements.hpp"
 
 namespace demfem::fem {
@@ -576,6 +577,19 @@ void check_interface_forces(std::span<const double> forces, std::size_t expected
       throw std::invalid_argument(std::string(who) +
                                   "::set_interface_forces: non-finite force at entry " +
                                   std::to_string(i));
+}
+
+void check_saved_dof_count(const io::H5File& file, const std::string& group, const DofMap& dofs,
+                           const char* who) {
+  const auto total = file.attribute_int64(group, "dof_count");
+  const auto free = file.attribute_int64(group, "free_dof_count");
+  if (total == dofs.total && free == static_cast<std::int64_t>(dofs.free.size())) return;
+  throw std::runtime_error(
+      std::string(who) + ": " + file.path().string() + ":" + group +
+      " was saved from a model with a different DOF count (" + std::to_string(total) + ", " +
+      std::to_string(free) + " free; this model has " + std::to_string(dofs.total) + ", " +
+      std::to_string(dofs.free.size()) +
+      " free): the mesh or the clamps changed; the state cannot be continued with this scene");
 }
 
 }  // namespace demfem::fem

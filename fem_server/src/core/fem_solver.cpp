@@ -603,15 +603,7 @@ void FemSolver::restore_state(const FemStateCopy& c) {
 void FemSolver::restore(const io::H5File& file, const std::string& group) {
   Impl& s = *impl_;
   const auto where = file.path().string() + ":" + group;
-  if (file.attribute_int64(group, "dof_count") != s.dofs.total ||
-      file.attribute_int64(group, "free_dof_count") !=
-          static_cast<std::int64_t>(s.dofs.free.size()))
-    throw std::runtime_error(
-        "FemSolver::restore: " + where + " was saved from a model with a different DOF count (" +
-        std::to_string(file.attribute_int64(group, "dof_count")) + ", " +
-        std::to_string(file.attribute_int64(group, "free_dof_count")) + " free; this model has " +
-        std::to_string(s.dofs.total) + ", " + std::to_string(s.dofs.free.size()) +
-        " free): the mesh or the clamps changed; the state cannot be continued with this scene");
+  check_saved_dof_count(file, group, s.dofs, "FemSolver::restore");
   auto read = [&](const std::string& name, VectorXd& x) {
     const auto d = file.read_doubles(group + "/" + name);
     if (d.size() != static_cast<std::size_t>(x.size()))

@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <span>
+#include <string>
 #include <vector>
 
 #include <Eigen/Dense>
@@ -12,6 +13,10 @@
 #include "demfem/fem/fem_problem.hpp"
 #include "demfem/fem/sparse_solver.hpp"
 #include "demfem/interface/interface_mesh.hpp"
+
+namespace demfem::io {
+class H5File;
+}
 
 namespace demfem::fem {
 
@@ -84,5 +89,11 @@ SparseMatrix interface_load_matrix(const DofMap& dofs, const InterfaceMap& iface
 /// @brief Checks interface forces handed to a solver (`who`, for the message): 3 values per
 /// interface node (`expected` in all), all finite. Throws std::invalid_argument.
 void check_interface_forces(std::span<const double> forces, std::size_t expected, const char* who);
+
+/// @brief Checks that the state in `group` of a checkpoint was saved from a model with these
+/// DOFs (attributes dof_count and free_dof_count); throws std::runtime_error naming `who`, the
+/// file and group, and both counts otherwise.
+void check_saved_dof_count(const io::H5File& file, const std::string& group, const DofMap& dofs,
+                           const char* who);
 
 }  // namespace demfem::fem
