@@ -1,5 +1,5 @@
-"""What ParaView sees of a run's output: opens particles.xdmf, fem.xdmf and fem_modes.xdmf (a
-modal analysis: one time step per mode) of an output folder with ParaView's own default reader (Xdmf3ReaderS in 5.11) and prints, as JSON, for
+"""What ParaView sees of a run's output: opens particles.xdmf, walls.xdmf, fem.xdmf and
+fem_modes.xdmf (a modal analysis: one time step per mode) of an output folder with ParaView's own default reader (Xdmf3ReaderS in 5.11) and prints, as JSON, for
 every file and time step: the reader, the time values, the point and cell counts, the cell
 types, and each array (point or cell data: components, range, first tuple). For arrays of 9
 (or 6) components it also gives ParaView's largest eigenvalue of each cell's tensor, computed
@@ -125,12 +125,12 @@ def main():
                         help="also list every value of the arrays of at most N tuples")
     args = parser.parse_args()
     seen = {}
-    for name in ("particles.xdmf", "fem.xdmf", "fem_modes.xdmf"):
+    for name in ("particles.xdmf", "walls.xdmf", "fem.xdmf", "fem_modes.xdmf"):
         path = os.path.join(args.output_dir, name)
         if os.path.exists(path):
             seen[name] = describe_file(path, args.steps, args.values)
     if not seen:
-        print(f"{args.output_dir}: none of particles.xdmf, fem.xdmf, fem_modes.xdmf found",
+        print(f"{args.output_dir}: none of particles.xdmf, walls.xdmf, fem.xdmf, fem_modes.xdmf found",
               file=sys.stderr)
         return 2
     json.dump(seen, sys.stdout, indent=1)

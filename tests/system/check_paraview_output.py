@@ -64,7 +64,7 @@ def main():
 
     requested = [0.0, 0.0005, 0.001, 0.0015, 0.002]
     # Both series are numbered from 0 (the initial state).
-    for stem in ("particles", "fem"):
+    for stem in ("particles", "walls", "fem"):
         check(f"{stem}_000000.h5" in files and f"{stem}_000004.h5" in files and
               f"{stem}_000005.h5" not in files,
               f"{stem}: files numbered 000000 .. 000004 expected, found "
@@ -106,6 +106,25 @@ def main():
         if p["steps"] and "velocity" in p["steps"][0]["arrays"]:
             v0 = p["steps"][0]["arrays"]["velocity"]
             check(v0["min"] == 0.0 and v0["max"] == 0.0, "particles t=0: not at rest")
+
+    # --- walls -----------------------------------------------------------------------------
+    w = seen.get("walls.xdmf")
+    if check(w is not None, "walls.xdmf not opened"):
+        check(w["reader"].startswith("Xdmf3Reader"), f"walls: reader {w['reader']}")
+        check(w["times"] == requested, f"walls: times {w['times']}, requested {requested}")
+        for step in w["steps"]:
+            t = step["time"]
+            # the floor: a square of two triangles (VTK_TRIANGLE = 5), z = -0.5 m
+            check(step["points"] == 4 and step["cells"] == 2 and step["cell_types"] == [5],
+                  f"walls t={t}: {step['points']} points, {step['cells']} cells of types "
+                  f"{step['cell_types']}, expected 4, 2, [5] (VTK_TRIANGLE)")
+            force = step["arrays"].get("force")
+            if check(force is not None, f"walls t={t}: no array 'force'"):
+                check(force["components"] == 3 and force["association"] == "cell",
+                      f"walls t={t}: 'force' has {force['components']} components "
+                      f"({force['association']}), expected 3 (cell)")
+                check(force["min"] == 0.0 and force["max"] == 0.0,
+                      f"walls t={t}: force on the untouched floor {force['min']}..{force['max']}")
 
     # --- FEM -------------------------------------------------------------------------------
     f = seen.get("fem.xdmf")

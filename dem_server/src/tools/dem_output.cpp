@@ -10,6 +10,7 @@
 #include "demfem/io/atomic_file.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem/io/output_schedule.hpp"
+#include "demfem/io/xdmf.hpp"
 
 namespace demfem::dem {
 
@@ -164,10 +165,7 @@ void ParticleOutput::write_sphere_grid(std::ostream& x, std::size_t k,
   const auto& e = entries_[k];
   const std::string h5 = snapshot_path(k).filename().string();
   auto item = [&](const std::string& ds, const std::string& dims, const char* type) {
-    std::ostringstream s;
-    s << "<DataItem Dimensions=\"" << dims << "\" NumberType=\"" << type
-      << "\" Precision=\"8\" Format=\"HDF\">" << h5 << ":/" << ds << "</DataItem>";
-    return s.str();
+    return io::xdmf_hdf_item(dims, type, h5 + ":/" + ds);
   };
   const std::string n = std::to_string(e.count);
   x << indent << "<Grid Name=\"step_" << k << "\" GridType=\"Uniform\">\n"
@@ -195,10 +193,7 @@ void ParticleOutput::write_polyhedron_grid(std::ostream& x, std::size_t k,
   const auto& e = entries_[k];
   const std::string h5 = snapshot_path(k).filename().string();
   auto item = [&](const std::string& ds, const std::string& dims, const char* type) {
-    std::ostringstream s;
-    s << "<DataItem Dimensions=\"" << dims << "\" NumberType=\"" << type
-      << "\" Precision=\"8\" Format=\"HDF\">" << h5 << ":/" << ds << "</DataItem>";
-    return s.str();
+    return io::xdmf_hdf_item(dims, type, h5 + ":/" + ds);
   };
   const std::string m = std::to_string(e.points), t = std::to_string(e.triangles);
   x << indent << "<Grid Name=\"polyhedra_" << k << "\" GridType=\"Uniform\">\n"

@@ -15,6 +15,7 @@
 #include "demfem/dem/dem_output.hpp"
 #include "demfem/dem/shapes/mesh_body.hpp"
 #include "demfem/dem/stl_reader.hpp"
+#include "demfem/dem/wall_output.hpp"
 #include "demfem/io/checkpoint_file.hpp"
 #include "demfem/io/h5_file.hpp"
 
@@ -506,6 +507,7 @@ DemScene read_dem_scene(const Table& dem) {
   if (auto o = dem.table("output")) {
     if (o->has("interval")) s.output_interval = o->number("interval", Range::non_negative());
     s.output_particles = o->boolean("particles", true);
+    s.output_walls = o->boolean("walls", true);
     s.output_state = o->boolean("state", false);
     o->finish();
   }
@@ -799,6 +801,11 @@ void DemRun::start_output(bool resume) {
     for (std::size_t k = 0; k < system_->shape_count(); ++k)
       shapes.push_back(system_->shape(static_cast<std::int32_t>(k)));
     output_->set_shapes(shapes);
+    if (scene_.output_walls && !wall_shapes_.empty()) {
+      std::vector<WallOutput::Wall> walls;
+      for (const auto& w : wall_shapes_) walls.push_back({w.name, w.triangles});
+      wall_output_ = std::make_unique<WallOutput>(output_dir_, std::move(walls));
+    }
   }
   schedule_ = io::OutputSchedule(output_interval_);
   // Outputs due before the output starts (during settle_time) are not taken.
@@ -823,6 +830,16 @@ double DemRun::output_clock() const {
 void DemRun::write_snapshot(double label) {
   if (!output_) return;
   output_->write(system_->particles(), ids_, label, system_->time());
+  if (wall_output_) {
+    std::vector<std::vector<double>> now(wall_shapes_.size());
+    std::vector<WallOutput::Pose> poses(wall_shapes_.size());
+    for (std::size_t w = 0; w < wall_shapes_.size(); ++w) {
+      const auto id = static_cast<std::int32_t>(w);
+      now[w] = system_->wall_vertices(id);  // moving walls and rigid bodies move
+      poses[w] = {now[w], system_->wall_force(id)};
+    }
+    wall_output_->write(poses, label, system_->time());
+  }
   last_snapshot_step_ = system_->step_count();
 }
 
@@ -975,6 +992,8 @@ void DemRun::save(io::H5File& file, const std::string& group) const {
   file.set_attribute(g, "next_id", next_id_);
   file.set_attribute(g, "setup_particles", static_cast<std::int64_t>(setup_particles_));
   file.set_attribute(g, "snapshots", static_cast<std::int64_t>(output_ ? output_->count() : 0));
+  file.set_attribute(g, "wall_snapshots",
+                     static_cast<std::int64_t>(wall_output_ ? wall_output_->count() : 0));
   // The output schedule: the next output index and the step of the last snapshot, so that a
   // restored run takes the same states with the same labels.
   const std::vector<std::int64_t> sched_out{schedule_.next(), last_snapshot_step_, chunk_steps_};
@@ -1042,6 +1061,11 @@ void DemRun::restore(const io::H5File& file, const std::string& group) {
     sensors_->restore_counter_states(states);
   }
   if (output_) output_->resume(static_cast<std::size_t>(file.attribute_int64(g, "snapshots")));
+  // A state saved before walls were written has no count: their series starts again.
+  if (wall_output_)
+    wall_output_->resume(file.has_attribute(g, "wall_snapshots")
+                             ? static_cast<std::size_t>(file.attribute_int64(g, "wall_snapshots"))
+                             : 0);
   if (file.exists(g + "/output_schedule")) {
     const auto o = file.read_int64(g + "/output_schedule");
     if (o.size() != 3)

@@ -10,6 +10,7 @@
 #include "demfem/io/csv_writer.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem/io/output_schedule.hpp"
+#include "demfem/io/xdmf.hpp"
 
 namespace demfem::fem {
 
@@ -37,11 +38,6 @@ const char* xdmf_topology(ElementType t) {
       return "Quadrilateral";
   }
   return "?";
-}
-
-std::string data_item(const std::string& dims, const char* number_type, const std::string& ref) {
-  return "<DataItem Dimensions=\"" + dims + "\" NumberType=\"" + number_type +
-         "\" Precision=\"8\" Format=\"HDF\">" + ref + "</DataItem>";
 }
 
 }  // namespace
@@ -361,10 +357,11 @@ void FemOutput::write_xdmf() const {
       if (!mixed) x << indent << " <Time Value=\"" << io::format_time(times_[s]) << "\"/>\n";
       x << indent << " <Topology TopologyType=\"" << xdmf_topology(g.type)
         << "\" NumberOfElements=\"" << k << "\" NodesPerElement=\"" << npe << "\">\n"
-        << indent << "  " << data_item(k + " " + npe, "Int", mesh_file + ":/topology/" + t) << "\n"
+        << indent << "  " << io::xdmf_hdf_item(k + " " + npe, "Int", mesh_file + ":/topology/" + t)
+        << "\n"
         << indent << " </Topology>\n"
         << indent << " <Geometry GeometryType=\"XYZ\">\n"
-        << indent << "  " << data_item(n + " 3", "Float", mesh_file + ":/nodes") << "\n"
+        << indent << "  " << io::xdmf_hdf_item(n + " 3", "Float", mesh_file + ":/nodes") << "\n"
         << indent << " </Geometry>\n";
       std::vector<std::string> vectors = {"displacement", "velocity", "acceleration",
                                           "reaction_force"};
@@ -377,12 +374,13 @@ void FemOutput::write_xdmf() const {
         if (!has(f.c_str())) continue;
         x << indent << " <Attribute Name=\"" << f
           << "\" AttributeType=\"Vector\" Center=\"Node\">\n"
-          << indent << "  " << data_item(n + " 3", "Float", step_file + ":/" + f) << "\n"
+          << indent << "  " << io::xdmf_hdf_item(n + " 3", "Float", step_file + ":/" + f) << "\n"
           << indent << " </Attribute>\n";
       }
       if (has("von_mises")) {
         x << indent << " <Attribute Name=\"von_mises\" AttributeType=\"Scalar\" Center=\"Cell\">\n"
-          << indent << "  " << data_item(k, "Float", step_file + ":/" + t + "/von_mises") << "\n"
+          << indent << "  " << io::xdmf_hdf_item(k, "Float", step_file + ":/" + t + "/von_mises")
+          << "\n"
           << indent << " </Attribute>\n";
       }
       if (has("strain")) {
@@ -390,16 +388,16 @@ void FemOutput::write_xdmf() const {
         // tensor in the order XX, YY, ZZ, XY, YZ, XZ while XDMF's Tensor6 is XX, XY, XZ, YY,
         // YZ, ZZ; 9 components mean the same to every reader.
         x << indent << " <Attribute Name=\"strain\" AttributeType=\"Tensor\" Center=\"Cell\">\n"
-          << indent << "  " << data_item(k + " 9", "Float", step_file + ":/" + t + "/strain")
-          << "\n"
+          << indent << "  "
+          << io::xdmf_hdf_item(k + " 9", "Float", step_file + ":/" + t + "/strain") << "\n"
           << indent << " </Attribute>\n";
       }
       if (has("max_principal_strain")) {
         x << indent
           << " <Attribute Name=\"max_principal_strain\" AttributeType=\"Scalar\" "
              "Center=\"Cell\">\n"
-          << indent << "  " << data_item(k, "Float", step_file + ":/" + t + "/max_principal_strain")
-          << "\n"
+          << indent << "  "
+          << io::xdmf_hdf_item(k, "Float", step_file + ":/" + t + "/max_principal_strain") << "\n"
           << indent << " </Attribute>\n";
       }
       x << indent << "</Grid>\n";

@@ -1,7 +1,7 @@
-// Particle output: HDF5 snapshots re-read, the XDMF index lists every snapshot, stays valid
-// after each write, and resume() trims it; DemRun takes the snapshots at the requested times
-// and labels them with exactly those times (tests/system/check_paraview_output.py opens the
-// files with ParaView itself).
+// Particle and wall output: HDF5 snapshots re-read, the XDMF index lists every snapshot, stays
+// valid after each write, and resume() trims it; DemRun takes the snapshots at the requested
+// times and labels them with exactly those times, with the walls where they are then
+// (tests/system/check_paraview_output.py opens the files with ParaView itself).
 
 #include <catch2/catch.hpp>
 
@@ -10,6 +10,7 @@
 
 #include "demfem/dem/dem_output.hpp"
 #include "demfem/dem/dem_scene.hpp"
+#include "demfem/dem/wall_output.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem_test/temp_dir.hpp"
 
@@ -204,5 +205,81 @@ TEST_CASE("snapshots are labelled with the requested times, not the running sum 
     again.finish();
     CHECK(snapshot_attribute(files, "time") == times);
     CHECK(snapshot_attribute(files, "state_time") == states);
+  }
+}
+
+TEST_CASE("walls are written with the particle snapshots, where they are at each", "[output]") {
+  TempDir dir;
+  // A floor, and a plate that comes down at 2 m/s while the 12 spheres fall.
+  const std::string walls = R"([[dem.walls]]
+name = "floor"
+material = "steel"
+plane = { point = [0.015, 0.01, -0.05], normal = [0.0, 0.0, 1.0], size = 0.2 }
+[[dem.walls]]
+name = "plate <1>"
+material = "steel"
+plane = { point = [0.015, 0.01, 0.05], normal = [0.0, 0.0, -1.0], size = 0.1 }
+motion = { kind = "translation", velocity = [0.0, 0.0, -2.0] }
+)";
+  const auto scene = [&](const std::string& output) {
+    std::string text = std::string(kFalling) + walls + output;
+    const auto doc = demfem::scene::Document::parse(text, "walls.toml");
+    return read_dem_scene(doc.root().required_table("dem"));
+  };
+  const WallOutput files(dir.path, {});  // names only
+  auto z_of = [&](std::size_t k, int wall) {
+    const H5File f(files.snapshot_path(k), H5File::Mode::read);
+    std::vector<std::size_t> dims;
+    const auto p = f.read_doubles("wall_" + std::to_string(wall) + "/points", &dims);
+    REQUIRE(dims.size() == 2);
+    REQUIRE(dims[1] == 3);
+    double lo = 1e300, hi = -1e300;
+    for (std::size_t i = 2; i < p.size(); i += 3) lo = std::min(lo, p[i]), hi = std::max(hi, p[i]);
+    CHECK(hi - lo < 1e-15);  // a plane stays flat
+    return lo;
+  };
+  SECTION("positions, names and the index; a restored run continues the series") {
+    const std::string ckpt = (dir.path / "ckpt.h5").string();
+    {
+      DemRun run(scene(""), dir.path, 1, 5e-4, nullptr, true);
+      for (int i = 0; i < 3; ++i) run.advance(250);  // t = 1.5e-3 s
+      H5File f(ckpt, H5File::Mode::create);
+      run.save(f, "dem");
+      f.close();
+      run.advance(250);
+      run.finish();
+    }
+    REQUIRE(std::filesystem::exists(files.snapshot_path(4)));
+    CHECK_FALSE(std::filesystem::exists(files.snapshot_path(5)));
+    for (std::size_t k = 0; k < 5; ++k) {
+      CHECK(z_of(k, 0) == Approx(-0.05).margin(1e-12));
+      // the plate: 0.05 - 2 m/s * t at t = k * 5e-4 s (the step ends fall on the outputs)
+      CHECK(z_of(k, 1) == Approx(0.05 - 2.0 * 5e-4 * double(k)).margin(1e-12));
+    }
+    const H5File f0(files.snapshot_path(0), H5File::Mode::read);
+    CHECK(f0.attribute_string("wall_1", "name") == "plate <1>");
+    std::vector<std::size_t> dims;
+    f0.read_doubles("wall_1/force", &dims);
+    CHECK(dims == std::vector<std::size_t>{2, 3});  // a plane: two triangles
+    const std::string x = read_text(files.index_path());
+    CHECK(occurrences(x, "<Grid Name=\"floor\"") == 5);
+    CHECK(occurrences(x, "<Grid Name=\"plate &lt;1&gt;\"") == 5);
+    CHECK(occurrences(x, "walls_000004.h5:/wall_1/points</DataItem>") == 1);
+    const std::string whole = x;
+    DemRun again(scene(""), dir.path, 1, 5e-4, nullptr, true);
+    again.restore(H5File(ckpt, H5File::Mode::read), "dem");
+    CHECK(occurrences(read_text(files.index_path()), "<Grid Name=\"floor\"") == 4);
+    again.advance(250);
+    again.finish();
+    CHECK(read_text(files.index_path()) == whole);
+    CHECK(z_of(4, 1) == Approx(0.05 - 2.0 * 2e-3).margin(1e-12));
+  }
+  SECTION("[dem.output] walls = false writes none") {
+    DemRun run(scene("[dem.output]\nwalls = false\n"), dir.path, 1, 5e-4, nullptr, true);
+    run.advance(250);
+    run.finish();
+    CHECK(std::filesystem::exists(ParticleOutput(dir.path).snapshot_path(1)));
+    CHECK_FALSE(std::filesystem::exists(files.snapshot_path(0)));
+    CHECK_FALSE(std::filesystem::exists(files.index_path()));
   }
 }

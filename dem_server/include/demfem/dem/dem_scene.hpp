@@ -112,6 +112,7 @@ struct DemScene {
   std::vector<SensorSpec> sensors;        ///< wall_force: wall = index into walls
   std::optional<double> output_interval;  ///< [dem.output] interval (else the run's)
   bool output_particles = true;
+  bool output_walls = true;              ///< [dem.output] walls: with the particle snapshots
   bool output_state = false;             ///< [dem.output] state: write dem_state.h5 at the end
   std::optional<ParticleSource> load;    ///< [dem.load]: particles from a file, loaded first
   std::int32_t interface_material = -1;  ///< -1: not given
@@ -241,6 +242,7 @@ class DemRun {
   std::int64_t next_id_ = 0;
   std::unique_ptr<SensorSet> sensors_;
   std::unique_ptr<class ParticleOutput> output_;
+  std::unique_ptr<class WallOutput> wall_output_;  ///< with output_, when there are walls
   double output_interval_ = 0.0;
   io::OutputSchedule schedule_;           ///< particle snapshots at k * output_interval_
   std::int64_t last_snapshot_step_ = -1;  ///< DemSystem::step_count() of the last snapshot

@@ -1,0 +1,61 @@
+#pragma once
+// Wall output: the walls' triangle meshes where they are at each particle snapshot, so that
+// ParaView shows the rig, the moving flaps and plates and the rigid bodies (pressure cells)
+// together with the particles. Same file rules as ParticleOutput: one HDF5 file per output
+// (<dir>/walls_NNNNNN.h5, written under a temporary name and renamed) and an XDMF 3 index
+// (<dir>/walls.xdmf) rewritten atomically after each, a temporal collection whose every time
+// is a spatial collection of one triangle grid per wall, named by the wall.
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <limits>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace demfem::dem {
+
+class WallOutput {
+ public:
+  /// The fixed part of a wall: its name and triangles (3 vertex indices each).
+  struct Wall {
+    std::string name;
+    std::vector<std::int32_t> triangles;
+  };
+  /// What a snapshot holds of one wall: its vertex positions now (3 per vertex, m) and the
+  /// particles' total force on it (N).
+  struct Pose {
+    std::span<const double> vertices;
+    std::array<double, 3> force{};
+  };
+
+  WallOutput(std::filesystem::path dir, std::vector<Wall> walls, std::string stem = "walls");
+
+  /// Writes one snapshot labelled `time` of the state at `state_time` (NaN: = time); `poses`
+  /// has one entry per wall, in the order of the constructor's. File k holds per wall w the
+  /// group wall_<w> with datasets points (n x 3), triangles (t x 3, int64) and force (t x 3:
+  /// the wall's total force, repeated on each of its triangles so ParaView colours by it) and
+  /// the attribute name; on "/" the attributes time, state_time and walls.
+  void write(std::span<const Pose> poses, double time,
+             double state_time = std::numeric_limits<double>::quiet_NaN());
+  std::size_t count() const { return entries_.size(); }
+  /// After a restore: keeps the first `keep` snapshots (their times re-read from the files),
+  /// forgets later ones, rewrites the index.
+  void resume(std::size_t keep);
+  std::filesystem::path index_path() const;
+  std::filesystem::path snapshot_path(std::size_t k) const;
+
+ private:
+  struct Entry {
+    double time;
+    std::vector<std::size_t> points;  ///< vertex count per wall
+  };
+  void write_index() const;
+  std::filesystem::path dir_;
+  std::string stem_;
+  std::vector<Wall> walls_;
+  std::vector<Entry> entries_;
+};
+
+}  // namespace demfem::dem

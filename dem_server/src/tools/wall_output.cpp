@@ -1,0 +1,110 @@
+#include "demfem/dem/wall_output.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+#include <stdexcept>
+
+#include "demfem/io/atomic_file.hpp"
+#include "demfem/io/h5_file.hpp"
+#include "demfem/io/output_schedule.hpp"
+#include "demfem/io/xdmf.hpp"
+
+namespace demfem::dem {
+
+WallOutput::WallOutput(std::filesystem::path dir, std::vector<Wall> walls, std::string stem)
+    : dir_(std::move(dir)), stem_(std::move(stem)), walls_(std::move(walls)) {
+  std::filesystem::create_directories(dir_);
+}
+
+std::filesystem::path WallOutput::index_path() const {
+  return dir_ / (stem_ + ".xdmf");
+}
+
+std::filesystem::path WallOutput::snapshot_path(std::size_t k) const {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "_%06zu.h5", k);
+  return dir_ / (stem_ + buf);
+}
+
+void WallOutput::write(std::span<const Pose> poses, double time, double state_time) {
+  if (poses.size() != walls_.size())
+    throw std::logic_error("wall output: one pose per wall expected");
+  const auto final_path = snapshot_path(entries_.size());
+  Entry entry{time, {}};
+  {
+    io::H5File f(io::partial_path(final_path), io::H5File::Mode::create);
+    for (std::size_t w = 0; w < walls_.size(); ++w) {
+      const std::string g = "wall_" + std::to_string(w);
+      const std::size_t n = poses[w].vertices.size() / 3, t = walls_[w].triangles.size() / 3;
+      for (std::int32_t v : walls_[w].triangles)
+        if (v < 0 || std::size_t(v) >= n)
+          throw std::logic_error("wall output: a triangle of wall '" + walls_[w].name +
+                                 "' names a vertex it does not have");
+      f.create_group(g);
+      f.set_attribute(g, "name", walls_[w].name);
+      f.write(g + "/points", poses[w].vertices, {n, 3});
+      const std::vector<std::int64_t> tris(walls_[w].triangles.begin(), walls_[w].triangles.end());
+      f.write(g + "/triangles", std::span<const std::int64_t>(tris), {t, 3});
+      std::vector<double> force(3 * t);
+      for (std::size_t k = 0; k < force.size(); ++k) force[k] = poses[w].force[k % 3];
+      f.write(g + "/force", std::span<const double>(force), {t, 3});
+      entry.points.push_back(n);
+    }
+    f.set_attribute("/", "time", time);
+    f.set_attribute("/", "state_time", std::isnan(state_time) ? time : state_time);
+    f.set_attribute("/", "walls", static_cast<std::int64_t>(walls_.size()));
+    f.close();
+  }
+  io::commit_partial(final_path);
+  entries_.push_back(std::move(entry));
+  write_index();
+}
+
+void WallOutput::resume(std::size_t keep) {
+  entries_.clear();
+  for (std::size_t k = 0; k < keep; ++k) {
+    io::H5File f(snapshot_path(k), io::H5File::Mode::read);
+    Entry e{f.attribute_double("/", "time"), {}};
+    for (std::size_t w = 0; w < walls_.size(); ++w) {
+      std::vector<std::size_t> dims;
+      f.read_doubles("wall_" + std::to_string(w) + "/points", &dims);
+      e.points.push_back(dims.empty() ? 0 : dims[0]);
+    }
+    entries_.push_back(std::move(e));
+  }
+  write_index();
+}
+
+void WallOutput::write_index() const {
+  std::ostringstream x;
+  x << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n  <Domain>\n"
+    << "    <Grid Name=\"" << stem_ << "\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+  for (std::size_t k = 0; k < entries_.size(); ++k) {
+    const std::string h5 = snapshot_path(k).filename().string();
+    const std::string time = io::format_time(entries_[k].time);
+    x << "      <Grid Name=\"walls_" << k << "\" GridType=\"Collection\" "
+      << "CollectionType=\"Spatial\">\n"
+      << "        <Time Value=\"" << time << "\"/>\n";
+    for (std::size_t w = 0; w < walls_.size(); ++w) {
+      const std::string g = h5 + ":/wall_" + std::to_string(w);
+      const std::string n = std::to_string(entries_[k].points[w]);
+      const std::string t = std::to_string(walls_[w].triangles.size() / 3);
+      if (entries_[k].points[w] == 0 || walls_[w].triangles.empty()) continue;
+      x << "        <Grid Name=\"" << io::xml_escape(walls_[w].name) << "\" GridType=\"Uniform\">\n"
+        << "          <Time Value=\"" << time << "\"/>\n"
+        << "          <Topology TopologyType=\"Triangle\" NumberOfElements=\"" << t << "\">"
+        << io::xdmf_hdf_item(t + " 3", "Int", g + "/triangles") << "</Topology>\n"
+        << "          <Geometry GeometryType=\"XYZ\">"
+        << io::xdmf_hdf_item(n + " 3", "Float", g + "/points") << "</Geometry>\n"
+        << "          <Attribute Name=\"force\" AttributeType=\"Vector\" Center=\"Cell\">"
+        << io::xdmf_hdf_item(t + " 3", "Float", g + "/force") << "</Attribute>\n"
+        << "        </Grid>\n";
+    }
+    x << "      </Grid>\n";
+  }
+  x << "    </Grid>\n  </Domain>\n</Xdmf>\n";
+  io::write_file_atomic(index_path(), x.str());
+}
+
+}  // namespace demfem::dem
