@@ -13,8 +13,8 @@ Draws, from the benchmark's JSON (one row per run):
                                grid is drawn below it
   coupling_iterations.png      iterations per coupling step of implicit Aitken and IQN-ILS
                                against dt_F (problem b, and a)
-Rows of a later JSON file replace those of an earlier one for the same part and problem (a
-problem measured again, the others kept). Debian's python3 with python3-matplotlib (Agg
+Rows of a later JSON file replace those of an earlier one for the same part, problem and DEM
+step (a problem measured again, the others kept). Debian's python3 with python3-matplotlib (Agg
 backend: no display needed).
 """
 import json
@@ -157,6 +157,11 @@ def iterations(rows, out):
     it = [r for r in rows if r["part"] == "work" and r["scheme"].startswith("implicit")]
     if not it:
         return None
+    # Each problem at its case's DEM step (the largest of its rows).
+    case_dt = {}
+    for r in it:
+        case_dt[r["problem"]] = max(case_dt.get(r["problem"], 0.0), r.get("dem_dt") or 0.0)
+    it = [r for r in it if (r.get("dem_dt") or 0.0) == case_dt[r["problem"]]]
     problems = [p for p in TITLES if any(r["problem"] == p for r in it)]
     fig, axes = plt.subplots(1, len(problems), figsize=(5.5 * len(problems), 4.2), squeeze=False)
     for ax, problem in zip(axes[0], problems):
@@ -198,8 +203,12 @@ def main(argv):
     for name in files:
         with open(name) as f:
             new = json.load(f)["rows"]
-        measured = {(r["part"], r["problem"]) for r in new}
-        rows = [r for r in rows if (r["part"], r["problem"]) not in measured] + new
+        # An older file's row without dem_dt (one DEM step) goes with any of its problem.
+        measured = {(r["part"], r["problem"], r.get("dem_dt")) for r in new}
+        problems = {(r["part"], r["problem"]) for r in new}
+        rows = [r for r in rows
+                if (r["part"], r["problem"], r.get("dem_dt")) not in measured
+                and not (r.get("dem_dt") is None and (r["part"], r["problem"]) in problems)] + new
     for path in (work_precision(rows, out), stability(rows, out), iterations(rows, out)):
         if path:
             print("wrote", path)

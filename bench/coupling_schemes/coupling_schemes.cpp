@@ -2,9 +2,10 @@
 // docs/coupling.md "Choosing a scheme"). Real three-process runs (demfem_run with dem_server
 // and fem_server) of the reference problems, for every scheme and coupling step dt_F:
 //
-//  * work-precision: wall time (the coupler's, timing.csv) against the error of a quantity of
-//    interest (problem a: the mid-span deflection of the beam under the dropped slab; problem
-//    b: the centre deflection of the plate under the bed) relative to a converged reference,
+//  * work-precision: wall time (the coupler's, timing.csv) and CPU time (of the run's processes)
+//    against the error of a quantity of interest (problem a: the mid-span deflection of the
+//    beam under the dropped slab; problem b: the centre deflection of the plate under the bed)
+//    relative to a converged reference,
 //    the same problem with implicit coupling at dt_F = dt_D (problem b: shown converged by the
 //    run at 2 dt_D; problem a: at three dt_F = dt_D below the case's, halving, combined by
 //    Richardson extrapolation, with the observed order and the extrapolation's own error
@@ -28,10 +29,11 @@
 // figures drawn by tools/plot_coupling_schemes.py. Options: --parts LIST (work,stability,
 // concurrency,sheet; default all), --repeat N (timed repetitions of each work-precision run,
 // interleaved; default 3), --quick (fewer dt_F and densities), --work DIR (run folders),
-// --schemes LIST (of the work-precision part, by label; default all), --beam-dem-dts LIST (dt_D
-// of problem a's grid, default 1e-6), --sheet-end S (s of flow
+// --schemes LIST and --dts LIST (of the work-precision part: scheme labels, dt_F; default all),
+// --beam-dem-dts LIST (dt_D of problem a's grid, default 1e-6), --sheet-end S (s of flow
 // of problem c, default 0.6), --sheet-dts LIST, --sheet-schemes LIST.
 #include <fcntl.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -184,6 +186,9 @@ std::string fmt(double v) {
 struct RunResult {
   int exit = -1;
   double wall = NAN;  // s, the coupler's wall_total (timing.csv); NaN when not completed
+  // s of CPU time (user + system) of the run's processes, the coupler and the solvers it
+  // waited for: the work, less disturbed than the wall time by other jobs on a shared machine.
+  double cpu = NAN;
   double end_time = 0.0;
   std::int64_t steps = 0, iterations = 0, max_iterations = 0, unconverged = 0;
   double max_displacement = 0.0;                // of any interface node over the run, m
@@ -218,7 +223,9 @@ std::vector<std::vector<std::string>> read_csv(const fs::path& p) {
   return rows;
 }
 
-int spawn_and_wait(const std::vector<std::string>& args, const fs::path& log) {
+// `cpu`: set to the CPU time (user + system) of the child and of the children it waited for.
+int spawn_and_wait(const std::vector<std::string>& args, const fs::path& log,
+                   double* cpu = nullptr) {
   const pid_t pid = ::fork();
   if (pid < 0) throw std::runtime_error("fork failed");
   if (pid == 0) {
@@ -235,7 +242,11 @@ int spawn_and_wait(const std::vector<std::string>& args, const fs::path& log) {
     std::_Exit(127);
   }
   int st = 0;
-  ::waitpid(pid, &st, 0);
+  struct rusage ru {};
+  ::wait4(pid, &st, 0, &ru);
+  if (cpu)
+    *cpu = static_cast<double>(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
+           1e-6 * static_cast<double>(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
   return WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
 }
 
@@ -262,7 +273,7 @@ RunResult run(const Problem& pb, const fs::path& scene, const fs::path& out,
               {"--set", "run.output_interval=" + fmt(fields ? std::max(dt, pb.sample) : 0.0)});
   const fs::path log = out.string() + ".log";
   RunResult r;
-  r.exit = spawn_and_wait(args, log);
+  r.exit = spawn_and_wait(args, log, &r.cpu);
   // This machine is shared: a run that failed otherwise than by the scheme (a solver starved
   // of CPU for longer than the 2 s peer timeout, "heartbeat stale") is run again, twice at most.
   for (int retry = 0; retry < 2 && r.exit != 0 && r.exit != 3 &&
@@ -271,7 +282,7 @@ RunResult run(const Problem& pb, const fs::path& scene, const fs::path& out,
     std::fprintf(stderr, "# %s: a solver was starved of CPU (heartbeat stale); run again\n",
                  out.filename().c_str());
     fs::remove_all(out);
-    r.exit = spawn_and_wait(args, log);
+    r.exit = spawn_and_wait(args, log, &r.cpu);
   }
   if (r.exit != 0) {
     const std::string text = read_text(log);
@@ -314,6 +325,7 @@ RunResult run(const Problem& pb, const fs::path& scene, const fs::path& out,
   }
   const auto timing = read_csv(out / "timing.csv");
   if (r.exit == 0 && timing.size() == 2) r.wall = std::stod(timing[1][2]);
+  if (r.exit != 0) r.cpu = NAN;
   // The probe: the FEM node nearest to pb.probe, u_z at every field output.
   if (fs::exists(out / "fem_mesh.h5") && fs::exists(out / "fem_series.csv")) {
     std::vector<std::size_t> dims;
@@ -400,6 +412,7 @@ struct Options {
   // finer ones (dt_F from dt_D to 20 dt_D), for errors the case's dt_D cannot reach.
   std::vector<double> beam_dem_dts = {1e-6};
   std::set<std::string> schemes;  // of the work-precision part; empty: all
+  std::set<double> dts;           // dt_F of the work-precision part; empty: all of its grid
   std::string json;
 };
 
@@ -437,6 +450,10 @@ Options parse(int argc, char** argv) {
       std::stringstream s(next());
       std::string p;
       while (std::getline(s, p, ',')) o.sheet_dts.push_back(std::stod(p));
+    } else if (a == "--dts") {
+      std::stringstream s(next());
+      std::string p;
+      while (std::getline(s, p, ',')) o.dts.insert(std::stod(p));
     } else if (a == "--schemes") {
       std::stringstream s(next());
       std::string p;
@@ -455,7 +472,7 @@ Options parse(int argc, char** argv) {
           "unknown option " + a +
           " (--json FILE, --parts work,stability,concurrency,sheet, "
           "--problems beam_drop,beam_drop_elastic,plate_bed, --repeat N, --quick, "
-          "--work DIR, --schemes LIST, --beam-dem-dts LIST, --sheet-end S, "
+          "--work DIR, --schemes LIST, --dts LIST, --beam-dem-dts LIST, --sheet-end S, "
           "--sheet-dts LIST, --sheet-schemes LIST)");
     }
   }
@@ -484,7 +501,9 @@ const std::vector<std::string> kColumns = {"part",
                                            "why",
                                            "dem_compute",
                                            "fem_compute",
-                                           "step_wall"};
+                                           "step_wall",
+                                           "cpu_median",
+                                           "cpu_best"};
 
 struct Errors {
   double series = NAN;  // the probe's u_z over the run (relative_error)
@@ -498,10 +517,12 @@ Errors errors_of(const RunResult& r, const RunResult& ref, const Problem& pb) {
 
 void add_row(Report& rep, const std::string& part, const Problem& pb, const std::string& scheme,
              double dt, double density, const std::vector<double>& walls, const Errors& e,
-             const RunResult& r, const Stability& s) {
-  std::vector<double> ok;
+             const RunResult& r, const Stability& s, const std::vector<double>& cpus = {}) {
+  std::vector<double> ok, ok_cpu;
   for (double w : walls)
     if (std::isfinite(w)) ok.push_back(w);
+  for (double c : cpus)
+    if (std::isfinite(c)) ok_cpu.push_back(c);
   const double best = ok.empty() ? NAN : *std::min_element(ok.begin(), ok.end());
   rep.add_row({part,
                pb.name,
@@ -525,7 +546,9 @@ void add_row(Report& rep, const std::string& part, const Problem& pb, const std:
                s.why,
                r.dem_compute,
                r.fem_compute,
-               r.step_wall});
+               r.step_wall,
+               median(ok_cpu),
+               ok_cpu.empty() ? NAN : *std::min_element(ok_cpu.begin(), ok_cpu.end())});
 }
 
 }  // namespace
@@ -628,7 +651,9 @@ int main(int argc, char** argv) try {
                  std::string(""),
                  refs[0].dem_compute,
                  refs[0].fem_compute,
-                 refs[0].step_wall});
+                 refs[0].step_wall,
+                 refs[0].cpu,
+                 refs[0].cpu});
     rep.add_row({"reference",
                  pb.name,
                  std::string("implicit-iqn (") + tag + ")",
@@ -651,7 +676,9 @@ int main(int argc, char** argv) try {
                  std::string(""),
                  refs[1].dem_compute,
                  refs[1].fem_compute,
-                 refs[1].step_wall});
+                 refs[1].step_wall,
+                 refs[1].cpu,
+                 refs[1].cpu});
     return refs[0];
   };
 
@@ -741,6 +768,14 @@ int main(int argc, char** argv) try {
     }
     grid.push_back(elastic);
     grid.push_back(plate);
+    for (auto& pb : grid) {
+      if (opt.dts.empty()) continue;
+      std::vector<double> kept;
+      for (double dt : pb.dts)
+        for (double want : opt.dts)
+          if (std::abs(dt - want) <= 1e-9 * want) kept.push_back(dt);
+      pb.dts = kept;
+    }
     std::map<std::string, RunResult> extrapolated;  // by problem
     for (const Problem* pb = grid.data(); pb != grid.data() + grid.size(); ++pb) {
       if (!opt.problems.count(pb->name)) continue;
@@ -754,7 +789,7 @@ int main(int argc, char** argv) try {
           (pb->dem_dt != beam.dem_dt && pb->name == beam.name ? "_D" + fmt(pb->dem_dt) : "");
       struct Cell {
         RunResult first;
-        std::vector<double> walls;
+        std::vector<double> walls, cpus;
       };
       std::map<std::pair<std::size_t, std::size_t>, Cell> cells;
       // Interleaved: every (scheme, dt) once, then again, so that the load of the machine
@@ -774,8 +809,11 @@ int main(int argc, char** argv) try {
             // field output; an unstable variant is not timed.
             const bool conc = kSchemes[s].scheme == "concurrent";
             if (r == 0) cell.first = run(*pb, scene, dir.string() + "_fields", {}, dt, true, conc);
-            if (cell.first.exit == 0)
-              cell.walls.push_back(run(*pb, scene, dir, {}, dt, false, conc).wall);
+            if (cell.first.exit == 0) {
+              const RunResult timed = run(*pb, scene, dir, {}, dt, false, conc);
+              cell.walls.push_back(timed.wall);
+              cell.cpus.push_back(timed.cpu);
+            }
             fs::remove(scene);
           }
         }
@@ -786,7 +824,7 @@ int main(int argc, char** argv) try {
           const auto& cell = cells[{s, k}];
           const Stability st = judge(cell.first, ref);
           add_row(rep, "work", *pb, kSchemes[s].label, pb->dts[k], NAN, cell.walls,
-                  errors_of(cell.first, ref, *pb), cell.first, st);
+                  errors_of(cell.first, ref, *pb), cell.first, st, cell.cpus);
         }
       }
       rep.write_json(opt.json);  // the rows so far: a later part that fails keeps them
