@@ -425,18 +425,29 @@ Options parse(int argc, char** argv) {
       if (i + 1 >= argc) throw std::invalid_argument(a + " needs a value");
       return argv[++i];
     };
+    // The value as a comma-separated list, of words or of numbers.
+    auto words = [&]() {
+      std::vector<std::string> v;
+      std::stringstream s(next());
+      std::string p;
+      while (std::getline(s, p, ',')) v.push_back(p);
+      return v;
+    };
+    auto numbers = [&]() {
+      std::vector<double> v;
+      for (const auto& w : words()) v.push_back(std::stod(w));
+      return v;
+    };
+    auto word_set = [&]() {
+      const auto v = words();
+      return std::set<std::string>(v.begin(), v.end());
+    };
     if (a == "--json") {
       ++i;
     } else if (a == "--parts") {
-      o.parts.clear();
-      std::stringstream s(next());
-      std::string p;
-      while (std::getline(s, p, ',')) o.parts.insert(p);
+      o.parts = word_set();
     } else if (a == "--problems") {
-      o.problems.clear();
-      std::stringstream s(next());
-      std::string p;
-      while (std::getline(s, p, ',')) o.problems.insert(p);
+      o.problems = word_set();
     } else if (a == "--repeat") {
       o.repeat = std::max(1, std::stoi(next()));
     } else if (a == "--quick") {
@@ -446,27 +457,16 @@ Options parse(int argc, char** argv) {
     } else if (a == "--sheet-end") {
       o.sheet_end = std::stod(next());
     } else if (a == "--sheet-dts") {
-      o.sheet_dts.clear();
-      std::stringstream s(next());
-      std::string p;
-      while (std::getline(s, p, ',')) o.sheet_dts.push_back(std::stod(p));
+      o.sheet_dts = numbers();
     } else if (a == "--dts") {
-      std::stringstream s(next());
-      std::string p;
-      while (std::getline(s, p, ',')) o.dts.insert(std::stod(p));
+      const auto v = numbers();
+      o.dts = {v.begin(), v.end()};
     } else if (a == "--schemes") {
-      std::stringstream s(next());
-      std::string p;
-      while (std::getline(s, p, ',')) o.schemes.insert(p);
+      o.schemes = word_set();
     } else if (a == "--beam-dem-dts") {
-      o.beam_dem_dts.clear();
-      std::stringstream s(next());
-      std::string p;
-      while (std::getline(s, p, ',')) o.beam_dem_dts.push_back(std::stod(p));
+      o.beam_dem_dts = numbers();
     } else if (a == "--sheet-schemes") {
-      std::stringstream s(next());
-      std::string p;
-      while (std::getline(s, p, ',')) o.sheet_schemes.insert(p);
+      o.sheet_schemes = word_set();
     } else {
       throw std::invalid_argument(
           "unknown option " + a +
