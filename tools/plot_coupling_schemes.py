@@ -5,14 +5,17 @@ usage: /usr/bin/python3 tools/plot_coupling_schemes.py RESULT.json [MORE.json ..
 
 Draws, from the benchmark's JSON (one row per run):
   coupling_work_precision.png  error of the quantity of interest against wall time, one curve
-                               per scheme (the points are the coupling steps dt_F), per problem;
-                               unstable runs are left out
+                               per scheme (the points are the coupling steps dt_F), per problem
+                               (and per DEM step dt_D where a problem has several); unstable runs
+                               are left out
   coupling_stability.png       largest stable dt_F of each scheme against the plate-to-bed
                                mass ratio of problem (b); a scheme stable at no dt_F of the
                                grid is drawn below it
   coupling_iterations.png      iterations per coupling step of implicit Aitken and IQN-ILS
                                against dt_F (problem b, and a)
-Debian's python3 with python3-matplotlib (Agg backend: no display needed).
+Rows of a later JSON file replace those of an earlier one for the same part, problem and DEM
+step (a problem measured again, the others kept). Debian's python3 with python3-matplotlib (Agg
+backend: no display needed).
 """
 import json
 import math
@@ -39,6 +42,7 @@ STYLE = {
 }
 TITLES = {
     "beam_drop": "(a) beam under a dropped slab: mid-span deflection",
+    "beam_drop_elastic": "(a') the same, elastic contacts (restitution 1)",
     "plate_bed": "(b) light plate under a dense bed: centre deflection",
     "sheet_ci": "(c) sheet CI case: mean deflection at the measurement position",
 }
@@ -53,17 +57,26 @@ def finite(v):
 
 
 def work_precision(rows, out):
-    problems = [p for p in TITLES
-                if any(r["problem"] == p and r["part"] in WORK_PARTS for r in rows)]
-    if not problems:
+    # One panel per problem and DEM step (rows without dem_dt: older JSON, one dt_D).
+    panels = []
+    for p in TITLES:
+        for d in sorted({r.get("dem_dt") or 0.0 for r in rows
+                         if r["problem"] == p and r["part"] in WORK_PARTS}, reverse=True):
+            panels.append((p, d))
+    if not panels:
         return None
-    fig, axes = plt.subplots(1, len(problems), figsize=(6.4 * len(problems), 5.0), squeeze=False)
-    for ax, problem in zip(axes[0], problems):
+    ncol = min(len(panels), 3)
+    nrow = (len(panels) + ncol - 1) // ncol
+    fig, axes = plt.subplots(nrow, ncol, figsize=(6.4 * ncol, 5.0 * nrow), squeeze=False)
+    for ax in axes.flat[len(panels):]:
+        ax.set_visible(False)
+    for ax, (problem, dem_dt) in zip(axes.flat, panels):
         for scheme, (color, marker, ls) in STYLE.items():
             pts = sorted(
                 (r["dt"], r["wall_median"], r["error"], r["wall_best"])
                 for r in rows
                 if r["part"] in WORK_PARTS and r["problem"] == problem and r["scheme"] == scheme
+                and (r.get("dem_dt") or 0.0) == dem_dt
                 and r["stable"] == 1 and finite(r["wall_best"]) and finite(r["error"])
                 and r["error"] > 0)
             if not pts:
@@ -77,7 +90,11 @@ def work_precision(rows, out):
                             textcoords="offset points", xytext=(3, 2))
         ref = [r for r in rows if r["part"] == "reference" and r["problem"] == problem
                and finite(r["error"]) and r["error"] > 0]
-        if ref:
+        extrapolated = [r for r in ref if r["scheme"] == "extrapolated"]
+        if extrapolated:
+            ax.axhline(extrapolated[0]["error"], color="grey", linewidth=0.8, linestyle=":",
+                       label="reference: error of the extrapolation (estimate)")
+        elif ref:
             ax.axhline(ref[0]["error"], color="grey", linewidth=0.8, linestyle=":",
                        label="reference at dt_D vs 2 dt_D")
         for target in (1e-2, 1e-3, 1e-4):
@@ -87,7 +104,8 @@ def work_precision(rows, out):
         ax.set_xlabel("wall time of the run, s (best of the timed runs)")
         ax.set_ylabel("relative error of the mean deflection (last 0.1 s)" if problem == "sheet_ci"
                       else "largest deflection error / largest deflection")
-        ax.set_title(TITLES[problem], fontsize=10)
+        ax.set_title(TITLES[problem] + ("\n(dt_D = %g s)" % dem_dt if dem_dt else ""),
+                     fontsize=10)
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
     fig.suptitle("Work-precision (labels: dt_F in s; unstable runs left out)", fontsize=11)
@@ -139,6 +157,11 @@ def iterations(rows, out):
     it = [r for r in rows if r["part"] == "work" and r["scheme"].startswith("implicit")]
     if not it:
         return None
+    # Each problem at its case's DEM step (the largest of its rows).
+    case_dt = {}
+    for r in it:
+        case_dt[r["problem"]] = max(case_dt.get(r["problem"], 0.0), r.get("dem_dt") or 0.0)
+    it = [r for r in it if (r.get("dem_dt") or 0.0) == case_dt[r["problem"]]]
     problems = [p for p in TITLES if any(r["problem"] == p for r in it)]
     fig, axes = plt.subplots(1, len(problems), figsize=(5.5 * len(problems), 4.2), squeeze=False)
     for ax, problem in zip(axes[0], problems):
@@ -179,7 +202,13 @@ def main(argv):
     rows = []
     for name in files:
         with open(name) as f:
-            rows += json.load(f)["rows"]
+            new = json.load(f)["rows"]
+        # An older file's row without dem_dt (one DEM step) goes with any of its problem.
+        measured = {(r["part"], r["problem"], r.get("dem_dt")) for r in new}
+        problems = {(r["part"], r["problem"]) for r in new}
+        rows = [r for r in rows
+                if (r["part"], r["problem"], r.get("dem_dt")) not in measured
+                and not (r.get("dem_dt") is None and (r["part"], r["problem"]) in problems)] + new
     for path in (work_precision(rows, out), stability(rows, out), iterations(rows, out)):
         if path:
             print("wrote", path)

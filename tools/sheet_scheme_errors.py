@@ -11,6 +11,15 @@ from fem_monitor.csv (probe lmp, u_z):
           problems a and b);
   mean    |mean w - mean w_ref| / |mean w_ref| over 0.3-0.6 s (the flow on the sheet, a window
           three times the bench's, so less sensitive to the phase of the sheet's oscillation).
+
+usage: /usr/bin/python3 tools/sheet_scheme_errors.py --ensemble REF_RUN... -- RUN...
+
+The granular flow is chaotic: a change of 1e-9 in the sheet's density moves the mean deflection
+by up to 1 % (docs/coupling.md, "Problem (c)"), so one run is one sample. This compares two
+ensembles of run folders (each a completed run's output, fem_monitor.csv with probe lmp): the
+mean deflection over 0.3-0.6 s of every run, each ensemble's average and standard deviation,
+and the difference of the averages relative to the reference ensemble's, with its standard
+error (the two standard errors of the averages added in quadrature).
 """
 import csv
 import math
@@ -26,7 +35,48 @@ def series(folder):
         return [(float(r["time"]), float(r["lmp_uz"])) for r in csv.DictReader(f)]
 
 
+def flow_mean(s, a=0.3, b=0.6):
+    v = [w for t, w in s if a - 1e-9 <= t <= b + 1e-9]
+    return sum(v) / len(v)
+
+
+def ensemble(argv):
+    if "--" not in argv:
+        print(__doc__, file=sys.stderr)
+        return 2
+    cut = argv.index("--")
+    groups = (argv[argv.index("--ensemble") + 1:cut], argv[cut + 1:])
+    stats = []
+    for name, folders in zip(("reference", "runs"), groups):
+        means = []
+        for folder in folders:
+            s = series(folder)
+            if not s or s[-1][0] < 0.6 - 1e-9:
+                print("%s: no complete run (fem_monitor.csv to 0.6 s)" % folder, file=sys.stderr)
+                return 2
+            means.append(flow_mean(s))
+            print("%-9s %-60s mean deflection %.5g mm" % (name, folder, 1e3 * means[-1]))
+        n = len(means)
+        if n == 0:
+            print("%s: no run folder given" % name, file=sys.stderr)
+            return 2
+        avg = sum(means) / n
+        sd = math.sqrt(sum((m - avg) ** 2 for m in means) / (n - 1)) if n > 1 else float("nan")
+        stats.append((avg, sd, n))
+        print("%-9s %d runs: average %.5g mm, standard deviation %.3g mm (%.2g %%)"
+              % (name, n, 1e3 * avg, 1e3 * sd, 100 * sd / abs(avg)))
+    (ra, rs, rn), (a, sd, n) = stats
+    se = math.sqrt((rs ** 2 / rn if rn > 1 else 0.0) + (sd ** 2 / n if n > 1 else 0.0))
+    print("runs against reference: %+.3g %% (standard error %.2g %%); the runs one by one: %s"
+          % (100 * (a - ra) / abs(ra), 100 * se / abs(ra),
+             ", ".join("%.2g %%" % (100 * abs(m - ra) / abs(ra))
+                       for m in [flow_mean(series(f)) for f in groups[1]])))
+    return 0
+
+
 def main(argv):
+    if "--ensemble" in argv:
+        return ensemble(argv)
     runs = argv[1] if len(argv) > 1 else "out/bench/coupling_schemes_runs"
     ref = series(os.path.join(runs, "sheet_ci_implicit-iqn_2e-05_reference"))
     if not ref:
