@@ -1810,6 +1810,20 @@ std::size_t DemSystem::contact_count() const {
     if (pf[p] != 0.0 || pf[p + 1] != 0.0 || pf[p + 2] != 0.0) ++c;
   return c;
 }
+std::vector<std::int32_t> DemSystem::contact_counts() const {
+  const auto& I = *impl_;
+  std::vector<std::int32_t> n(I.st.size(), 0);
+  for (std::size_t i = 0; i + 1 < I.row.size() && i < n.size(); ++i) {
+    for (auto k = I.row[i]; k < I.row[i + 1]; ++k) {
+      const auto p = static_cast<std::size_t>(3 * k);
+      if (p + 2 < I.pf.size() && (I.pf[p] != 0.0 || I.pf[p + 1] != 0.0 || I.pf[p + 2] != 0.0)) {
+        ++n[i];
+        ++n[static_cast<std::size_t>(I.nbr[static_cast<std::size_t>(k)])];
+      }
+    }
+  }
+  return n;
+}
 
 std::size_t DemSystem::state_bytes() const {
   const auto& I = *impl_;

@@ -6,6 +6,7 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "demfem/dem/packing.hpp"
 #include "demfem/dem/stl_reader.hpp"
 #include "demfem/io/csv_writer.hpp"
 
@@ -126,6 +127,8 @@ std::vector<std::string> columns_of(SensorSpec::Kind k) {
       return {"time", "kinetic_energy"};
     case SensorSpec::Kind::repose:
       return {"time", "angle_deg", "heap_radius", "heap_height"};
+    case SensorSpec::Kind::packing:
+      return {"time", "particles", "solid_fraction", "coordination", "top"};
   }
   return {};
 }
@@ -273,6 +276,11 @@ void SensorSet::sample(const DemSystem& system, std::span<const std::int64_t> id
           const double nan = std::numeric_limits<double>::quiet_NaN();
           v = {nan, nan, nan};
         }
+        break;
+      }
+      case SensorSpec::Kind::packing: {
+        const auto r = packing_in_box(system, e.spec.box_lo, e.spec.box_hi);
+        v = {double(r.particles), r.solid_fraction, r.coordination, r.top};
         break;
       }
     }

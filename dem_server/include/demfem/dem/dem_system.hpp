@@ -281,6 +281,8 @@ class DemSystem {
   std::size_t neighbour_pairs() const;
   /// Number of particle-particle pairs in contact in the last step.
   std::size_t contact_count() const;
+  /// Per particle: its particle-particle pairs in contact in the last step (coordination).
+  std::vector<std::int32_t> contact_counts() const;
   /// Bytes held by the host state: particle arrays, pair list with its histories and
   /// slots, wall-contact slots, shape table (for benchmarks).
   std::size_t state_bytes() const;
