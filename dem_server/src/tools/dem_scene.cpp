@@ -479,6 +479,11 @@ DemScene read_dem_scene(const Table& dem) {
                              [&](const WallSpec& w) { return w.name == wall; });
       if (it == s.walls.end()) t.fail("wall", "names wall \"" + wall + "\", which is not defined");
       ss.wall = static_cast<std::int32_t>(it - s.walls.begin());
+      if (t.has("face")) {
+        ss.face = true;
+        ss.face_direction = t.vec3("face");
+        if (ss.face_direction == std::array<double, 3>{0, 0, 0}) t.fail("face", "must not be zero");
+      }
     } else if (kind == "kinetic_energy") {
       ss.kind = SensorSpec::Kind::kinetic_energy;
     } else if (kind == "packing") {

@@ -259,9 +259,16 @@ void SensorSet::sample(const DemSystem& system, std::span<const std::int64_t> id
         break;
       }
       case SensorSpec::Kind::wall_force: {
-        const auto f = system.wall_force(e.spec.wall);
+        double area = e.spec.area;
+        std::array<double, 3> f{};
+        if (e.spec.face) {
+          const auto load = system.wall_face_load(e.spec.wall, e.spec.face_direction);
+          f = load.force, area = load.area;
+        } else {
+          f = system.wall_force(e.spec.wall);
+        }
         const double mag = std::sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
-        v = {f[0], f[1], f[2], mag, e.spec.area > 0 ? mag / e.spec.area : 0.0};
+        v = {f[0], f[1], f[2], mag, area > 0 ? mag / area : 0.0};
         break;
       }
       case SensorSpec::Kind::kinetic_energy:

@@ -93,6 +93,12 @@ struct ParticleInit {
   std::array<double, 4> orientation{1, 0, 0, 0};
 };
 
+/// @brief Force of the particles on one face of a wall (DemSystem::wall_face_load).
+struct WallFaceLoad {
+  std::array<double, 3> force{};  ///< N, on the wall
+  double area = 0.0;              ///< m^2, of the face's triangles
+};
+
 /// @brief Host copy of the particle state, structure of arrays (index = particle).
 struct ParticleState {
   std::vector<double> px, py, pz;             ///< position, m
@@ -219,6 +225,11 @@ class DemSystem {
   /// in the last step.
   std::array<double, 3> wall_force(std::int32_t wall) const;
   std::array<double, 3> wall_torque(std::int32_t wall) const;
+  /// Force of the particles on one face of a wall in the last step, and the face's area: its
+  /// triangles normal to `direction` that lie on the `direction` side of the wall's vertex
+  /// centroid (the top of a pressure cell for [0, 0, 1], without the rocks under it or at
+  /// its sides).
+  WallFaceLoad wall_face_load(std::int32_t wall, const std::array<double, 3>& direction) const;
   /// Current vertex positions of a wall (it may move).
   std::vector<double> wall_vertices(std::int32_t wall) const;
   /// State of a wall that is a rigid body (WallMesh::body); throws std::invalid_argument for

@@ -87,6 +87,8 @@ struct SensorSpec {
   double radius = 0.0;
   // wall_force
   std::int32_t wall = 0;
+  bool face = false;  ///< only the face of the wall normal to `face_direction` (wall_face_load)
+  std::array<double, 3> face_direction{0, 0, 1};
   double area = 0.0;  ///< wall area for the mean pressure |F| / area, m^2 (the scene
                       ///< fills it from the wall mesh); 0 = no pressure column value
   // repose
