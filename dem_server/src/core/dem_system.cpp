@@ -1625,7 +1625,9 @@ WallFaceLoad DemSystem::wall_face_load(std::int32_t wall,
                               direction[2] * direction[2]);
   if (!(dl > 0)) bad("wall_face_load: direction must not be zero");
   const Vec3 d{direction[0] / dl, direction[1] / dl, direction[2] / dl};
-  auto vertex = [&I](std::int64_t v) { return Vec3{I.vpos[3 * v], I.vpos[3 * v + 1], I.vpos[3 * v + 2]}; };
+  auto vertex = [&I](std::int64_t v) {
+    return Vec3{I.vpos[3 * v], I.vpos[3 * v + 1], I.vpos[3 * v + 2]};
+  };
   const auto nv = static_cast<std::int64_t>(w.mesh.vertices.size() / 3);
   const auto nt = static_cast<std::int64_t>(w.mesh.triangles.size() / 3);
   Vec3 c{0, 0, 0};

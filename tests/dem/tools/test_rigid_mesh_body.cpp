@@ -390,7 +390,8 @@ TEST_CASE("force on one face of a wall: the top and bottom of a cell in a layer"
   cell.body.fix_rotation = true;
   std::vector<ParticleInit> ps;
   for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) ps.push_back(ball({-0.14 + 0.14 * i, -0.14 + 0.14 * j, 0.05}, 0.05));
+    for (int j = 0; j < 3; ++j)
+      ps.push_back(ball({-0.14 + 0.14 * i, -0.14 + 0.14 * j, 0.05}, 0.05));
   for (int i = 0; i < 2; ++i)
     for (int j = 0; j < 2; ++j) ps.push_back(ball({-0.1 + 0.2 * i, -0.1 + 0.2 * j, 0.19}, 0.04));
   d.add_particles(ps);
