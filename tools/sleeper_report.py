@@ -39,7 +39,7 @@ G = 9.81
 
 
 def window_mean(t, y, t0, t1):
-    v = [b for a, b in zip(t, y) if t0 <= a <= t1]
+    v = [b for a, b in zip(t, y) if t0 - 1e-9 <= a <= t1 + 1e-9]  # times are sums of steps
     return (sum(v) / len(v)) if v else None
 
 
@@ -170,9 +170,14 @@ def main(argv):
               "cycles": [{"cycle": k, "settlement_mm": s} for k, s in cyc],
               "sleeper_mass_kg": fig["sleeper_mass"], "applied_load_N":
               fig["seating_N"] + fig["peak_load_N"]}
+    # a loaded state has no contact forces before its first step: the packing's first row
+    # is the first one after it
+    first = {name: next((i for i, x in enumerate(p["time"]) if x > 0), 0)
+             for name, p in packing.items()}
     for name, p in packing.items():
         report["packing_" + name if not name.startswith("packing") else name] = {
-            "first": {k: v[0] for k, v in p.items()}, "last": {k: v[-1] for k, v in p.items()}}
+            "first": {k: v[first[name]] for k, v in p.items()},
+            "last": {k: v[-1] for k, v in p.items()}}
     if a.hold:
         h0, h1 = (float(x) for x in a.hold.split(","))
         hold = {"window": [h0, h1]}
@@ -206,10 +211,12 @@ def main(argv):
         lines.append("settlement at the cycle minima: " +
                      ", ".join(f"{k}: {s:.3f}" for k, s in cyc) + " mm")
     for name, p in packing.items():
-        lines.append(f"{name}: solid fraction {p['solid_fraction'][0]:.4f} -> "
-                     f"{p['solid_fraction'][-1]:.4f}, coordination {p['coordination'][0]:.3f} -> "
-                     f"{p['coordination'][-1]:.3f}, {p['particles'][0]:.0f} rocks, top "
-                     f"{p['top'][0]:.4f} -> {p['top'][-1]:.4f} m")
+        i = first[name]
+        lines.append(f"{name} (t = {p['time'][i]:.4f} -> {p['time'][-1]:.4f} s): solid fraction "
+                     f"{p['solid_fraction'][i]:.4f} -> {p['solid_fraction'][-1]:.4f}, "
+                     f"coordination {p['coordination'][i]:.3f} -> {p['coordination'][-1]:.3f}, "
+                     f"{p['particles'][i]:.0f} rocks, top {p['top'][0]:.4f} (t = 0) -> "
+                     f"{p['top'][-1]:.4f} m")
     if "hold" in report:
         h = report["hold"]
         if "base_reaction_N" in h:
