@@ -3,13 +3,8 @@
 // cells + second layer), then seats and loads the FEM sleeper with the rail-seat pattern
 // and holds the peak; its [[post]] step writes the plots and the report. The small variant of
 // the CI chain (docs/cases.md, "Timber sleeper on ballast"): every stage, checked on what it
-// produced.
+// produced; then the load case killed and resumed on that bed (one test: one preparation).
 #include <catch2/catch.hpp>
-
-#include <fcntl.h>
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
@@ -19,6 +14,7 @@
 #include <vector>
 
 #include "demfem/io/h5_file.hpp"
+#include "demfem_test/launch.hpp"
 #include "demfem_test/run_output.hpp"
 #include "demfem_test/temp_dir.hpp"
 
@@ -33,37 +29,13 @@ using demfem::test::TempDir;
 const fs::path kBin = fs::path(DEMFEM_BINARY_DIR) / "bin";
 const fs::path kCases = fs::path(DEMFEM_SOURCE_DIR) / "cases";
 
-struct Result {
-  int status = -1;
-  std::string out, err;
-};
+using Result = demfem::test::Ended;
 
 // demfem_run ARGS in `dir` (the scenes' run.output_dir is relative to it).
 Result run(const fs::path& dir, const std::vector<std::string>& args) {
-  std::vector<std::string> argv_s = {(kBin / "demfem_run").string(), "--bin-dir", kBin.string()};
-  argv_s.insert(argv_s.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (auto& a : argv_s) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  const std::string out = (dir / "stdout.txt").string(), err = (dir / "stderr.txt").string();
-  posix_spawn_file_actions_addopen(&fa, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_addopen(&fa, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  const fs::path old = fs::current_path();
-  fs::current_path(dir);
-  pid_t pid = -1;
-  const int rc = posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ);
-  fs::current_path(old);
-  posix_spawn_file_actions_destroy(&fa);
-  REQUIRE(rc == 0);
-  int st = 0;
-  REQUIRE(waitpid(pid, &st, 0) == pid);
-  Result r;
-  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
-  r.out = read_text(dir / "stdout.txt");
-  r.err = read_text(dir / "stderr.txt");
-  return r;
+  std::vector<std::string> argv = {(kBin / "demfem_run").string(), "--bin-dir", kBin.string()};
+  argv.insert(argv.end(), args.begin(), args.end());
+  return demfem::test::wait_for(demfem::test::launch(dir, argv));
 }
 
 bool is_png(const fs::path& p) {
@@ -108,19 +80,75 @@ double json_number(const std::string& text, const std::string& key) {
 
 }  // namespace
 
-// The chain, run once per test process (the resume test reuses its prepared bed).
-struct Chain {
-  TempDir dir{"sleeper_mini"};
-  Result result;
-};
-const Chain& chain() {
-  static Chain c;
-  static bool done = false;
-  if (!done) {
-    c.result = run(c.dir.path, {(kCases / "sleeper_mini.toml").string(), "--quiet"});
-    done = true;
+// Long runs survive crashes (issue 15), on the prepared bed of the chain in `dir`: the load case,
+// cut to t = 0.16 s, with checkpoints every 500 coupling steps, run three times on the chain's
+// prepared bed: uninterrupted, with dem_server SIGKILLed in step 1450 (t = 0.145 s, mid-cycle: the
+// cycles run over 0.13-0.19 s), with fem_server SIGKILLed there. Each killed solver is restarted
+// from the step-1000 checkpoint (the cells' poses and velocities are in its dem.h5) and the results
+// equal the uninterrupted run's bit for bit.
+void check_kill_and_resume(const fs::path& dir) {
+  const std::string scene = (kCases / "sleeper_mini.toml").string();
+  auto run_to = [&](const std::string& out, std::vector<std::string> extra) {
+    std::vector<std::string> args = {scene,
+                                     "--quiet",
+                                     "--no-post",
+                                     "--set",
+                                     "run.end_time=0.16",
+                                     "--set",
+                                     "checkpoint.every_steps=500",
+                                     "--output-dir",
+                                     (dir / out).string()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return run(dir, args);
+  };
+  const Result a = run_to("uninterrupted", {});
+  INFO(a.out << a.err);
+  REQUIRE(a.status == 0);
+  // The checkpoint holds the five cells (19 numbers each: pose, velocities, last loads).
+  {
+    demfem::io::H5File cp(dir / "uninterrupted/checkpoints/step-001000/dem.h5",
+                          demfem::io::H5File::Mode::read);
+    REQUIRE(cp.exists("dem/rigid_bodies"));
+    CHECK(cp.read_doubles("dem/rigid_bodies").size() == 5 * 19);
   }
-  return c;
+  // (coupling.csv holds wall-clock times: its steps are compared through coupling.h5)
+  const std::vector<std::string> series = {"fem_monitor.csv",  "sensor_base.csv",
+                                           "sensor_cell1.csv", "sensor_cell3.csv",
+                                           "sensor_cell5.csv", "sensor_all_rocks.csv"};
+  for (const char* role : {"dem", "fem"}) {
+    INFO(role << " killed");
+    const Result k =
+        run_to(std::string("killed_") + role, {"--debug-kill", std::string(role) + ":1450"});
+    INFO(k.out << k.err);
+    REQUIRE(k.status == 0);
+    CHECK_THAT(k.err, Catch::Contains("recovered: every process is back at step 1000"));
+    for (const auto& f : series) {
+      INFO(f);
+      CHECK(read_text(dir / ("killed_" + std::string(role)) / f) ==
+            read_text(dir / "uninterrupted" / f));
+    }
+    demfem::io::H5File ha(dir / "uninterrupted/coupling.h5", demfem::io::H5File::Mode::read);
+    demfem::io::H5File hb(dir / ("killed_" + std::string(role)) / "coupling.h5",
+                          demfem::io::H5File::Mode::read);
+    for (const char* set : {"interface/positions", "interface/forces"}) {
+      INFO(set);
+      CHECK(ha.read_doubles(set) == hb.read_doubles(set));
+    }
+    // the rocks: every particle snapshot, the last one the final state
+    int snapshots = 0;
+    for (const auto& e : fs::directory_iterator(dir / "uninterrupted")) {
+      const std::string name = e.path().filename().string();
+      if (name.rfind("particles_", 0) != 0 || e.path().extension() != ".h5") continue;
+      INFO(name);
+      demfem::io::H5File pa(e.path(), demfem::io::H5File::Mode::read);
+      demfem::io::H5File pb(dir / ("killed_" + std::string(role)) / name,
+                            demfem::io::H5File::Mode::read);
+      CHECK(pa.read_doubles("position") == pb.read_doubles("position"));
+      CHECK(pa.read_doubles("velocity") == pb.read_doubles("velocity"));
+      ++snapshots;
+    }
+    CHECK(snapshots >= 4);  // t = 0, 0.05, 0.1, 0.15 (and the end)
+  }
 }
 
 TEST_CASE("sleeper mini chain: prepares the bed, seats and loads the sleeper, balances, plots",
@@ -129,8 +157,8 @@ TEST_CASE("sleeper mini chain: prepares the bed, seats and loads the sleeper, ba
     WARN("skipped: /usr/bin/python3 has no matplotlib (Debian: python3-matplotlib)");
     return;
   }
-  const TempDir& d = chain().dir;
-  const Result& r = chain().result;
+  TempDir d("sleeper_mini");
+  const Result r = run(d.path, {(kCases / "sleeper_mini.toml").string(), "--quiet"});
   INFO(r.out << r.err);
   REQUIRE(r.status == 0);
   // Both preparation scenes ran first, each once, and wrote their states.
@@ -231,67 +259,6 @@ TEST_CASE("sleeper mini chain: prepares the bed, seats and loads the sleeper, ba
     INFO("cell" << k << " fz " << held_fz);
     CHECK(held_fz < 0.0);
   }
-}
 
-// Long runs survive crashes (issue 15): the load case, cut to t = 0.16 s, with checkpoints
-// every 500 coupling steps, run three times on the chain's prepared bed: uninterrupted, with
-// dem_server SIGKILLed in step 1450 (t = 0.145 s, mid-cycle: the cycles run over
-// 0.13-0.19 s), with fem_server SIGKILLed there. Each killed solver is restarted from the
-// step-1000 checkpoint (the cells' poses and velocities are in its dem.h5) and the results
-// equal the uninterrupted run's bit for bit.
-TEST_CASE("sleeper mini: dem_server and fem_server killed mid-cycle, same results bitwise",
-          "[sleeper][reliability]") {
-  if (!have_matplotlib()) {
-    WARN("skipped: /usr/bin/python3 has no matplotlib (Debian: python3-matplotlib)");
-    return;
-  }
-  const TempDir& d = chain().dir;
-  REQUIRE(chain().result.status == 0);
-  const std::string scene = (kCases / "sleeper_mini.toml").string();
-  auto run_to = [&](const std::string& out, std::vector<std::string> extra) {
-    std::vector<std::string> args = {scene,
-                                     "--quiet",
-                                     "--no-post",
-                                     "--set",
-                                     "run.end_time=0.16",
-                                     "--set",
-                                     "checkpoint.every_steps=500",
-                                     "--output-dir",
-                                     (d.path / out).string()};
-    args.insert(args.end(), extra.begin(), extra.end());
-    return run(d.path, args);
-  };
-  const Result a = run_to("uninterrupted", {});
-  INFO(a.out << a.err);
-  REQUIRE(a.status == 0);
-  // The checkpoint holds the five cells (19 numbers each: pose, velocities, last loads).
-  {
-    demfem::io::H5File cp(d.path / "uninterrupted/checkpoints/step-001000/dem.h5",
-                          demfem::io::H5File::Mode::read);
-    REQUIRE(cp.exists("dem/rigid_bodies"));
-    CHECK(cp.read_doubles("dem/rigid_bodies").size() == 5 * 19);
-  }
-  const std::vector<std::string> series = {
-      "fem_monitor.csv",  "sensor_base.csv",      "sensor_cell1.csv", "sensor_cell3.csv",
-      "sensor_cell5.csv", "sensor_all_rocks.csv", "coupling.csv"};
-  for (const char* role : {"dem", "fem"}) {
-    INFO(role << " killed");
-    const Result k =
-        run_to(std::string("killed_") + role, {"--debug-kill", std::string(role) + ":1450"});
-    INFO(k.out << k.err);
-    REQUIRE(k.status == 0);
-    CHECK_THAT(k.err, Catch::Contains("recovered: every process is back at step 1000"));
-    for (const auto& f : series) {
-      INFO(f);
-      CHECK(read_text(d.path / ("killed_" + std::string(role)) / f) ==
-            read_text(d.path / "uninterrupted" / f));
-    }
-    demfem::io::H5File ha(d.path / "uninterrupted/coupling.h5", demfem::io::H5File::Mode::read);
-    demfem::io::H5File hb(d.path / ("killed_" + std::string(role)) / "coupling.h5",
-                          demfem::io::H5File::Mode::read);
-    for (const char* set : {"interface/positions", "interface/forces"}) {
-      INFO(set);
-      CHECK(ha.read_doubles(set) == hb.read_doubles(set));
-    }
-  }
+  check_kill_and_resume(d.path);
 }

@@ -1654,7 +1654,11 @@ WallFaceLoad DemSystem::wall_face_load(std::int32_t wall,
       const std::size_t slot = kMaxWallContacts * i + k;
       const std::int64_t t = I.wtri[slot] - w.tbase;
       if (t < 0 || t >= nt || !on_face[static_cast<std::size_t>(t)]) continue;
-      for (int e = 0; e < 3; ++e) f[e] -= I.wf[3 * slot + e];  // force ON the wall
+      // force ON the wall; a contact at the face's edge that pulls it outwards (a particle
+      // beside the wall, below the face's plane) is not a load on the face
+      const Vec3 fw{-I.wf[3 * slot], -I.wf[3 * slot + 1], -I.wf[3 * slot + 2]};
+      if (phys::dot(fw, d) > 0) continue;
+      f[0] += fw.x, f[1] += fw.y, f[2] += fw.z;
     }
   return load;
 }

@@ -228,7 +228,8 @@ class DemSystem {
   /// Force of the particles on one face of a wall in the last step, and the face's area: its
   /// triangles normal to `direction` that lie on the `direction` side of the wall's vertex
   /// centroid (the top of a pressure cell for [0, 0, 1], without the rocks under it or at
-  /// its sides).
+  /// its sides). Only contacts that press onto the face count (force on the wall against
+  /// `direction`): one at its edge from a particle below the face's plane does not.
   WallFaceLoad wall_face_load(std::int32_t wall, const std::array<double, 3>& direction) const;
   /// Current vertex positions of a wall (it may move).
   std::vector<double> wall_vertices(std::int32_t wall) const;
