@@ -1,59 +1,123 @@
 #!/usr/bin/python3
 """Plots and key figures of a sleeper-on-ballast run (thesis ch. 6, cases/sleeper*.toml).
 
-usage: tools/sleeper_report.py OUTPUT_DIR [--hold T0,T1] [--cell-area 0.0484]
-                               [--load-start 0.2] [--cycle-frequency 100] [--time-scale 1]
-                               [--cycles 6]
-                               [--ramp 0.03] [--sleeper-mass 72] [--load 22100]
+usage: tools/sleeper_report.py OUTPUT_DIR --scene SCENE [--hold T0,T1] [--cell-area 0.0484]
+                               [--rock-density RHO]
 
-Reads OUTPUT_DIR/fem_monitor.csv (bottom probes b*_uz of the sleeper, total interface force),
-OUTPUT_DIR/sensor_cell<k>.csv (force of the rocks on pressure cell k) and
-OUTPUT_DIR/sensor_base.csv (force of the rocks on the box), and writes into OUTPUT_DIR:
-  settlement.png       settlement of the sleeper (mean uz of the bottom probes, mm) against
-                       time, and its value at the cycles' minima against the cycle number
-  cell_pressures.png   pressure of each cell (vertical force / top area, kPa) against time
+Reads, from OUTPUT_DIR: fem_monitor.csv (bottom probes b*_uz of the sleeper), sensor_base.csv
+(force of the rocks on the box: its fz is minus the base reaction), sensor_cell<k>.csv (force
+of the rocks on pressure cell k), sensor_all_rocks.csv (a packing sensor over the whole box:
+the rocks' volume) and the packing sensors sensor_packing_*.csv / sensor_under_sleeper.csv
+when there; and from SCENE (the load case's TOML): the load pattern (start, ramp, cycles,
+time scale, levels and seats), the seating load, the sleeper's density and the mesh (its
+volume from the node bounding box), the cells' density and size, and the all_rocks box.
+Writes into OUTPUT_DIR:
+  settlement.png       settlement (mean uz of the bottom probes, mm) against time, and at each
+                       cycle's minimum load against the cycle number
+  cell_pressures.png   each cell's pressure (vertical force of the rocks / top area, kPa)
+                       against time, and the five cells' pressures in the hold against x
   sleeper_report.txt   the key figures in words
   sleeper_report.json  the same, for scripts and tests
-Force balance of the static hold (--hold window, the load held at its peak): the increase of
-the base reaction over its value before the sleeper touched (the first row: the prepared
-bed's rocks and cells at rest) against the sleeper's weight plus the applied load, and the
-force of the rocks on the sleeper (fem_monitor force_z) against the same. Exit status 2 on a
-missing file or column.
+Force balance of the static hold (--hold window, the load held at its peak): the base
+reaction (mean of -fz of the box over the window) against the weights of the rocks
+(all_rocks volume x density x g), the cells and the sleeper plus the applied load (seating
++ every seat's peak). Exit status 2 on a missing file, column or scene key.
 """
 
 import argparse
-import glob
 import json
 import math
 import os
 import re
 import sys
+import tomllib
 
 # the CSV reading of the sheet report (same folder)
 from sheet_report import column, read_csv
 
+G = 9.81
+
 
 def window_mean(t, y, t0, t1):
-    v = [b for a, b in zip(t, y) if t0 <= a <= t1]
+    v = [b for a, b in zip(t, y) if t0 - 1e-9 <= a <= t1 + 1e-9]  # times are sums of steps
     return (sum(v) / len(v)) if v else None
+
+
+def inp_bounding_box(path):
+    """The bounding box of the *NODE block of an Abaqus deck (the sleeper is a box)."""
+    lo, hi = [math.inf] * 3, [-math.inf] * 3
+    in_nodes = False
+    with open(path) as f:
+        for line in f:
+            s = line.strip()
+            if s.startswith("*"):
+                in_nodes = s.upper().split(",")[0].strip() == "*NODE"
+                continue
+            if in_nodes and s:
+                v = [float(x) for x in s.split(",")[1:4]]
+                lo = [min(a, b) for a, b in zip(lo, v)]
+                hi = [max(a, b) for a, b in zip(hi, v)]
+    return lo, hi
+
+
+def scene_figures(scene_path, rock_density):
+    """What the balance and the cycle marks need, read from the load case's scene."""
+    with open(scene_path, "rb") as f:
+        sc = tomllib.load(f)
+    folder = os.path.dirname(os.path.abspath(scene_path))
+    fem, dem = sc["fem"], sc["dem"]
+    mats = {m["name"]: m for m in fem["materials"]}
+    sleeper_density = mats[fem["sections"][0]["material"]]["density"]
+    lo, hi = inp_bounding_box(os.path.join(folder, fem["mesh"]["file"]))
+    sleeper_volume = (hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2])
+    seating, seats, pattern = 0.0, 0, None
+    for p in fem.get("pressures", []):
+        amp = p.get("amplitude")
+        if isinstance(amp, dict) and amp.get("type") == "sleeper":
+            pattern = amp
+            per = p.get("total_force", 0.0)
+            if amp.get("force_is", "per_seat") == "total":
+                per /= amp.get("seats", 2)
+            seats += per
+        elif amp is None:
+            seating += p.get("total_force", 0.0)
+    if pattern is None:
+        raise KeyError(f"{scene_path}: no [[fem.pressures]] with amplitude type \"sleeper\"")
+    peak = pattern.get("peak_force", 220e3) * seats
+    dmat = {m["name"]: m for m in dem["materials"]}
+    rho = rock_density if rock_density else dmat["granite"]["density"]
+    cells = []
+    for w in dem.get("walls", []):
+        if "body" in w and w["name"].startswith("cell"):
+            b = w["box"]
+            v = 1.0
+            for k in range(3):
+                v *= b["hi"][k] - b["lo"][k]
+            cells.append({"name": w["name"], "x": 0.5 * (b["lo"][0] + b["hi"][0]),
+                          "mass": w["body"]["density"] * v,
+                          "area": (b["hi"][0] - b["lo"][0]) * (b["hi"][1] - b["lo"][1])})
+    rocks_box = None
+    for s in dem.get("sensors", []):
+        if s["name"] == "all_rocks":
+            rocks_box = 1.0
+            for k in range(3):
+                rocks_box *= s["hi"][k] - s["lo"][k]
+    return {"sleeper_mass": sleeper_density * sleeper_volume, "seating_N": seating,
+            "peak_load_N": peak, "pattern": pattern, "rock_density": rho, "cells": cells,
+            "rocks_box_volume": rocks_box}
 
 
 def main(argv):
     ap = argparse.ArgumentParser(description="sleeper run report")
     ap.add_argument("output")
+    ap.add_argument("--scene", required=True, help="the load case's scene (TOML)")
     ap.add_argument("--hold", default=None, help="T0,T1: window of the static hold, s")
-    ap.add_argument("--cell-area", type=float, default=0.22 * 0.22, help="top area of a cell, m^2")
-    ap.add_argument("--load-start", type=float, default=0.2, help="start of the pattern, s")
-    ap.add_argument("--ramp", type=float, default=0.03, help="ramp duration (reference), s")
-    ap.add_argument("--cycle-frequency", type=float, default=100.0, help="Hz (reference)")
-    ap.add_argument("--time-scale", type=float, default=1.0)
-    ap.add_argument("--cycles", type=int, default=6, help="cycles of the pattern (fig. 6.2: 6)")
-    ap.add_argument("--sleeper-mass", type=float, default=800.0 * 2.5 * 0.2 * 0.18, help="kg")
-    ap.add_argument("--load", type=float, default=2 * 11e3 + 100.0,
-                    help="applied load in the hold (both seats + seating), N")
+    ap.add_argument("--rock-density", type=float, default=None,
+                    help="kg/m^3 (default: the scene's granite)")
     a = ap.parse_args(argv)
     out = a.output
     try:
+        fig = scene_figures(a.scene, a.rock_density)
         mon_path = os.path.join(out, "fem_monitor.csv")
         mon = read_csv(mon_path)
         t = column(mon, "time", mon_path)
@@ -62,74 +126,108 @@ def main(argv):
             raise KeyError(f"{mon_path}: no bottom probes b*_uz")
         uz = [column(mon, p + "_uz", mon_path) for p in probes]
         settle = [1e3 * sum(u[i] for u in uz) / len(uz) for i in range(len(t))]  # mm
-        fz_sleeper = column(mon, "force_z", mon_path)
+        tilt = [1e3 * (uz[-1][i] - uz[0][i]) for i in range(len(t))]  # last - first probe, mm
         cells = []
-        for path in sorted(glob.glob(os.path.join(out, "sensor_cell*.csv"))):
-            c = read_csv(path)
-            name = os.path.basename(path)[len("sensor_"):-4]
+        for c in fig["cells"]:
+            path = os.path.join(out, f"sensor_{c['name']}.csv")
+            rows = read_csv(path)
             # the rocks push the cell down: -fz is the vertical load on it
-            cells.append((name, column(c, "time", path),
-                          [-f / a.cell_area / 1e3 for f in column(c, "fz", path)]))
+            cells.append((c, column(rows, "time", path),
+                          [-f / c["area"] / 1e3 for f in column(rows, "fz", path)]))
         base_path = os.path.join(out, "sensor_base.csv")
         base = read_csv(base_path)
         tb, fb = column(base, "time", base_path), column(base, "fz", base_path)
-    except (FileNotFoundError, KeyError, ValueError) as e:
+        packing = {}
+        for name in ("all_rocks", "packing_lower", "packing_upper", "under_sleeper"):
+            path = os.path.join(out, f"sensor_{name}.csv")
+            if os.path.exists(path):
+                rows = read_csv(path)
+                packing[name] = {k: column(rows, k, path) for k in
+                                 ("time", "particles", "solid_fraction", "coordination", "top")}
+    except (FileNotFoundError, KeyError, ValueError, tomllib.TOMLDecodeError) as e:
         print(f"sleeper_report.py: {e}", file=sys.stderr)
         return 2
 
-    # settlement at the minima of the cycles (load at cycle_min): reference times T_r + k / f
-    ts = a.time_scale
+    # settlement at the cycles' minima (load at cycle_min): reference times T_r + k / f
+    pat = fig["pattern"]
+    ts = pat.get("time_scale", 1.0)
+    t0 = pat.get("start_time", 0.0)
+    ramp = pat.get("ramp_duration", 0.03)
+    freq = pat.get("cycle_frequency", 100.0)
+    ncyc = pat.get("cycles", round(pat.get("cycle_duration", 0.06) * freq))
     cyc = []
-    k = 0
-    while k <= a.cycles:
-        tk = a.load_start + ts * (a.ramp + k / a.cycle_frequency)
-        if tk > t[-1]:
+    for k in range(int(ncyc) + 1):
+        tk = t0 + ts * (ramp + k / freq)
+        if tk > t[-1] + 1e-9:
             break
         i = min(range(len(t)), key=lambda j: abs(t[j] - tk))
         cyc.append((k, settle[i]))
-        k += 1
+    i_seat = min(range(len(t)), key=lambda j: abs(t[j] - t0))
 
-    g = 9.81
     report = {"probes": probes, "final_time": t[-1], "settlement_final_mm": settle[-1],
-              "settlement_min_mm": min(settle), "cycles": [{"cycle": k, "settlement_mm": s}
-                                                           for k, s in cyc]}
+              "settlement_min_mm": min(settle), "settlement_at_load_start_mm": settle[i_seat],
+              "tilt_at_load_start_mm": tilt[i_seat], "tilt_final_mm": tilt[-1],
+              "cycles": [{"cycle": k, "settlement_mm": s} for k, s in cyc],
+              "sleeper_mass_kg": fig["sleeper_mass"], "applied_load_N":
+              fig["seating_N"] + fig["peak_load_N"]}
+    # a loaded state has no contact forces before its first step: the packing's first row
+    # is the first one after it
+    first = {name: next((i for i, x in enumerate(p["time"]) if x > 0), 0)
+             for name, p in packing.items()}
+    for name, p in packing.items():
+        report["packing_" + name if not name.startswith("packing") else name] = {
+            "first": {k: v[first[name]] for k, v in p.items()},
+            "last": {k: v[-1] for k, v in p.items()}}
     if a.hold:
         h0, h1 = (float(x) for x in a.hold.split(","))
-        base0 = fb[0]
+        hold = {"window": [h0, h1]}
         base_hold = window_mean(tb, fb, h0, h1)
-        fs_hold = window_mean(t, fz_sleeper, h0, h1)
-        expected = a.sleeper_mass * g + a.load
-        report["hold"] = {"window": [h0, h1]}
-        if base_hold is not None and fs_hold is not None:
-            d_base = -(base_hold - base0)
-            report["hold"].update({
-                "bed_weight_N": -base0,
-                "base_increase_N": d_base,
-                "force_on_sleeper_N": -fs_hold,
-                "sleeper_weight_plus_load_N": expected,
-                "base_balance_rel": (d_base - expected) / expected,
-                "sleeper_balance_rel": (-fs_hold - expected) / expected,
-                "cell_pressure_kPa": {n: window_mean(tc, p, h0, h1) for n, tc, p in cells},
+        if base_hold is not None and "all_rocks" in packing and fig["rocks_box_volume"]:
+            ar = packing["all_rocks"]
+            rocks_v = window_mean(ar["time"], ar["solid_fraction"], h0, h1) * fig["rocks_box_volume"]
+            w_rocks = rocks_v * fig["rock_density"] * G
+            w_cells = sum(c["mass"] for c in fig["cells"]) * G
+            w_sleeper = fig["sleeper_mass"] * G
+            load = fig["seating_N"] + fig["peak_load_N"]
+            expected = w_rocks + w_cells + w_sleeper + load
+            hold.update({
+                "base_reaction_N": -base_hold, "rocks_weight_N": w_rocks,
+                "cells_weight_N": w_cells, "sleeper_weight_N": w_sleeper, "load_N": load,
+                "expected_N": expected, "balance_rel": (-base_hold - expected) / expected,
+                "base_reaction_sd_N": math.sqrt(max(0.0, window_mean(
+                    tb, [f * f for f in fb], h0, h1) - base_hold ** 2)),
             })
+        hold["cell_pressure_kPa"] = {c["name"]: window_mean(tc, p, h0, h1) for c, tc, p in cells}
+        report["hold"] = hold
 
     with open(os.path.join(out, "sleeper_report.json"), "w") as f:
         json.dump(report, f, indent=1)
     lines = [f"sleeper run {out}: {len(t)} monitor rows up to t = {t[-1]:.4f} s",
-             f"settlement (mean uz of {len(probes)} bottom probes): final {settle[-1]:.3f} mm, "
-             f"lowest {min(settle):.3f} mm"]
+             f"settlement (mean uz of {len(probes)} bottom probes): at the load start "
+             f"{settle[i_seat]:.3f} mm, final {settle[-1]:.3f} mm, lowest {min(settle):.3f} mm; "
+             f"tilt (last - first probe) {tilt[i_seat]:.3f} mm at the load start, "
+             f"{tilt[-1]:.3f} mm at the end"]
     if cyc:
         lines.append("settlement at the cycle minima: " +
                      ", ".join(f"{k}: {s:.3f}" for k, s in cyc) + " mm")
-    if "hold" in report and "base_increase_N" in report["hold"]:
+    for name, p in packing.items():
+        i = first[name]
+        lines.append(f"{name} (t = {p['time'][i]:.4f} -> {p['time'][-1]:.4f} s): solid fraction "
+                     f"{p['solid_fraction'][i]:.4f} -> {p['solid_fraction'][-1]:.4f}, "
+                     f"coordination {p['coordination'][i]:.3f} -> {p['coordination'][-1]:.3f}, "
+                     f"{p['particles'][i]:.0f} rocks, top {p['top'][0]:.4f} (t = 0) -> "
+                     f"{p['top'][-1]:.4f} m")
+    if "hold" in report:
         h = report["hold"]
-        lines += [f"static hold {h['window']}: bed (rocks + cells) weight {h['bed_weight_N']:.1f} N; "
-                  f"base reaction increase {h['base_increase_N']:.1f} N, force of the rocks on "
-                  f"the sleeper {h['force_on_sleeper_N']:.1f} N, against sleeper weight + load "
-                  f"{h['sleeper_weight_plus_load_N']:.1f} N: {100 * h['base_balance_rel']:+.2f} % "
-                  f"and {100 * h['sleeper_balance_rel']:+.2f} %",
-                  "cell pressures (kPa): " + ", ".join(
-                      f"{n} {p:.2f}" if p is not None else f"{n} -"
-                      for n, p in h["cell_pressure_kPa"].items())]
+        if "base_reaction_N" in h:
+            lines.append(
+                f"static hold {h['window']}: base reaction {h['base_reaction_N']:.1f} N "
+                f"(sd {h['base_reaction_sd_N']:.1f}) against rocks {h['rocks_weight_N']:.1f} + "
+                f"cells {h['cells_weight_N']:.1f} + sleeper {h['sleeper_weight_N']:.1f} + load "
+                f"{h['load_N']:.1f} = {h['expected_N']:.1f} N: {100 * h['balance_rel']:+.3f} %")
+        lines.append("cell pressures in the hold (kPa): " + ", ".join(
+            f"{n} {p:.2f}" if p is not None else f"{n} -"
+            for n, p in h["cell_pressure_kPa"].items()))
     with open(os.path.join(out, "sleeper_report.txt"), "w") as f:
         f.write("\n".join(lines) + "\n")
     print("\n".join(lines))
@@ -137,27 +235,39 @@ def main(argv):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(1, 2, figsize=(11, 4))
-    ax[0].plot(t, settle)
+    f1, ax = plt.subplots(1, 2, figsize=(11, 4))
+    ax[0].plot(t, settle, label="mean")
+    ax[0].plot(t, [1e3 * v for v in uz[0]], lw=0.7, label=probes[0])
+    ax[0].plot(t, [1e3 * v for v in uz[-1]], lw=0.7, label=probes[-1])
+    ax[0].axvline(t0, color="grey", lw=0.5)
     ax[0].set_xlabel("time (s)")
-    ax[0].set_ylabel("settlement: mean uz of the bottom (mm)")
+    ax[0].set_ylabel("settlement: uz of the bottom (mm)")
+    ax[0].legend()
     ax[0].grid(True)
     if cyc:
         ax[1].plot([c[0] for c in cyc], [c[1] for c in cyc], "o-")
     ax[1].set_xlabel("cycle")
     ax[1].set_ylabel("settlement at the cycle minimum (mm)")
     ax[1].grid(True)
-    fig.tight_layout()
-    fig.savefig(os.path.join(out, "settlement.png"), dpi=110)
-    fig, ax = plt.subplots(figsize=(7, 4))
-    for n, tc, p in cells:
-        ax.plot(tc, p, label=n)
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("cell pressure: vertical force / top area (kPa)")
-    ax.legend()
-    ax.grid(True)
-    fig.tight_layout()
-    fig.savefig(os.path.join(out, "cell_pressures.png"), dpi=110)
+    f1.tight_layout()
+    f1.savefig(os.path.join(out, "settlement.png"), dpi=110)
+    f2, ax = plt.subplots(1, 2, figsize=(11, 4))
+    for c, tc, p in cells:
+        ax[0].plot(tc, p, label=c["name"])
+    ax[0].set_xlabel("time (s)")
+    ax[0].set_ylabel("cell pressure: vertical force / top area (kPa)")
+    ax[0].legend()
+    ax[0].grid(True)
+    if "hold" in report:
+        xs = [c["x"] for c, _, _ in cells]
+        ps = [report["hold"]["cell_pressure_kPa"][c["name"]] for c, _, _ in cells]
+        ax[1].plot(xs, ps, "o-")
+        ax[1].set_title(f"static hold {report['hold']['window']} s")
+    ax[1].set_xlabel("cell centre x (m)")
+    ax[1].set_ylabel("cell pressure (kPa)")
+    ax[1].grid(True)
+    f2.tight_layout()
+    f2.savefig(os.path.join(out, "cell_pressures.png"), dpi=110)
     return 0
 
 

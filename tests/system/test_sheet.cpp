@@ -24,6 +24,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
+using demfem::test::is_png;
 using demfem::test::read_csv;
 using demfem::test::read_text;
 using demfem::test::TempDir;
@@ -64,22 +65,11 @@ Result run(const fs::path& dir, const std::vector<std::string>& args) {
   return r;
 }
 
-bool is_png(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  char head[8] = {};
-  in.read(head, 8);
-  return in && std::string(head, 8) == std::string("\x89PNG\r\n\x1a\n", 8);
-}
-
 // Column `name` of a CSV written by the run (header row first).
 std::vector<double> column(const std::vector<std::vector<std::string>>& rows,
                            const std::string& name) {
-  REQUIRE(!rows.empty());
-  std::size_t k = 0;
-  while (k < rows[0].size() && rows[0][k] != name) ++k;
-  REQUIRE(k < rows[0].size());
   std::vector<double> v;
-  for (std::size_t i = 1; i < rows.size(); ++i) v.push_back(std::stod(rows[i][k]));
+  REQUIRE_NOTHROW(v = demfem::test::csv_column(rows, name));
   return v;
 }
 

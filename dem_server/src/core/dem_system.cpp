@@ -1616,6 +1616,52 @@ std::array<double, 3> DemSystem::wall_force(std::int32_t wall) const {
   check_wall(*impl_, wall);
   return impl_->walls[wall].force;
 }
+WallFaceLoad DemSystem::wall_face_load(std::int32_t wall,
+                                       const std::array<double, 3>& direction) const {
+  check_wall(*impl_, wall);
+  const auto& I = *impl_;
+  const auto& w = I.walls[wall];
+  const double dl = std::sqrt(direction[0] * direction[0] + direction[1] * direction[1] +
+                              direction[2] * direction[2]);
+  if (!(dl > 0)) bad("wall_face_load: direction must not be zero");
+  const Vec3 d{direction[0] / dl, direction[1] / dl, direction[2] / dl};
+  auto vertex = [&I](std::int64_t v) {
+    return Vec3{I.vpos[3 * v], I.vpos[3 * v + 1], I.vpos[3 * v + 2]};
+  };
+  const auto nv = static_cast<std::int64_t>(w.mesh.vertices.size() / 3);
+  const auto nt = static_cast<std::int64_t>(w.mesh.triangles.size() / 3);
+  Vec3 c{0, 0, 0};
+  for (std::int64_t v = 0; v < nv; ++v) c = c + vertex(w.vbase + v);
+  c = (1.0 / static_cast<double>(nv)) * c;
+  // The face: triangles normal to `direction` (either winding) on its side of the centroid.
+  std::vector<std::uint8_t> on_face(static_cast<std::size_t>(nt), 0);
+  WallFaceLoad load;
+  for (std::int64_t k = 0; k < nt; ++k) {
+    const std::int64_t t = w.tbase + k;
+    const Vec3 a = vertex(I.tri_v[3 * t]), b = vertex(I.tri_v[3 * t + 1]),
+               e = vertex(I.tri_v[3 * t + 2]);
+    const Vec3 n = phys::cross(b - a, e - a);
+    const double ln = std::sqrt(phys::dot(n, n));
+    const Vec3 g = (1.0 / 3.0) * (a + b + e);
+    const bool face =
+        ln > 0 && std::abs(phys::dot(n, d)) > (1.0 - 1e-6) * ln && phys::dot(g - c, d) > 0;
+    on_face[static_cast<std::size_t>(k)] = face;
+    if (face) load.area += 0.5 * ln;
+  }
+  auto& f = load.force;
+  for (std::size_t i = 0; i < I.n(); ++i)
+    for (int k = 0; k < I.wcount[i]; ++k) {
+      const std::size_t slot = kMaxWallContacts * i + k;
+      const std::int64_t t = I.wtri[slot] - w.tbase;
+      if (t < 0 || t >= nt || !on_face[static_cast<std::size_t>(t)]) continue;
+      // force ON the wall; a contact at the face's edge that pulls it outwards (a particle
+      // beside the wall, below the face's plane) is not a load on the face
+      const Vec3 fw{-I.wf[3 * slot], -I.wf[3 * slot + 1], -I.wf[3 * slot + 2]};
+      if (phys::dot(fw, d) > 0) continue;
+      f[0] += fw.x, f[1] += fw.y, f[2] += fw.z;
+    }
+  return load;
+}
 std::array<double, 3> DemSystem::wall_torque(std::int32_t wall) const {
   check_wall(*impl_, wall);
   return impl_->walls[wall].torque;
@@ -1809,6 +1855,20 @@ std::size_t DemSystem::contact_count() const {
   for (std::size_t p = 0; p + 2 < pf.size(); p += 3)
     if (pf[p] != 0.0 || pf[p + 1] != 0.0 || pf[p + 2] != 0.0) ++c;
   return c;
+}
+std::vector<std::int32_t> DemSystem::contact_counts() const {
+  const auto& I = *impl_;
+  std::vector<std::int32_t> n(I.st.size(), 0);
+  for (std::size_t i = 0; i + 1 < I.row.size() && i < n.size(); ++i) {
+    for (auto k = I.row[i]; k < I.row[i + 1]; ++k) {
+      const auto p = static_cast<std::size_t>(3 * k);
+      if (p + 2 < I.pf.size() && (I.pf[p] != 0.0 || I.pf[p + 1] != 0.0 || I.pf[p + 2] != 0.0)) {
+        ++n[i];
+        ++n[static_cast<std::size_t>(I.nbr[static_cast<std::size_t>(k)])];
+      }
+    }
+  }
+  return n;
 }
 
 std::size_t DemSystem::state_bytes() const {

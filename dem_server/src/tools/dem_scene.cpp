@@ -465,7 +465,7 @@ DemScene read_dem_scene(const Table& dem) {
     for (const auto& other : s.sensors)
       if (other.name == ss.name) t.fail("name", "sensor \"" + ss.name + "\" is defined twice");
     const std::string kind =
-        t.choice("kind", {"mass_flow", "wall_force", "kinetic_energy", "repose"});
+        t.choice("kind", {"mass_flow", "wall_force", "kinetic_energy", "repose", "packing"});
     ss.interval = t.number("interval", Range::positive());
     if (kind == "mass_flow") {
       ss.kind = SensorSpec::Kind::mass_flow;
@@ -480,8 +480,19 @@ DemScene read_dem_scene(const Table& dem) {
                              [&](const WallSpec& w) { return w.name == wall; });
       if (it == s.walls.end()) t.fail("wall", "names wall \"" + wall + "\", which is not defined");
       ss.wall = static_cast<std::int32_t>(it - s.walls.begin());
+      if (t.has("face")) {
+        ss.face = true;
+        ss.face_direction = t.vec3("face");
+        if (ss.face_direction == std::array<double, 3>{0, 0, 0}) t.fail("face", "must not be zero");
+      }
     } else if (kind == "kinetic_energy") {
       ss.kind = SensorSpec::Kind::kinetic_energy;
+    } else if (kind == "packing") {
+      ss.kind = SensorSpec::Kind::packing;
+      ss.box_lo = t.vec3("lo");
+      ss.box_hi = t.vec3("hi");
+      for (int k = 0; k < 3; ++k)
+        if (!(ss.box_hi[k] > ss.box_lo[k])) t.fail("hi", "must exceed 'lo' in x, y and z");
     } else {
       ss.kind = SensorSpec::Kind::repose;
       auto c = t.numbers("centre", 2);

@@ -6,6 +6,7 @@
 #include <numbers>
 #include <stdexcept>
 
+#include "demfem/dem/packing.hpp"
 #include "demfem/dem/stl_reader.hpp"
 #include "demfem/io/csv_writer.hpp"
 
@@ -126,6 +127,8 @@ std::vector<std::string> columns_of(SensorSpec::Kind k) {
       return {"time", "kinetic_energy"};
     case SensorSpec::Kind::repose:
       return {"time", "angle_deg", "heap_radius", "heap_height"};
+    case SensorSpec::Kind::packing:
+      return {"time", "particles", "solid_fraction", "coordination", "top"};
   }
   return {};
 }
@@ -256,9 +259,16 @@ void SensorSet::sample(const DemSystem& system, std::span<const std::int64_t> id
         break;
       }
       case SensorSpec::Kind::wall_force: {
-        const auto f = system.wall_force(e.spec.wall);
+        double area = e.spec.area;
+        std::array<double, 3> f{};
+        if (e.spec.face) {
+          const auto load = system.wall_face_load(e.spec.wall, e.spec.face_direction);
+          f = load.force, area = load.area;
+        } else {
+          f = system.wall_force(e.spec.wall);
+        }
         const double mag = std::sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
-        v = {f[0], f[1], f[2], mag, e.spec.area > 0 ? mag / e.spec.area : 0.0};
+        v = {f[0], f[1], f[2], mag, area > 0 ? mag / area : 0.0};
         break;
       }
       case SensorSpec::Kind::kinetic_energy:
@@ -273,6 +283,11 @@ void SensorSet::sample(const DemSystem& system, std::span<const std::int64_t> id
           const double nan = std::numeric_limits<double>::quiet_NaN();
           v = {nan, nan, nan};
         }
+        break;
+      }
+      case SensorSpec::Kind::packing: {
+        const auto r = packing_in_box(system, e.spec.box_lo, e.spec.box_hi);
+        v = {double(r.particles), r.solid_fraction, r.coordination, r.top};
         break;
       }
     }

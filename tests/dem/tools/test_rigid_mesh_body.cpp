@@ -370,3 +370,58 @@ TEST_CASE("a rigid body returns to the in-memory save point bit for bit", "[rigi
   CHECK(again.force == first.force);
   CHECK(d.particles().pz == pz);
 }
+
+// A pressure cell (docs/cases.md, sleeper): a body held in x, y and rotation between a layer
+// under it and spheres on top. The net force of the particles on it is its weight (it
+// floats); the force on its top face is the weight of the spheres resting on it, on its
+// bottom face that plus the cell's weight (DemSystem::wall_face_load).
+TEST_CASE("force on one face of a wall: the top and bottom of a cell in a layer",
+          "[rigid_body][sensor]") {
+  const double g = 9.81;
+  DemSettings s = settings({0, 0, -g}, 2e-5);
+  s.pairs.assign(4, MaterialPair{0.5, 0.2, 0.0});
+  DemSystem d(s);
+  WallMesh floor = box_body({-0.5, -0.5, -0.1}, {0.5, 0.5, 0.0});
+  floor.name = "floor";
+  d.add_wall(floor);
+  WallMesh cell = box_body({-0.2, -0.2, 0.1}, {0.2, 0.2, 0.14});
+  make_body(cell, 2000.0);
+  cell.body.fix_translation = {true, true, false};
+  cell.body.fix_rotation = true;
+  std::vector<ParticleInit> ps;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      ps.push_back(ball({-0.14 + 0.14 * i, -0.14 + 0.14 * j, 0.05}, 0.05));
+  for (int i = 0; i < 2; ++i)
+    for (int j = 0; j < 2; ++j) ps.push_back(ball({-0.1 + 0.2 * i, -0.1 + 0.2 * j, 0.19}, 0.04));
+  d.add_particles(ps);
+  const std::int32_t id = d.add_wall(cell);
+  d.advance(100000);  // 2 s: settled, but for a ringing of about 1e-4 m/s (0.3 % of the
+                      // loads) that the contacts' dashpots hardly damp: mean over 0.2 s
+  double on_top = 0.0, all = 0.0;
+  for (std::size_t i = 0; i < d.particles().size(); ++i) {
+    all += d.particles().mass[i];
+    if (i >= 9) on_top += d.particles().mass[i];
+  }
+  WallFaceLoad top, bottom;
+  std::array<double, 3> net{}, floor_top{};
+  const int n = 1000;
+  for (int k = 0; k < n; ++k) {
+    d.advance(10);
+    const auto t = d.wall_face_load(id, {0, 0, 1}), b = d.wall_face_load(id, {0, 0, -1});
+    const auto f = d.wall_force(id), ft = d.wall_face_load(0, {0, 0, 1}).force;
+    top.area = t.area, bottom.area = b.area;
+    for (int e = 0; e < 3; ++e) {
+      top.force[e] += t.force[e] / n, bottom.force[e] += b.force[e] / n;
+      net[e] += f[e] / n, floor_top[e] += ft[e] / n;
+    }
+  }
+  CHECK(top.area == Approx(0.16).epsilon(1e-12));
+  CHECK(bottom.area == Approx(0.16).epsilon(1e-12));
+  CHECK(top.force[2] == Approx(-on_top * g).epsilon(1e-3));
+  CHECK(bottom.force[2] == Approx((cell.body.mass + on_top) * g).epsilon(1e-3));
+  CHECK(net[2] == Approx(cell.body.mass * g).epsilon(1e-3));
+  CHECK(floor_top[2] == Approx(-(cell.body.mass + all) * g).epsilon(1e-3));
+  CHECK(d.wall_face_load(id, {1, 0, 0}).force[0] == 0.0);  // nothing touches its sides
+  CHECK_THROWS_AS(d.wall_face_load(id, {0, 0, 0}), std::invalid_argument);
+}

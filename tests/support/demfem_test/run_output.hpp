@@ -8,6 +8,7 @@
 #include <fstream>
 #include <regex>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -46,6 +47,27 @@ inline std::vector<std::string> segments_of(const std::string& out) {
        ++it)
     segs.push_back((*it)[1]);
   return segs;
+}
+
+/// Column `name` of a CSV read by read_csv (header row first); throws std::runtime_error when
+/// the file is empty or has no such column.
+inline std::vector<double> csv_column(const std::vector<std::vector<std::string>>& rows,
+                                      const std::string& name) {
+  if (rows.empty()) throw std::runtime_error("csv_column: empty file");
+  std::size_t k = 0;
+  while (k < rows[0].size() && rows[0][k] != name) ++k;
+  if (k == rows[0].size()) throw std::runtime_error("csv_column: no column " + name);
+  std::vector<double> v;
+  for (std::size_t i = 1; i < rows.size(); ++i) v.push_back(std::stod(rows[i][k]));
+  return v;
+}
+
+/// Whether the file starts with the PNG signature (a plot was written, not a stub).
+inline bool is_png(const std::filesystem::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  char head[8] = {};
+  in.read(head, 8);
+  return in && std::string(head, 8) == std::string("\x89PNG\r\n\x1a\n", 8);
 }
 
 }  // namespace demfem::test

@@ -93,6 +93,12 @@ struct ParticleInit {
   std::array<double, 4> orientation{1, 0, 0, 0};
 };
 
+/// @brief Force of the particles on one face of a wall (DemSystem::wall_face_load).
+struct WallFaceLoad {
+  std::array<double, 3> force{};  ///< N, on the wall
+  double area = 0.0;              ///< m^2, of the face's triangles
+};
+
 /// @brief Host copy of the particle state, structure of arrays (index = particle).
 struct ParticleState {
   std::vector<double> px, py, pz;             ///< position, m
@@ -219,6 +225,12 @@ class DemSystem {
   /// in the last step.
   std::array<double, 3> wall_force(std::int32_t wall) const;
   std::array<double, 3> wall_torque(std::int32_t wall) const;
+  /// Force of the particles on one face of a wall in the last step, and the face's area: its
+  /// triangles normal to `direction` that lie on the `direction` side of the wall's vertex
+  /// centroid (the top of a pressure cell for [0, 0, 1], without the rocks under it or at
+  /// its sides). Only contacts that press onto the face count (force on the wall against
+  /// `direction`): one at its edge from a particle below the face's plane does not.
+  WallFaceLoad wall_face_load(std::int32_t wall, const std::array<double, 3>& direction) const;
   /// Current vertex positions of a wall (it may move).
   std::vector<double> wall_vertices(std::int32_t wall) const;
   /// State of a wall that is a rigid body (WallMesh::body); throws std::invalid_argument for
@@ -281,6 +293,8 @@ class DemSystem {
   std::size_t neighbour_pairs() const;
   /// Number of particle-particle pairs in contact in the last step.
   std::size_t contact_count() const;
+  /// Per particle: its particle-particle pairs in contact in the last step (coordination).
+  std::vector<std::int32_t> contact_counts() const;
   /// Bytes held by the host state: particle arrays, pair list with its histories and
   /// slots, wall-contact slots, shape table (for benchmarks).
   std::size_t state_bytes() const;

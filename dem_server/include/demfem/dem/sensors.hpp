@@ -77,7 +77,7 @@ ReposeResult angle_of_repose(const ParticleState& particles, const ReposeOptions
 
 /// @brief A configured sensor.
 struct SensorSpec {
-  enum class Kind { mass_flow, wall_force, kinetic_energy, repose };
+  enum class Kind { mass_flow, wall_force, kinetic_energy, repose, packing };
   Kind kind = Kind::kinetic_energy;
   std::string name;       ///< CSV file: sensor_<name>.csv
   double interval = 0.0;  ///< sampling interval, s (> 0)
@@ -87,10 +87,14 @@ struct SensorSpec {
   double radius = 0.0;
   // wall_force
   std::int32_t wall = 0;
+  bool face = false;  ///< only the face of the wall normal to `face_direction` (wall_face_load)
+  std::array<double, 3> face_direction{0, 0, 1};
   double area = 0.0;  ///< wall area for the mean pressure |F| / area, m^2 (the scene
                       ///< fills it from the wall mesh); 0 = no pressure column value
   // repose
   ReposeOptions repose;
+  // packing (packing.hpp): the control box
+  std::array<double, 3> box_lo{}, box_hi{};
 };
 
 /// @brief The sensors of a run and their CSV series. sample() is called after each advance()
