@@ -7,12 +7,15 @@
 // of the sieve size) with sieve sizes from the thesis's ballast distribution (normal, mean
 // 40 mm, sd 10 mm, in [20, 80] mm), packed by their bounding spheres (make_bed) in a box of
 // triangle-mesh walls (floor + 4 sides, open top), fallen and settled under gravity
-// (restitution 0.1) until the
-// kinetic energy is below --settle-ke N m g d of the mean rock; saved (cached in --cache)
-// and restored into one system per backend and thread count. The sphere bed is made and
-// settled the same way with spheres whose diameters are drawn from the same distribution.
-// Material as the sphere benchmark (dem_throughput): E 100 MPa, nu 0.3, rho 2600, e 0.2,
-// mu 0.6, dt 1e-5 s.
+// (restitution 0.1, step --settle-dt) until the kinetic energy is below --settle-ke N m g d
+// of the mean rock; saved (cached in --cache, by default beside the executable, so a build
+// settles each bed once) and restored into one system per backend and thread count, which
+// runs at the measured step of 10 us. Settling at 40 us (0.13 of the smallest rock's
+// Rayleigh step at this stiffness; the time-step study, docs/polyhedra.md, found beds of
+// 100 times stiffer rock stable to 0.32 of it) makes the 10^4 bed 4 times cheaper to settle. The
+// sphere bed is made and settled the same way with spheres whose diameters are drawn from the same
+// distribution. Material as the sphere benchmark (dem_throughput): E 100 MPa, nu 0.3, rho 2600, e
+// 0.2, mu 0.6, dt 1e-5 s.
 
 #include <unistd.h>
 
@@ -39,9 +42,11 @@ namespace {
 
 constexpr double kRho = 2600.0;
 
-DemSettings settings(int threads, const std::string& backend, double restitution) {
+constexpr double kDt = 1e-5;  // the measured step
+
+DemSettings settings(int threads, const std::string& backend, double restitution, double dt = kDt) {
   DemSettings s;
-  s.dt = 1e-5;
+  s.dt = dt;
   s.gravity = {0, 0, -9.81};
   s.materials = {{"rock", 1e8, 0.3, kRho}, {"wall", 1e8, 0.3, 0.0}};
   s.pairs.assign(4, MaterialPair{0.6, restitution, 0.0});
@@ -58,8 +63,8 @@ struct Result {
 };
 
 DemSystem make_system(const Bed& bed, const shapes::ShapeLibrary* lib, int threads,
-                      const std::string& backend, double restitution) {
-  DemSystem sys(settings(threads, backend, restitution));
+                      const std::string& backend, double restitution, double dt = kDt) {
+  DemSystem sys(settings(threads, backend, restitution, dt));
   if (lib) add_library_shapes(sys, *lib, "rock");
   for (const auto& w : bed.walls) sys.add_wall(w);
   sys.add_particles(bed.particles);
@@ -104,16 +109,18 @@ Result measure(const Bed& bed, const shapes::ShapeLibrary* lib, const std::files
 // Settles (or loads from the cache) and returns the settling time and KE / (N m g d).
 std::pair<double, double> settle(const Bed& bed, const shapes::ShapeLibrary* lib,
                                  const std::filesystem::path& state, bool cached, int threads,
-                                 double settle_min, double settle_max, double settle_ke) {
-  DemSystem sys = make_system(bed, lib, threads, "cpu", 0.1);
+                                 double settle_min, double settle_max, double settle_ke,
+                                 double settle_dt) {
+  DemSystem sys = make_system(bed, lib, threads, "cpu", 0.1, settle_dt);
   const double m1 = kRho * 3.14159265358979 / 6.0 * 0.04 * 0.04 * 0.04;
   auto unit = [&] { return static_cast<double>(sys.particle_count()) * m1 * 9.81 * 0.04; };
   if (cached) {
     demfem::io::H5File f(state, demfem::io::H5File::Mode::read);
     sys.restore(f, "/bed");
   } else {
+    const std::int64_t chunk = std::max<std::int64_t>(1, std::llround(0.01 / settle_dt));
     while (sys.time() < settle_max - 1e-12) {
-      sys.advance(1000);
+      sys.advance(chunk);
       std::fprintf(stderr, "  settling %zu: t = %.3f s, KE/(N m g d) = %.3g\n",
                    sys.particle_count(), sys.time(), sys.kinetic_energy() / unit());
       if (sys.time() >= settle_min - 1e-12 && sys.kinetic_energy() < settle_ke * unit()) break;
@@ -131,12 +138,15 @@ int main(int argc, char** argv) {
   std::vector<std::size_t> counts = {1000, 10000, 100000};
   std::vector<int> triangles = {10, 30, 40};
   std::vector<int> threads = {1, 2};
-  double settle_min = 0.1, settle_max = 1.0, settle_ke = 1e-3, work = 4e6;
+  double settle_min = 0.1, settle_max = 1.0, settle_ke = 1e-3, settle_dt = 4e-5, work = 4e6;
   int settle_threads = 2, repeat = 1;
   bool gpu = true, spheres = true;
   std::string json;
+  std::error_code ec;
+  const auto exe = std::filesystem::canonical("/proc/self/exe", ec);
   std::string cache_dir =
-      (std::filesystem::temp_directory_path() / "demfem_poly_throughput_cache").string();
+      ((ec ? std::filesystem::temp_directory_path() : exe.parent_path()) / "poly_throughput_cache")
+          .string();
   app.add_option("--counts", counts, "rocks per bed (default 1000 10000 100000)");
   app.add_option("--triangles", triangles, "triangles per rock (default 10 30 40)");
   app.add_option("--threads", threads, "CPU thread counts (default 1 2)");
@@ -144,10 +154,14 @@ int main(int argc, char** argv) {
   app.add_option("--settle-max", settle_max, "longest settling time, s");
   app.add_option("--settle-ke", settle_ke, "settled below this KE / (N m g d)");
   app.add_option("--settle-threads", settle_threads, "threads for settling");
+  app.add_option("--settle-dt", settle_dt, "time step while settling, s")
+      ->check(CLI::Range(1e-7, 1e-4));
   app.add_option("--work", work, "particle-steps per measurement (steps: 100 to 20000)");
   app.add_option("--repeat", repeat, "measurements per configuration, in turns (best and median)")
       ->check(CLI::Range(1, 1000));
-  app.add_option("--cache", cache_dir, "folder for settled beds (empty: no cache)");
+  app.add_option("--cache", cache_dir,
+                 "folder for settled beds (default: poly_throughput_cache beside the executable; "
+                 "empty: no cache)");
   app.add_option("--json", json, "write the results as JSON");
   app.add_flag("!--no-gpu", gpu, "skip the GPU even when one is present");
   app.add_flag("!--no-spheres", spheres, "skip the sphere beds");
@@ -158,7 +172,8 @@ int main(int argc, char** argv) {
       {"particles", "shape", "settled s", "KE/(N m g d)", "backend", "threads", "contacts/particle",
        "list pairs/particle", "particle-steps/s", "per cpu-s", "runs", "median", "ratio to spheres",
        "bytes/particle", "detection", "forces", "integration"});
-  rep.set_info("dt", 1e-5);
+  rep.set_info("dt", kDt);
+  rep.set_info("settle dt", settle_dt);
   rep.set_info("model",
                std::string("dilated polyhedra, E 100 MPa, nu 0.3, rho 2600, e 0.2, mu 0.6; "
                            "sizes normal(40, 10) mm in [20, 80] (sieve), r_d 0.1"));
@@ -188,13 +203,13 @@ int main(int argc, char** argv) {
       }
       const Bed bed = make_bed(n, lib.get(), 0);
       char key[160];
-      std::snprintf(key, sizeof key, "poly_bed_%zu_%s_%.3g_%.3g_%.3g_v2.h5", n,
+      std::snprintf(key, sizeof key, "poly_bed_%zu_%s_%.3g_%.3g_%.3g_%.3g_v3.h5", n,
                     rock ? std::to_string(std::stoi(kind)).c_str() : "spheres", settle_min,
-                    settle_max, settle_ke);
+                    settle_max, settle_ke, settle_dt);
       const auto state = cache ? std::filesystem::path(cache_dir) / key : tmp / key;
       const auto [settled, ke] =
           settle(bed, lib.get(), state, cache && std::filesystem::exists(state), settle_threads,
-                 settle_min, settle_max, settle_ke);
+                 settle_min, settle_max, settle_ke, settle_dt);
       const std::int64_t steps = std::clamp<std::int64_t>(
           static_cast<std::int64_t>(work / static_cast<double>(n)), 100, 20000);
       std::vector<std::pair<std::string, int>> runs;

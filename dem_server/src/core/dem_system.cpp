@@ -42,6 +42,7 @@
 #include "demfem/dem/physics/wall_contact.hpp"
 #include "demfem/dem/physics/wall_motion.hpp"
 #include "demfem/io/h5_file.hpp"
+#include "multiversion.hpp"
 #include "polyhedra.hpp"
 #include "rigid_mesh_bodies.hpp"
 #include "shape_table.hpp"
@@ -200,15 +201,6 @@ template <bool Friction, bool Rolling, bool Uniform>
   return mo;
 }
 
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && \
-    !defined(DEMFEM_NO_MULTIVERSION)
-#define DEMFEM_CLONES __attribute__((target_clones("arch=x86-64-v4", "avx2", "default")))
-#elif defined(__x86_64__) && defined(__clang__) && !defined(DEMFEM_NO_MULTIVERSION)
-#define DEMFEM_CLONES __attribute__((target_clones("avx2", "default")))
-#else
-#define DEMFEM_CLONES
-#endif
-
 #define DEMFEM_PAIR_KERNEL(F, R, U)                                                   \
   DEMFEM_CLONES double pair_kernel_##F##R##U(const PairKernelArgs& a, std::int64_t b, \
                                              std::int64_t e) {                        \
@@ -244,9 +236,11 @@ struct DemSystem::Impl {
   // system of spheres alone never runs their code (its bits and speed are those of before).
   detail::ShapeTable shapes;
   bool poly = false;
+  std::size_t poly_count = 0;  // particles that are polyhedra (the threads' work estimate)
   std::vector<double> ptj;    // 3 per pair: torque on j (poly systems; pt is the torque on i)
   std::vector<double> paxis;  // 3 per pair: separating-axis cache of the narrow phase
   std::vector<std::int32_t> pfeat;  // 6 per pair: closest-feature cache (GJK warm start)
+  std::vector<double> prot;         // 9 per particle: the polyhedra's rotations in a force pass
 
   ParticleState st;
   std::vector<double> tx, ty, tz;  // torque of the last step
@@ -438,8 +432,12 @@ struct DemSystem::Impl {
 
   std::size_t n() const { return st.px.size(); }
   // Threads for the particle loops: small systems run on one thread, where the fork/join
-  // of a parallel region costs more than the work (results do not depend on it).
-  int nt() const { return n() >= 2048 ? threads : 1; }
+  // of a parallel region costs more than the work (results do not depend on it). The work
+  // is counted in sphere-steps: a polyhedron step costs about kPolyWork of them (measured by
+  // bench/poly_throughput: 20-26 for rocks of 30 triangles), so beds from about 80 rocks on
+  // run threaded.
+  static constexpr std::size_t kPolyWork = 24;
+  int nt() const { return n() + (kPolyWork - 1) * poly_count >= 2048 ? threads : 1; }
 
   // ---------------------------------------------------------------------------------------
   // Wall topology: unique edge ids over the whole store so that a contact at an edge or a
@@ -873,6 +871,9 @@ struct DemSystem::Impl {
     detail::PolyPairs pa{};
     if constexpr (Poly) {
       pp = poly_particles(a.view);
+      prot.resize(9 * n());
+      detail::poly_rotations(pp, prot.data(), sn, nt());
+      pp.rot = prot.data();
       pa = detail::PolyPairs{pown.data(), nbr.data(), st.material.data(), pc.data(), nmat,
                              s.dt,        Friction,   rolling,            shear.data(), rhist.data(),
                              pf.data(),   pt.data(),  ptj.data(),         paxis.data(),
@@ -1358,9 +1359,10 @@ struct DemSystem::Impl {
     for (double r : st.radius) rmax = std::max(rmax, r);
     skin = s.skin > 0.0 ? s.skin : 0.2 * rmax;
     orientation = s.track_orientation;
-    poly = false;
+    poly_count = 0;
     for (std::uint8_t shape : st.shape)
-      poly = poly || shape != static_cast<std::uint8_t>(ParticleShape::sphere);
+      poly_count += shape != static_cast<std::uint8_t>(ParticleShape::sphere) ? 1 : 0;
+    poly = poly_count > 0;
     orientation = orientation || poly;
     // The CUDA backend checks the list against the whole skin on the device: one level.
     skin_in = gpu != nullptr ? skin : (s.list_skin > 0.0 ? s.list_skin : kInnerSkin) * skin;
@@ -1884,12 +1886,13 @@ std::size_t DemSystem::state_bytes() const {
   add(st.material), add(st.shape), add(st.shape_id);
   add(I.row), add(I.nbr), add(I.pown), add(I.trow), add(I.tpair), add(I.tsrc);
   add(I.gather_row), add(I.gather_pair), add(I.gather_sign), add(I.shear), add(I.rhist);
-  add(I.pf), add(I.pt), add(I.pr), add(I.ptj), add(I.paxis), add(I.pfeat), add(I.orow),
+  add(I.pf), add(I.pt), add(I.pr), add(I.ptj), add(I.paxis), add(I.pfeat), add(I.prot), add(I.orow),
       add(I.onbr);
   add(I.prow), add(I.ptri), add(I.wkey), add(I.wshear), add(I.wroll), add(I.wf), add(I.wp);
   add(I.wb), add(I.wtri), add(I.wcount);
   const auto& a = I.shapes.arrays();
   add(a.vert), add(a.fnormal), add(a.fvert), add(a.edge), add(a.floop), add(a.flen);
+  add(a.vsoa), add(a.fsoa);
   return b;
 }
 

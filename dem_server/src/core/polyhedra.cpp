@@ -2,6 +2,8 @@
 
 #include "polyhedra.hpp"
 
+#include "multiversion.hpp"
+
 #include <omp.h>
 
 #include <cmath>
@@ -45,14 +47,24 @@ double pair_range(const PolyParticles& p, const PolyPairs& a, std::int64_t begin
 
 }  // namespace
 
-double poly_pair_forces(const PolyParticles& p, const PolyPairs& a, std::int64_t begin,
-                        std::int64_t end) {
+void poly_rotations(const PolyParticles& p, double* rot, std::int64_t n, int threads) {
+#pragma omp parallel for num_threads(threads) schedule(static)
+  for (std::int64_t i = 0; i < n; ++i) {
+    if (p.shape_id[i] < 0) continue;
+    const phys::Rot r = phys::rotation(p.qw[i], p.qx[i], p.qy[i], p.qz[i]);
+    for (int k = 0; k < 9; ++k) rot[9 * i + k] = r.m[k];
+  }
+}
+
+// The narrow phase's loops over vertices and faces gain from the wider instruction sets.
+DEMFEM_CLONES double poly_pair_forces(const PolyParticles& p, const PolyPairs& a,
+                                      std::int64_t begin, std::int64_t end) {
   return a.friction ? pair_range<true>(p, a, begin, end) : pair_range<false>(p, a, begin, end);
 }
 
-void poly_wall_contacts(const PolyParticles& p, const phys::WallView& w, std::int64_t i,
-                        const phys::PairConstants* pc_row, double dt, bool friction, Vec3& f,
-                        Vec3& q, double& mo, double& fmo) {
+DEMFEM_CLONES void poly_wall_contacts(const PolyParticles& p, const phys::WallView& w,
+                                      std::int64_t i, const phys::PairConstants* pc_row, double dt,
+                                      bool friction, Vec3& f, Vec3& q, double& mo, double& fmo) {
   const phys::PolyWallParticle pw = phys::poly_wall_particle(p, static_cast<int>(i));
   if (friction)
     phys::poly_wall_contacts<true>(pw, w, i, pc_row, dt, f, q, mo, fmo);

@@ -31,6 +31,10 @@ struct PolyPairs {
   std::int32_t* pfeat;  ///< 6 per pair: closest-feature cache (GJK warm start)
 };
 
+/// The rotation matrices of the polyhedra (9 per particle, rotation(q); spheres untouched),
+/// for PolyView::rot.
+void poly_rotations(const PolyParticles& p, double* rot, std::int64_t n, int threads);
+
 /// Forces of the pairs [begin, end) into their slots; returns the largest overlap.
 double poly_pair_forces(const PolyParticles& p, const PolyPairs& a, std::int64_t begin,
                         std::int64_t end);

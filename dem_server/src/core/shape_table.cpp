@@ -195,6 +195,20 @@ std::int32_t ShapeTable::add(const PolyhedronShape& s) {
   }
   a_.nf.push_back(nfaces);
   a_.ne.push_back(nedges);
+  // the columns of the vertices and face normals, zero-padded
+  auto columns = [](const double* rows, int n, std::vector<double>& soa,
+                    std::vector<std::int32_t>& base) {
+    const int np = phys::soa_padded(n);
+    base.push_back(static_cast<std::int32_t>(soa.size()));
+    soa.resize(soa.size() + 3 * static_cast<std::size_t>(np), 0.0);
+    double* col = soa.data() + base.back();
+    for (int k = 0; k < n; ++k)
+      for (int c = 0; c < 3; ++c) col[c * np + k] = rows[3 * k + c];
+  };
+  columns(a_.vert.data() + 3 * static_cast<std::size_t>(a_.vbase.back()), nv, a_.vsoa,
+          a_.vsoa_base);
+  columns(a_.fnormal.data() + 3 * static_cast<std::size_t>(a_.fbase.back()), nfaces, a_.fsoa,
+          a_.fsoa_base);
   a_.dilation.push_back(s.dilation);
   a_.bound.push_back(size + s.dilation);
   bound_.push_back(size + s.dilation);
@@ -204,9 +218,10 @@ std::int32_t ShapeTable::add(const PolyhedronShape& s) {
 
 phys::ShapeTableView ShapeTable::view() const {
   return phys::ShapeTableView{
-      a_.vbase.data(),   a_.nv.data(),    a_.vert.data(),     a_.fbase.data(), a_.nf.data(),
-      a_.fnormal.data(), a_.floop.data(), a_.flen.data(),     a_.fvert.data(), a_.ebase.data(),
-      a_.ne.data(),      a_.edge.data(),  a_.dilation.data(), a_.bound.data()};
+      a_.vbase.data(),     a_.nv.data(),    a_.vert.data(),     a_.fbase.data(), a_.nf.data(),
+      a_.fnormal.data(),   a_.floop.data(), a_.flen.data(),     a_.fvert.data(), a_.ebase.data(),
+      a_.ne.data(),        a_.edge.data(),  a_.dilation.data(), a_.bound.data(), a_.vsoa.data(),
+      a_.vsoa_base.data(), a_.fsoa.data(),  a_.fsoa_base.data()};
 }
 
 }  // namespace demfem::dem::detail

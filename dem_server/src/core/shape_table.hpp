@@ -26,6 +26,8 @@ class ShapeTable {
   struct Arrays {
     std::vector<std::int32_t> vbase, nv, fbase, nf, floop, flen, fvert, ebase, ne, edge;
     std::vector<double> vert, fnormal, dilation, bound;
+    std::vector<double> vsoa, fsoa;  // columns (ShapeTableView::vsoa, fsoa)
+    std::vector<std::int32_t> vsoa_base, fsoa_base;
   };
   const Arrays& arrays() const { return a_; }
   void clear();

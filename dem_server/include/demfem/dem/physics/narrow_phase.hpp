@@ -561,29 +561,43 @@ DEMFEM_HD int contact_region(const Core& A, const Core& B, Vec3 n, double rsum, 
   const Core& R = a_ref ? A : B;
   const Core& I = a_ref ? B : A;
   const int rf = a_ref ? fa : fb;
+  if (I.nv > kMaxRegionVertices) return -1;
+  const Vec3 nrm = core_face_normal(R, rf);
+  const int nfi = core_face_count(I);
+  const double* fn =
+      I.kind == Core::kTriangle ? nullptr : I.table->fnormal + 3 * I.table->fbase[I.shape];
+  Vec3 nb = nrm;  // the reference normal in I's frame (triangle: world)
+  if (I.kind != Core::kTriangle) {
+    // most face-aligned contacts of rocks are a vertex on a face, with no incident face
+    // within kRegionTilt: no region, found before any vertex is placed
+    nb = to_body(I.r, nrm);
+    bool facing = false;
+    for (int g = 0; g < nfi && !facing; ++g)
+      facing = fn[3 * g] * nb.x + fn[3 * g + 1] * nb.y + fn[3 * g + 2] * nb.z < -kRegionCos;
+    if (!facing) return -1;
+  }
   Vec3 rp[kMaxFaceVertices];
   const int nr = core_face_polygon(R, rf, rp);
-  if (nr < 3 || I.nv > kMaxRegionVertices) return -1;
-  const Vec3 nrm = core_face_normal(R, rf);
+  if (nr < 3) return -1;
   const double plane = dot(nrm, rp[0]);
   // heights of the incident body's vertices above the reference plane, from the body frame
   // (one rotation, not one per vertex); world positions only for the faces in the band
   double hv[kMaxRegionVertices];
-  Vec3 nb = nrm;  // the reference normal in I's frame (triangle: world)
   double h0 = -plane;
   if (I.kind == Core::kTriangle) {
     for (int k = 0; k < 3; ++k) hv[k] = dot(nrm, I.t[k]) - plane;
   } else {
-    nb = to_body(I.r, nrm);
     h0 = dot(nrm, I.x) - plane;
-    for (int k = 0; k < I.nv; ++k) {
-      const double* p = I.v + 3 * k;
-      hv[k] = h0 + I.s * (nb.x * p[0] + nb.y * p[1] + nb.z * p[2]);
+    if (I.table->vsoa != nullptr) {
+      column_dots(I.table->vsoa + I.table->vsoa_base[I.shape], soa_padded(I.nv), nb, hv);
+      for (int k = 0; k < I.nv; ++k) hv[k] = h0 + I.s * hv[k];
+    } else {
+      for (int k = 0; k < I.nv; ++k) {
+        const double* p = I.v + 3 * k;
+        hv[k] = h0 + I.s * (nb.x * p[0] + nb.y * p[1] + nb.z * p[2]);
+      }
     }
   }
-  const int nfi = core_face_count(I);
-  const double* fn =
-      I.kind == Core::kTriangle ? nullptr : I.table->fnormal + 3 * I.table->fbase[I.shape];
   for (int g = 0; g < nfi; ++g) {
     Vec3 ip[kMaxFaceVertices];
     int ni;
@@ -639,7 +653,11 @@ DEMFEM_HD ConvexContact convex_contact(const Core& A, double ra, const Core& B, 
   c.ref_face = -1;
   const double rsum = ra + rb;
   const double limit = rsum + margin;
-  if (norm2(axis) > 0.0) {
+  // The cached axis is tried on pairs that did not touch last time only: for a touching pair
+  // (closest features cached) it is the contact normal and separates nothing, and GJK proves
+  // a separation (status 0, or a distance beyond the limit) as well.
+  const bool touched = feat != nullptr && feat[0] >= 0;
+  if (!touched && norm2(axis) > 0.0) {
     int ia, ib;
     const double gap = dot(support(B, -1.0 * axis, ib), axis) - dot(support(A, axis, ia), axis);
     if (gap > limit) {

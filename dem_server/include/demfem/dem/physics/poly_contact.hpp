@@ -235,12 +235,17 @@ struct PolyView {
   const double* scale;
   const std::int32_t* shape_id;  ///< -1: sphere
   ShapeTableView table;
+  /// 9 per particle: rotation(q) of each polyhedron, formed once per step by the caller so
+  /// that the pairs do not form it again (null: formed per pair from the quaternion).
+  const double* rot = nullptr;
 };
 
 /// The convex core of particle i (a sphere: its centre).
 DEMFEM_HD Core particle_core(const PolyView& v, int i) {
   const Vec3 x{v.p.px[i], v.p.py[i], v.p.pz[i]};
   if (v.shape_id[i] < 0) return point_core(x);
+  if (v.rot != nullptr)
+    return polyhedron_core(v.table, v.shape_id[i], x, v.rot + 9 * i, v.scale[i]);
   return polyhedron_core(v.table, v.shape_id[i], x, v.qw[i], v.qx[i], v.qy[i], v.qz[i], v.scale[i]);
 }
 

@@ -41,7 +41,32 @@ struct ShapeTableView {
   const std::int32_t* edge;   ///< 2 local vertex indices per edge
   const double* dilation;     ///< per shape: r_d at scale 1, m
   const double* bound;        ///< per shape: bounding radius of the dilated body at scale 1, m
+  /// The vertices and face normals again as columns (x of all, then y, then z; each column
+  /// padded to a multiple of kSoaPad), so that the loops over them run in SIMD lanes; null:
+  /// the loops read vert and fnormal (the device table). Offsets per shape in vsoa_base,
+  /// fsoa_base.
+  const double* vsoa = nullptr;
+  const std::int32_t* vsoa_base = nullptr;
+  const double* fsoa = nullptr;
+  const std::int32_t* fsoa_base = nullptr;
 };
+
+/// Padding of the columns of ShapeTableView::vsoa and fsoa (8 doubles: one AVX-512 vector).
+constexpr int kSoaPad = 8;
+/// Largest count of vertices or faces read from the columns (larger shapes: the rows).
+constexpr int kMaxSoa = 128;
+
+/// d·x for the n entries of columns X, Y, Z (n padded to kSoaPad) into h: written as
+/// x d.x + y d.y + z d.z, the rounding of the row loops'.
+DEMFEM_HD void column_dots(const double* X, int n, Vec3 d, double* h) {
+  const double* Y = X + n;
+  const double* Z = Y + n;
+  for (int k = 0; k < n; ++k) h[k] = X[k] * d.x + Y[k] * d.y + Z[k] * d.z;
+}
+
+DEMFEM_HD int soa_padded(int n) {
+  return (n + kSoaPad - 1) / kSoaPad * kSoaPad;
+}
 
 /// A convex core in world coordinates.
 struct Core {
@@ -73,9 +98,10 @@ DEMFEM_HD Core triangle_core(Vec3 a, Vec3 b, Vec3 c) {
   return k;
 }
 
-/// Core of a particle with shape `shape` (table index), position x, orientation q, scale s.
-DEMFEM_HD Core polyhedron_core(const ShapeTableView& tab, int shape, Vec3 x, double qw, double qx,
-                               double qy, double qz, double s) {
+/// Core of a particle with shape `shape` (table index), position x, rotation matrix rot (9
+/// values, row-major: rotation(q) of its orientation q), scale s.
+DEMFEM_HD Core polyhedron_core(const ShapeTableView& tab, int shape, Vec3 x, const double* rot,
+                               double s) {
   Core c{};
   c.kind = Core::kPolyhedron;
   c.table = &tab;
@@ -83,9 +109,16 @@ DEMFEM_HD Core polyhedron_core(const ShapeTableView& tab, int shape, Vec3 x, dou
   c.nv = tab.nv[shape];
   c.v = tab.vert + 3 * tab.vbase[shape];
   c.x = x;
-  c.r = rotation(qw, qx, qy, qz);
+  for (int k = 0; k < 9; ++k) c.r.m[k] = rot[k];
   c.s = s;
   return c;
+}
+
+/// The same from the orientation quaternion q.
+DEMFEM_HD Core polyhedron_core(const ShapeTableView& tab, int shape, Vec3 x, double qw, double qx,
+                               double qy, double qz, double s) {
+  const Rot r = rotation(qw, qx, qy, qz);
+  return polyhedron_core(tab, shape, x, r.m, s);
 }
 
 /// World position of vertex k of a core.
@@ -109,6 +142,16 @@ DEMFEM_HD Vec3 support(const Core& c, Vec3 d, int& idx) {
     return c.t[idx];
   }
   const Vec3 db = to_body(c.r, d);
+  if (c.table->vsoa != nullptr && c.nv <= kMaxSoa) {
+    double h[kMaxSoa];
+    column_dots(c.table->vsoa + c.table->vsoa_base[c.shape], soa_padded(c.nv), db, h);
+    int best = 0;
+    double bv = h[0];
+    for (int k = 1; k < c.nv; ++k)
+      if (h[k] > bv) bv = h[k], best = k;
+    idx = best;
+    return core_vertex(c, best);
+  }
   const double* p = c.v;
   int best = 0;
   double bv = p[0] * db.x + p[1] * db.y + p[2] * db.z;
@@ -171,6 +214,13 @@ DEMFEM_HD int core_best_face(const Core& c, Vec3 d, double& align) {
   }
   if (nf == 0) return -1;
   const Vec3 db = to_body(c.r, d);  // compare in the body frame: one rotation, not nf
+  if (c.table->fsoa != nullptr && nf <= kMaxSoa) {
+    double a[kMaxSoa];
+    column_dots(c.table->fsoa + c.table->fsoa_base[c.shape], soa_padded(nf), db, a);
+    for (int f = 0; f < nf; ++f)
+      if (a[f] > align) align = a[f], best = f;
+    return best;
+  }
   const double* fn = c.table->fnormal + 3 * c.table->fbase[c.shape];
   for (int f = 0; f < nf; ++f) {
     const double a = fn[3 * f] * db.x + fn[3 * f + 1] * db.y + fn[3 * f + 2] * db.z;
