@@ -16,19 +16,16 @@
 //    penetration depth, its axis the normal; Δ is then minus that depth, so the force keeps its
 //    sign and stays finite however deep the overlap.
 //  * Contact point: the midpoint between the two dilated surfaces, (p_A + r_A n + p_B − r_B n)/2,
-//    for edge–edge and vertex–edge contacts. When the normal is the normal of a face of A or B
-//    (face–face, edge–face and vertex–face contacts) the contact has a touching region: the
-//    face best aligned with the normal (reference) clips the opposite body's faces that face
-//    it within 15° (incident), the result is clipped to o ≥ 0, o(x) = r_A + r_B − g(x) the
-//    local overlap (g the local separation of the faces along the normal). Its integrals give
-//    the force as the gradient of a contact energy (face_law): U = U_H(δ_e), U_H the Hertz
-//    energy of eq. 2.20 and δ_e an effective overlap that equals δ for a face pressed flat
-//    (so the force is eq. 2.20's) and tends to δ for a vertex whose faces are steep (the
-//    point law). The force acts at a pressure centre that a tilt θ shifts by θ a² / (6 δ) on
-//    a face of width a: a restoring couple like an elastic foundation's, so that a cube
-//    resting on a face does not rock (a single point at a face's vertex would make it rock,
-//    measured, docs/polyhedra.md), and, being a gradient, one that neither makes nor
-//    destroys energy. Faces enter the region smoothly between 15° and 10° (band_factor).
+//    placed, when the normal is the normal of a face of A or B (face–face, edge–face and
+//    vertex–face contacts), at the centroid of the touching region weighted by the local
+//    overlap o(x) = r_A + r_B − g(x) (g the local separation of the two faces along the
+//    normal): the face best aligned with the normal (reference) clips the opposite body's face
+//    most opposed to it (incident) by its side planes, the result is clipped to o ≥ 0, and
+//    ∫ o dA, ∫ x o dA over it give the centroid. For a flat face on a flat face this is the
+//    middle of the touching region, and a tilt θ shifts it continuously (by θ a² / (12 δ) on a
+//    face of width a at overlap δ), like the pressure centre of an elastic foundation: a single
+//    contact point at a face's vertex would make a cube resting on a face rock (measured,
+//    docs/dem.md). Edge–edge and vertex–edge contacts keep the midpoint of the closest points.
 
 #include "demfem/dem/physics/shape_table.hpp"
 
@@ -47,64 +44,7 @@ struct ConvexContact {
   Vec3 axis;         ///< a separating direction A → B (for the next step's quick test)
   int ref_side;      ///< 0: the region's reference face is A's, 1: B's, -1: no region
   int ref_face;      ///< the reference face index
-  // The face contact's energy (FaceSums, face_law; only where ref_side ≥ 0):
-  double nsq;    ///< ∫ o² dA, m⁴
-  double area;   ///< ∫ dA, m²
-  Vec3 amoment;  ///< ∫ x dA (world), m³
-  Vec3 cpl_n, cpl_d;  ///< Σ s'_g ∫ o² dA (n_g × n_r), Σ s'_g ∫ o dA (n_g × n_r), as torques on A
-  Vec3 pm;            ///< the deepest point (overlap δ), on the plane of `point`
-  int pm_count;        ///< region points as deep that pm is the mean of (1: a single point)
-  double pm_area;      ///< area of the region flat at the deepest overlap (pm its centroid), m²
-  double delta_force;  ///< the overlap whose Hertz force the law applies (face_law)
-  Vec3 couple;         ///< the band's couple on A per newton of that force, m
 };
-
-/// Integrals of a face contact's touching region (each incident face g weighted by its band
-/// factor s_g, see contact_region): ∫ o dA, ∫ o² dA, ∫ dA, ∫ x o dA, ∫ x dA, and the
-/// sums Σ s'_g ∫ o^k dA (n_g × n_r) that give the band's couple (torques on A).
-struct FaceSums {
-  double d, n, a;
-  Vec3 m, ma, cn, cd;
-};
-
-/// The force of a face contact as the exact gradient of a contact energy (docs/polyhedra.md,
-/// "Contact point"): U = U_H(δ_e), U_H the Hertz energy of eq. 2.20, with the effective
-/// overlap
-///   δ_e = (κ δ⁴ + ∫ o² dA) / (κ δ³ + ∫ o dA)
-/// of the region's overlap o(x) and the deepest overlap δ (at p_m). A flat face pressed
-/// uniformly (o = δ) has δ_e = δ: eq. 2.20's force, as before; a vertex whose faces are steep
-/// has a small region and δ_e → δ: the point law; κ = 100 puts the change over between the
-/// two where the region's ∫ o dA reaches 100 δ³ (a face within about 3° of the reference).
-/// Differentiating U by the relative pose gives a normal force F_H(δ_e) W at the point c:
-///   W = [κ δ² (4δ − 3δ_e) + 2 ∫ o dA − δ_e ∫ dA] / S,
-///   c = [κ δ² (4δ − 3δ_e) p_m + 2 ∫ x o dA − δ_e ∫ x dA] / (S W),  S = κ δ³ + ∫ o dA,
-/// and the couple of the band factors, F_H(δ_e) (Σ s' ∫ o² (n_g × n_r) − δ_e Σ s' ∫ o (n_g ×
-/// n_r)) / S. A tilt θ of a face of width a moves c by θ a² / (6 δ) (an elastic foundation's
-/// pressure centre with the Hertz exponent). Left out of the gradient: the motion of the
-/// region's boundary where it is clipped by the reference face's edges (zero for a uniform o)
-/// and the switch to a point contact when the normal leaves the face normal.
-struct FaceLaw {
-  double delta_force;  ///< δ* with F_H(δ*) = F_H(δ_e) W
-  Vec3 point;          ///< c (before it is moved onto the contact plane)
-  Vec3 couple;         ///< the band's couple on A per newton of F_H(δ*), m
-};
-
-constexpr double kFaceKappa = 100.0;
-
-DEMFEM_HD FaceLaw face_law(const FaceSums& f, double dm, Vec3 pm) {
-  FaceLaw out{dm, pm, Vec3{0, 0, 0}};
-  const double k2 = kFaceKappa * dm * dm;
-  const double S = k2 * dm + f.d;
-  if (!(f.d > 0.0) || !(S > 0.0)) return out;
-  const double de = (k2 * dm * dm + f.n) / S;
-  const double wm = k2 * (4.0 * dm - 3.0 * de);
-  double W = (wm + 2.0 * f.d - de * f.a) / S;
-  if (!(W > 1e-12)) W = 1e-12;
-  out.point = (1.0 / (S * W)) * (wm * pm + 2.0 * f.m - de * f.ma);
-  out.delta_force = de * std::cbrt(W * W);
-  out.couple = (1.0 / (S * W)) * (f.cn - de * f.cd);
-  return out;
-}
 
 namespace detail {
 
@@ -500,16 +440,11 @@ DEMFEM_HD int clip_polygon(const Vec3* p, int n, Vec3 k, double c, Vec3* out) {
 /// linear there: exact fan-triangle formulas). Returns the largest o on the region (−1e300
 /// when it is empty).
 DEMFEM_HD double touching_region(const Vec3* r, int nr_, Vec3 nr, const Vec3* inc, int ni,
-                                 double rsum, Vec3 p0, double& weight, Vec3& moment, double* second,
-                                 double& nsq, double& area_sum, Vec3& amoment, double otop,
-                                 Vec3& deep_sum, int& deep_count, double& deep_area,
-                                 Vec3& deep_amoment) {
+                                 double rsum, Vec3 p0, double& weight, Vec3& moment,
+                                 double* second) {
   Vec3 buf0[2 * kMaxFaceVertices + 2], buf1[2 * kMaxFaceVertices + 2];
   weight = 0.0;
   moment = Vec3{0, 0, 0};
-  nsq = 0.0;
-  area_sum = 0.0;
-  amoment = Vec3{0, 0, 0};
   for (int k = 0; k < 6; ++k) second[k] = 0.0;
   int n = ni;
   for (int k = 0; k < ni; ++k) buf0[k] = inc[k];
@@ -536,7 +471,6 @@ DEMFEM_HD double touching_region(const Vec3* r, int nr_, Vec3 nr, const Vec3* in
     o[k] = rsum - g;
     q[k] = nxt[k] - g * nr;  // projected onto the reference plane
     omax = o[k] > omax ? o[k] : omax;
-    if (o[k] >= otop) deep_sum = deep_sum + q[k], ++deep_count;  // at the deepest overlap
   }
   for (int k = 1; k + 1 < n; ++k) {
     const double area = 0.5 * dot(cross(q[k] - q[0], q[k + 1] - q[0]), nr);
@@ -545,12 +479,6 @@ DEMFEM_HD double touching_region(const Vec3* r, int nr_, Vec3 nr, const Vec3* in
     const Vec3 xs = q[0] + q[k] + q[k + 1];
     const Vec3 xo = o[0] * q[0] + o[k] * q[k] + o[k + 1] * q[k + 1];
     moment = moment + (area / 12.0) * (os * xs + xo);
-    nsq += (area / 6.0) * (o[0] * o[0] + o[k] * o[k] + o[k + 1] * o[k + 1] + o[0] * o[k] +
-                           o[k] * o[k + 1] + o[0] * o[k + 1]);
-    area_sum += area;
-    amoment = amoment + (area / 3.0) * xs;
-    if (o[0] >= otop && o[k] >= otop && o[k + 1] >= otop)  // flat at the deepest overlap
-      deep_area += area, deep_amoment = deep_amoment + (area / 3.0) * xs;
     // ∫ o u uᵀ over a triangle with linear o (values f_i at corners u_i), from
     // ∫ λ_i λ_j λ_k dA = A (1 + δ_ij + δ_jk + δ_ik + 2 δ_ijk) / 60:
     // A/60 (F X Xᵀ + Y Xᵀ + X Yᵀ + F Σ u_i u_iᵀ + 2 Σ f_i u_i u_iᵀ), F = Σ f_i, X = Σ u_i,
@@ -581,9 +509,7 @@ DEMFEM_HD double touching_region(const Vec3* r, int nr_, Vec3 nr, const Vec3* in
   if (weight < 0.0) {
     weight = -weight, moment = -1.0 * moment;
     for (int m = 0; m < 6; ++m) second[m] = -second[m];
-    nsq = -nsq, area_sum = -area_sum, amoment = -1.0 * amoment;
   }
-  if (deep_area < 0.0) deep_area = -deep_area, deep_amoment = -1.0 * deep_amoment;
   return omax;
 }
 
@@ -597,19 +523,6 @@ constexpr double kFaceAlign = 1.0 - 5e-7;
 /// were most of the narrow phase's time). Nearly parallel faces, whose band can span the
 /// face, are always in.
 constexpr double kRegionCos = 0.96592582628906828675;  // cos 15°
-/// Incident faces tilted by less than 10° count wholly; between 10° and 15° their part of the
-/// region fades in smoothly (the band factor s_g, a smoothstep in cos θ_g), so that the
-/// contact energy (face_law) is continuous when a face enters the band.
-constexpr double kRegionFullCos = 0.98480775301220805936;  // cos 10°
-
-/// The band factor s(cos θ) and its derivative ds / d cos θ.
-DEMFEM_HD double band_factor(double c, double& ds) {
-  const double h = 1.0 / (kRegionFullCos - kRegionCos);
-  double t = (c - kRegionCos) * h;
-  t = t < 0.0 ? 0.0 : (t > 1.0 ? 1.0 : t);
-  ds = 6.0 * t * (1.0 - t) * h;
-  return t * t * (3.0 - 2.0 * t);
-}
 
 /// Largest vertex count of a core whose touching region is computed (larger hulls, e.g. of a
 /// finely scanned rock: point contacts).
@@ -630,11 +543,10 @@ constexpr int kMaxRegionVertices = 128;
 DEMFEM_HD int contact_region(const Core& A, const Core& B, Vec3 n, double rsum, Vec3 p0, bool ref_b,
                              double& weight, Vec3& moment, double* second, int& ref_face,
                              bool& canon, double& dist_c, Vec3& n_c, double& mid_c, double ra,
-                             double rb, FaceSums& fs, Vec3& low, int& low_count, double& low_area) {
+                             double rb) {
   canon = false;
   weight = 0.0;
   moment = Vec3{0, 0, 0};
-  fs = FaceSums{0.0, 0.0, 0.0, Vec3{0, 0, 0}, Vec3{0, 0, 0}, Vec3{0, 0, 0}, Vec3{0, 0, 0}};
   for (int k = 0; k < 6; ++k) second[k] = 0.0;
   ref_face = -1;
   if (A.kind == Core::kPoint || B.kind == Core::kPoint) return -1;
@@ -669,14 +581,6 @@ DEMFEM_HD int contact_region(const Core& A, const Core& B, Vec3 n, double rsum, 
       hv[k] = h0 + I.s * (nb.x * p[0] + nb.y * p[1] + nb.z * p[2]);
     }
   }
-  // region points within a rounding tolerance of the deepest overlap (see `low` below)
-  double hlow = 1e300;
-  for (int k = 0; k < (I.kind == Core::kTriangle ? 3 : I.nv); ++k)
-    hlow = hv[k] < hlow ? hv[k] : hlow;
-  const double otop = rsum - hlow - 1e-9 * rsum;
-  Vec3 deep_sum{0, 0, 0}, deep_amoment{0, 0, 0};
-  int deep_count = 0;
-  double deep_area = 0.0;
   const int nfi = core_face_count(I);
   const double* fn =
       I.kind == Core::kTriangle ? nullptr : I.table->fnormal + 3 * I.table->fbase[I.shape];
@@ -700,48 +604,21 @@ DEMFEM_HD int contact_region(const Core& A, const Core& B, Vec3 n, double rsum, 
       if (hmin >= rsum) continue;  // the whole face is above the band
       for (int k = 0; k < ni; ++k) ip[k] = core_vertex(I, lp[k]);
     }
-    double w, nq, ar;
-    Vec3 m, ma;
+    double w;
+    Vec3 m;
     double s2[6];
-    Vec3 dsum{0, 0, 0}, dam{0, 0, 0};
-    int dcount = 0;
-    double da = 0.0;
-    touching_region(rp, nr, nrm, ip, ni, rsum, p0, w, m, s2, nq, ar, ma, otop, dsum, dcount, da,
-                    dam);
+    touching_region(rp, nr, nrm, ip, ni, rsum, p0, w, m, s2);
     if (!(w > 0.0)) continue;
-    // the band factor of this face (see kRegionFullCos) and its couple's axis
-    const Vec3 ng = core_face_normal(I, g);
-    double ds;
-    const double sg = band_factor(-dot(ng, nrm), ds);
-    if (!(sg > 0.0)) continue;
-    const Vec3 axis_a = (a_ref ? -1.0 : 1.0) * cross(ng, nrm);  // on A: I is B when A is R
-    weight += sg * w;
-    moment = moment + sg * m;
-    for (int k = 0; k < 6; ++k) second[k] += sg * s2[k];
-    fs.d += sg * w, fs.n += sg * nq, fs.a += sg * ar;
-    fs.m = fs.m + sg * m, fs.ma = fs.ma + sg * ma;
-    fs.cn = fs.cn + (ds * nq) * axis_a, fs.cd = fs.cd + (ds * w) * axis_a;
-    deep_sum = deep_sum + dsum, deep_count += dcount;
-    deep_area += da, deep_amoment = deep_amoment + dam;
+    weight += w;
+    moment = moment + m;
+    for (int k = 0; k < 6; ++k) second[k] += s2[k];
   }
   if (!(weight > 0.0)) return -1;
   ref_face = rf;
   if (aligned) {
     double hmin = 1e300;
-    int kmin = 0;
     const int nvi = I.kind == Core::kTriangle ? 3 : I.nv;
-    for (int k = 0; k < nvi; ++k)
-      if (hv[k] < hmin) hmin = hv[k], kmin = k;
-    // the deepest point: the lowest vertex, or where several points of the region are as deep
-    // (to rounding), their mean: the centroid of the part of the region that is flat at the
-    // deepest overlap (a face resting flat: the middle of the region), else of its deepest
-    // vertices (an edge). Any such mean is a subgradient of the overlap; this one keeps a flat
-    // face's point in the middle rather than at a corner picked by rounding.
-    low = deep_area > 0.0  ? (1.0 / deep_area) * deep_amoment
-          : deep_count > 0 ? (1.0 / deep_count) * deep_sum
-                           : (I.kind == Core::kTriangle ? I.t[kmin] : core_vertex(I, kmin));
-    low_count = deep_count > 0 ? deep_count : 1;
-    low_area = deep_area;
+    for (int k = 0; k < nvi; ++k) hmin = hv[k] < hmin ? hv[k] : hmin;
     canon = true;
     dist_c = hmin;
     n_c = a_ref ? nrm : -1.0 * nrm;
@@ -803,40 +680,24 @@ DEMFEM_HD ConvexContact convex_contact(const Core& A, double ra, const Core& B, 
   c.axis = c.n;
   const Vec3 mid = 0.5 * (c.pa + ra * c.n + c.pb - rb * c.n);
   c.point = mid;
-  c.pm = mid;
-  c.pm_count = 1;
-  c.pm_area = 0.0;
-  c.delta_force = rsum - c.dist;
   if (rsum - c.dist > 0.0) {
     bool canon;
-    double dist_c = 0.0, mid_c = 0.0;
-    Vec3 n_c, low{0, 0, 0};
-    int low_count = 1;
-    double low_area = 0.0;
-    FaceSums fs;
-    c.ref_side =
-        contact_region(A, B, c.n, rsum, A.x, ref_b, c.weight, c.moment, c.second, c.ref_face, canon,
-                       dist_c, n_c, mid_c, ra, rb, fs, low, low_count, low_area);
+    double dist_c, mid_c;
+    Vec3 n_c;
+    c.ref_side = contact_region(A, B, c.n, rsum, A.x, ref_b, c.weight, c.moment, c.second,
+                                c.ref_face, canon, dist_c, n_c, mid_c, ra, rb);
     if (c.ref_side >= 0) {
+      const Vec3 cen = (1.0 / c.weight) * c.moment;
       // the faces' distance replaces GJK's only where they agree (the normal is the face's
-      // up to rounding, not just within kFaceAlign: a nearly parallel edge is not a face);
-      // the deepest point is then the incident body's lowest vertex (GJK's closest points of
-      // a face resting on a face depend on its path)
-      double mid_n = dot(c.n, mid);
+      // up to rounding, not just within kFaceAlign: a nearly parallel edge is not a face)
       if (canon && g.status == 1 && std::abs(dist_c - c.dist) <= 1e-9 * (rsum + std::abs(c.dist))) {
         c.dist = dist_c;
         c.n = n_c;
         c.axis = n_c;
-        mid_n = mid_c;
-        c.pm = low + (mid_c - dot(n_c, low)) * n_c;
-        c.pm_count = low_count;
-        c.pm_area = low_area;
+        c.point = cen + (mid_c - dot(n_c, cen)) * n_c;
+      } else {
+        c.point = cen + dot(c.n, mid - cen) * c.n;
       }
-      c.nsq = fs.n, c.area = fs.a, c.amoment = fs.ma, c.cpl_n = fs.cn, c.cpl_d = fs.cd;
-      const FaceLaw f = face_law(fs, rsum - c.dist, c.pm);
-      c.point = f.point + (mid_n - dot(c.n, f.point)) * c.n;
-      c.delta_force = f.delta_force;
-      c.couple = f.couple;
     }
   }
   return c;

@@ -92,13 +92,6 @@ struct DilatedResult {
 struct Region {
   double weight;
   double second[6];
-  /// Face contacts (narrow_phase.hpp, face_law): the overlap whose Hertz force acts (< 0: the
-  /// overlap itself) and the band's couple on i per newton of the elastic force, m.
-  double delta_force = -1.0;
-  Vec3 couple{0, 0, 0};
-  /// The overlap-weighted centre of the region, ∫ x o dA / W: the pivot of the distributed
-  /// dashpot below (the second moment is shifted to it by the parallel-axis rule).
-  Vec3 centre{0, 0, 0};
 };
 
 /// In-plane mean moment of inertia of a body about its centre for axes perpendicular to n:
@@ -116,22 +109,25 @@ DEMFEM_HD double in_plane_inertia(const BodyState& b, Vec3 n) {
 /// vwall at c, spin wwall). `shear` is the tangential spring (history, contact frame),
 /// updated when Friction.
 ///
-/// Face contacts (reg.weight > 0). The normal force is the gradient of the face contact's
-/// energy (narrow_phase.hpp, face_law): Hertz's force of the overlap reg.delta_force at the
-/// pressure centre c, plus the band's couple reg.couple; a tilt θ shifts c by θ a² / (6 δ),
-/// the couple that keeps a cube resting on a face from rocking, without making or destroying
-/// energy. A body sliding on a face still flutters (its normal force swinging between 0.6 and
-/// 1.8 of its share of the weight, measured) because the thesis's single-point dashpot does
-/// not damp the contact's rocking mode. The dashpot is therefore spread over the region, with
-/// a couple against the relative rocking rate ω_⊥ that damps that mode critically:
-/// −(C / j) n × (J (ω_rel × n)), J = ∫ o u uᵀ dA about the region's overlap-weighted centre,
-/// j = its mean in-plane moment, C = 2 √(K_r I_r), with the rocking stiffness K_r = S_n j / W
-/// of an elastic foundation carrying S_n over the region and I_r the bodies' in-plane moment
-/// of inertia about their centres (combined harmonically for two bodies). With e = 1 there is
-/// no dashpot and no such couple. The tangential dashpot is spread alike: a couple
-/// −(γ_t / W) J_p (ω_rel·n) n against the twist about n (J_p = ∫ o |u|² dA), at most the
-/// Coulomb couple μ |F_n| √(J_p / W), since a single point has no resistance to twisting. For
-/// a point contact (W = 0) the law is the single-point law.
+/// Rocking. At a face contact the force acts at the overlap-weighted centre of the touching
+/// region (narrow_phase.hpp), which a tilt θ shifts by about θ a² / (12 δ): a restoring couple
+/// like the pressure centre of an elastic foundation, so that a cube resting on a face does
+/// not rock (with the closest point instead, the force jumps from edge to edge and a cube on
+/// an incline chatters and creeps: measured, docs/dem.md). The law's magnitude is Hertz's of
+/// the deepest overlap, so this couple is not the gradient of the contact's energy: the
+/// normal and the rocking motion are coupled unsymmetrically, and a cube sliding on a face
+/// fluttered (the normal force swinging between 0.1 and 1.5 of its weight, a = 0.60 instead
+/// of 0.66 m/s², measured) unless the rocking is damped. The dashpot of the law is therefore
+/// spread over the region, with a couple against the relative rocking rate ω_⊥ that damps the
+/// contact's rocking mode critically: −(C / j) n × (J (ω_rel × n)), J = ∫ o u uᵀ dA about c,
+/// j = its mean in-plane moment, C = 2 √(K_r I_r), with the rocking stiffness K_r = S_n j / W of
+/// an elastic foundation carrying S_n over the region and I_r the bodies' in-plane moment of
+/// inertia about their centres (combined harmonically for two bodies). (Spread with the
+/// weight of the elastic part alone, the dashpot damps the rocking by a ratio of only 0.03
+/// to 0.07: not enough.) With e = 1 there is no dashpot and no such couple. The tangential
+/// dashpot is spread alike: a couple −(γ_t / W) J_p (ω_rel·n) n against the twist about n
+/// (J_p = ∫ o |u|² dA), at most the Coulomb couple μ |F_n| √(J_p / W), since a single point has
+/// no resistance to twisting. For a point contact (W = 0) the law is the single-point law.
 template <bool Friction>
 DEMFEM_HD DilatedResult dilated_law(const PairConstants& pc, Vec3 n, double delta, Vec3 c,
                                     double reff, const BodyState& bi, const BodyState* bj,
@@ -150,22 +146,18 @@ DEMFEM_HD DilatedResult dilated_law(const PairConstants& pc, Vec3 n, double delt
     vrel = vrel - vwall;
   }
   Vec3 roll{0, 0, 0};
-  const double dh = reg.delta_force > 0.0 ? reg.delta_force : delta;
-  const ContactResult r = hertz_mindlin<Friction, false>(pc, n, dh, reff, 1.0 / inv_m, vrel,
+  const ContactResult r = hertz_mindlin<Friction, false>(pc, n, delta, reff, 1.0 / inv_m, vrel,
                                                          Vec3{0, 0, 0}, shear, roll, dt);
   out.force = r.force;
   out.fn = r.fn;
   out.delta = delta;
-  // the band's couple scales with the elastic force F_H(δ*) = 2/3 S_n δ*
-  const Vec3 cb = ((2.0 / 3.0) * r.sn * dh) * reg.couple;
-  out.torque_i = cross(ai, r.force) + cb;
-  out.torque_j = cross(aj, -1.0 * r.force) - cb;
+  out.torque_i = cross(ai, r.force);
+  out.torque_j = cross(aj, -1.0 * r.force);
   if (reg.weight > 0.0 && r.gamma_n != 0.0) {
-    // second moment about the region's centre (parallel axes; its components along n do not
-    // act below)
+    // second moment about c (parallel axes; its components along n do not act below)
     const double* s0 = reg.second;
     const double W = reg.weight;
-    const Vec3 d = reg.centre - bi.x;
+    const Vec3 d = ai;
     const double sxx = s0[0] - W * d.x * d.x, syy = s0[1] - W * d.y * d.y,
                  szz = s0[2] - W * d.z * d.z, sxy = s0[3] - W * d.x * d.y,
                  sxz = s0[4] - W * d.x * d.z, syz = s0[5] - W * d.y * d.z;
@@ -222,10 +214,6 @@ DEMFEM_HD bool dilated_pair(const Core& ci, double ri, const BodyState& bi, cons
   const double reff = ri * rj / (ri + rj);
   Region reg{k.ref_side >= 0 ? k.weight : 0.0, {}};
   for (int m = 0; m < 6; ++m) reg.second[m] = k.second[m];
-  if (k.ref_side >= 0) {
-    reg.delta_force = k.delta_force, reg.couple = k.couple;
-    reg.centre = (1.0 / k.weight) * k.moment;
-  }
   out = dilated_law<Friction>(pc, k.n, delta, k.point, reff, bi, &bj, Vec3{0, 0, 0}, Vec3{0, 0, 0},
                               reg, shear, dt);
   return true;
@@ -339,11 +327,7 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
   int cfeat[kMaxPolyWallCandidates];  // 0 face, 1..3 edge ab/bc/ca, 4..6 vertex a/b/c
   double cdelta[kMaxPolyWallCandidates], cw[kMaxPolyWallCandidates];
   double cs[kMaxPolyWallCandidates][6];
-  Vec3 cn[kMaxPolyWallCandidates], cpt[kMaxPolyWallCandidates];
-  FaceSums cf[kMaxPolyWallCandidates];  // the face energy's integrals (face_law)
-  Vec3 cpm[kMaxPolyWallCandidates];     // the deepest point
-  int cpn[kMaxPolyWallCandidates];      // region points it is the mean of
-  double cpa[kMaxPolyWallCandidates];   // or the flat deepest area it is the centroid of
+  Vec3 cn[kMaxPolyWallCandidates], cpt[kMaxPolyWallCandidates], cm[kMaxPolyWallCandidates];
   int nc = 0;
   const double* v = w.vpos;
   for (std::int64_t k = w.prow[i]; k < w.prow[i + 1] && nc < kMaxPolyWallCandidates; ++k) {
@@ -387,14 +371,8 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
     cn[nc] = k2.n;
     cpt[nc] = k2.point;
     cw[nc] = k2.ref_side >= 0 ? k2.weight : 0.0;
+    cm[nc] = k2.moment;
     for (int m = 0; m < 6; ++m) cs[nc][m] = k2.second[m];
-    cf[nc] =
-        k2.ref_side >= 0
-            ? FaceSums{k2.weight, k2.nsq, k2.area, k2.moment, k2.amoment, k2.cpl_n, k2.cpl_d}
-            : FaceSums{0.0, 0.0, 0.0, Vec3{0, 0, 0}, Vec3{0, 0, 0}, Vec3{0, 0, 0}, Vec3{0, 0, 0}};
-    cpm[nc] = k2.pm;
-    cpn[nc] = k2.pm_count;
-    cpa[nc] = k2.pm_area;
     ++nc;
   }
   // groups: triangles sharing a vertex (transitively) whose contact normals differ by less
@@ -468,40 +446,22 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
     if (!keep[a] || group[a] != a) continue;  // each group once, at its first member
     int deep = a;
     Region reg{0.0, {0, 0, 0, 0, 0, 0}};
-    Vec3 nsum{0, 0, 0};
-    FaceSums fs{0.0, 0.0, 0.0, Vec3{0, 0, 0}, Vec3{0, 0, 0}, Vec3{0, 0, 0}, Vec3{0, 0, 0}};
+    Vec3 nsum{0, 0, 0}, msum{0, 0, 0};
     for (int b = a; b < nc; ++b) {
       if (group[b] != a) continue;
       if (cdelta[b] > cdelta[deep]) deep = b;
       reg.weight += cw[b];
       nsum = nsum + cw[b] * cn[b];
-      if (cw[b] > 0.0) {
+      msum = msum + cm[b];
+      if (cw[b] > 0.0)
         for (int m = 0; m < 6; ++m) reg.second[m] += cs[b][m];
-        fs.d += cf[b].d, fs.n += cf[b].n, fs.a += cf[b].a;
-        fs.m = fs.m + cf[b].m, fs.ma = fs.ma + cf[b].ma;
-        fs.cn = fs.cn + cf[b].cn, fs.cd = fs.cd + cf[b].cd;
-      }
     }
     Vec3 n = cn[deep];
     Vec3 c = cpt[deep];
     if (reg.weight > 0.0) {
-      // one face contact of the group's regions: the energy of face_law over their union
       n = (1.0 / std::sqrt(norm2(nsum))) * nsum;
-      // the deepest point: the mean over the members as deep (a face resting on two
-      // triangles: the corners of both parts)
-      Vec3 psum{0, 0, 0}, asum{0, 0, 0};
-      double pc = 0.0, pa = 0.0;
-      for (int b = a; b < nc; ++b)
-        if (group[b] == a && cdelta[b] >= cdelta[deep] - 1e-9 * p.r) {
-          psum = psum + double(cpn[b]) * cpm[b], pc += cpn[b];
-          asum = asum + cpa[b] * cpm[b], pa += cpa[b];
-        }
-      const FaceLaw fl =
-          face_law(fs, cdelta[deep], pa > 0.0 ? (1.0 / pa) * asum : (1.0 / pc) * psum);
-      c = fl.point + dot(n, cpt[deep] - fl.point) * n;
-      reg.delta_force = fl.delta_force;
-      reg.couple = fl.couple;
-      reg.centre = (1.0 / fs.d) * fs.m;
+      const Vec3 cen = (1.0 / reg.weight) * msum;
+      c = cen + dot(n, cpt[deep] - cen) * n;
     }
     const double delta = cdelta[deep];
     // the carrier: the member triangle nearest the contact point
