@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "demfem/dem/packing.hpp"
+#include "demfem/dem/physics/rigid_body.hpp"
 #include "demfem/dem/stl_reader.hpp"
 #include "demfem/io/csv_writer.hpp"
 
@@ -44,12 +45,34 @@ double MassFlowCounter::update(const ParticleState& p, std::span<const std::int6
   return mass;
 }
 
-ReposeResult angle_of_repose(const ParticleState& p, const ReposeOptions& o) {
+std::vector<double> particle_tops(const DemSystem& system) {
+  const ParticleState& p = system.particles();
+  std::vector<double> tops(p.size());
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    tops[i] = p.pz[i] + p.radius[i];  // a polyhedron's radius is its bounding sphere's
+    if (p.shape_id.size() != p.size() || p.shape_id[i] < 0) continue;
+    const PolyhedronShape& sh = system.shape(p.shape_id[i]);
+    const phys::Rot r = phys::rotation(p.qw[i], p.qx[i], p.qy[i], p.qz[i]);
+    double hz = -std::numeric_limits<double>::infinity();
+    for (std::size_t k = 0; k + 2 < sh.vertices.size(); k += 3)
+      hz = std::max(
+          hz,
+          phys::to_world(r, phys::Vec3{sh.vertices[k], sh.vertices[k + 1], sh.vertices[k + 2]}).z);
+    tops[i] = p.pz[i] + p.scale[i] * (hz + sh.dilation);
+  }
+  return tops;
+}
+
+ReposeResult angle_of_repose(const ParticleState& p, const ReposeOptions& o,
+                             std::span<const double> tops) {
+  if (!tops.empty() && tops.size() != p.size())
+    throw std::logic_error("angle of repose: one top per particle expected");
+  auto top_of = [&](std::size_t i) { return tops.empty() ? p.pz[i] + p.radius[i] : tops[i]; };
   std::size_t counted = 0;
   double mean_d = 0.0;
   for (std::size_t i = 0; i < p.size(); ++i) {
     if (p.pz[i] > o.top) continue;
-    mean_d += 2.0 * p.radius[i];
+    mean_d += 2.0 * (top_of(i) - p.pz[i]);
     ++counted;
   }
   if (counted == 0) throw std::runtime_error("angle of repose: there are no particles below 'top'");
@@ -68,7 +91,7 @@ ReposeResult angle_of_repose(const ParticleState& p, const ReposeOptions& o) {
   for (std::size_t i = 0; i < p.size(); ++i) {
     if (p.pz[i] > o.top) continue;
     const auto b = std::size_t(dist[i] / w);
-    top[b] = std::max(top[b], p.pz[i] + p.radius[i]);
+    top[b] = std::max(top[b], top_of(i));
   }
   ReposeResult res;
   // Heap radius: walk outwards until the surface is less than 1.5 diameters above the floor.
@@ -276,7 +299,7 @@ void SensorSet::sample(const DemSystem& system, std::span<const std::int64_t> id
         break;
       case SensorSpec::Kind::repose: {
         try {
-          const auto r = angle_of_repose(system.particles(), e.spec.repose);
+          const auto r = angle_of_repose(system.particles(), e.spec.repose, particle_tops(system));
           v = {r.angle_deg, r.heap_radius, r.heap_height};
         } catch (const std::runtime_error&) {
           // No heap yet (still pouring): record NaN rather than stop the run.

@@ -100,3 +100,41 @@ TEST_CASE("angle of repose of synthetic cones of known slope", "[sensor]") {
   push(tiny, 0, 0, 0.002, 0.002, 1e-5);
   CHECK_THROWS_WITH(angle_of_repose(tiny, ReposeOptions{}), Catch::Contains("too small"));
 }
+
+TEST_CASE("angle of repose: a polyhedron's top is its highest surface point", "[sensor][poly]") {
+  // Reference: geometry. A cube core of half side 0.3 (dilation 0.2) at scale 0.05, turned
+  // by 0.6 rad about x: its highest core vertex is 0.3 (sin 0.6 + cos 0.6) above the centre,
+  // so its top is z + 0.05 (0.3 (sin 0.6 + cos 0.6) + 0.2); a sphere's stays z + r. The
+  // bounding sphere (radius 0.05 (0.3 √3 + 0.2)) would put it higher. Tolerance 1e-12 m.
+  DemSettings st;
+  st.dt = 1e-5;
+  st.materials = {{"m", 1e7, 0.3, 1000.0}};
+  st.pairs = {MaterialPair{0.5, 0.5, 0.0}};
+  DemSystem sys(st);
+  PolyhedronShape cube;
+  cube.name = "cube";
+  for (int k = 0; k < 8; ++k)
+    cube.vertices.insert(cube.vertices.end(),
+                         {k & 1 ? 0.3 : -0.3, k & 2 ? 0.3 : -0.3, k & 4 ? 0.3 : -0.3});
+  const int q[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
+                       {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  for (const auto& f : q)
+    cube.triangles.insert(cube.triangles.end(), {f[0], f[1], f[2], f[0], f[2], f[3]});
+  cube.dilation = 0.2, cube.volume = 1.0, cube.inertia = {0.1, 0.1, 0.1};
+  sys.add_shape(cube);
+  ParticleInit p;
+  p.shape = ParticleShape::polyhedron;
+  p.shape_id = 0;
+  p.scale = 0.05;
+  p.position = {1.0, 2.0, 3.0};
+  p.orientation = {std::cos(0.3), std::sin(0.3), 0.0, 0.0};
+  ParticleInit s;
+  s.radius = 0.01;
+  s.position = {0, 0, 0.5};
+  sys.add_particles(std::vector<ParticleInit>{p, s});
+  const std::vector<double> tops = particle_tops(sys);
+  REQUIRE(tops.size() == 2);
+  CHECK(std::abs(tops[0] - (3.0 + 0.05 * (0.3 * (std::sin(0.6) + std::cos(0.6)) + 0.2))) < 1e-12);
+  CHECK(std::abs(tops[1] - 0.51) < 1e-12);
+  CHECK(tops[0] < 3.0 + sys.particles().radius[0] - 1e-3);
+}

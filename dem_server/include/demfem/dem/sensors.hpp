@@ -72,8 +72,15 @@ struct ReposeResult {
 /// from the axis, first drops below base + 1.5 mean diameters (single rolled-away particles
 /// do not count); a least-squares line through the profile on the flank [flank_lo R,
 /// flank_hi R] gives the slope. Throws std::runtime_error when fewer than 3 bins lie on the
-/// flank (heap too small for the bin width).
-ReposeResult angle_of_repose(const ParticleState& particles, const ReposeOptions& options);
+/// flank (heap too small for the bin width). `tops`, when given (one per particle), replaces
+/// z + radius as a particle's top (a polyhedron's highest surface point: particle_tops), and
+/// a particle's diameter is then 2 (top − z).
+ReposeResult angle_of_repose(const ParticleState& particles, const ReposeOptions& options,
+                             std::span<const double> tops = {});
+
+/// @brief The height of each particle's highest surface point: z + radius for a sphere, the
+/// highest vertex of the rotated, scaled core plus the dilation for a polyhedron of `system`.
+std::vector<double> particle_tops(const DemSystem& system);
 
 /// @brief A configured sensor.
 struct SensorSpec {
