@@ -11,6 +11,7 @@
 #include "demfem/dem/dem_scene.hpp"
 #include "demfem/dem/stl_reader.hpp"
 #include "demfem/io/h5_file.hpp"
+#include "demfem_test/cube_shape.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 using namespace demfem::dem;
@@ -249,23 +250,8 @@ TEST_CASE("polyhedra are written as triangle surfaces beside the particles' poin
   st.materials = {{"rock", 1e8, 0.3, 2600.0}};
   st.pairs = {MaterialPair{0.5, 0.5, 0.0}};
   DemSystem sys(st);
-  PolyhedronShape cube;
-  cube.name = "cube";
-  for (int k = 0; k < 8; ++k)
-    cube.vertices.insert(cube.vertices.end(),
-                         {k & 1 ? 0.3 : -0.3, k & 2 ? 0.3 : -0.3, k & 4 ? 0.3 : -0.3});
-  const int q[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
-                       {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
-  for (const auto& f : q)
-    cube.triangles.insert(cube.triangles.end(), {f[0], f[1], f[2], f[0], f[2], f[3]});
-  cube.dilation = 0.2, cube.volume = 1.0, cube.inertia = {0.1, 0.1, 0.1};
-  sys.add_shape(cube);
-  ParticleInit p;
-  p.shape = ParticleShape::polyhedron;
-  p.shape_id = 0;
-  p.scale = 0.05;
-  p.position = {1.0, 2.0, 3.0};
-  p.orientation = {std::cos(0.3), std::sin(0.3), 0.0, 0.0};
+  sys.add_shape(demfem::test::cube_shape());
+  const ParticleInit p = demfem::test::tilted_cube(0);
   ParticleInit s2;
   s2.radius = 0.01;
   s2.position = {0, 0, 0};

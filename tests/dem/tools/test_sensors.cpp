@@ -7,6 +7,7 @@
 #include <numbers>
 
 #include "demfem/dem/sensors.hpp"
+#include "demfem_test/cube_shape.hpp"
 
 using namespace demfem::dem;
 
@@ -111,23 +112,8 @@ TEST_CASE("angle of repose: a polyhedron's top is its highest surface point", "[
   st.materials = {{"m", 1e7, 0.3, 1000.0}};
   st.pairs = {MaterialPair{0.5, 0.5, 0.0}};
   DemSystem sys(st);
-  PolyhedronShape cube;
-  cube.name = "cube";
-  for (int k = 0; k < 8; ++k)
-    cube.vertices.insert(cube.vertices.end(),
-                         {k & 1 ? 0.3 : -0.3, k & 2 ? 0.3 : -0.3, k & 4 ? 0.3 : -0.3});
-  const int q[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
-                       {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
-  for (const auto& f : q)
-    cube.triangles.insert(cube.triangles.end(), {f[0], f[1], f[2], f[0], f[2], f[3]});
-  cube.dilation = 0.2, cube.volume = 1.0, cube.inertia = {0.1, 0.1, 0.1};
-  sys.add_shape(cube);
-  ParticleInit p;
-  p.shape = ParticleShape::polyhedron;
-  p.shape_id = 0;
-  p.scale = 0.05;
-  p.position = {1.0, 2.0, 3.0};
-  p.orientation = {std::cos(0.3), std::sin(0.3), 0.0, 0.0};
+  sys.add_shape(demfem::test::cube_shape());
+  const ParticleInit p = demfem::test::tilted_cube(0);
   ParticleInit s;
   s.radius = 0.01;
   s.position = {0, 0, 0.5};
