@@ -2,7 +2,6 @@
 
 #include <array>
 #include <cmath>
-#include <cstdio>
 #include <numeric>
 #include <sstream>
 
@@ -24,9 +23,7 @@ std::filesystem::path ParticleOutput::index_path() const {
 }
 
 std::filesystem::path ParticleOutput::snapshot_path(std::size_t k) const {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "_%06zu.h5", k);
-  return dir_ / (stem_ + buf);
+  return dir_ / io::series_file_name(stem_, k);
 }
 
 void ParticleOutput::set_shapes(const std::vector<PolyhedronShape>& shapes) {

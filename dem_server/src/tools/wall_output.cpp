@@ -1,7 +1,6 @@
 #include "demfem/dem/wall_output.hpp"
 
 #include <cmath>
-#include <cstdio>
 #include <sstream>
 #include <stdexcept>
 
@@ -22,9 +21,7 @@ std::filesystem::path WallOutput::index_path() const {
 }
 
 std::filesystem::path WallOutput::snapshot_path(std::size_t k) const {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "_%06zu.h5", k);
-  return dir_ / (stem_ + buf);
+  return dir_ / io::series_file_name(stem_, k);
 }
 
 void WallOutput::write(std::span<const Pose> poses, double time, double state_time) {

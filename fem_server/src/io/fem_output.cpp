@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <sstream>
 #include <stdexcept>
 
@@ -218,9 +217,7 @@ std::filesystem::path FemOutput::mesh_path() const {
   return dir_ / (name_ + "_mesh.h5");
 }
 std::filesystem::path FemOutput::step_path(std::size_t step) const {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "_%06zu.h5", step);
-  return dir_ / (name_ + buf);
+  return dir_ / io::series_file_name(name_, step);
 }
 
 bool FemOutput::wants(const std::string& field) const {

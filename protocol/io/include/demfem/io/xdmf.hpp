@@ -2,6 +2,7 @@
 // XDMF 3 pieces shared by the particle, wall and FEM outputs: one spelling of a DataItem that
 // points into an HDF5 file, and escaping of user names (walls, materials) put into XML.
 
+#include <cstdio>
 #include <string>
 
 namespace demfem::io {
@@ -12,6 +13,14 @@ inline std::string xdmf_hdf_item(const std::string& dims, const char* number_typ
                                  const std::string& ref) {
   return "<DataItem Dimensions=\"" + dims + "\" NumberType=\"" + number_type +
          "\" Precision=\"8\" Format=\"HDF\">" + ref + "</DataItem>";
+}
+
+/// The file of output k of a series: "<stem>_NNNNNN.h5" (k zero-padded to six digits), the
+/// one naming of the particle, wall and FEM snapshots that their XDMF indexes point to.
+inline std::string series_file_name(const std::string& stem, std::size_t k) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "_%06zu.h5", k);
+  return stem + buf;
 }
 
 /// Text as an XML attribute value or element text (&, <, >, " and ' escaped).
