@@ -1,0 +1,332 @@
+// DemSystem state: save() / restore() to HDF5 (checkpoints, loaded beds) and the in-memory
+// copies the coupler takes within a coupling step (save_state() / restore_state()).
+
+#include "dem_system_impl.hpp"
+
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "demfem/io/h5_file.hpp"
+
+namespace demfem::dem {
+
+using detail::bad;
+using detail::kMaxWallContacts;
+
+namespace {
+template <class T>
+std::vector<std::int64_t> to64(const std::vector<T>& v) {
+  return {v.begin(), v.end()};
+}
+template <class T>
+std::vector<T> from64(const std::vector<std::int64_t>& v) {
+  std::vector<T> o(v.size());
+  for (std::size_t k = 0; k < v.size(); ++k) o[k] = static_cast<T>(v[k]);
+  return o;
+}
+}  // namespace
+
+// Every double array of the saved state with its dataset name: one list serves save() and
+// restore(), so the two cannot drift apart. ImplT is Impl or const Impl.
+template <class ImplT>
+auto double_arrays(ImplT& I) {
+  using Vec =
+      std::conditional_t<std::is_const_v<ImplT>, const std::vector<double>, std::vector<double>>;
+  auto& st = I.st;
+  return std::array<std::pair<const char*, Vec*>, 39>{{{"px", &st.px},
+                                                       {"py", &st.py},
+                                                       {"pz", &st.pz},
+                                                       {"vx", &st.vx},
+                                                       {"vy", &st.vy},
+                                                       {"vz", &st.vz},
+                                                       {"wx", &st.wx},
+                                                       {"wy", &st.wy},
+                                                       {"wz", &st.wz},
+                                                       {"qw", &st.qw},
+                                                       {"qx", &st.qx},
+                                                       {"qy", &st.qy},
+                                                       {"qz", &st.qz},
+                                                       {"fx", &st.fx},
+                                                       {"fy", &st.fy},
+                                                       {"fz", &st.fz},
+                                                       {"radius", &st.radius},
+                                                       {"mass", &st.mass},
+                                                       {"inertia", &st.inertia},
+                                                       {"tx", &I.tx},
+                                                       {"ty", &I.ty},
+                                                       {"tz", &I.tz},
+                                                       {"shear", &I.shear},
+                                                       {"rhist", &I.rhist},
+                                                       {"wroll", &I.wroll},
+                                                       {"bx", &I.bx},
+                                                       {"by", &I.by},
+                                                       {"bz", &I.bz},
+                                                       {"wshear", &I.wshear},
+                                                       {"vpos", &I.vpos},
+                                                       {"vbuild", &I.vbuild},
+                                                       {"flex_x", &I.flex_x},
+                                                       {"flex_v", &I.flex_v},
+                                                       {"flex_a", &I.flex_a},
+                                                       {"flex_force", &I.flex_force},
+                                                       {"scale", &st.scale},
+                                                       {"ix", &st.ix},
+                                                       {"iy", &st.iy},
+                                                       {"iz", &st.iz}}};
+}
+
+namespace {
+// The shape table: per shape its vertex and triangle counts, the concatenated vertices and
+// triangles, dilation, volume and principal moments, and the names (one per line).
+void save_shapes(const detail::ShapeTable& t, io::H5File& f, const std::string& g) {
+  std::vector<std::int64_t> nv, ntri, tri;
+  std::vector<double> vert, par;
+  std::string names;
+  for (std::size_t k = 0; k < t.size(); ++k) {
+    const PolyhedronShape& s = t.shape(static_cast<std::int32_t>(k));
+    nv.push_back(static_cast<std::int64_t>(s.vertices.size() / 3));
+    ntri.push_back(static_cast<std::int64_t>(s.triangles.size() / 3));
+    vert.insert(vert.end(), s.vertices.begin(), s.vertices.end());
+    tri.insert(tri.end(), s.triangles.begin(), s.triangles.end());
+    par.insert(par.end(), {s.dilation, s.volume, s.inertia[0], s.inertia[1], s.inertia[2]});
+    names += s.name + "\n";
+  }
+  f.write(g + "shape_nv", std::span<const std::int64_t>(nv));
+  f.write(g + "shape_ntri", std::span<const std::int64_t>(ntri));
+  f.write(g + "shape_vertices", std::span<const double>(vert));
+  f.write(g + "shape_triangles", std::span<const std::int64_t>(tri));
+  f.write(g + "shape_params", std::span<const double>(par));
+  f.set_attribute(g + "shape_nv", "names", names);
+}
+
+}  // namespace
+
+std::vector<PolyhedronShape> read_state_shapes(const io::H5File& f, const std::string& group) {
+  const std::string g = group + "/";
+  std::vector<PolyhedronShape> out;
+  if (!f.exists(g + "shape_nv")) return out;
+  const auto nv = f.read_int64(g + "shape_nv"), ntri = f.read_int64(g + "shape_ntri");
+  const auto vert = f.read_doubles(g + "shape_vertices");
+  const auto tri = f.read_int64(g + "shape_triangles");
+  const auto par = f.read_doubles(g + "shape_params");
+  const std::string names = f.attribute_string(g + "shape_nv", "names");
+  if (ntri.size() != nv.size() || par.size() != 5 * nv.size())
+    throw std::invalid_argument("DemSystem: restore: inconsistent shape table in " +
+                                f.path().string());
+  std::size_t v0 = 0, t0 = 0, name0 = 0;
+  for (std::size_t k = 0; k < nv.size(); ++k) {
+    PolyhedronShape s;
+    const std::size_t e = names.find('\n', name0);
+    s.name = names.substr(name0, e == std::string::npos ? std::string::npos : e - name0);
+    name0 = e == std::string::npos ? names.size() : e + 1;
+    const auto vn = static_cast<std::size_t>(3 * nv[k]), tn = static_cast<std::size_t>(3 * ntri[k]);
+    if (v0 + vn > vert.size() || t0 + tn > tri.size())
+      throw std::invalid_argument("DemSystem: restore: inconsistent shape table in " +
+                                  f.path().string());
+    s.vertices.assign(vert.begin() + v0, vert.begin() + v0 + vn);
+    for (std::size_t m = 0; m < tn; ++m)
+      s.triangles.push_back(static_cast<std::int32_t>(tri[t0 + m]));
+    s.dilation = par[5 * k], s.volume = par[5 * k + 1];
+    s.inertia = {par[5 * k + 2], par[5 * k + 3], par[5 * k + 4]};
+    v0 += vn, t0 += tn;
+    out.push_back(std::move(s));
+  }
+  return out;
+}
+
+namespace {
+// Replaces the table by the state's (a state without one keeps the system's).
+void restore_shapes(detail::ShapeTable& t, const io::H5File& f, const std::string& g) {
+  if (!f.exists(g + "shape_nv")) return;
+  t.clear();
+  for (const auto& s : read_state_shapes(f, g.substr(0, g.size() - 1))) t.add(s);
+}
+}  // namespace
+
+void DemSystem::save(io::H5File& f, const std::string& group) const {
+  const auto& I = *impl_;
+  const auto& st = I.st;
+  f.create_group(group);
+  const std::string g = group + "/";
+  f.set_attribute(group, "time", I.t);
+  f.set_attribute(group, "steps", static_cast<std::int64_t>(I.steps));
+  f.set_attribute(group, "flex_tau", I.flex_tau);
+  f.set_attribute(group, "max_overlap", I.max_ov);
+  f.set_attribute(group, "flex_max_overlap", I.flex_max_ov);
+  f.set_attribute(group, "format", std::string("demfem-dem-state-1"));
+  for (const auto& [name, v] : double_arrays(I)) f.write(g + name, std::span<const double>(*v));
+  f.write(g + "material", std::span<const std::int64_t>(to64(st.material)));
+  f.write(g + "shape", std::span<const std::uint8_t>(st.shape));
+  f.write(g + "shape_id", std::span<const std::int64_t>(to64(st.shape_id)));
+  save_shapes(I.shapes, f, g);
+  f.write(g + "row", std::span<const std::int64_t>(I.row));
+  f.write(g + "nbr", std::span<const std::int64_t>(to64(I.nbr)));
+  f.write(g + "wkey", std::span<const std::int64_t>(I.wkey));
+  f.write(g + "wcount", std::span<const std::uint8_t>(I.wcount));
+  I.bodies.save(f, g);
+}
+
+namespace {
+// Arrays of save() that a state copy within one coupling step leaves out: the particle
+// properties do not change there, and the build positions are reset by the rebuild that
+// follows restore_state().
+bool constant_within_step(const char* name) {
+  for (const char* c : {"radius", "mass", "inertia", "bx", "by", "bz"})
+    if (std::strcmp(name, c) == 0) return true;
+  return false;
+}
+}  // namespace
+
+void DemSystem::save_state(DemStateCopy& c) const {
+  const auto& I = *impl_;
+  c.time = I.t;
+  c.steps = I.steps;
+  c.flex_tau = I.flex_tau;
+  c.max_overlap = I.max_ov;
+  c.flex_max_overlap = I.flex_max_ov;
+  c.particles = I.n();
+  const auto arrays = double_arrays(I);
+  c.arrays.resize(arrays.size());
+  for (std::size_t k = 0; k < arrays.size(); ++k) {
+    if (constant_within_step(arrays[k].first)) continue;
+    c.arrays[k].assign(arrays[k].second->begin(), arrays[k].second->end());
+  }
+  c.row.assign(I.row.begin(), I.row.end());
+  c.nbr.assign(I.nbr.begin(), I.nbr.end());
+  c.wkey.assign(I.wkey.begin(), I.wkey.end());
+  c.wcount.assign(I.wcount.begin(), I.wcount.end());
+  c.bodies = I.bodies.pack();
+}
+
+void DemSystem::restore_state(const DemStateCopy& c) {
+  auto& I = *impl_;
+  if (c.steps < 0 || c.particles != I.n()) {
+    throw std::logic_error("DemSystem::restore_state: " +
+                           (c.steps < 0 ? std::string("nothing was saved")
+                                        : "the state copy has " + std::to_string(c.particles) +
+                                              " particles, the system " + std::to_string(I.n())));
+  }
+  I.t = c.time;
+  I.steps = c.steps;
+  I.flex_tau = c.flex_tau;
+  I.max_ov = c.max_overlap;
+  I.flex_max_ov = c.flex_max_overlap;
+  const auto arrays = double_arrays(I);
+  for (std::size_t k = 0; k < arrays.size(); ++k) {
+    if (constant_within_step(arrays[k].first)) continue;
+    arrays[k].second->assign(c.arrays[k].begin(), c.arrays[k].end());
+  }
+  I.row.assign(c.row.begin(), c.row.end());
+  I.nbr.assign(c.nbr.begin(), c.nbr.end());
+  I.wkey.assign(c.wkey.begin(), c.wkey.end());
+  I.wcount.assign(c.wcount.begin(), c.wcount.end());
+  if (!I.bodies.unpack(c.bodies))
+    throw std::logic_error(
+        "DemSystem::restore_state: the state copy holds another number of "
+        "rigid bodies");
+  // As restore(): the list is rebuilt from the restored positions and springs.
+  I.bx.clear(), I.by.clear(), I.bz.clear();
+  I.refresh_particle_derived();
+  I.need_rebuild = true;
+}
+
+void DemSystem::restore(const io::H5File& f, const std::string& group) {
+  auto& I = *impl_;
+  auto& st = I.st;
+  const std::string g = group + "/";
+  if (!f.exists(group)) bad("restore: group '" + group + "' not found in " + f.path().string());
+  const std::size_t nwalls = I.walls.size();
+  I.t = f.attribute_double(group, "time");
+  I.steps = f.attribute_int64(group, "steps");
+  I.flex_tau = f.attribute_double(group, "flex_tau");
+  I.max_ov = f.attribute_double(group, "max_overlap");
+  I.flex_max_ov = f.attribute_double(group, "flex_max_overlap");
+  for (const auto& [name, v] : double_arrays(I)) {
+    // the rolling histories are absent in states written before the rolling spring model:
+    // they then start at zero (checked against the pair list below)
+    // so are the polyhedron arrays in states written before them (all spheres: set below)
+    const bool optional = std::strcmp(name, "rhist") == 0 || std::strcmp(name, "wroll") == 0 ||
+                          std::strcmp(name, "scale") == 0 || std::strcmp(name, "ix") == 0 ||
+                          std::strcmp(name, "iy") == 0 || std::strcmp(name, "iz") == 0;
+    *v = optional && !f.exists(g + name) ? std::vector<double>{} : f.read_doubles(g + name);
+  }
+  if (f.exists(g + "shape_id")) {
+    st.shape_id = from64<std::int32_t>(f.read_int64(g + "shape_id"));
+  } else {
+    st.shape_id.assign(st.px.size(), -1);
+    st.scale.assign(st.px.size(), 1.0);
+    st.ix = st.iy = st.iz = st.inertia;
+  }
+  restore_shapes(I.shapes, f, g);
+  st.material = from64<std::int32_t>(f.read_int64(g + "material"));
+  st.shape = f.read_uint8(g + "shape");
+  I.row = f.read_int64(g + "row");
+  I.nbr = from64<std::int32_t>(f.read_int64(g + "nbr"));
+  I.wkey = f.read_int64(g + "wkey");
+  I.wcount = f.read_uint8(g + "wcount");
+  try {
+    I.bodies.restore(f, g);
+  } catch (const std::invalid_argument& e) {
+    bad(std::string("restore: ") + e.what());
+  }
+  const std::size_t n = st.px.size();
+  if (I.vpos.size() != (I.vbuild.size()) || (nwalls > 0 && I.vpos.size() < 3))
+    bad("restore: wall vertex data in '" + group + "' does not match the walls of this system");
+  for (std::size_t i = 0; i < n; ++i)
+    if (st.material[i] < 0 || static_cast<std::size_t>(st.material[i]) >= I.nmat)
+      bad("restore: particle material index out of range in '" + group + "'");
+  if (st.shape_id.size() != n || st.scale.size() != n || st.ix.size() != n || st.iy.size() != n ||
+      st.iz.size() != n)
+    bad("restore: polyhedron arrays in '" + group + "' of " + f.path().string() +
+        " do not match the particle count");
+  for (std::size_t i = 0; i < n; ++i)
+    if (st.shape_id[i] >= static_cast<std::int32_t>(I.shapes.size()) ||
+        (st.shape_id[i] >= 0) !=
+            (st.shape[i] == static_cast<std::uint8_t>(ParticleShape::polyhedron)))
+      bad("restore: particle " + std::to_string(i) + " in '" + group + "' of " + f.path().string() +
+          " refers to a shape the state does not hold");
+  // the orientation update keeps unit quaternions unit (physics/integrator.hpp), it does not
+  // normalise arbitrary ones
+  if (st.qw.size() == n && st.qx.size() == n && st.qy.size() == n && st.qz.size() == n)
+    for (std::size_t i = 0; i < n; ++i) {
+      const double q2 =
+          st.qw[i] * st.qw[i] + st.qx[i] * st.qx[i] + st.qy[i] * st.qy[i] + st.qz[i] * st.qz[i];
+      if (!(std::abs(q2 - 1.0) < 1e-6))
+        bad("restore: orientation of particle " + std::to_string(i) + " in '" + group + "' of " +
+            f.path().string() + " is not a unit quaternion (|q|^2 = " + std::to_string(q2) +
+            ", accepted 1 +- 1e-6)");
+    }
+  I.wf.assign(3 * kMaxWallContacts * n, 0.0), I.wp.assign(3 * kMaxWallContacts * n, 0.0),
+      I.wb.assign(3 * kMaxWallContacts * n, 0.0), I.wtri.assign(kMaxWallContacts * n, 0);
+  I.refresh_particle_derived();
+  // The neighbour list is rebuilt from the restored positions; the restored rows carry the
+  // springs. Forces of the pairs do not depend on which non-touching pairs the list holds,
+  // so the continuation is bitwise identical to an uninterrupted run.
+  if (I.row.empty()) I.row.assign(n + 1, 0);  // saved before the first step: no pairs yet
+  if (!I.rolling) {
+    I.rhist.clear(), I.wroll.clear();
+  } else {
+    if (I.rhist.empty()) I.rhist.assign(3 * I.nbr.size(), 0.0);
+    if (I.wroll.empty()) I.wroll.assign(3 * kMaxWallContacts * n, 0.0);
+    if (I.rhist.size() != 3 * I.nbr.size() || I.wroll.size() != 3 * kMaxWallContacts * n)
+      bad("restore: rolling history sizes in '" + group + "' of " + f.path().string() +
+          " do not match the pair list and particles");
+  }
+  if (I.wcount.size() != n || I.wkey.size() != kMaxWallContacts * n ||
+      I.wshear.size() != 3 * kMaxWallContacts * n || I.row.size() != n + 1)
+    bad("restore: inconsistent array sizes in '" + group + "' of " + f.path().string());
+  I.need_rebuild = true;
+}
+
+void DemSystem::reset_clock() {
+  auto& I = *impl_;
+  I.t = 0.0;
+  I.steps = 0;
+  I.update_walls(I.t, I.flex_tau);
+}
+
+}  // namespace demfem::dem

@@ -1,0 +1,429 @@
+// DemSystem::Impl: one time step on the CPU: half kick and drift, wall kinematics, list
+// update, the force pass (pair forces into per-pair slots, gathered in a fixed order, then
+// the second half kick) and the wall loads.
+
+#include "dem_system_impl.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "demfem/dem/physics/geometry.hpp"
+#include "demfem/dem/physics/integrator.hpp"
+#include "demfem/dem/physics/rigid_body.hpp"
+#include "multiversion.hpp"
+
+namespace demfem::dem {
+
+using phys::Vec3;
+
+namespace {
+
+// The wall contacts of one particle, not inlined into the gather: most particles have none,
+// and inlined, their code (a 1.6 kB stack frame, many live values) made the gather's slot
+// sums spill and every particle pay its prologue.
+template <bool Friction>
+[[gnu::noinline]] void wall_contacts_apart(const phys::ParticleView& p, const phys::WallView& w,
+                                           std::int64_t i, const phys::PairConstants* pc_row,
+                                           double dt, Vec3& f, Vec3& q, double& mo, double& fmo) {
+  phys::wall_contacts<Friction>(p, w, i, pc_row, dt, f, q, mo, fmo);
+}
+
+// ---------------------------------------------------------------------------------------
+// Pair forces over a range of the flat pair list, one pair per SIMD lane: the contact law
+// (physics/pair.hpp, contact.hpp) has no data-dependent branch, so the loop vectorises.
+// On x86-64 (GCC/Clang, not under nvcc) the loop is compiled for the baseline (SSE2), for
+// AVX2 and, with GCC, for x86-64-v4 (AVX-512: 32 vector registers, so the long law spills
+// less; measured 7-12 % faster than AVX2 on a Xeon with both), and the loader picks the clone
+// the CPU supports. Without FMA contraction every clone rounds each operation as the scalar
+// code does (IEEE +, -, *, /, sqrt), so the clones give bitwise identical results (checked:
+// a build without clones gives the same bits).
+struct PairKernelArgs {
+  phys::ParticleView view;
+  const std::int32_t* pi;  // i of each pair
+  const std::int32_t* pj;  // j of each pair
+  const std::int32_t* mat;
+  const phys::PairConstants* pc;  // table (nmat x nmat) or, when uniform, the one entry
+  std::size_t nmat;
+  double dt;
+  double* shear;  // 3 per pair
+  double* pf;     // 3 per pair
+  double* pt;     // 3 per pair (Friction)
+  double* pr;     // 3 per pair (Rolling)
+  double* rhist;  // 3 per pair (Rolling): rolling-torque history
+};
+
+template <bool Friction, bool Rolling, bool Uniform>
+[[gnu::always_inline]] inline double pair_loop(const PairKernelArgs& a, std::int64_t begin,
+                                               std::int64_t end) {
+  double mo = 0.0;
+  const phys::ParticleView view = a.view;
+  const std::int32_t* pi = a.pi;
+  const std::int32_t* pj = a.pj;
+  double* shear = a.shear;
+  double* pf = a.pf;
+  double* pt = a.pt;
+  double* pr = a.pr;
+  double* rhist = a.rhist;
+  const double dt = a.dt;
+#pragma omp simd reduction(max : mo)
+  for (std::int64_t p = begin; p < end; ++p) {
+    const std::int32_t i = pi[p], j = pj[p];
+    const phys::PairConstants& c =
+        Uniform ? a.pc[0] : a.pc[static_cast<std::size_t>(a.mat[i]) * a.nmat + a.mat[j]];
+    Vec3 sh{0, 0, 0};
+    if constexpr (Friction) sh = Vec3{shear[3 * p], shear[3 * p + 1], shear[3 * p + 2]};
+    Vec3 rh{0, 0, 0};
+    if constexpr (Rolling) rh = Vec3{rhist[3 * p], rhist[3 * p + 1], rhist[3 * p + 2]};
+    phys::ContactResult r;
+    double delta;
+    phys::sphere_sphere_select<Friction, Rolling>(view, i, j, c, dt, sh, rh, r, delta);
+    mo = mo > delta ? mo : delta;
+    pf[3 * p] = r.force.x, pf[3 * p + 1] = r.force.y, pf[3 * p + 2] = r.force.z;
+    if constexpr (Friction) {
+      shear[3 * p] = sh.x, shear[3 * p + 1] = sh.y, shear[3 * p + 2] = sh.z;
+      pt[3 * p] = r.torque.x, pt[3 * p + 1] = r.torque.y, pt[3 * p + 2] = r.torque.z;
+      if constexpr (Rolling) {
+        pr[3 * p] = r.roll.x, pr[3 * p + 1] = r.roll.y, pr[3 * p + 2] = r.roll.z;
+        rhist[3 * p] = rh.x, rhist[3 * p + 1] = rh.y, rhist[3 * p + 2] = rh.z;
+      }
+    }
+  }
+  return mo;
+}
+
+#define DEMFEM_PAIR_KERNEL(F, R, U)                                                   \
+  DEMFEM_CLONES double pair_kernel_##F##R##U(const PairKernelArgs& a, std::int64_t b, \
+                                             std::int64_t e) {                        \
+    return pair_loop<F != 0, R != 0, U != 0>(a, b, e);                                \
+  }
+DEMFEM_PAIR_KERNEL(0, 0, 0)
+DEMFEM_PAIR_KERNEL(0, 0, 1)
+DEMFEM_PAIR_KERNEL(1, 0, 0)
+DEMFEM_PAIR_KERNEL(1, 0, 1)
+DEMFEM_PAIR_KERNEL(1, 1, 0)
+DEMFEM_PAIR_KERNEL(1, 1, 1)
+#undef DEMFEM_PAIR_KERNEL
+
+using PairKernel = double (*)(const PairKernelArgs&, std::int64_t, std::int64_t);
+PairKernel pick_pair_kernel(bool friction, bool rolling, bool uniform) {
+  if (!friction) return uniform ? pair_kernel_001 : pair_kernel_000;
+  if (!rolling) return uniform ? pair_kernel_101 : pair_kernel_100;
+  return uniform ? pair_kernel_111 : pair_kernel_110;
+}
+
+}  // namespace
+
+template <bool Friction, bool Poly>
+void DemSystem::Impl::forces_and_kick() {
+  const std::int64_t sn = static_cast<std::int64_t>(n());
+  PairKernelArgs a{};
+  a.view = phys::ParticleView{st.px.data(), st.py.data(),     st.pz.data(),  st.vx.data(),
+                              st.vy.data(), st.vz.data(),     st.wx.data(),  st.wy.data(),
+                              st.wz.data(), st.radius.data(), st.mass.data()};
+  a.pi = pown.data();
+  a.pj = nbr.data();
+  a.mat = st.material.data();
+  a.pc = uniform_mat >= 0 ? pc.data() + uniform_mat * (nmat + 1) : pc.data();
+  a.nmat = nmat;
+  a.dt = s.dt;
+  a.shear = shear.data();
+  a.pf = pf.data();
+  a.pt = pt.data();
+  a.pr = pr.data();
+  a.rhist = rhist.data();
+  const PairKernel kern = pick_pair_kernel(Friction, Friction && rolling, uniform_mat >= 0);
+  detail::PolyParticles pp{};
+  detail::PolyPairs pa{};
+  if constexpr (Poly) {
+    pp = poly_particles(a.view);
+    prot.resize(9 * n());
+    detail::poly_rotations(pp, prot.data(), sn, nt());
+    pp.rot = prot.data();
+    pa = detail::PolyPairs{pown.data(),  nbr.data(),   st.material.data(), pc.data(),
+                           nmat,         s.dt,         Friction,           rolling,
+                           shear.data(), rhist.data(), pf.data(),          pt.data(),
+                           ptj.data(),   paxis.data(), pfeat.data()};
+  }
+
+  const double h = 0.5 * s.dt;
+  const double g[3] = {s.gravity[0], s.gravity[1], s.gravity[2]};
+  const bool walls_on = !tri_v.empty();
+  const phys::WallView wv = wall_view();
+  const phys::ParticleView& view = a.view;
+  const double* PF = pf.data();
+  const double* PT = pt.data();
+  const double* PR = pr.data();
+  const double* PTJ = ptj.data();
+  const bool roll = rolling;
+  auto gather = [&](std::int64_t i, double& mo, double& fmo) {
+    double fx = 0, fy = 0, fz = 0;
+    double qx = 0, qy = 0, qz = 0;
+    const double ri = st.radius[i];
+    // own row (pairs i < j) in row order, then the transposed pairs (j < i) in order
+    // x + (-1 y) is x - y exactly: the sums are those of a loop over each part
+    for (std::int64_t k = gather_row[i]; k < gather_row[i + 1]; ++k) {
+      const std::int64_t p = gather_pair[k];
+      const double sg = gather_sign[k];
+      fx += sg * PF[3 * p], fy += sg * PF[3 * p + 1], fz += sg * PF[3 * p + 2];
+      if constexpr (Poly) {
+        const double* T = sg > 0.0 ? PT : PTJ;
+        qx += T[3 * p], qy += T[3 * p + 1], qz += T[3 * p + 2];
+      } else if constexpr (Friction) {
+        qx += ri * PT[3 * p], qy += ri * PT[3 * p + 1], qz += ri * PT[3 * p + 2];
+        if (roll) qx += sg * PR[3 * p], qy += sg * PR[3 * p + 1], qz += sg * PR[3 * p + 2];
+      }
+    }
+    if (walls_on && (wv.prow[i] != wv.prow[i + 1] || wv.wcount[i] != 0)) {
+      Vec3 f{fx, fy, fz}, q{qx, qy, qz};
+      if (Poly && st.shape_id[i] >= 0)
+        detail::poly_wall_contacts(pp, wv, i, pc.data() + st.material[i] * nmat, s.dt, Friction, f,
+                                   q, mo, fmo);
+      else
+        wall_contacts_apart<Friction>(view, wv, i, pc.data() + st.material[i] * nmat, s.dt, f, q,
+                                      mo, fmo);
+      fx = f.x, fy = f.y, fz = f.z;
+      qx = q.x, qy = q.y, qz = q.z;
+    }
+    const double m = st.mass[i];
+    fx += m * g[0], fy += m * g[1], fz += m * g[2];
+    st.fx[i] = fx, st.fy[i] = fy, st.fz[i] = fz;
+    phys::kick(st.vx[i], st.vy[i], st.vz[i], fx, fy, fz, h / m);
+    if constexpr (Poly) {
+      tx[i] = qx, ty[i] = qy, tz[i] = qz;
+      detail::poly_angular_kick(pp, i, st.wx.data(), st.wy.data(), st.wz.data(), Vec3{qx, qy, qz},
+                                h);
+    } else if constexpr (Friction) {
+      tx[i] = qx, ty[i] = qy, tz[i] = qz;
+      phys::kick(st.wx[i], st.wy[i], st.wz[i], qx, qy, qz, h / st.inertia[i]);
+    }
+  };
+  constexpr std::int64_t kBlock = 256;  // particles per block: ~1500 pairs, ~150 kB of slots
+  const int T = nt();
+  balance.ensure(T, sn);
+  for (auto& list : balance.waiting) list.clear();
+  double mo = 0.0, fmo = 0.0;
+  int active = T;
+#pragma omp parallel num_threads(T) reduction(max : mo, fmo)
+  {
+    const int k = omp_get_thread_num(), nth = omp_get_num_threads();
+    // fewer threads than asked (a nested region, a thread limit): equal ranges
+    if (k == 0) active = nth;
+    const double start = omp_get_wtime();
+    const std::int64_t lo = nth == T ? balance.split[k] : sn * k / nth;
+    const std::int64_t hi = nth == T ? balance.split[k + 1] : sn * (k + 1) / nth;
+    auto waits = [&](std::int64_t i) { return trow[i] < trow[i + 1] && tsrc[trow[i]] < lo; };
+    std::vector<std::int64_t>& waiting = balance.waiting[k];
+    for (std::int64_t b0 = lo; b0 < hi; b0 += kBlock) {
+      const std::int64_t b1 = std::min(hi, b0 + kBlock);
+      if constexpr (Poly)
+        mo = std::max(mo, detail::poly_pair_forces(pp, pa, row[b0], row[b1]));
+      else
+        mo = std::max(mo, kern(a, row[b0], row[b1]));
+      for (std::int64_t i = b0; i < b1; ++i)
+        if (waits(i))
+          waiting.push_back(i);
+        else
+          gather(i, mo, fmo);
+    }
+    balance.busy[k] = omp_get_wtime() - start;
+#pragma omp barrier
+    // the waiting particles of all threads, shared out evenly (each gather is independent)
+    std::int64_t total = 0;
+    for (const auto& list : balance.waiting) total += static_cast<std::int64_t>(list.size());
+    const std::int64_t w0 = total * k / nth, w1 = total * (k + 1) / nth;
+    std::int64_t base = 0;
+    for (std::size_t th = 0; th < balance.waiting.size() && base < w1; ++th) {
+      const auto& list = balance.waiting[th];
+      const std::int64_t len = static_cast<std::int64_t>(list.size());
+      for (std::int64_t m = std::max(w0, base); m < std::min(w1, base + len); ++m)
+        gather(list[m - base], mo, fmo);
+      base += len;
+    }
+  }
+  if (active == T) balance.adapt();
+  max_ov = mo;
+  adv_max_ov = std::max(adv_max_ov, mo);
+  flex_max_ov = std::max(flex_max_ov, fmo);
+}
+
+detail::PolyParticles DemSystem::Impl::poly_particles(const phys::ParticleView& view) const {
+  return detail::PolyParticles{view,
+                               st.qw.data(),
+                               st.qx.data(),
+                               st.qy.data(),
+                               st.qz.data(),
+                               st.ix.data(),
+                               st.iy.data(),
+                               st.iz.data(),
+                               st.inertia.data(),
+                               st.scale.data(),
+                               st.shape_id.data(),
+                               shapes.view()};
+}
+
+double DemSystem::Impl::poly_kick_drift() {
+  const bool have_build = bx.size() == n();
+  detail::PolyDrift d{static_cast<std::int64_t>(n()),
+                      s.dt,
+                      nt(),
+                      st.px.data(),
+                      st.py.data(),
+                      st.pz.data(),
+                      st.vx.data(),
+                      st.vy.data(),
+                      st.vz.data(),
+                      st.wx.data(),
+                      st.wy.data(),
+                      st.wz.data(),
+                      st.qw.data(),
+                      st.qx.data(),
+                      st.qy.data(),
+                      st.qz.data(),
+                      st.fx.data(),
+                      st.fy.data(),
+                      st.fz.data(),
+                      tx.data(),
+                      ty.data(),
+                      tz.data(),
+                      st.mass.data(),
+                      st.inertia.data(),
+                      st.ix.data(),
+                      st.iy.data(),
+                      st.iz.data(),
+                      st.shape_id.data(),
+                      have_build ? bx.data() : nullptr,
+                      have_build ? by.data() : nullptr,
+                      have_build ? bz.data() : nullptr};
+  return detail::poly_kick_drift(d);
+}
+
+phys::WallView DemSystem::Impl::wall_view() {
+  phys::WallView v{vpos.data(),     vvel.data(), tri_v.data(), tri_e.data(), tri_mat.data(),
+                   tri_wall.data(), prow.data(), ptri.data(),  wkey.data(),  wshear.data(),
+                   wf.data(),       wp.data(),   wb.data(),    wtri.data(),  wcount.data()};
+  v.wroll = rolling ? wroll.data() : nullptr;
+  if (walls_moving && !wall_motions.empty()) v.motion = wall_motions.data(), v.time = t;
+  return v;
+}
+
+template <bool Friction>
+double DemSystem::Impl::kick_drift() {
+  if (poly) return poly_kick_drift();
+  const std::int64_t sn = static_cast<std::int64_t>(n());
+  const double dt = s.dt, h = 0.5 * s.dt;
+  double m2 = 0.0, w2max = 0.0;
+  const bool have_build = bx.size() == n();
+  double *vx = st.vx.data(), *vy = st.vy.data(), *vz = st.vz.data();
+  double *px = st.px.data(), *py = st.py.data(), *pz = st.pz.data();
+  double *wx = st.wx.data(), *wy = st.wy.data(), *wz = st.wz.data();
+  const double *fx = st.fx.data(), *fy = st.fy.data(), *fz = st.fz.data();
+  const double *mass = st.mass.data(), *inertia = st.inertia.data();
+  const double *Tx = tx.data(), *Ty = ty.data(), *Tz = tz.data();
+  const double *Bx = bx.data(), *By = by.data(), *Bz = bz.data();
+#pragma omp parallel for simd num_threads(nt()) schedule(static) reduction(max : m2, w2max)
+  for (std::int64_t i = 0; i < sn; ++i) {
+    const double hm = h / mass[i];
+    phys::kick(vx[i], vy[i], vz[i], fx[i], fy[i], fz[i], hm);
+    px[i] += dt * vx[i];
+    py[i] += dt * vy[i];
+    pz[i] += dt * vz[i];
+    if constexpr (Friction) {
+      phys::kick(wx[i], wy[i], wz[i], Tx[i], Ty[i], Tz[i], h / inertia[i]);
+    }
+    const double w2 = wx[i] * wx[i] + wy[i] * wy[i] + wz[i] * wz[i];
+    w2max = w2max > w2 ? w2max : w2;
+    if (have_build) {
+      const double dx = px[i] - Bx[i], dy = py[i] - By[i], dz = pz[i] - Bz[i];
+      const double d2 = dx * dx + dy * dy + dz * dz;
+      m2 = m2 > d2 ? m2 : d2;
+    }
+  }
+  if (!orientation) return have_build ? std::sqrt(m2) : 1e300;
+  double *qw = st.qw.data(), *qx = st.qx.data(), *qy = st.qy.data(), *qz = st.qz.data();
+  if (phys::small_rotation(w2max, dt)) {
+#pragma omp parallel for simd num_threads(nt()) schedule(static)
+    for (std::int64_t i = 0; i < sn; ++i) {
+      double q0 = qw[i], q1 = qx[i], q2 = qy[i], q3 = qz[i];  // registers, not memory
+      phys::rotate_quaternion_small(q0, q1, q2, q3, wx[i], wy[i], wz[i], dt);
+      qw[i] = q0, qx[i] = q1, qy[i] = q2, qz[i] = q3;
+    }
+  } else {
+#pragma omp parallel for num_threads(nt()) schedule(static)
+    for (std::int64_t i = 0; i < sn; ++i)
+      phys::rotate_quaternion(qw[i], qx[i], qy[i], qz[i], wx[i], wy[i], wz[i], dt);
+  }
+  return have_build ? std::sqrt(m2) : 1e300;
+}
+
+template <bool Friction>
+void DemSystem::Impl::step(bool last, ForceMode mode, std::int64_t substeps) {
+  const double t0 = omp_get_wtime();
+  const double disp = kick_drift<Friction>();
+  if (!bodies.empty()) bodies.kick_drift(s.dt);
+  t += s.dt;
+  flex_tau += s.dt;
+  double wdisp = 0.0;
+  if (walls_moving) {
+    update_walls(t, flex_tau);
+    wdisp = wall_displacement();
+  }
+  const double t1 = omp_get_wtime();
+  // Build when the candidates may miss a pair that comes within skin_in (d_i + d_j since
+  // the build > skin - skin_in) or a wall; refilter when a pair outside the list may touch
+  // (d_i + d_j since the last update > skin_in). d_i + d_j is bounded by twice the largest
+  // displacement, and when that bound calls for an update, by the sum of the two largest
+  // (a pass over the particles): a few fast spheres in a resting bed then use the whole
+  // skin before they call for a build, instead of half of it.
+  const double dbuild = out_disp + disp;   // |x - x_build| <= sum of the refilter intervals
+  const bool one_level = skin_in >= skin;  // the list is the build's: no refilter
+  // the pair parts of the rules, for a bound pd of d_i + d_j since the last update
+  auto build_by_pairs = [&](double pd) {
+    return one_level ? pd > skin : out_pair + pd > skin - skin_in;
+  };
+  auto refilter_by_pairs = [&](double pd) { return !one_level && pd > skin_in; };
+  double pdisp = 2.0 * disp;
+  if (!need_rebuild && disp < 1e300 && (build_by_pairs(pdisp) || refilter_by_pairs(pdisp)))
+    pdisp = two_largest_displacements();
+  const double pbuild = out_pair + pdisp;  // d_i + d_j since the build, any pair
+  // (one level: no refilter has added to out_disp since the build, so dbuild = disp)
+  if (need_rebuild || build_by_pairs(pdisp) || dbuild + wdisp > skin) {
+    rebuild();
+  } else if (refilter_by_pairs(pdisp)) {
+    if (adapt_inner_skin(false, pbuild)) {
+      out_disp += disp;
+      out_pair += pdisp;
+      refilter();
+    } else {
+      rebuild();
+    }
+  }
+  const double t2 = omp_get_wtime();
+  if (poly)
+    forces_and_kick<Friction, true>();
+  else
+    forces_and_kick<Friction>();
+  // Wall forces and torques are read after advance(): summed at its last step only. The
+  // flexible mesh's node forces are summed every substep when they are averaged, and the
+  // rigid bodies' loads every substep (they move by them).
+  if (!tri_v.empty() && (last || (has_flex && mode == ForceMode::average) || !bodies.empty()))
+    wall_reduce(last, mode, substeps);
+  if (!bodies.empty()) {
+    for (const auto& w : walls)
+      if (w.body >= 0) bodies.set_loads(w.body, w.force, w.torque);
+    bodies.kick(s.dt);
+  }
+  ++steps;
+  const double t3 = omp_get_wtime();
+  timing.integration += t1 - t0;
+  timing.detection += t2 - t1;
+  timing.forces += t3 - t2;
+}
+
+// advance() and the CUDA bridge pick the instance by whether some pair has friction.
+template void DemSystem::Impl::step<false>(bool, ForceMode, std::int64_t);
+template void DemSystem::Impl::step<true>(bool, ForceMode, std::int64_t);
+
+}  // namespace demfem::dem
