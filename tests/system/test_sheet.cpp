@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "demfem/io/h5_file.hpp"
+#include "demfem_test/box_scene.hpp"
 #include "demfem_test/run_output.hpp"
 #include "demfem_test/temp_dir.hpp"
 
@@ -78,34 +79,12 @@ bool have_matplotlib() {
 }
 
 // A box of 60 spheres resting on its floor; the fill writes its state, the use loads it.
-const char* kSmallDem = R"(
-[dem]
-dt = 1e-5
-threads = 1
-[[dem.materials]]
-name = "wheat"
-youngs_modulus = 1e8
-poisson_ratio = 0.3
-density = 1242.0
-[[dem.materials]]
-name = "steel"
-youngs_modulus = 1.85e11
-poisson_ratio = 0.3
-[[dem.pairs]]
-a = "wheat"
-b = "wheat"
-friction = 1.0
-restitution = 0.4
-[[dem.pairs]]
-a = "wheat"
-b = "steel"
-friction = 0.22
-restitution = 0.4
-[[dem.walls]]
-name = "box"
-material = "steel"
-box = { lo = [0.0, 0.0, 0.0], hi = [0.03, 0.03, 0.05], open_top = true }
-)";
+const std::string kSmallDem = [] {
+  demfem::test::BoxScene b;
+  b.end_time.clear();
+  b.box_hi = "[0.03, 0.03, 0.05]";
+  return b.text();
+}();
 
 }  // namespace
 

@@ -11,6 +11,7 @@
 #include "demfem/dem/dem_scene.hpp"
 #include "demfem/dem/stl_reader.hpp"
 #include "demfem/io/h5_file.hpp"
+#include "demfem_test/box_scene.hpp"
 #include "demfem_test/cube_shape.hpp"
 #include "demfem_test/temp_dir.hpp"
 
@@ -21,41 +22,7 @@ using demfem::test::TempDir;
 
 namespace {
 
-const char* kRocks = R"(
-[run]
-end_time = 0.01
-
-[dem]
-dt = 1e-5
-threads = 1
-
-[[dem.materials]]
-name = "rock"
-youngs_modulus = 1e8
-poisson_ratio = 0.3
-density = 2600.0
-
-[[dem.materials]]
-name = "steel"
-youngs_modulus = 1e8
-poisson_ratio = 0.3
-
-[[dem.pairs]]
-a = "rock"
-b = "rock"
-friction = 0.6
-restitution = 0.2
-
-[[dem.pairs]]
-a = "rock"
-b = "steel"
-friction = 0.5
-restitution = 0.2
-
-[[dem.walls]]
-name = "box"
-material = "steel"
-box = { lo = [0.0, 0.0, 0.0], hi = [0.3, 0.3, 1.0], open_top = true }
+const std::string kRocks = demfem::test::rock_box("[0.3, 0.3, 1.0]").text() + R"(
 
 [[dem.shapes]]
 name = "ballast"

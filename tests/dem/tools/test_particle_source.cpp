@@ -11,6 +11,7 @@
 #include "demfem/dem/dem_scene.hpp"
 #include "demfem/dem/particle_source.hpp"
 #include "demfem/io/h5_file.hpp"
+#include "demfem_test/box_scene.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 using namespace demfem::dem;
@@ -20,43 +21,8 @@ using demfem::test::TempDir;
 
 namespace {
 
-// A box with a bed of 3-5 mm wheat spheres (the steel sheet's grain, docs/cases.md).
-const char* kHead = R"(
-[run]
-end_time = 0.01
-
-[dem]
-dt = 1e-5
-threads = 1
-
-[[dem.materials]]
-name = "wheat"
-youngs_modulus = 1e8
-poisson_ratio = 0.3
-density = 1242.0
-
-[[dem.materials]]
-name = "steel"
-youngs_modulus = 1.85e11
-poisson_ratio = 0.3
-
-[[dem.pairs]]
-a = "wheat"
-b = "wheat"
-friction = 1.0
-restitution = 0.4
-
-[[dem.pairs]]
-a = "wheat"
-b = "steel"
-friction = 0.22
-restitution = 0.4
-
-[[dem.walls]]
-name = "box"
-material = "steel"
-box = { lo = [0.0, 0.0, 0.0], hi = [0.04, 0.04, 0.1], open_top = true }
-)";
+// A box for a bed of 3-5 mm wheat spheres (the steel sheet's grain, docs/cases.md).
+const std::string kHead = demfem::test::BoxScene{}.text();
 
 const char* kInsert = R"(
 [[dem.insert]]
@@ -353,36 +319,7 @@ distribution = { kind = "uniform", d_min = 0.006, d_max = 0.009 }
 
 TEST_CASE("dem.load: a state of polyhedra, with and without history", "[dem][load][poly]") {
   TempDir dir("load_poly");
-  const std::string head = R"(
-[run]
-end_time = 0.01
-[dem]
-dt = 1e-5
-threads = 1
-[[dem.materials]]
-name = "rock"
-youngs_modulus = 1e8
-poisson_ratio = 0.3
-density = 2600.0
-[[dem.materials]]
-name = "steel"
-youngs_modulus = 1e8
-poisson_ratio = 0.3
-[[dem.pairs]]
-a = "rock"
-b = "rock"
-friction = 0.6
-restitution = 0.2
-[[dem.pairs]]
-a = "rock"
-b = "steel"
-friction = 0.5
-restitution = 0.2
-[[dem.walls]]
-name = "box"
-material = "steel"
-box = { lo = [0.0, 0.0, 0.0], hi = [0.3, 0.3, 0.6], open_top = true }
-)";
+  const std::string head = demfem::test::rock_box("[0.3, 0.3, 0.6]").text();
   const std::string rocks = R"(
 [[dem.shapes]]
 name = "ballast"

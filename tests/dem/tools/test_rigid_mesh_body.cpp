@@ -7,6 +7,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <utility>
 
 #include "demfem/dem/dem_scene.hpp"
 #include "demfem/dem/dem_system.hpp"
@@ -62,6 +63,24 @@ ParticleInit ball(std::array<double, 3> x, double r, std::array<double, 3> v = {
   p.velocity = v;
   p.radius = r;
   return p;
+}
+
+// A floor, nine balls of 5 cm in a 3 x 3 grid (pitch 0.14 m in x, y_pitch in y) and a free
+// plate (0.4 x 0.4 x 0.04 m, 2000 kg/m³) above them, which lands on them under gravity. Returns
+// the plate's wall index and mesh.
+std::pair<std::int32_t, WallMesh> plate_on_nine_balls(DemSystem& d, double y_pitch) {
+  WallMesh floor = box_body({-0.5, -0.5, -0.1}, {0.5, 0.5, 0.0});
+  floor.name = "floor";
+  d.add_wall(floor);
+  WallMesh plate = box_body({-0.2, -0.2, 0.1}, {0.2, 0.2, 0.14});
+  make_body(plate, 2000.0);
+  plate.body.fix_rotation = false;
+  std::vector<ParticleInit> ps;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      ps.push_back(ball({-0.14 + 0.14 * i, -0.14 + y_pitch * j, 0.05}, 0.05));
+  d.add_particles(ps);
+  return {d.add_wall(plate), plate};
 }
 
 /// Linear momentum and angular momentum about the origin of the particles and the body.
@@ -187,24 +206,10 @@ TEST_CASE("a body constrained to z moves only in z", "[rigid_body]") {
 TEST_CASE("a body resting on spheres: reactions equal the weights; restore is bitwise",
           "[rigid_body]") {
   const double g = 9.81;
-  auto build = [&](DemSystem& d) {
-    WallMesh floor = box_body({-0.5, -0.5, -0.1}, {0.5, 0.5, 0.0});
-    floor.name = "floor";
-    d.add_wall(floor);
-    WallMesh plate = box_body({-0.2, -0.2, 0.1}, {0.2, 0.2, 0.14});
-    make_body(plate, 2000.0);
-    plate.body.fix_rotation = false;
-    std::vector<ParticleInit> ps;
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j)
-        ps.push_back(ball({-0.14 + 0.14 * i, -0.14 + 0.14 * j, 0.05}, 0.05));
-    d.add_particles(ps);
-    return std::make_pair(d.add_wall(plate), plate);
-  };
   DemSettings s = settings({0, 0, -g}, 2e-5);
   s.pairs.assign(4, MaterialPair{0.5, 0.2, 0.0});
   DemSystem d(s);
-  auto [id, plate] = build(d);
+  auto [id, plate] = plate_on_nine_balls(d, 0.14);
   d.advance(100000);  // 2 s: settled (restitution 0.2)
   const auto b = d.body_state(id);
   double spheres = 0.0;
@@ -218,8 +223,8 @@ TEST_CASE("a body resting on spheres: reactions equal the weights; restore is bi
   // save half-way, restore into a fresh system, continue: bitwise equal
   test::TempDir dir("rigid_body");
   DemSystem a(s), c(s);
-  build(a);
-  build(c);
+  plate_on_nine_balls(a, 0.14);
+  plate_on_nine_balls(c, 0.14);
   a.advance(1000);
   {
     io::H5File h5(dir.path / "s.h5", io::H5File::Mode::create);
@@ -343,17 +348,7 @@ TEST_CASE("a rigid body returns to the in-memory save point bit for bit", "[rigi
   DemSettings s = settings({0, 0, -9.81}, 2e-5);
   s.pairs.assign(4, MaterialPair{0.5, 0.2, 0.0});
   DemSystem d(s);
-  WallMesh floor = box_body({-0.5, -0.5, -0.1}, {0.5, 0.5, 0.0});
-  floor.name = "floor";
-  d.add_wall(floor);
-  WallMesh plate = box_body({-0.2, -0.2, 0.1}, {0.2, 0.2, 0.14});
-  make_body(plate, 2000.0);
-  plate.body.fix_rotation = false;
-  std::vector<ParticleInit> ps;
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) ps.push_back(ball({-0.14 + 0.14 * i, -0.14 + 0.13 * j, 0.05}, 0.05));
-  d.add_particles(ps);
-  const std::int32_t id = d.add_wall(plate);
+  const std::int32_t id = plate_on_nine_balls(d, 0.13).first;
   d.advance(3000);  // the plate has landed on the spheres and rocks on them
   DemStateCopy copy;
   d.save_state(copy);
