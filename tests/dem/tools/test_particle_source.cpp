@@ -345,6 +345,11 @@ state = true
   saved.system().advance(20000);
   saved.finish();
   REQUIRE(saved.system().contact_count() > 0);  // resting contacts: the history matters
+  // The loader's overlap check measures spheres only: the rocks are reported as unchecked
+  // (the log says so), not as free of overlaps.
+  const OverlapReport ov = largest_overlap(saved.system().particles(), {});
+  CHECK(ov.unchecked == saved.system().particle_count());
+  CHECK(ov.touching == 0);
   whole.system().advance(300);
   const auto& q = saved.system().particles();
   const std::string load = "[dem.load]\nfile = \"fill/dem_state.h5\"\n";
