@@ -566,6 +566,12 @@ Table Document::root() const {
   return Table(tree_.get(), std::make_shared<const std::string>(file_.string()), "", overrides_);
 }
 
+std::string Document::canonical_text() const {
+  std::ostringstream s;
+  s << toml::toml_formatter{*tree_};  // tables are ordered by key
+  return s.str();
+}
+
 namespace {
 
 // run.name becomes a folder (out/<name>) and part of file names: one path component of

@@ -259,7 +259,16 @@ TEST_CASE("dem.load: a saved state with its contact history continues bit for bi
     CHECK(s.dem.load->file == std::filesystem::path("out/fill") / kStateFileName);
     CHECK(s.dem.load->prepare_scene == dir / "fill.toml");
     CHECK(state_is_current(dir / "fill" / kStateFileName, dir / "fill.toml"));
-    std::ofstream(dir / "fill.toml", std::ios::app) << "# changed\n";
+    // A comment, blank lines or another spelling of a number leave the content as it was: the
+    // prepared bed stays current. A changed value does not.
+    std::ofstream(dir / "fill.toml", std::ios::app) << "\n# a comment\n\n";
+    CHECK(state_is_current(dir / "fill" / kStateFileName, dir / "fill.toml"));
+    std::string text = fill;
+    text.replace(text.find("density = 1242.0"), 16, "density = 1.242e3");
+    (void)scene_file(dir, "fill.toml", text + "# spelled otherwise\n");
+    CHECK(state_is_current(dir / "fill" / kStateFileName, dir / "fill.toml"));
+    text.replace(text.find("density = 1.242e3"), 17, "density = 1243.0");
+    (void)scene_file(dir, "fill.toml", text);
     CHECK_FALSE(state_is_current(dir / "fill" / kStateFileName, dir / "fill.toml"));
     (void)scene_file(dir, "nostate.toml", std::string(kHead) + kInsert);
     CHECK_THAT(error_of(dir, std::string(kHead) + "[dem.load]\nscene = \"nostate.toml\"\n", false),

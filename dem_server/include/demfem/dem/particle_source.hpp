@@ -56,8 +56,9 @@ ParticleSource read_particle_source(const scene::Table& load,
 std::filesystem::path prepared_state_path(const std::filesystem::path& prepare_scene,
                                           const std::string& where);
 
-/// @brief FNV-1a (64 bit) of a file's bytes, as 16 hex digits: tells whether a state file
-/// was made by this version of a scene.
+/// @brief FNV-1a (64 bit) of a scene's content (scene::Document::canonical_text: comments,
+/// layout, key order and number spelling do not count), as 16 hex digits: tells whether a
+/// state file was made by this version of a scene. Throws SceneError when it cannot be read.
 std::string scene_text_hash(const std::filesystem::path& file);
 
 /// @brief True when `state` exists and was made by the current text of `scene`.

@@ -159,6 +159,9 @@ class Document {
                         const std::vector<Override>& overrides = {});
 
   Table root() const;
+  /// The scene as TOML in one canonical form (keys sorted, comments, layout and number
+  /// spelling dropped, overrides applied): equal for two scenes with the same content.
+  std::string canonical_text() const;
   const std::filesystem::path& file() const { return file_; }
   const std::vector<Override>& overrides() const { return *overrides_; }
 
