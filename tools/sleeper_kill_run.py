@@ -30,7 +30,8 @@ Then it compares the two output folders (the `compare` step, also on its own):
 
 It prints every difference, a verdict, the members' wall and CPU times, what was killed when
 (the coupler's own recovery messages), and exits 0 when everything is equal, 1 on any
-difference, 2 on bad input, 3 when a member failed.
+difference, 2 on bad input, 3 when the members ended differently, or both failed alike
+(then what they wrote is compared and the verdict printed all the same).
 
 Run it in the folder whose out/ holds the prepared bed (the scene's [dem.load] finds it
 there as `demfem run` does; a missing or stale bed is prepared first by each member, which
@@ -250,12 +251,14 @@ def compare_bytes(a, b, name, folders):
     names the folder it read)."""
     with open(a, "rb") as fa, open(b, "rb") as fb:
         xa, xb = fa.read(), fb.read()
-    for data, folder in ((0, folders[0]), (1, folders[1])):
-        key = os.path.abspath(folder).encode()
-        if data == 0:
-            xa = xa.replace(key, b"<output>")
-        else:
-            xb = xb.replace(key, b"<output>")
+    def anonymous(data, folder):
+        # as given, absolute, relative to here: longest first
+        forms = {folder, os.path.normpath(folder), os.path.abspath(folder), os.path.relpath(folder)}
+        for f in sorted(forms, key=len, reverse=True):
+            data = data.replace(f.encode(), b"<output>")
+        return data
+
+    xa, xb = anonymous(xa, folders[0]), anonymous(xb, folders[1])
     return [] if xa == xb else [f"{name}: bytes differ"]
 
 
@@ -360,15 +363,21 @@ def main(argv):
     except BadInput as e:
         print(f"sleeper_kill_run.py: {e}", file=sys.stderr)
         return 2
-    bad = [n for n, m in summary["members"].items() if m["status"] != 0]
-    if bad:
-        print(f"VERDICT: member(s) {', '.join(bad)} failed (see {args.workdir}/*.log)")
+    status = {n: m["status"] for n, m in summary["members"].items()}
+    if status["uninterrupted"] != status["killed"]:
+        print(f"VERDICT: the members ended differently: {status} (see {args.workdir}/*.log)")
         return 3
+    if status["killed"] != 0:
+        # Both failed alike (e.g. the same blow-up): what they wrote up to it is still compared;
+        # a run that failed is not a long run that survived, so the exit status stays 3.
+        print(f"note: both members ended with status {status['killed']} (see {args.workdir}/*.log); "
+              "comparing what they wrote")
     if summary["kills_not_done"]:
         print("note: kills not done (the run ended first): " + str(summary["kills_not_done"]))
     try:
-        return report(os.path.join(args.workdir, "uninterrupted"),
+        code = report(os.path.join(args.workdir, "uninterrupted"),
                       os.path.join(args.workdir, "killed"), args.bin_dir)
+        return code if status["killed"] == 0 or code != 0 else 3
     except BadInput as e:
         print(f"sleeper_kill_run.py: {e}", file=sys.stderr)
         return 2
