@@ -43,8 +43,9 @@ defeats the purpose: prepare it once with `demfem run` of the preparation scene)
     /usr/bin/python3 tools/sleeper_kill_run.py compare out/kill_run/uninterrupted \
         out/kill_run/killed [--bin-dir build/bin]
 
-The measured run of the CI bed (100 load cycles, 30+ minutes) is in docs/cases.md ("Long and
-fault-isolated"); tests/system/test_sleeper.cpp covers a short version (the mini bed, each
+The measured run of the CI bed (cases/sleeper_ci_100.toml set to 400 cycles, 47 minutes per
+member, both solvers killed) is in docs/cases.md ("Long and fault-isolated");
+tests/system/test_sleeper.cpp runs this comparison on a short version (the mini bed, each
 solver killed once with the coupler's --debug-kill).
 """
 
