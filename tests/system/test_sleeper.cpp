@@ -140,6 +140,31 @@ void check_kill_and_resume(const fs::path& dir) {
     }
     CHECK(snapshots >= 4);  // t = 0, 0.05, 0.1, 0.15 (and the end)
   }
+
+  // tools/sleeper_kill_run.py's comparison (the 30-minute run of docs/cases.md uses it) on the
+  // same folders: beyond the checks above, every CSV series, every dataset and attribute of
+  // every HDF5 file (FEM snapshots included, via bin/demfem_h5_compare) and the end checkpoint.
+  auto compare = [&](const fs::path& lhs, const fs::path& rhs) {
+    return demfem::test::wait_for(demfem::test::launch(
+        dir,
+        {"/usr/bin/python3", (fs::path(DEMFEM_SOURCE_DIR) / "tools/sleeper_kill_run.py").string(),
+         "compare", lhs.string(), rhs.string(), "--bin-dir", kBin.string()}));
+  };
+  for (const char* role : {"dem", "fem"}) {
+    const Result c = compare(dir / "uninterrupted", dir / ("killed_" + std::string(role)));
+    INFO(c.out << c.err);
+    CHECK(c.status == 0);
+    CHECK_THAT(c.out, Catch::Contains("VERDICT: bitwise equal"));
+    CHECK_THAT(c.out, Catch::Contains("end state step-001600"));
+  }
+  // ... and it finds a difference: one particle snapshot replaced by the next one
+  fs::copy(dir / "killed_dem", dir / "altered", fs::copy_options::recursive);
+  fs::copy_file(dir / "altered/particles_000002.h5", dir / "altered/particles_000001.h5",
+                fs::copy_options::overwrite_existing);
+  const Result c = compare(dir / "uninterrupted", dir / "altered");
+  INFO(c.out << c.err);
+  CHECK(c.status == 1);
+  CHECK_THAT(c.out, Catch::Contains("DIFFERENT: particles_000001.h5: dataset /position"));
 }
 
 TEST_CASE("sleeper mini chain: prepares the bed, seats and loads the sleeper, balances, plots",
