@@ -27,6 +27,7 @@
 //    packing's chaos makes two steps settle to different beds. --seeds > 1 settles more beds
 //    at the first step to measure that spread.
 
+#include <unistd.h>
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cmath>
@@ -34,7 +35,6 @@
 #include <ctime>
 #include <filesystem>
 #include <limits>
-#include <unistd.h>
 
 #include "ballast_bed.hpp"
 #include "bench_report.hpp"
@@ -57,11 +57,11 @@ struct Setup {
   std::size_t n = 300;
   double E = 1e10;
   int threads = 1;
-  double aspect = 1.0;          // footprint side / packed height (continue protocol)
-  double preload = 1.2e3;       // Pa, the platen's weight over its area
-  double load = 2.64e5;         // Pa
-  double gap = 0.005;           // m, between the platen and each side wall
-  double thickness = 0.04;      // m, platen
+  double aspect = 1.0;      // footprint side / packed height (continue protocol)
+  double preload = 1.2e3;   // Pa, the platen's weight over its area
+  double load = 2.64e5;     // Pa
+  double gap = 0.005;       // m, between the platen and each side wall
+  double thickness = 0.04;  // m, platen
 };
 
 DemSettings settings(double dt, const Setup& su) {
@@ -89,8 +89,8 @@ WallMesh box_mesh(double x0, double x1, double y0, double y1, double z0, double 
   w.material = 1;
   w.vertices = {x0, y0, z0, x1, y0, z0, x1, y1, z0, x0, y1, z0,
                 x0, y0, z1, x1, y0, z1, x1, y1, z1, x0, y1, z1};
-  w.triangles = {0, 2, 1, 0, 3, 2,  4, 5, 6, 4, 6, 7,  0, 1, 5, 0, 5, 4,
-                 1, 2, 6, 1, 6, 5,  2, 3, 7, 2, 7, 6,  3, 0, 4, 3, 4, 7};
+  w.triangles = {0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4,
+                 1, 2, 6, 1, 6, 5, 2, 3, 7, 2, 7, 6, 3, 0, 4, 3, 4, 7};
   return w;
 }
 
@@ -196,7 +196,9 @@ DemSystem loaded_system(const LoadedBed& b, double dt, const Setup& su, double p
   return sys;
 }
 
-int platen_index(const DemSystem& sys) { return static_cast<int>(sys.wall_count()) - 1; }
+int platen_index(const DemSystem& sys) {
+  return static_cast<int>(sys.wall_count()) - 1;
+}
 
 double platen_bottom(const DemSystem& sys, const Setup& su) {
   return sys.body_state(platen_index(sys)).centre[2] - 0.5 * su.thickness;
@@ -270,8 +272,7 @@ int main(int argc, char** argv) {
   app.add_option("--load-pressure", su.load, "continue protocol: platen pressure, Pa");
   app.add_option("--preload-pressure", su.preload,
                  "continue protocol: the platen's weight over its area during settling, Pa");
-  app.add_option("--aspect", su.aspect,
-                 "continue protocol: the box's side over the packed height");
+  app.add_option("--aspect", su.aspect, "continue protocol: the box's side over the packed height");
   app.add_option("--control", control,
                  "continue protocol: a control run at the reference step with the load "
                  "changed by 1e-9 (the chaos floor)");
@@ -287,9 +288,9 @@ int main(int argc, char** argv) {
   app.add_option("--json", json, "write the results as JSON");
   CLI11_PARSE(app, argc, argv);
   const bool cont = protocol == "continue";
-  std::vector<std::string> cols = {"rocks",        "dt s",         "dt / dt_R", "seed",
-                                   "bed height m", "rel. to ref",  "coordination Z",
-                                   "rel. to ref",  "KE J",         "max overlap / r_d"};
+  std::vector<std::string> cols = {
+      "rocks",       "dt s",           "dt / dt_R",   "seed", "bed height m",
+      "rel. to ref", "coordination Z", "rel. to ref", "KE J", "max overlap / r_d"};
   if (cont)
     for (const char* c : {"platen height m", "settlement m", "rel. to ref", "CPU s"})
       cols.emplace_back(c);
@@ -364,7 +365,8 @@ int main(int argc, char** argv) {
         DemSystem sys = loaded_system(b, settle_dt, su, su.preload);
         bool finite = true;
         const std::clock_t c0 = std::clock();
-        const double ov = run_for(sys, settle_time, settle_dt, finite, verbose ? "settle" : nullptr);
+        const double ov =
+            run_for(sys, settle_time, settle_dt, finite, verbose ? "settle" : nullptr);
         const Measure m = measure(sys);
         std::fprintf(stderr,
                      "seed %d: %zu rocks in a %.3f m box, settled %.2f s at %g s (%.0f CPU s): "
@@ -381,7 +383,8 @@ int main(int argc, char** argv) {
         std::filesystem::rename(part, state);
       }
       for (std::size_t k = 0; k < dts.size(); ++k) {
-        const Outcome o = load(b, state, dts[k], ramp_time, stages, hold_time, su, su.load, verbose);
+        const Outcome o =
+            load(b, state, dts[k], ramp_time, stages, hold_time, su, su.load, verbose);
         if (k == 0) ref = o;
         row(dts[k], std::to_string(s), o);
         std::fprintf(stderr,
@@ -391,11 +394,11 @@ int main(int argc, char** argv) {
                      o.settlement, o.settlement / ref.settlement - 1, o.overlap, o.cpu);
       }
       if (control) {
-        const Outcome o = load(b, state, dts[0], ramp_time, stages, hold_time, su, su.load * (1 + 1e-9), false);
+        const Outcome o =
+            load(b, state, dts[0], ramp_time, stages, hold_time, su, su.load * (1 + 1e-9), false);
         row(dts[0], std::to_string(s) + " control", o);
         std::fprintf(stderr, "  control: h %+.2e, Z %+.2e, settlement %+.2e\n",
-                     o.height / ref.height - 1, o.z / ref.z - 1,
-                     o.settlement / ref.settlement - 1);
+                     o.height / ref.height - 1, o.z / ref.z - 1, o.settlement / ref.settlement - 1);
       }
       if (cache.empty()) std::filesystem::remove(state);
     }
