@@ -52,10 +52,11 @@ inline const SizeDistribution kSizes = SizeDistribution::normal(0.04, 0.01, 0.02
 // Rocks (library given) or spheres (library null): shapes and sizes drawn as a random
 // insertion would (library sample, the ballast distribution), then packed densely by their
 // bounding spheres, largest first, in rows along x and layers, over a footprint of about
-// twice the packed height: the bed then falls little and settles in a fraction of a second
-// (random insertion at a safe bounding-sphere fraction left the rocks a metre to fall).
+// `aspect` times the packed height (default 2): the bed then falls little and settles in a
+// fraction of a second (random insertion at a safe bounding-sphere fraction left the rocks a
+// metre to fall).
 inline Bed make_bed(std::size_t n, const shapes::ShapeLibrary* lib, std::int32_t shape_base,
-                    std::uint64_t seed = 11) {
+                    std::uint64_t seed = 11, double aspect = 2.0) {
   Bed bed;
   Rng rng(seed);
   struct Item {
@@ -76,7 +77,7 @@ inline Bed make_bed(std::size_t n, const shapes::ShapeLibrary* lib, std::int32_t
                    [](const Item& a, const Item& b) { return a.r > b.r; });
   double vol = 0.0;
   for (const auto& it : items) vol += 8.0 * it.r * it.r * it.r;
-  const double side = std::cbrt(2.0 * vol) + 0.1;  // footprint: about twice the height
+  const double side = std::cbrt(aspect * vol) + 0.1;  // footprint: about aspect x height
   bed.lx = bed.ly = side;
   double x = 0.0, y = 0.0, z = 0.0, row = 0.0, layer = 0.0;
   for (const auto& it : items) {
