@@ -69,7 +69,7 @@ PYTHON = "/usr/bin/python3"
 GAP = 0.004          # m: the sleeper's bottom above the highest rock under it (docs/cases.md)
 HEIGHT = 0.18        # m: the sleeper's height (table 6.1)
 Y0 = 0.4             # m: its lower y edge in the 0.3 m slice
-INSERT_TRIES = 5     # seeds tried per bed stage when the random insertion does not fit
+INSERT_TRIES = 12    # seed pairs tried per bed (insertion that does not fit, blow-up)
 INSERT_SEED_STEP = 100
 EXIT_BLOW_UP = 3
 HOLD = 0.04          # s: held at the peak after the pattern
@@ -170,33 +170,51 @@ class Runner:
                     return folder, rec
                 raise RuntimeError(f"{folder}: made with other settings ({rec_path}); remove it")
             os.makedirs(folder, exist_ok=True)
-            cpu, used, rejected = {}, {}, []
-            for stage, scene, s in (("bed1", BED1, seed), ("bed2", BED2, seed + 1000)):
-                log_path = os.path.join(folder, f"{stage}.log")
-                for attempt in range(INSERT_TRIES):
-                    s_try = s + INSERT_SEED_STEP * attempt
-                    self.log(f"bed {os.path.basename(folder)}: {stage} (seed {s_try})")
+            failed_path = os.path.join(folder, "bed_failed.json")
+            if os.path.exists(failed_path):
+                raise RuntimeError(f"{folder}: no bed ({failed_path}); remove it to try again")
+            cpu, rejected = {"bed1": 0.0, "bed2": 0.0}, []
+            rejected_path = os.path.join(folder, "bed_rejected.json")
+            if os.path.exists(rejected_path):  # an earlier run's: not tried again
+                rejected = json.load(open(rejected_path))
+            for attempt in range(INSERT_TRIES):
+                if any(r["attempt"] == attempt for r in rejected):
+                    continue
+                # both stages with the next seeds when one fails: the random insertion of the
+                # bands is near their capacity (about 33 rocks in 0.5 m of the slice,
+                # docs/cases.md), and some beds blow up while the plate compacts them
+                used = {"bed1": seed + INSERT_SEED_STEP * attempt,
+                        "bed2": seed + 1000 + INSERT_SEED_STEP * attempt}
+                why = None
+                for stage, scene in (("bed1", BED1), ("bed2", BED2)):
+                    log_path = os.path.join(folder, f"{stage}.log")
+                    self.log(f"bed {os.path.basename(folder)}: {stage} (seed {used[stage]})")
                     start = os.path.getsize(log_path) if os.path.exists(log_path) else 0
                     code, c = run_logged([self.demfem_run, scene, "--quiet"] +
-                                         sets({"run.seed": s_try, **bed}), folder, log_path)
-                    cpu[stage] = cpu.get(stage, 0.0) + c
+                                         sets({"run.seed": used[stage], **bed}), folder, log_path)
+                    cpu[stage] += c
                     with open(log_path) as f:
                         f.seek(start)
                         full = code == 2 and "cannot insert" in f.read()
-                    if not full and code != EXIT_BLOW_UP:
+                    if full or code == EXIT_BLOW_UP:
+                        why = "random insertion found no place for every rock" if full else \
+                            "preparation blew up"
                         break
-                    # the random insertion of these bands is near their capacity (about 33
-                    # rocks in 0.5 m of the slice, docs/cases.md), and some beds blow up while
-                    # the plate compacts them: another seed, recorded in bed.json
-                    why = "random insertion found no place for every rock" if full else \
-                        "preparation blew up"
-                    self.log(f"bed {os.path.basename(folder)}: {stage}: seed {s_try}'s {why}; "
-                             "next seed")
-                    rejected.append({"stage": stage, "seed": s_try, "why": why})
-                if code != 0:
-                    raise RuntimeError(f"{folder}: {stage} ended with status {code} "
-                                       f"(log {log_path})")
-                used[stage] = s_try
+                    if code != 0:
+                        raise RuntimeError(f"{folder}: {stage} ended with status {code} "
+                                           f"(log {log_path})")
+                if why is None:
+                    break
+                self.log(f"bed {os.path.basename(folder)}: {stage} seed {used[stage]}: {why}; "
+                         "next seeds")
+                rejected.append({"attempt": attempt, "stage": stage, "seeds": dict(used),
+                                 "why": why})
+                with open(rejected_path, "w") as f:
+                    json.dump(rejected, f, indent=1)
+            else:
+                with open(failed_path, "w") as f:
+                    json.dump({**want, "seeds_rejected": rejected}, f, indent=1)
+                raise RuntimeError(f"{folder}: no bed in {INSERT_TRIES} tries of seeds")
             # where the load case's sleeper goes: above the highest rock under it
             top_path = os.path.join(folder, "out", "sleeper_bed2_mini", "sensor_under_sleeper.csv")
             top = column(read_csv(top_path), "top", top_path)[-1]
@@ -300,8 +318,9 @@ def cmd_run(a):
     seeds = [int(s) for s in a.seeds.split(",")]
     r = Runner(a.out, a.bin_dir, a.cycles)
     jobs = [(st, v, s) for st in a.studies for s in seeds for v in STUDIES[st][2]]
-    # the time-scale study first: its time scale 10 members are the others' baseline
-    jobs.sort(key=lambda j: (j[0] != "time_scale", STUDIES[j[0]][2].index(j[1]), j[2]))
+    # seed by seed (every study gets its repetitions early); the time-scale study first
+    # in each: its time scale 10 member is the others' baseline
+    jobs.sort(key=lambda j: (j[2], j[0] != "time_scale", STUDIES[j[0]][2].index(j[1])))
     failed = []
     signal.signal(signal.SIGINT, stop_all)
     signal.signal(signal.SIGTERM, stop_all)
@@ -370,7 +389,7 @@ def member_series(rec):
     if "max_principal_strain" in rep:
         scal["max_principal_strain_ue"] = 1e6 * rep["max_principal_strain"]
     scal["cpu_s"] = rec.get("cpu_s")
-    return tau, rel, scal, (ramp, f, cycles)
+    return tau, rel, scal, (ramp, f, cycles), mins
 
 
 def cmd_collect(a):
@@ -403,11 +422,11 @@ def cmd_collect(a):
             rows.append(row)
             # the members on the first member's reference-time grid (interpolated)
             grid = series[0][0]
-            lo = max(s[0][0] for s in series)
+            lo = max(0.0, max(s[0][0] for s in series))  # from the load start
             hi = min(s[0][-1] for s in series)
             grid = [x for x in grid if lo <= x <= hi]
             ys = []
-            for tau, rel, _, _ in series:
+            for tau, rel, *_ in series:
                 j, y = 0, []
                 for x in grid:
                     while j + 1 < len(tau) - 1 and tau[j + 1] < x:
@@ -417,7 +436,9 @@ def cmd_collect(a):
                     y.append(rel[j] + w * (rel[j + 1] - rel[j]))
                 ys.append(y)
             ms = [mean_sd([y[i] for y in ys]) for i in range(len(grid))]
-            curves[fmt(v)] = (grid, [m for m, _, _ in ms], [sd for _, sd, _ in ms], len(recs))
+            curves[fmt(v)] = (grid, [m for m, _, _ in ms], [sd for _, sd, _ in ms], len(recs),
+                              [mean_sd([x[4][k] for x in series])[:2]
+                               for k in range(len(series[0][4]))])
         if not rows:
             print(f"{study}: no finished members in {folder}", file=sys.stderr)
             return 1
@@ -437,27 +458,38 @@ def cmd_collect(a):
         print(f"\n{study} ({label}): mean +- sd over the seeds; settlement since the load "
               "start (mm, negative down), cell pressures in the hold (kPa), strain (microstrain)")
         show = ["seating_mm", "peak_mm", "cycle1_mm", "last_cycle_mm", "final_mm",
-                "cycle_amplitude_mm", "cell1_kPa", "cell3_kPa", "cell5_kPa",
-                "strain_centre_max_ue", "strain_seat1_max_ue", "cpu_s"]
+                "cycle_amplitude_mm", "cell1_kPa", "cell2_kPa", "cell3_kPa", "cell4_kPa",
+                "cell5_kPa", "strain_centre_hold_ue", "strain_seat1_hold_ue",
+                "strain_centre_max_ue", "max_principal_strain_ue", "cpu_s"]
         show = [k for k in show if k + "_mean" in rows[0]]
         print("setting  n  " + "  ".join(f"{k:>18}" for k in show))
         for r in rows:
             print(f"{r['setting']:>7} {r['n']:2d}  " + "  ".join(
                 f"{r[k + '_mean']:9.3g} ±{r[k + '_sd']:8.2g}" for k in show))
-        fig, ax = plt.subplots(figsize=(8, 4.5))
-        for name, (g, m, sd, n) in curves.items():
+        fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 4.5),
+                                      gridspec_kw={"width_ratios": [2.2, 1]})
+        for name, (g, m, sd, n, at_min) in curves.items():
             line, = ax.plot(g, m, lw=1.2, label=f"{label} {name} (n = {n})")
             ax.fill_between(g, [a - b for a, b in zip(m, sd)], [a + b for a, b in zip(m, sd)],
                             color=line.get_color(), alpha=0.2, lw=0)
+            ax2.errorbar(range(len(at_min)), [x[0] for x in at_min],
+                         yerr=[0.0 if math.isnan(x[1]) else x[1] for x in at_min], marker="o",
+                         capsize=3, color=line.get_color(), label=f"{name}")
         if pattern:
             ramp, f, cycles = pattern
             for k in range(cycles + 1):
                 ax.axvline(ramp + k / f, color="grey", lw=0.4, ls=":")
         ax.set_xlabel("reference time (t - load start) / time scale (s); dotted: cycle minima")
         ax.set_ylabel("settlement since the load start (mm)")
-        ax.set_title(f"sleeper (small chain): {label}, mean ± sd over seeds")
+        ax.set_title(f"sleeper (small chain): {label}, mean ± sd over seeds", fontsize=10)
         ax.legend(fontsize=8)
         ax.grid(True, lw=0.3)
+        ax2.set_xticks(range(pattern[2] + 1) if pattern else [])
+        ax2.set_xlabel("cycle (0: the first ramp's end, at the peak)")
+        ax2.set_ylabel("settlement at the cycle minimum (mm)")
+        ax2.set_title("at the cycles' minimum load, mean ± sd", fontsize=10)
+        ax2.legend(fontsize=8, title=label, title_fontsize=8)
+        ax2.grid(True, lw=0.3)
         fig.tight_layout()
         os.makedirs(a.figures, exist_ok=True)
         png = os.path.join(a.figures, f"sleeper_study_{study}.png")
