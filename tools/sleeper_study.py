@@ -388,7 +388,10 @@ def member_series(rec):
         scal[f"strain_{label}_max_ue"] = 1e6 * g["max"]
     if "max_principal_strain" in rep:
         scal["max_principal_strain_ue"] = 1e6 * rep["max_principal_strain"]
-    scal["cpu_s"] = rec.get("cpu_s")
+    cpu_rec = rec
+    if rec.get("shared_with"):  # the baseline's run, made once for the studies
+        cpu_rec = json.load(open(os.path.join(rec["shared_with"], "member.json")))
+    scal["cpu_s"] = cpu_rec.get("cpu_s")
     return tau, rel, scal, (ramp, f, cycles), mins
 
 
