@@ -27,6 +27,11 @@ preparation, as docs/cases.md places it for the committed bed), with a mesh of i
 (cases/geometry/make_sleeper.py --z0), and the load case's z selectors and probes moved
 with it (overrides).
 
+Seeds: bed 1 takes run.seed = seed, bed 2 seed + 1000. Where the random insertion does not
+fit (the small chain's bands are at their capacity) or a preparation blows up, both stages
+run again with the seeds + 100 k (k = 1, 2, ...; at most INSERT_TRIES pairs); bed.json and
+bed_rejected.json record the seeds used and rejected.
+
 The load pattern: the thesis's (fig. 6.2, `"sleeper"` amplitude) with `--cycles` cycles
 (default 3; the thesis: 6), time scale 10 for the friction and triangles studies (the
 thesis's choice), then held at the peak for 0.04 s (the cells' pressures: mean over it).
