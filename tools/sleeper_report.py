@@ -1,8 +1,8 @@
 #!/usr/bin/python3
 """Plots and key figures of a sleeper-on-ballast run (thesis ch. 6, cases/sleeper*.toml).
 
-usage: tools/sleeper_report.py OUTPUT_DIR --scene SCENE [--hold T0,T1] [--cell-area 0.0484]
-                               [--rock-density RHO]
+usage: tools/sleeper_report.py OUTPUT_DIR --scene SCENE [--hold T0,T1] [--rock-density RHO]
+                               [--set KEY=VALUE ...]
 
 Reads, from OUTPUT_DIR: fem_monitor.csv (bottom probes b*_uz of the sleeper), sensor_base.csv
 (force of the rocks on the box: its fz is minus the base reaction), sensor_cell<k>.csv (force
@@ -10,18 +10,27 @@ of the rocks on pressure cell k), sensor_all_rocks.csv (a packing sensor over th
 the rocks' volume) and the packing sensors sensor_packing_*.csv / sensor_under_sleeper.csv
 when there; and from SCENE (the load case's TOML): the load pattern (start, ramp, cycles,
 time scale, levels and seats), the seating load, the sleeper's density and the mesh (its
-volume from the node bounding box), the cells' density and size, and the all_rocks box.
+volume from the node bounding box), the cells' density and size, and the all_rocks box;
+--set KEY=VALUE changes a key of SCENE as `demfem run --set` did for the run (a study that
+ran the scene with overrides passes the same ones here).
 Writes into OUTPUT_DIR:
   settlement.png       settlement (mean uz of the bottom probes, mm) against time, and at each
                        cycle's minimum load against the cycle number
   cell_pressures.png   each cell's pressure (vertical force of the rocks / top area, kPa)
                        against time, and the five cells' pressures in the hold against x
+  sleeper_strain.png   the sleeper's bending strain against time: the bottom fibre's axial
+                       strain at each strain gauge (below), and the largest principal strain
+                       of all elements (fem_series.csv, thesis fig. 6.8) when written
   sleeper_report.txt   the key figures in words
   sleeper_report.json  the same, for scripts and tests
 Force balance of the static hold (--hold window, the load held at its peak): the base
 reaction (mean of -fz of the box over the window) against the weights of the rocks
 (all_rocks volume x density x g), the cells and the sleeper plus the applied load (seating
 + every seat's peak). Exit status 2 on a missing file, column or scene key.
+Strain gauges: a pair of monitor probes named sg_<label>_0 and sg_<label>_1 (two nodes of
+the bottom face on the centre line, 0 at the smaller x) is a gauge of length x_1 - x_0 (of
+the mesh nodes nearest to the probe points); its strain is (ux_1 - ux_0) / (x_1 - x_0), the
+mean axial strain of the bottom fibre between them (positive: tension, sagging).
 """
 
 import argparse
@@ -34,6 +43,7 @@ import tomllib
 
 # the CSV reading of the sheet report (same folder)
 from sheet_report import column, read_csv
+from sweep import scene_keys
 
 G = 9.81
 
@@ -43,9 +53,9 @@ def window_mean(t, y, t0, t1):
     return (sum(v) / len(v)) if v else None
 
 
-def inp_bounding_box(path):
-    """The bounding box of the *NODE block of an Abaqus deck (the sleeper is a box)."""
-    lo, hi = [math.inf] * 3, [-math.inf] * 3
+def inp_nodes(path):
+    """The nodes of the *NODE blocks of an Abaqus deck, as [x, y, z] lists."""
+    nodes = []
     in_nodes = False
     with open(path) as f:
         for line in f:
@@ -54,21 +64,61 @@ def inp_bounding_box(path):
                 in_nodes = s.upper().split(",")[0].strip() == "*NODE"
                 continue
             if in_nodes and s:
-                v = [float(x) for x in s.split(",")[1:4]]
-                lo = [min(a, b) for a, b in zip(lo, v)]
-                hi = [max(a, b) for a, b in zip(hi, v)]
-    return lo, hi
+                nodes.append([float(x) for x in s.split(",")[1:4]])
+    return nodes
 
 
-def scene_figures(scene_path, rock_density):
-    """What the balance and the cycle marks need, read from the load case's scene."""
+def bounding_box(nodes):
+    """(lo, hi) of the nodes (the sleeper is a box)."""
+    return ([min(n[k] for n in nodes) for k in range(3)],
+            [max(n[k] for n in nodes) for k in range(3)])
+
+
+def load_scene(scene_path, overrides=()):
+    """The scene as tomllib reads it, with `KEY=VALUE` overrides applied as --set does."""
     with open(scene_path, "rb") as f:
         sc = tomllib.load(f)
+    for o in overrides:
+        key, eq, text = o.partition("=")
+        if not eq:
+            raise ValueError(f"--set {o}: expected KEY=VALUE")
+        try:
+            value = tomllib.loads("v = " + text)["v"]
+            scene_keys.assign(sc, key.strip(), value)
+        except (tomllib.TOMLDecodeError, scene_keys.KeyError_) as e:
+            raise ValueError(f"{scene_path}: --set {o}: {e}") from None
+    return sc
+
+
+def strain_gauges(sc, mesh_nodes):
+    """{label: (x_0, x_1, probe_0, probe_1)} of the sg_<label>_0/1 probe pairs of the scene,
+    x of the mesh nodes nearest to the probe points (the monitor measures there)."""
+    probes = {p["name"]: p["point"] for p in sc["fem"].get("monitor", {}).get("probes", [])}
+    gauges = {}
+    for name in probes:
+        m = re.fullmatch(r"sg_(\w+)_0", name)
+        if not m or f"sg_{m.group(1)}_1" not in probes:
+            continue
+        xs = []
+        for k in (0, 1):
+            pt = probes[f"sg_{m.group(1)}_{k}"]
+            xs.append(min(mesh_nodes, key=lambda n: sum((a - b) ** 2 for a, b in zip(n, pt)))[0])
+        if xs[1] <= xs[0]:
+            raise ValueError(f"strain gauge sg_{m.group(1)}: probe _1 must lie at a larger x "
+                             "than probe _0 (on another mesh node)")
+        gauges[m.group(1)] = (xs[0], xs[1], f"sg_{m.group(1)}_0", f"sg_{m.group(1)}_1")
+    return gauges
+
+
+def scene_figures(scene_path, rock_density, overrides=()):
+    """What the balance and the cycle marks need, read from the load case's scene."""
+    sc = load_scene(scene_path, overrides)
     folder = os.path.dirname(os.path.abspath(scene_path))
     fem, dem = sc["fem"], sc["dem"]
     mats = {m["name"]: m for m in fem["materials"]}
     sleeper_density = mats[fem["sections"][0]["material"]]["density"]
-    lo, hi = inp_bounding_box(os.path.join(folder, fem["mesh"]["file"]))
+    mesh_nodes = inp_nodes(os.path.join(folder, fem["mesh"]["file"]))
+    lo, hi = bounding_box(mesh_nodes)
     sleeper_volume = (hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2])
     seating, seats, pattern = 0.0, 0, None
     for p in fem.get("pressures", []):
@@ -104,7 +154,7 @@ def scene_figures(scene_path, rock_density):
                 rocks_box *= s["hi"][k] - s["lo"][k]
     return {"sleeper_mass": sleeper_density * sleeper_volume, "seating_N": seating,
             "peak_load_N": peak, "pattern": pattern, "rock_density": rho, "cells": cells,
-            "rocks_box_volume": rocks_box}
+            "rocks_box_volume": rocks_box, "gauges": strain_gauges(sc, mesh_nodes)}
 
 
 def main(argv):
@@ -114,10 +164,12 @@ def main(argv):
     ap.add_argument("--hold", default=None, help="T0,T1: window of the static hold, s")
     ap.add_argument("--rock-density", type=float, default=None,
                     help="kg/m^3 (default: the scene's granite)")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="a scene key as the run had it (demfem run --set)")
     a = ap.parse_args(argv)
     out = a.output
     try:
-        fig = scene_figures(a.scene, a.rock_density)
+        fig = scene_figures(a.scene, a.rock_density, a.set)
         mon_path = os.path.join(out, "fem_monitor.csv")
         mon = read_csv(mon_path)
         t = column(mon, "time", mon_path)
@@ -125,6 +177,17 @@ def main(argv):
         if not probes:
             raise KeyError(f"{mon_path}: no bottom probes b*_uz")
         uz = [column(mon, p + "_uz", mon_path) for p in probes]
+        strain = {}  # label -> bottom-fibre axial strain per monitor row
+        for label, (x0, x1, p0, p1) in fig["gauges"].items():
+            u0, u1 = column(mon, p0 + "_ux", mon_path), column(mon, p1 + "_ux", mon_path)
+            strain[label] = [(b - c) / (x1 - x0) for b, c in zip(u1, u0)]
+        series_path = os.path.join(out, "fem_series.csv")
+        max_strain = None
+        if os.path.exists(series_path):
+            rows = read_csv(series_path)
+            if "max_principal_strain" in rows:
+                max_strain = (column(rows, "time", series_path),
+                              column(rows, "max_principal_strain", series_path))
         settle = [1e3 * sum(u[i] for u in uz) / len(uz) for i in range(len(t))]  # mm
         tilt = [1e3 * (uz[-1][i] - uz[0][i]) for i in range(len(t))]  # last - first probe, mm
         cells = []
@@ -170,6 +233,14 @@ def main(argv):
               "cycles": [{"cycle": k, "settlement_mm": s} for k, s in cyc],
               "sleeper_mass_kg": fig["sleeper_mass"], "applied_load_N":
               fig["seating_N"] + fig["peak_load_N"]}
+    if strain:
+        report["strain"] = {}
+        for label, (x0, x1, _, _) in fig["gauges"].items():
+            e = strain[label]
+            report["strain"][label] = {"x0": x0, "x1": x1, "max": max(e), "min": min(e),
+                                       "final": e[-1]}
+    if max_strain is not None:
+        report["max_principal_strain"] = max(max_strain[1])
     # a loaded state has no contact forces before its first step: the packing's first row
     # is the first one after it
     first = {name: next((i for i, x in enumerate(p["time"]) if x > 0), 0)
@@ -198,6 +269,8 @@ def main(argv):
                     tb, [f * f for f in fb], h0, h1) - base_hold ** 2)),
             })
         hold["cell_pressure_kPa"] = {c["name"]: window_mean(tc, p, h0, h1) for c, tc, p in cells}
+        if strain:
+            hold["strain"] = {label: window_mean(t, e, h0, h1) for label, e in strain.items()}
         report["hold"] = hold
 
     with open(os.path.join(out, "sleeper_report.json"), "w") as f:
@@ -210,6 +283,13 @@ def main(argv):
     if cyc:
         lines.append("settlement at the cycle minima: " +
                      ", ".join(f"{k}: {s:.3f}" for k, s in cyc) + " mm")
+    for label, g in report.get("strain", {}).items():
+        lines.append(f"bottom-fibre strain {label} (x {g['x0']:.4f}-{g['x1']:.4f} m): "
+                     f"max {1e6 * g['max']:.1f}, min {1e6 * g['min']:.1f}, final "
+                     f"{1e6 * g['final']:.1f} microstrain")
+    if "max_principal_strain" in report:
+        lines.append(f"largest principal strain of all elements: "
+                     f"{1e6 * report['max_principal_strain']:.1f} microstrain")
     for name, p in packing.items():
         i = first[name]
         lines.append(f"{name} (t = {p['time'][i]:.4f} -> {p['time'][-1]:.4f} s): solid fraction "
@@ -268,6 +348,22 @@ def main(argv):
     ax[1].grid(True)
     f2.tight_layout()
     f2.savefig(os.path.join(out, "cell_pressures.png"), dpi=110)
+    if strain or max_strain is not None:
+        f3, ax = plt.subplots(figsize=(7, 4))
+        for label, e in strain.items():
+            x0, x1 = fig["gauges"][label][:2]
+            ax.plot(t, [1e6 * v for v in e], lw=0.8,
+                    label=f"bottom fibre, x {x0:.3f}-{x1:.3f} m ({label})")
+        if max_strain is not None:
+            ax.plot(max_strain[0], [1e6 * v for v in max_strain[1]], "k.", ms=3,
+                    label="largest principal strain, all elements")
+        ax.axvline(t0, color="grey", lw=0.5)
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel("strain (microstrain; bottom fibre: + tension)")
+        ax.legend(fontsize=8)
+        ax.grid(True)
+        f3.tight_layout()
+        f3.savefig(os.path.join(out, "sleeper_strain.png"), dpi=110)
     return 0
 
 

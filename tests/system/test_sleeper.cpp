@@ -201,7 +201,7 @@ TEST_CASE("sleeper mini chain: prepares the bed, seats and loads the sleeper, ba
   for (const char* f : {"particles.xdmf", "fem.xdmf", "coupling.csv", "fem_monitor.csv",
                         "sleeper_report.txt", "sleeper_report.json"})
     CHECK(fs::exists(out / f));
-  for (const char* png : {"settlement.png", "cell_pressures.png"}) {
+  for (const char* png : {"settlement.png", "cell_pressures.png", "sleeper_strain.png"}) {
     INFO(png);
     CHECK(is_png(out / png));
   }
@@ -264,6 +264,18 @@ TEST_CASE("sleeper mini chain: prepares the bed, seats and loads the sleeper, ba
   const std::string report = read_text(out / "sleeper_report.json");
   CHECK(json_number(report, "balance_rel") ==
         Approx((reaction - expected) / expected).margin(1e-6));
+
+  // The sleeper's strain: the report's centre gauge (bottom-fibre axial strain between the
+  // bottom nodes at x = 1.55058 and 1.64942 m) in the hold, recomputed from the monitor.
+  {
+    const auto u0 = column(mon, "sg_centre_0_ux"), u1 = column(mon, "sg_centre_1_ux");
+    std::vector<double> e(t.size());
+    for (std::size_t i = 0; i < t.size(); ++i) e[i] = (u1[i] - u0[i]) / (1.64942 - 1.55058);
+    const double held_strain = window_mean(t, e, 0.25, 0.35);
+    INFO("centre bottom-fibre strain in the hold " << held_strain);
+    REQUIRE(std::isfinite(held_strain));
+    CHECK(json_number(report, "centre") == Approx(held_strain).epsilon(1e-4));
+  }
 
   // The cells' tops: the rocks only press on them (fz <= 0 at every sample), all five are
   // loaded in the hold.
