@@ -186,7 +186,14 @@ TEST_CASE("prepare scenes: made once, reused, made again when the scene changes"
   r = run(d.path, {use, "--quiet", "--in-process"});
   REQUIRE(r.status == 0);
   CHECK_THAT(r.out, !Catch::Contains("running that scene first"));
-  std::ofstream(d / "fill.toml", std::ios::app) << "# changed\n";
+  // A comment is no change of the scene: the state is reused. Another seed is.
+  std::ofstream(d / "fill.toml", std::ios::app) << "# a comment\n";
+  r = run(d.path, {use, "--quiet"});
+  REQUIRE(r.status == 0);
+  CHECK_THAT(r.out, !Catch::Contains("running that scene first"));
+  std::string fill = read_text(d / "fill.toml");
+  fill.replace(fill.find("seed = 2"), 8, "seed = 3");
+  std::ofstream(d / "fill.toml") << fill;
   r = run(d.path, {use, "--quiet"});
   REQUIRE(r.status == 0);
   CHECK_THAT(r.out, Catch::Contains("was made by another version of it"));
