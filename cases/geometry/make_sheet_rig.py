@@ -16,9 +16,17 @@ plate of that thickness), the bin a box without its top. The sheet itself is the
 mid-surface z = 0, x in [0, 0.34], y in [0, 0.1], clamped over x <= 0.06. Where the thesis
 gives no dimension, docs/cases.md says what was chosen and why. Run it again after changing a
 dimension; the scenes cases/sheet*.toml use the files.
+
+The chamber is a parameter: `--chamber-length L` (inside, centred on the outlet), `--chamber-top
+Z` and `--name PREFIX` write only the two parts that depend on it, PREFIX_chamber.stl and
+PREFIX_slides.stl, beside the rig's (the flaps, frame and bin are shared). Without options it
+writes the rig of cases/sheet*.toml (0.30 m chamber, name "sheet"). The long, shallow chamber of
+cases/sheet_tail*.toml (docs/verification.md, "A chamber whose flow tails off"):
+
+  make_sheet_rig.py --chamber-length 0.60 --chamber-top 0.70 --name sheet_tail
 """
+import argparse
 import os
-import sys
 
 T_SHEET = 0.00075          # sheet thickness, m (table 5.1)
 L_SHEET, W_SHEET = 0.34, 0.10
@@ -52,17 +60,17 @@ def box(lo, hi, open_top=False):
     return tris
 
 
-def parts():
-    x0, x1 = CHAMBER_X
+def parts(chamber_x=CHAMBER_X, top=CHAMBER_TOP):
+    x0, x1 = chamber_x
     y0, y1 = CHAMBER_Y
     xl, xr = X_OUTLET - OUTLET / 2, X_OUTLET + OUTLET / 2
     z_slide_top = Z_OUTLET + WALL
     z_flap = Z_OUTLET - GAP
     hinge_l, hinge_r = X_OUTLET - FLAP_LEN, X_OUTLET + FLAP_LEN
-    chamber = (box((x0 - WALL, y0 - WALL, Z_OUTLET), (x0, y1 + WALL, CHAMBER_TOP))
-               + box((x1, y0 - WALL, Z_OUTLET), (x1 + WALL, y1 + WALL, CHAMBER_TOP))
-               + box((x0 - WALL, y0 - WALL, HOUSING_BOTTOM), (x1 + WALL, y0, CHAMBER_TOP))
-               + box((x0 - WALL, y1, HOUSING_BOTTOM), (x1 + WALL, y1 + WALL, CHAMBER_TOP)))
+    chamber = (box((x0 - WALL, y0 - WALL, Z_OUTLET), (x0, y1 + WALL, top))
+               + box((x1, y0 - WALL, Z_OUTLET), (x1 + WALL, y1 + WALL, top))
+               + box((x0 - WALL, y0 - WALL, HOUSING_BOTTOM), (x1 + WALL, y0, top))
+               + box((x0 - WALL, y1, HOUSING_BOTTOM), (x1 + WALL, y1 + WALL, top)))
     slides = (box((x0, y0, Z_OUTLET), (xl, y1, z_slide_top))
               + box((xr, y0, Z_OUTLET), (x1, y1, z_slide_top))
               + box((hinge_l - WALL, y0, z_flap), (hinge_l, y1, Z_OUTLET))
@@ -97,10 +105,30 @@ def write(path, name, tris):
         out.write(f"endsolid {name}\n")
 
 
-def main(folder):
-    for name, tris in parts().items():
-        write(os.path.join(folder, name + ".stl"), name, tris)
+def main():
+    here = os.path.dirname(os.path.abspath(__file__))
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("folder", nargs="?", default=here, help="where the STL files go (default: here)")
+    ap.add_argument("--chamber-length", type=float, default=CHAMBER_X[1] - CHAMBER_X[0],
+                    help="inside length of the upper chamber along x, m, centred on the outlet")
+    ap.add_argument("--chamber-top", type=float, default=CHAMBER_TOP, help="top of the chamber walls, m")
+    ap.add_argument("--name", default="sheet", help="file prefix; not 'sheet': chamber and slides only")
+    a = ap.parse_args()
+    half = a.chamber_length / 2
+    if not (OUTLET / 2 + WALL < half and Z_OUTLET + WALL < a.chamber_top):
+        ap.error(f"--chamber-length must exceed {OUTLET + 2 * WALL} m and --chamber-top "
+                 f"{Z_OUTLET + WALL} m (got {a.chamber_length}, {a.chamber_top})")
+    if half > X_OUTLET - BIN_LO[0] or half > BIN_HI[0] - X_OUTLET:
+        ap.error(f"--chamber-length {a.chamber_length} m: the chamber must stay above the bin "
+                 f"(x {BIN_LO[0]} to {BIN_HI[0]} m): at most {2 * (X_OUTLET - BIN_LO[0]):.2f} m")
+    default_length = abs(a.chamber_length - (CHAMBER_X[1] - CHAMBER_X[0])) < 1e-12
+    rig = parts(CHAMBER_X if default_length else (X_OUTLET - half, X_OUTLET + half), a.chamber_top)
+    for part, tris in rig.items():
+        if a.name != "sheet" and part not in ("sheet_chamber", "sheet_slides"):
+            continue
+        name = a.name + part[len("sheet"):]
+        write(os.path.join(a.folder, name + ".stl"), name, tris)
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else os.path.dirname(os.path.abspath(__file__)))
+    main()
