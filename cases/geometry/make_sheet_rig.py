@@ -18,12 +18,15 @@ gives no dimension, docs/cases.md says what was chosen and why. Run it again aft
 dimension; the scenes cases/sheet*.toml use the files.
 
 The chamber is a parameter: `--chamber-length L` (inside, centred on the outlet), `--chamber-top
-Z` and `--name PREFIX` write only the two parts that depend on it, PREFIX_chamber.stl and
-PREFIX_slides.stl, beside the rig's (the flaps, frame and bin are shared). Without options it
-writes the rig of cases/sheet*.toml (0.30 m chamber, name "sheet"). The long, shallow chamber of
-cases/sheet_tail*.toml (docs/verification.md, "A chamber whose flow tails off"):
+Z`, `--chamber-width W` (from y = 0; the outlet and the flaps span it) and `--name PREFIX`
+write only the parts that differ from the rig's, as PREFIX_chamber.stl etc. (the others are
+shared). Without options it writes the rig of cases/sheet*.toml (a 0.30 x 0.10 m chamber, name
+"sheet"). The long, shallow chamber of docs/verification.md ("A chamber whose flow tails
+off"), and the half-width slice of it that cases/sheet_tail_slice*.toml run:
 
   make_sheet_rig.py --chamber-length 0.60 --chamber-top 0.70 --name sheet_tail
+  make_sheet_rig.py --chamber-length 0.60 --chamber-top 0.70 --chamber-width 0.05 \
+                    --name sheet_tail_slice
 """
 import argparse
 import os
@@ -60,9 +63,9 @@ def box(lo, hi, open_top=False):
     return tris
 
 
-def parts(chamber_x=CHAMBER_X, top=CHAMBER_TOP):
+def parts(chamber_x=CHAMBER_X, top=CHAMBER_TOP, chamber_y=CHAMBER_Y):
     x0, x1 = chamber_x
-    y0, y1 = CHAMBER_Y
+    y0, y1 = chamber_y
     xl, xr = X_OUTLET - OUTLET / 2, X_OUTLET + OUTLET / 2
     z_slide_top = Z_OUTLET + WALL
     z_flap = Z_OUTLET - GAP
@@ -112,19 +115,27 @@ def main():
     ap.add_argument("--chamber-length", type=float, default=CHAMBER_X[1] - CHAMBER_X[0],
                     help="inside length of the upper chamber along x, m, centred on the outlet")
     ap.add_argument("--chamber-top", type=float, default=CHAMBER_TOP, help="top of the chamber walls, m")
-    ap.add_argument("--name", default="sheet", help="file prefix; not 'sheet': chamber and slides only")
+    ap.add_argument("--chamber-width", type=float, default=CHAMBER_Y[1] - CHAMBER_Y[0],
+                    help="inside width along y, m, from y = 0 (the outlet and flaps span it)")
+    ap.add_argument("--name", default="sheet",
+                    help="file prefix; not 'sheet': only the parts that differ from the rig's")
     a = ap.parse_args()
     half = a.chamber_length / 2
-    if not (OUTLET / 2 + WALL < half and Z_OUTLET + WALL < a.chamber_top):
-        ap.error(f"--chamber-length must exceed {OUTLET + 2 * WALL} m and --chamber-top "
-                 f"{Z_OUTLET + WALL} m (got {a.chamber_length}, {a.chamber_top})")
+    if not (OUTLET / 2 + WALL < half and Z_OUTLET + WALL < a.chamber_top
+            and 0 < a.chamber_width <= W_SHEET):
+        ap.error(f"--chamber-length must exceed {OUTLET + 2 * WALL} m, --chamber-top "
+                 f"{Z_OUTLET + WALL} m and --chamber-width lie in (0, {W_SHEET}] m (got "
+                 f"{a.chamber_length}, {a.chamber_top}, {a.chamber_width})")
     if half > X_OUTLET - BIN_LO[0] or half > BIN_HI[0] - X_OUTLET:
         ap.error(f"--chamber-length {a.chamber_length} m: the chamber must stay above the bin "
                  f"(x {BIN_LO[0]} to {BIN_HI[0]} m): at most {2 * (X_OUTLET - BIN_LO[0]):.2f} m")
     default_length = abs(a.chamber_length - (CHAMBER_X[1] - CHAMBER_X[0])) < 1e-12
-    rig = parts(CHAMBER_X if default_length else (X_OUTLET - half, X_OUTLET + half), a.chamber_top)
+    default_width = abs(a.chamber_width - (CHAMBER_Y[1] - CHAMBER_Y[0])) < 1e-12
+    rig = parts(CHAMBER_X if default_length else (X_OUTLET - half, X_OUTLET + half), a.chamber_top,
+                CHAMBER_Y if default_width else (0.0, a.chamber_width))
+    default = parts()
     for part, tris in rig.items():
-        if a.name != "sheet" and part not in ("sheet_chamber", "sheet_slides"):
+        if a.name != "sheet" and tris == default[part]:
             continue
         name = a.name + part[len("sheet"):]
         write(os.path.join(a.folder, name + ".stl"), name, tris)
