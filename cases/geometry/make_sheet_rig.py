@@ -16,9 +16,20 @@ plate of that thickness), the bin a box without its top. The sheet itself is the
 mid-surface z = 0, x in [0, 0.34], y in [0, 0.1], clamped over x <= 0.06. Where the thesis
 gives no dimension, docs/cases.md says what was chosen and why. Run it again after changing a
 dimension; the scenes cases/sheet*.toml use the files.
+
+The chamber is a parameter: `--chamber-length L` (inside, centred on the outlet), `--chamber-top
+Z`, `--chamber-width W` (from y = 0; the outlet and the flaps span it) and `--name PREFIX`
+write only the parts that differ from the rig's, as PREFIX_chamber.stl etc. (the others are
+shared). Without options it writes the rig of cases/sheet*.toml (a 0.30 x 0.10 m chamber, name
+"sheet"). The long, shallow chamber of docs/verification.md ("A chamber whose flow tails
+off"), and the half-width slice of it that cases/sheet_tail_slice*.toml run:
+
+  make_sheet_rig.py --chamber-length 0.60 --chamber-top 0.70 --name sheet_tail
+  make_sheet_rig.py --chamber-length 0.60 --chamber-top 0.70 --chamber-width 0.05 \
+                    --name sheet_tail_slice
 """
+import argparse
 import os
-import sys
 
 T_SHEET = 0.00075          # sheet thickness, m (table 5.1)
 L_SHEET, W_SHEET = 0.34, 0.10
@@ -52,17 +63,17 @@ def box(lo, hi, open_top=False):
     return tris
 
 
-def parts():
-    x0, x1 = CHAMBER_X
-    y0, y1 = CHAMBER_Y
+def parts(chamber_x=CHAMBER_X, top=CHAMBER_TOP, chamber_y=CHAMBER_Y):
+    x0, x1 = chamber_x
+    y0, y1 = chamber_y
     xl, xr = X_OUTLET - OUTLET / 2, X_OUTLET + OUTLET / 2
     z_slide_top = Z_OUTLET + WALL
     z_flap = Z_OUTLET - GAP
     hinge_l, hinge_r = X_OUTLET - FLAP_LEN, X_OUTLET + FLAP_LEN
-    chamber = (box((x0 - WALL, y0 - WALL, Z_OUTLET), (x0, y1 + WALL, CHAMBER_TOP))
-               + box((x1, y0 - WALL, Z_OUTLET), (x1 + WALL, y1 + WALL, CHAMBER_TOP))
-               + box((x0 - WALL, y0 - WALL, HOUSING_BOTTOM), (x1 + WALL, y0, CHAMBER_TOP))
-               + box((x0 - WALL, y1, HOUSING_BOTTOM), (x1 + WALL, y1 + WALL, CHAMBER_TOP)))
+    chamber = (box((x0 - WALL, y0 - WALL, Z_OUTLET), (x0, y1 + WALL, top))
+               + box((x1, y0 - WALL, Z_OUTLET), (x1 + WALL, y1 + WALL, top))
+               + box((x0 - WALL, y0 - WALL, HOUSING_BOTTOM), (x1 + WALL, y0, top))
+               + box((x0 - WALL, y1, HOUSING_BOTTOM), (x1 + WALL, y1 + WALL, top)))
     slides = (box((x0, y0, Z_OUTLET), (xl, y1, z_slide_top))
               + box((xr, y0, Z_OUTLET), (x1, y1, z_slide_top))
               + box((hinge_l - WALL, y0, z_flap), (hinge_l, y1, Z_OUTLET))
@@ -97,10 +108,38 @@ def write(path, name, tris):
         out.write(f"endsolid {name}\n")
 
 
-def main(folder):
-    for name, tris in parts().items():
-        write(os.path.join(folder, name + ".stl"), name, tris)
+def main():
+    here = os.path.dirname(os.path.abspath(__file__))
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("folder", nargs="?", default=here, help="where the STL files go (default: here)")
+    ap.add_argument("--chamber-length", type=float, default=CHAMBER_X[1] - CHAMBER_X[0],
+                    help="inside length of the upper chamber along x, m, centred on the outlet")
+    ap.add_argument("--chamber-top", type=float, default=CHAMBER_TOP, help="top of the chamber walls, m")
+    ap.add_argument("--chamber-width", type=float, default=CHAMBER_Y[1] - CHAMBER_Y[0],
+                    help="inside width along y, m, from y = 0 (the outlet and flaps span it)")
+    ap.add_argument("--name", default="sheet",
+                    help="file prefix; not 'sheet': only the parts that differ from the rig's")
+    a = ap.parse_args()
+    half = a.chamber_length / 2
+    if not (OUTLET / 2 + WALL < half and Z_OUTLET + WALL < a.chamber_top
+            and 0 < a.chamber_width <= W_SHEET):
+        ap.error(f"--chamber-length must exceed {OUTLET + 2 * WALL} m, --chamber-top "
+                 f"{Z_OUTLET + WALL} m and --chamber-width lie in (0, {W_SHEET}] m (got "
+                 f"{a.chamber_length}, {a.chamber_top}, {a.chamber_width})")
+    if half > X_OUTLET - BIN_LO[0] or half > BIN_HI[0] - X_OUTLET:
+        ap.error(f"--chamber-length {a.chamber_length} m: the chamber must stay above the bin "
+                 f"(x {BIN_LO[0]} to {BIN_HI[0]} m): at most {2 * (X_OUTLET - BIN_LO[0]):.2f} m")
+    default_length = abs(a.chamber_length - (CHAMBER_X[1] - CHAMBER_X[0])) < 1e-12
+    default_width = abs(a.chamber_width - (CHAMBER_Y[1] - CHAMBER_Y[0])) < 1e-12
+    rig = parts(CHAMBER_X if default_length else (X_OUTLET - half, X_OUTLET + half), a.chamber_top,
+                CHAMBER_Y if default_width else (0.0, a.chamber_width))
+    default = parts()
+    for part, tris in rig.items():
+        if a.name != "sheet" and tris == default[part]:
+            continue
+        name = a.name + part[len("sheet"):]
+        write(os.path.join(a.folder, name + ".stl"), name, tris)
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else os.path.dirname(os.path.abspath(__file__)))
+    main()
