@@ -5,11 +5,6 @@
 // against a FEM-only run whose time-mean answer is known.
 #include <catch2/catch.hpp>
 
-#include <fcntl.h>
-#include <spawn.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -18,6 +13,7 @@
 
 #include "demfem/io/h5_file.hpp"
 #include "demfem_test/box_scene.hpp"
+#include "demfem_test/demfem_run.hpp"
 #include "demfem_test/run_output.hpp"
 #include "demfem_test/temp_dir.hpp"
 
@@ -25,46 +21,15 @@ namespace fs = std::filesystem;
 
 namespace {
 
+using demfem::test::have_matplotlib;
+using demfem::test::kBin;
+using demfem::test::kCases;
+using demfem::test::run_demfem;
+using Result = demfem::test::Ended;
 using demfem::test::is_png;
 using demfem::test::read_csv;
 using demfem::test::read_text;
 using demfem::test::TempDir;
-
-const fs::path kBin = fs::path(DEMFEM_BINARY_DIR) / "bin";
-const fs::path kCases = fs::path(DEMFEM_SOURCE_DIR) / "cases";
-
-struct Result {
-  int status = -1;
-  std::string out, err;
-};
-
-// demfem_run ARGS in `dir` (the scenes' run.output_dir is relative to it).
-Result run(const fs::path& dir, const std::vector<std::string>& args) {
-  std::vector<std::string> argv_s = {(kBin / "demfem_run").string(), "--bin-dir", kBin.string()};
-  argv_s.insert(argv_s.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (auto& a : argv_s) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  const std::string out = (dir / "stdout.txt").string(), err = (dir / "stderr.txt").string();
-  posix_spawn_file_actions_addopen(&fa, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_addopen(&fa, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  const fs::path old = fs::current_path();
-  fs::current_path(dir);
-  pid_t pid = -1;
-  const int rc = posix_spawn(&pid, argv[0], &fa, nullptr, argv.data(), environ);
-  fs::current_path(old);
-  posix_spawn_file_actions_destroy(&fa);
-  REQUIRE(rc == 0);
-  int st = 0;
-  REQUIRE(waitpid(pid, &st, 0) == pid);
-  Result r;
-  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
-  r.out = read_text(dir / "stdout.txt");
-  r.err = read_text(dir / "stderr.txt");
-  return r;
-}
 
 // Column `name` of a CSV written by the run (header row first).
 std::vector<double> column(const std::vector<std::vector<std::string>>& rows,
@@ -72,10 +37,6 @@ std::vector<double> column(const std::vector<std::vector<std::string>>& rows,
   std::vector<double> v;
   REQUIRE_NOTHROW(v = demfem::test::csv_column(rows, name));
   return v;
-}
-
-bool have_matplotlib() {
-  return std::system("/usr/bin/python3 -c 'import matplotlib' >/dev/null 2>&1") == 0;
 }
 
 // A box of 60 spheres resting on its floor; the fill writes its state, the use loads it.
@@ -94,7 +55,7 @@ TEST_CASE("sheet CI case: demfem run prepares the fill, runs, plots and checks",
     return;
   }
   TempDir d("sheet_ci");
-  const Result r = run(d.path, {(kCases / "sheet_ci.toml").string(), "--quiet"});
+  const Result r = run_demfem(d.path, {(kCases / "sheet_ci.toml").string(), "--quiet"});
   INFO(r.out << r.err);
   REQUIRE(r.status == 0);
   // The fill was made first, then loaded with its contact history.
@@ -178,28 +139,28 @@ TEST_CASE("prepare scenes: made once, reused, made again when the scene changes"
                                 << "[dem.load]\nscene = \"fill.toml\"\n"
                                    "[dem.output]\nparticles = false\n";
   const std::string use = (d / "use.toml").string();
-  Result r = run(d.path, {use, "--quiet"});
+  Result r = run_demfem(d.path, {use, "--quiet"});
   INFO(r.out << r.err);
   REQUIRE(r.status == 0);
   CHECK_THAT(r.out, Catch::Contains("running that scene first"));
   CHECK(fs::exists(d.path / "out/fill/dem_state.h5"));
-  r = run(d.path, {use, "--quiet", "--in-process"});
+  r = run_demfem(d.path, {use, "--quiet", "--in-process"});
   REQUIRE(r.status == 0);
   CHECK_THAT(r.out, !Catch::Contains("running that scene first"));
   // A comment is no change of the scene: the state is reused. Another seed is.
   std::ofstream(d / "fill.toml", std::ios::app) << "# a comment\n";
-  r = run(d.path, {use, "--quiet"});
+  r = run_demfem(d.path, {use, "--quiet"});
   REQUIRE(r.status == 0);
   CHECK_THAT(r.out, !Catch::Contains("running that scene first"));
   std::string fill = read_text(d / "fill.toml");
   fill.replace(fill.find("seed = 2"), 8, "seed = 3");
   std::ofstream(d / "fill.toml") << fill;
-  r = run(d.path, {use, "--quiet"});
+  r = run_demfem(d.path, {use, "--quiet"});
   REQUIRE(r.status == 0);
   CHECK_THAT(r.out, Catch::Contains("was made by another version of it"));
   // A state that has gone is made again (in process too).
   fs::remove(d.path / "out/fill/dem_state.h5");
-  r = run(d.path, {use, "--quiet", "--in-process"});
+  r = run_demfem(d.path, {use, "--quiet", "--in-process"});
   CHECK(r.status == 0);
   CHECK_THAT(r.out, Catch::Contains("does not exist"));
   // A prepare scene with bad input ends the run as bad input (2); nothing else starts.
@@ -207,7 +168,7 @@ TEST_CASE("prepare scenes: made once, reused, made again when the scene changes"
                                 << kSmallDem << "[dem.output]\nstate = true\nbogus = 1\n";
   std::ofstream(d / "use_bad.toml") << "[run]\nend_time = 0.002\n"
                                     << kSmallDem << "[dem.load]\nscene = \"bad.toml\"\n";
-  r = run(d.path, {(d / "use_bad.toml").string(), "--quiet"});
+  r = run_demfem(d.path, {(d / "use_bad.toml").string(), "--quiet"});
   CHECK(r.status == 2);
   CHECK_THAT(r.err, Catch::Contains("bad.toml") && Catch::Contains("ended with status 2"));
 }
@@ -218,18 +179,18 @@ TEST_CASE("[[post]] steps: unknown tools are scene errors, a failing tool ends t
   const std::string base =
       std::string("[run]\nend_time = 0.001\n") + kSmallDem + "[dem.output]\nparticles = false\n";
   std::ofstream(d / "unknown.toml") << base << "[[post]]\ntool = \"no_such_tool\"\n";
-  Result r = run(d.path, {(d / "unknown.toml").string(), "--quiet"});
+  Result r = run_demfem(d.path, {(d / "unknown.toml").string(), "--quiet"});
   CHECK(r.status == 2);
   CHECK_THAT(r.err, Catch::Contains("post[0].tool") && Catch::Contains("no_such_tool"));
   // fem_static_check without a [fem] section fails: the run's output is kept, status 1.
   std::ofstream(d / "fails.toml") << base << "[[post]]\ntool = \"fem_static_check\"\n"
                                   << "args = [\"--scene\", \"{scene}\", \"--output-dir\", "
                                      "\"{output}\"]\n";
-  r = run(d.path, {(d / "fails.toml").string(), "--quiet"});
+  r = run_demfem(d.path, {(d / "fails.toml").string(), "--quiet"});
   CHECK(r.status == 1);
   CHECK_THAT(r.err, Catch::Contains("post step fem_static_check"));
   CHECK(fs::exists(d.path / "out/fails/coupling.csv"));
-  r = run(d.path, {(d / "fails.toml").string(), "--quiet", "--no-post"});
+  r = run_demfem(d.path, {(d / "fails.toml").string(), "--quiet", "--no-post"});
   CHECK(r.status == 0);
 }
 
@@ -277,7 +238,7 @@ point = [0.1, 0.01, 0.0]
 tool = "fem_static_check"
 args = ["--scene", "{scene}", "--output-dir", "{output}"]
 )";
-  const Result r = run(d.path, {(d / "strip.toml").string(), "--quiet"});
+  const Result r = run_demfem(d.path, {(d / "strip.toml").string(), "--quiet"});
   INFO(r.out << r.err);
   REQUIRE(r.status == 0);
   const auto rows = read_csv(d.path / "out/strip/static_check.csv");

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "demfem/io/h5_file.hpp"
+#include "demfem_test/demfem_run.hpp"
 #include "demfem_test/launch.hpp"
 #include "demfem_test/run_output.hpp"
 #include "demfem_test/temp_dir.hpp"
@@ -22,22 +23,16 @@ namespace fs = std::filesystem;
 
 namespace {
 
+using demfem::test::have_matplotlib;
 using demfem::test::is_png;
+using demfem::test::kBin;
+using demfem::test::kCases;
 using demfem::test::read_csv;
 using demfem::test::read_text;
+using demfem::test::run_demfem;
 using demfem::test::TempDir;
 
-const fs::path kBin = fs::path(DEMFEM_BINARY_DIR) / "bin";
-const fs::path kCases = fs::path(DEMFEM_SOURCE_DIR) / "cases";
-
 using Result = demfem::test::Ended;
-
-// demfem_run ARGS in `dir` (the scenes' run.output_dir is relative to it).
-Result run(const fs::path& dir, const std::vector<std::string>& args) {
-  std::vector<std::string> argv = {(kBin / "demfem_run").string(), "--bin-dir", kBin.string()};
-  argv.insert(argv.end(), args.begin(), args.end());
-  return demfem::test::wait_for(demfem::test::launch(dir, argv));
-}
 
 // Column `name` of a CSV written by the run (header row first).
 std::vector<double> column(const std::vector<std::vector<std::string>>& rows,
@@ -55,10 +50,6 @@ double window_mean(const std::vector<double>& t, const std::vector<double>& y, d
     if (t[i] >= t0 - 1e-9 && t[i] <= t1 + 1e-9) s += y[i], ++n;
   REQUIRE(n > 0);
   return s / n;
-}
-
-bool have_matplotlib() {
-  return std::system("/usr/bin/python3 -c 'import matplotlib' >/dev/null 2>&1") == 0;
 }
 
 // A number of the report's JSON ("key": value), for a cross-check of the tool.
@@ -90,7 +81,7 @@ void check_kill_and_resume(const fs::path& dir) {
                                      "--output-dir",
                                      (dir / out).string()};
     args.insert(args.end(), extra.begin(), extra.end());
-    return run(dir, args);
+    return run_demfem(dir, args);
   };
   const Result a = run_to("uninterrupted", {});
   INFO(a.out << a.err);
@@ -174,7 +165,7 @@ TEST_CASE("sleeper mini chain: prepares the bed, seats and loads the sleeper, ba
     return;
   }
   TempDir d("sleeper_mini");
-  const Result r = run(d.path, {(kCases / "sleeper_mini.toml").string(), "--quiet"});
+  const Result r = run_demfem(d.path, {(kCases / "sleeper_mini.toml").string(), "--quiet"});
   INFO(r.out << r.err);
   REQUIRE(r.status == 0);
   // Both preparation scenes ran first, each once, and wrote their states.
