@@ -77,6 +77,7 @@ struct Dev {
   unsigned long long *pdisp2, *wdisp2;  // bits of the largest squared displacement this step
   unsigned long long* flex_max_ov;      // bits of the largest overlap with the flexible mesh
   unsigned long long* adv_max_ov;       // bits of the largest overlap since upload_state
+  unsigned long long* adv_max_rel;      // and of the largest phys::relative_overlap
   int* stop;
   unsigned long long* steps_done;
   unsigned long long* max_ov;
@@ -209,7 +210,7 @@ __global__ void k_pairs(Dev d, std::size_t n, std::size_t nmat, double dt, bool 
   if (*d.stop && !force) return;
   const std::size_t i = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x;
   if (i >= n) return;
-  double ax = 0, ay = 0, az = 0, qx = 0, qy = 0, qz = 0, mo = 0;
+  double ax = 0, ay = 0, az = 0, qx = 0, qy = 0, qz = 0, mo = 0, mr = 0;
   const double ri = d.radius[i];
   const std::size_t mrow = static_cast<std::size_t>(d.material[i]) * nmat;
   const phys::ParticleView view{d.px, d.py, d.pz, d.vx,     d.vy,  d.vz,
@@ -228,6 +229,9 @@ __global__ void k_pairs(Dev d, std::size_t n, std::size_t nmat, double dt, bool 
           pv, static_cast<int>(i), j, d.pc[mrow + d.material[j]], dt, Friction && rolling, sh, rh,
           axis, d.pfeat + 6 * p, fij, ti, tj);
       mo = fmax(mo, delta);
+      if (delta > 0.0)
+        mr = fmax(mr, phys::relative_overlap(delta, phys::particle_contact_radius(pv, i),
+                                             phys::particle_contact_radius(pv, j)));
       d.pf[3 * p] = fij.x, d.pf[3 * p + 1] = fij.y, d.pf[3 * p + 2] = fij.z;
       d.pt[3 * p] = ti.x, d.pt[3 * p + 1] = ti.y, d.pt[3 * p + 2] = ti.z;
       d.ptj[3 * p] = tj.x, d.ptj[3 * p + 1] = tj.y, d.ptj[3 * p + 2] = tj.z;
@@ -243,6 +247,7 @@ __global__ void k_pairs(Dev d, std::size_t n, std::size_t nmat, double dt, bool 
     if (mo > 0.0) {
       atomicMax(d.max_ov, static_cast<unsigned long long>(__double_as_longlong(mo)));
       atomicMax(d.adv_max_ov, static_cast<unsigned long long>(__double_as_longlong(mo)));
+      atomicMax(d.adv_max_rel, static_cast<unsigned long long>(__double_as_longlong(mr)));
     }
     return;
   }
@@ -271,6 +276,7 @@ __global__ void k_pairs(Dev d, std::size_t n, std::size_t nmat, double dt, bool 
       continue;
     }
     mo = fmax(mo, delta);
+    mr = fmax(mr, phys::relative_overlap(delta, ri, d.radius[j]));
     f[0] = r.force.x, f[1] = r.force.y, f[2] = r.force.z;
     ax += r.force.x, ay += r.force.y, az += r.force.z;
     if (Friction) {
@@ -293,6 +299,7 @@ __global__ void k_pairs(Dev d, std::size_t n, std::size_t nmat, double dt, bool 
   if (mo > 0.0) {
     atomicMax(d.max_ov, static_cast<unsigned long long>(__double_as_longlong(mo)));
     atomicMax(d.adv_max_ov, static_cast<unsigned long long>(__double_as_longlong(mo)));
+    atomicMax(d.adv_max_rel, static_cast<unsigned long long>(__double_as_longlong(mr)));
   }
 }
 
@@ -325,21 +332,25 @@ __global__ void k_gather_kick(Dev d, std::size_t n, std::size_t nmat, double dt,
     wv.wroll = rolling ? d.wroll : nullptr;
     if (d.walls_moving) wv.motion = d.motion, wv.time = d.clock[0];  // clock: this step's time
     phys::Vec3 f{fx, fy, fz}, q{qx, qy, qz};
-    double mo = 0.0, fmo = 0.0;
-    if (d.poly && d.shape_id[i] >= 0)
+    double mo = 0.0, fmo = 0.0, rc = ri;  // rc: the particle's contact radius
+    if (d.poly && d.shape_id[i] >= 0) {
+      rc = phys::particle_contact_radius(poly_view(d), static_cast<int>(i));
       phys::poly_wall_contacts<Friction>(
           phys::poly_wall_particle(poly_view(d), static_cast<int>(i)), wv,
           static_cast<std::int64_t>(i), d.pc + static_cast<std::size_t>(d.material[i]) * nmat, dt,
           f, q, mo, fmo);
-    else
+    } else {
       phys::wall_contacts<Friction>(view, wv, static_cast<std::int64_t>(i),
                                     d.pc + static_cast<std::size_t>(d.material[i]) * nmat, dt, f, q,
                                     mo, fmo);
+    }
     fx = f.x, fy = f.y, fz = f.z;
     qx = q.x, qy = q.y, qz = q.z;
     if (mo > 0.0) {
+      const double mr = phys::relative_overlap(mo, rc, rc);
       atomicMax(d.max_ov, static_cast<unsigned long long>(__double_as_longlong(mo)));
       atomicMax(d.adv_max_ov, static_cast<unsigned long long>(__double_as_longlong(mo)));
+      atomicMax(d.adv_max_rel, static_cast<unsigned long long>(__double_as_longlong(mr)));
     }
     if (d.flex_nodes > 0) {
       if (fmo > 0.0)
@@ -414,12 +425,14 @@ CudaBackend* cuda_backend_create() {
   check(cudaMalloc(&b->d.wdisp2, sizeof(unsigned long long)), "cudaMalloc");
   check(cudaMalloc(&b->d.flex_max_ov, sizeof(unsigned long long)), "cudaMalloc");
   check(cudaMalloc(&b->d.adv_max_ov, sizeof(unsigned long long)), "cudaMalloc");
+  check(cudaMalloc(&b->d.adv_max_rel, sizeof(unsigned long long)), "cudaMalloc");
   check(cudaMemset(b->d.stop, 0, 2 * sizeof(int)), "cudaMemset");
   check(cudaMemset(b->d.clock, 0, 2 * sizeof(double)), "cudaMemset");
   check(cudaMemset(b->d.pdisp2, 0, sizeof(unsigned long long)), "cudaMemset");
   check(cudaMemset(b->d.wdisp2, 0, sizeof(unsigned long long)), "cudaMemset");
   check(cudaMemset(b->d.flex_max_ov, 0, sizeof(unsigned long long)), "cudaMemset");
   check(cudaMemset(b->d.adv_max_ov, 0, sizeof(unsigned long long)), "cudaMemset");
+  check(cudaMemset(b->d.adv_max_rel, 0, sizeof(unsigned long long)), "cudaMemset");
   return b;
 }
 
@@ -434,7 +447,7 @@ void cuda_backend_destroy(CudaBackend* b) {
   for (auto* p : dp) cudaFree(*p);
   cudaFree(b->d.material), cudaFree(b->d.row), cudaFree(b->d.trow), cudaFree(b->d.tpair);
   cudaFree(b->d.nbr), cudaFree(b->d.pc), cudaFree(b->d.stop), cudaFree(b->d.steps_done);
-  cudaFree(b->d.max_ov), cudaFree(b->d.adv_max_ov);
+  cudaFree(b->d.max_ov), cudaFree(b->d.adv_max_ov), cudaFree(b->d.adv_max_rel);
   cudaFree(b->d.vpos), cudaFree(b->d.vvel), cudaFree(b->d.tri_v), cudaFree(b->d.tri_e);
   cudaFree(b->d.tri_mat), cudaFree(b->d.tri_wall), cudaFree(b->d.prow), cudaFree(b->d.ptri);
   cudaFree(b->d.wkey), cudaFree(b->d.wshear), cudaFree(b->d.wf), cudaFree(b->d.wp);
@@ -537,6 +550,7 @@ void cuda_upload_state(CudaBackend* b, const GpuHostView& v) {
   }
   check(cudaMemset(d.flex_max_ov, 0, sizeof(unsigned long long)), "cudaMemset");
   check(cudaMemset(d.adv_max_ov, 0, sizeof(unsigned long long)), "cudaMemset");
+  check(cudaMemset(d.adv_max_rel, 0, sizeof(unsigned long long)), "cudaMemset");
   check(cudaMemset(d.max_ov, 0, sizeof(unsigned long long)), "cudaMemset");
   if (b->graph) cudaGraphExecDestroy(b->graph), b->graph = nullptr;  // pointers may move
 }
@@ -699,6 +713,10 @@ double cuda_flex_max_overlap(CudaBackend* b) {
 
 double cuda_advance_max_overlap(CudaBackend* b) {
   return read_max(b->d.adv_max_ov);
+}
+
+double cuda_advance_max_relative_overlap(CudaBackend* b) {
+  return read_max(b->d.adv_max_rel);
 }
 
 }  // namespace demfem::dem

@@ -54,6 +54,9 @@ double cuda_flex_max_overlap(CudaBackend*) {
 double cuda_advance_max_overlap(CudaBackend*) {
   return 0.0;
 }
+double cuda_advance_max_relative_overlap(CudaBackend*) {
+  return 0.0;
+}
 #endif
 
 }  // namespace demfem::dem

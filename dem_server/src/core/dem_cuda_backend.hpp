@@ -106,5 +106,7 @@ double cuda_max_overlap(CudaBackend* b);
 double cuda_flex_max_overlap(CudaBackend* b);
 /// Largest overlap (particles and walls) since the last upload_state, m.
 double cuda_advance_max_overlap(CudaBackend* b);
+/// Largest phys::relative_overlap (particles and walls) since the last upload_state.
+double cuda_advance_max_relative_overlap(CudaBackend* b);
 
 }  // namespace demfem::dem

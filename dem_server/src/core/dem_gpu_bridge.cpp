@@ -123,6 +123,7 @@ void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
   cuda_download_state(gpu, view());
   max_ov = cuda_max_overlap(gpu);
   adv_max_ov = cuda_advance_max_overlap(gpu);
+  adv_max_rel = cuda_advance_max_relative_overlap(gpu);
   if (has_flex) flex_max_ov = cuda_flex_max_overlap(gpu);
   if (walls_moving && tri_v.empty()) update_walls(t, flex_tau);  // no triangle on the device
   // Per-wall force and torque of the last step from its contact slots, in the CPU's order

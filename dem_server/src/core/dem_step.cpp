@@ -17,6 +17,7 @@
 
 namespace demfem::dem {
 
+using detail::OverlapMax;
 using phys::Vec3;
 
 namespace {
@@ -56,9 +57,9 @@ struct PairKernelArgs {
 };
 
 template <bool Friction, bool Rolling, bool Uniform>
-[[gnu::always_inline]] inline double pair_loop(const PairKernelArgs& a, std::int64_t begin,
-                                               std::int64_t end) {
-  double mo = 0.0;
+[[gnu::always_inline]] inline OverlapMax pair_loop(const PairKernelArgs& a, std::int64_t begin,
+                                                   std::int64_t end) {
+  double mo = 0.0, mr = 0.0;
   const phys::ParticleView view = a.view;
   const std::int32_t* pi = a.pi;
   const std::int32_t* pj = a.pj;
@@ -68,7 +69,7 @@ template <bool Friction, bool Rolling, bool Uniform>
   double* pr = a.pr;
   double* rhist = a.rhist;
   const double dt = a.dt;
-#pragma omp simd reduction(max : mo)
+#pragma omp simd reduction(max : mo, mr)
   for (std::int64_t p = begin; p < end; ++p) {
     const std::int32_t i = pi[p], j = pj[p];
     const phys::PairConstants& c =
@@ -81,6 +82,8 @@ template <bool Friction, bool Rolling, bool Uniform>
     double delta;
     phys::sphere_sphere_select<Friction, Rolling>(view, i, j, c, dt, sh, rh, r, delta);
     mo = mo > delta ? mo : delta;
+    const double rel = phys::relative_overlap(delta, view.radius[i], view.radius[j]);
+    mr = mr > rel ? mr : rel;
     pf[3 * p] = r.force.x, pf[3 * p + 1] = r.force.y, pf[3 * p + 2] = r.force.z;
     if constexpr (Friction) {
       shear[3 * p] = sh.x, shear[3 * p + 1] = sh.y, shear[3 * p + 2] = sh.z;
@@ -91,12 +94,12 @@ template <bool Friction, bool Rolling, bool Uniform>
       }
     }
   }
-  return mo;
+  return OverlapMax{mo, mr};
 }
 
 #define DEMFEM_PAIR_KERNEL(F, R, U)                                                   \
-  DEMFEM_CLONES double pair_kernel_##F##R##U(const PairKernelArgs& a, std::int64_t b, \
-                                             std::int64_t e) {                        \
+  DEMFEM_CLONES OverlapMax pair_kernel_##F##R##U(const PairKernelArgs& a, std::int64_t b, \
+                                                 std::int64_t e) {                        \
     return pair_loop<F != 0, R != 0, U != 0>(a, b, e);                                \
   }
 DEMFEM_PAIR_KERNEL(0, 0, 0)
@@ -107,7 +110,7 @@ DEMFEM_PAIR_KERNEL(1, 1, 0)
 DEMFEM_PAIR_KERNEL(1, 1, 1)
 #undef DEMFEM_PAIR_KERNEL
 
-using PairKernel = double (*)(const PairKernelArgs&, std::int64_t, std::int64_t);
+using PairKernel = OverlapMax (*)(const PairKernelArgs&, std::int64_t, std::int64_t);
 PairKernel pick_pair_kernel(bool friction, bool rolling, bool uniform) {
   if (!friction) return uniform ? pair_kernel_001 : pair_kernel_000;
   if (!rolling) return uniform ? pair_kernel_101 : pair_kernel_100;
@@ -158,7 +161,7 @@ void DemSystem::Impl::forces_and_kick() {
   const double* PR = pr.data();
   const double* PTJ = ptj.data();
   const bool roll = rolling;
-  auto gather = [&](std::int64_t i, double& mo, double& fmo) {
+  auto gather = [&](std::int64_t i, double& mo, double& mr, double& fmo) {
     double fx = 0, fy = 0, fz = 0;
     double qx = 0, qy = 0, qz = 0;
     const double ri = st.radius[i];
@@ -178,12 +181,18 @@ void DemSystem::Impl::forces_and_kick() {
     }
     if (walls_on && (wv.prow[i] != wv.prow[i + 1] || wv.wcount[i] != 0)) {
       Vec3 f{fx, fy, fz}, q{qx, qy, qz};
-      if (Poly && st.shape_id[i] >= 0)
+      double wmo = 0.0;  // this particle's deepest wall contact
+      double rc = ri;    // and its contact radius
+      if (Poly && st.shape_id[i] >= 0) {
         detail::poly_wall_contacts(pp, wv, i, pc.data() + st.material[i] * nmat, s.dt, Friction, f,
-                                   q, mo, fmo);
-      else
+                                   q, wmo, fmo);
+        rc = phys::particle_contact_radius(pp, static_cast<int>(i));
+      } else {
         wall_contacts_apart<Friction>(view, wv, i, pc.data() + st.material[i] * nmat, s.dt, f, q,
-                                      mo, fmo);
+                                      wmo, fmo);
+      }
+      mo = std::max(mo, wmo);
+      mr = std::max(mr, phys::relative_overlap(wmo, rc, rc));
       fx = f.x, fy = f.y, fz = f.z;
       qx = q.x, qy = q.y, qz = q.z;
     }
@@ -204,9 +213,9 @@ void DemSystem::Impl::forces_and_kick() {
   const int T = nt();
   balance.ensure(T, sn);
   for (auto& list : balance.waiting) list.clear();
-  double mo = 0.0, fmo = 0.0;
+  double mo = 0.0, mr = 0.0, fmo = 0.0;
   int active = T;
-#pragma omp parallel num_threads(T) reduction(max : mo, fmo)
+#pragma omp parallel num_threads(T) reduction(max : mo, mr, fmo)
   {
     const int k = omp_get_thread_num(), nth = omp_get_num_threads();
     // fewer threads than asked (a nested region, a thread limit): equal ranges
@@ -218,15 +227,18 @@ void DemSystem::Impl::forces_and_kick() {
     std::vector<std::int64_t>& waiting = balance.waiting[k];
     for (std::int64_t b0 = lo; b0 < hi; b0 += kBlock) {
       const std::int64_t b1 = std::min(hi, b0 + kBlock);
-      if constexpr (Poly)
-        mo = std::max(mo, detail::poly_pair_forces(pp, pa, row[b0], row[b1]));
-      else
-        mo = std::max(mo, kern(a, row[b0], row[b1]));
+      const OverlapMax m = [&] {
+        if constexpr (Poly)
+          return detail::poly_pair_forces(pp, pa, row[b0], row[b1]);
+        else
+          return kern(a, row[b0], row[b1]);
+      }();
+      mo = std::max(mo, m.abs), mr = std::max(mr, m.rel);
       for (std::int64_t i = b0; i < b1; ++i)
         if (waits(i))
           waiting.push_back(i);
         else
-          gather(i, mo, fmo);
+          gather(i, mo, mr, fmo);
     }
     balance.busy[k] = omp_get_wtime() - start;
 #pragma omp barrier
@@ -239,13 +251,14 @@ void DemSystem::Impl::forces_and_kick() {
       const auto& list = balance.waiting[th];
       const std::int64_t len = static_cast<std::int64_t>(list.size());
       for (std::int64_t m = std::max(w0, base); m < std::min(w1, base + len); ++m)
-        gather(list[m - base], mo, fmo);
+        gather(list[m - base], mo, mr, fmo);
       base += len;
     }
   }
   if (active == T) balance.adapt();
   max_ov = mo;
   adv_max_ov = std::max(adv_max_ov, mo);
+  adv_max_rel = std::max(adv_max_rel, mr);
   flex_max_ov = std::max(flex_max_ov, fmo);
 }
 

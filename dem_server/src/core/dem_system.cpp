@@ -300,6 +300,7 @@ void DemSystem::advance(std::int64_t substeps, ForceMode mode) {
   if (substeps < 0) bad("advance: substeps = " + std::to_string(substeps) + " must be >= 0");
   if (substeps == 0) return;
   I.adv_max_ov = 0.0;
+  I.adv_max_rel = 0.0;
   if (I.gpu) {
     I.advance_gpu(substeps, mode);
     return;
@@ -324,6 +325,9 @@ void DemSystem::set_cancel_flag(const std::atomic<bool>* flag) {
 
 double DemSystem::advance_max_overlap() const {
   return impl_->adv_max_ov;
+}
+double DemSystem::advance_max_relative_overlap() const {
+  return impl_->adv_max_rel;
 }
 double DemSystem::time() const {
   return impl_->t;

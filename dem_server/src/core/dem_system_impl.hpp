@@ -139,7 +139,8 @@ struct DemSystem::Impl {
   // result, so it keeps the bits. Returns false when a refilter must be a build instead.
   bool adapt_inner_skin(bool build, double pbuild = 0.0);
   double max_ov = 0.0;
-  double adv_max_ov = 0.0;  // largest overlap over the steps of the last advance()
+  double adv_max_ov = 0.0;   // largest overlap over the steps of the last advance()
+  double adv_max_rel = 0.0;  // and against each contact's own radii (phys::relative_overlap)
   std::int64_t rebuilds = 0;
 
   // Walls: all triangles (rigid walls first, then the flexible mesh) in one store.

@@ -19,9 +19,9 @@ using phys::Vec3;
 namespace {
 
 template <bool Friction>
-double pair_range(const PolyParticles& p, const PolyPairs& a, std::int64_t begin,
-                  std::int64_t end) {
-  double mo = 0.0;
+OverlapMax pair_range(const PolyParticles& p, const PolyPairs& a, std::int64_t begin,
+                      std::int64_t end) {
+  double mo = 0.0, mr = 0.0;
   for (std::int64_t k = begin; k < end; ++k) {
     const std::int32_t i = a.pi[k], j = a.pj[k];
     const phys::PairConstants& c =
@@ -33,7 +33,12 @@ double pair_range(const PolyParticles& p, const PolyPairs& a, std::int64_t begin
     Vec3 force, ti, tj;
     const double delta = phys::mixed_pair<Friction>(p, i, j, c, a.dt, a.rolling, sh, rh, axis,
                                                     a.pfeat + 6 * k, force, ti, tj);
-    mo = mo > delta ? mo : delta;
+    if (delta > 0.0) {
+      mo = mo > delta ? mo : delta;
+      const double rel = phys::relative_overlap(delta, phys::particle_contact_radius(p, i),
+                                                phys::particle_contact_radius(p, j));
+      mr = mr > rel ? mr : rel;
+    }
     a.pf[3 * k] = force.x, a.pf[3 * k + 1] = force.y, a.pf[3 * k + 2] = force.z;
     a.pt[3 * k] = ti.x, a.pt[3 * k + 1] = ti.y, a.pt[3 * k + 2] = ti.z;
     a.ptj[3 * k] = tj.x, a.ptj[3 * k + 1] = tj.y, a.ptj[3 * k + 2] = tj.z;
@@ -42,7 +47,7 @@ double pair_range(const PolyParticles& p, const PolyPairs& a, std::int64_t begin
       a.shear[3 * k] = sh.x, a.shear[3 * k + 1] = sh.y, a.shear[3 * k + 2] = sh.z;
     if (a.rolling) a.rhist[3 * k] = rh.x, a.rhist[3 * k + 1] = rh.y, a.rhist[3 * k + 2] = rh.z;
   }
-  return mo;
+  return OverlapMax{mo, mr};
 }
 
 }  // namespace
@@ -57,8 +62,8 @@ void poly_rotations(const PolyParticles& p, double* rot, std::int64_t n, int thr
 }
 
 // The narrow phase's loops over vertices and faces gain from the wider instruction sets.
-DEMFEM_CLONES double poly_pair_forces(const PolyParticles& p, const PolyPairs& a,
-                                      std::int64_t begin, std::int64_t end) {
+DEMFEM_CLONES OverlapMax poly_pair_forces(const PolyParticles& p, const PolyPairs& a,
+                                          std::int64_t begin, std::int64_t end) {
   return a.friction ? pair_range<true>(p, a, begin, end) : pair_range<false>(p, a, begin, end);
 }
 

@@ -11,6 +11,12 @@
 
 namespace demfem::dem::detail {
 
+/// The largest overlap of a range of contacts: in m, and against each contact's own radii
+/// (phys::relative_overlap), which the run's stability guard judges.
+struct OverlapMax {
+  double abs = 0.0, rel = 0.0;
+};
+
 /// Particle arrays of a mixed system (host pointers): the shared physics view.
 using PolyParticles = phys::PolyView;
 
@@ -35,8 +41,8 @@ struct PolyPairs {
 /// for PolyView::rot.
 void poly_rotations(const PolyParticles& p, double* rot, std::int64_t n, int threads);
 
-/// Forces of the pairs [begin, end) into their slots; returns the largest overlap.
-double poly_pair_forces(const PolyParticles& p, const PolyPairs& a, std::int64_t begin,
+/// Forces of the pairs [begin, end) into their slots; returns their largest overlap.
+OverlapMax poly_pair_forces(const PolyParticles& p, const PolyPairs& a, std::int64_t begin,
                         std::int64_t end);
 
 /// Wall contacts of polyhedron i (adds to f and q, fills its wall slots).

@@ -880,19 +880,21 @@ void DemRun::check_stable() const {
   const auto& radius = system_->particles().radius;
   if (radius.empty()) return;
   const double ke = system_->kinetic_energy();
-  const double ov = system_->advance_max_overlap();
-  // a polyhedron's overlap is measured against its dilation radius (its cores intersect at
-  // an overlap of r_i + r_j)
-  const double rmin = system_->smallest_contact_radius();
-  if (std::isfinite(ke) && ov <= kMaxStableOverlap * rmin) return;
+  // each contact against the smaller contact radius of its two bodies (a polyhedron's:
+  // its dilation, its cores intersect at an overlap of r_i + r_j)
+  const double rel = system_->advance_max_relative_overlap();
+  if (std::isfinite(ke) && rel <= kMaxStableOverlap) return;
   std::ostringstream m;
   m << "DEM run unstable in the steps up to t = " << system_->time() << " s: ";
   if (!std::isfinite(ke))
     m << "the kinetic energy is " << ke << " (the particle state is no longer finite)";
   else
-    m << "the largest overlap, " << ov << " m, was " << ov / rmin << " of the smallest radius "
-      << rmin << " m (a sphere's radius or a polyhedron's dilation; at most "
-      << kMaxStableOverlap << ")";
+    m << "a contact overlapped by " << rel
+      << " of the smaller contact radius of its two bodies (a sphere's radius or a "
+         "polyhedron's dilation; at most "
+      << kMaxStableOverlap << "); the largest overlap was " << system_->advance_max_overlap()
+      << " m, the smallest contact radius in the bed " << system_->smallest_contact_radius()
+      << " m";
   m << ". dt = " << scene_.settings.dt << " s against a Rayleigh time step of "
     << system_->rayleigh_time_step() << " s; reduce dt (" << scene_.dt_where
     << ") or the velocities and loads of the scene. The output holds the states before it.";

@@ -549,3 +549,45 @@ TEST_CASE("Rocking damping of face contacts: measured effect on the incline",
   }
   CHECK(flutter_off > 1.0);
 }
+
+TEST_CASE("The stability guard judges each contact by its own radii", "[dem][poly][guard]") {
+  // advance_max_relative_overlap() is the overlap over the smaller contact radius of the two
+  // bodies (a sphere's radius, a polyhedron's dilation; a wall: the particle's), which the
+  // run's guard compares with 0.5. Reference: the overlaps as placed (one step of 1e-9 s moves
+  // the bodies by < 1e-12 m); tolerance 1e-6 relative. The bed's smallest contact radius
+  // (1 mm, an idle sphere far away) must not enter: 3 mm between two 10 mm spheres is 0.3.
+  auto run = [](DemSystem& sys, const std::vector<ParticleInit>& p) {
+    sys.add_particles(p);
+    sys.advance(1);
+  };
+  SECTION("sphere pairs") {
+    DemSystem sys(two_material_settings(kE, kNu, kRho, 0.5, 0.5, 1e-9));
+    run(sys, {sphere({0, 0, 0}, 0.010), sphere({0.017, 0, 0}, 0.010),  // 3 mm: 0.3 of 10 mm
+              sphere({0.1, 0, 0}, 0.010), sphere({0.1112, 0, 0}, 0.002),  // 0.8 mm: 0.4 of 2 mm
+              sphere({0.3, 0, 0}, 0.001)});
+    CHECK(sys.smallest_contact_radius() == 0.001);
+    CHECK(sys.advance_max_overlap() == Approx(0.003).epsilon(1e-6));
+    CHECK(sys.advance_max_relative_overlap() == Approx(0.4).epsilon(1e-6));
+  }
+  SECTION("a sphere on a wall") {
+    DemSystem sys(two_material_settings(kE, kNu, kRho, 0.5, 0.5, 1e-9));
+    sys.add_wall(plane_mesh(0.2, 2));
+    run(sys, {sphere({0.01, 0.01, 0.003}, 0.004), sphere({0.05, 0.05, 0.05}, 0.001)});
+    CHECK(sys.advance_max_overlap() == Approx(0.001).epsilon(1e-6));
+    CHECK(sys.advance_max_relative_overlap() == Approx(0.25).epsilon(1e-6));
+  }
+  SECTION("polyhedra, face to face and on a wall") {
+    // two boxes (half height 2 mm) of dilation 0.5 and 1 mm stacked 0.3 mm into each other
+    // (0.6 of the smaller dilation), a third of 1 mm dilation 0.2 mm into the floor (0.2)
+    DemSystem sys(two_material_settings(kE, kNu, kRho, 0.5, 0.0, 1e-9));
+    sys.add_shape(box_shape(0.004, 0.003, 0.002, 0.0005));
+    sys.add_shape(box_shape(0.004, 0.003, 0.002, 0.001));
+    sys.add_wall(plane_mesh(0.2, 2));
+    const double zb = 0.002 + 0.001 - 0.0002;
+    run(sys, {poly(1, {0.03, 0.03, zb}),
+              poly(0, {-0.03, -0.03, 0.05}),
+              poly(1, {-0.03, -0.03, 0.05 + 0.004 + 0.0015 - 0.0003})});
+    CHECK(sys.advance_max_overlap() == Approx(0.0003).epsilon(1e-6));
+    CHECK(sys.advance_max_relative_overlap() == Approx(0.6).epsilon(1e-6));
+  }
+}

@@ -248,14 +248,14 @@ TEST_CASE("DemRun builds walls from STL, inserts, and checks dt against Rayleigh
   SECTION("a run whose spheres pass through the floor stops, naming the overlap and dem.dt") {
     // 150 m/s downwards and dt = 1e-5 s: 1.5 mm per step against radii of 1.5-2.5 mm, so a
     // sphere's first contact step puts it up to 1.5 mm into the floor; many of the 200 land
-    // beyond half the smallest radius (0.75 mm), which the soft-sphere contact cannot resolve.
+    // beyond half their own radius (0.75-1.25 mm), which the soft-sphere contact cannot resolve.
     std::string fast = replace(text, "dt = 2e-6", "dt = 1e-5");
     fast = replace(fast, "count = 200", "count = 200\nvelocity = [0.0, 0.0, -150.0]");
     std::ofstream(dir / "scene.toml") << fast;
     Document d = Document::load(dir / "scene.toml");
     DemRun run(read_dem_scene(d.root().required_table("dem")), dir / "fast", 1, 0.0, nullptr);
     CHECK_THROWS_WITH(run.run_to(0.004), Catch::Contains("DEM run unstable") &&
-                                             Catch::Contains("of the smallest radius") &&
+                                             Catch::Contains("of the smaller contact radius of its two bodies") &&
                                              Catch::Contains("key 'dem.dt'") &&
                                              Catch::Contains("Rayleigh time step"));
   }

@@ -278,6 +278,10 @@ class DemSystem {
   /// advance(), m (a deep overlap in the middle of an advance() is seen here even when the
   /// bodies have parted again by its end).
   double advance_max_overlap() const;
+  /// Largest overlap of a contact against its own scale over all steps of the last
+  /// advance(): the overlap over the smaller contact radius of its two bodies (a sphere's
+  /// radius, a polyhedron's dilation; at a wall, the particle's), phys::relative_overlap.
+  double advance_max_relative_overlap() const;
 
   /// @brief Wall-clock seconds spent in each phase since construction (for benchmarks).
   struct Timings {

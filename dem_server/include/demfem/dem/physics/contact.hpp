@@ -178,6 +178,14 @@ DEMFEM_HD ContactResult hertz_mindlin(const PairConstants& c, Vec3 n, double del
   return out;
 }
 
+/// The depth of a contact against its own scale: the overlap over the smaller contact radius
+/// of the two bodies (a sphere's radius, a polyhedron's dilation; a wall: the particle's).
+/// A run's stability guard compares it with kMaxStableOverlap: a contact is judged by its
+/// own bodies, not by the smallest particle in the bed.
+DEMFEM_HD double relative_overlap(double delta, double ri, double rj) {
+  return delta / (ri < rj ? ri : rj);
+}
+
 /// Rayleigh time step (thesis eq. 2.27) of a sphere of radius r, density rho, shear modulus
 /// G, Poisson ratio nu.
 DEMFEM_HD double rayleigh_time_step(double r, double rho, double shear_modulus, double nu) {
