@@ -320,9 +320,10 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     post_steps = read_post_steps(*doc, bin);
     // A [dem.load] scene = ... whose state is missing or stale: that scene runs first, so
     // that the check of the solver sections (which builds the particles) finds the state.
-    if (!opt.check) {
-      if (const int c = run_prepare_scenes(*doc, bin, opt.quiet, opt.in_process)) return c;
-    }
+    // With --check a missing state is not made: the prepare scene is checked instead (and
+    // this scene's particles are set up without it).
+    if (const int c = run_prepare_scenes(*doc, bin, opt.quiet, opt.in_process, opt.check))
+      return c;
     sections = check_solver_sections(*doc, settings.run.seed);
   } catch (const scene::SceneError& e) {
     std::fprintf(stderr, "demfem run: scene error: %s\n", e.what());
@@ -1021,7 +1022,8 @@ int main(int argc, char** argv) {
       ->allow_extra_args(false);
   app.add_flag("--check", opt.check,
                "read and check the scene (with --set) as a run would, start nothing, and exit "
-               "(0 valid, 2 not)");
+               "(0 valid, 2 not); a prepared state ([dem.load] scene) that is missing is not "
+               "made: its scene is checked with its overrides");
   app.add_option("--wait-spin-us", opt.wait_spin_us,
                  "microseconds the coupler spins before it blocks while waiting for a solver "
                  "(default 0: block at once)")

@@ -123,13 +123,13 @@ int run_post_steps(const std::vector<PostStep>& steps, const fs::path& output_di
 }
 
 int run_prepare_scenes(const scene::Document& doc, const fs::path& bin_dir, bool quiet,
-                       bool in_process) {
+                       bool in_process, bool check_only) {
   const auto dem = doc.root().table("dem");
   if (!dem) return 0;
   const dem::DemScene ds = dem::read_dem_scene(*dem);
   if (!ds.load || ds.load->prepare_scene.empty()) return 0;
   const dem::ParticleSource& src = *ds.load;
-  if (dem::state_is_current(src.file, src.prepare_scene)) return 0;
+  if (dem::state_is_current(src.file, src.prepare_scene, src.prepare_overrides)) return 0;
 
   const char* depth_text = std::getenv(kDepthVariable);
   const int depth = depth_text ? std::atoi(depth_text) : 0;
@@ -139,6 +139,27 @@ int run_prepare_scenes(const scene::Document& doc, const fs::path& bin_dir, bool
                  "itself?)\n",
                  src.where.c_str(), kMaxPrepareDepth);
     return 2;
+  }
+  if (check_only) {  // its scene is checked as a run of it would check it, nothing is made
+    std::vector<std::string> args = {"--bin-dir", bin_dir.string(), src.prepare_scene.string(),
+                                     "--check"};
+    for (const auto& o : src.prepare_overrides)
+      args.insert(args.end(), {"--set", o.key + "=" + o.value});
+    ::setenv(kDepthVariable, std::to_string(depth + 1).c_str(), 1);
+    int code = 1;
+    try {
+      code = run_child("prepare check", bin_dir / "demfem_run", args);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "demfem run: %s\n", e.what());
+    }
+    if (depth_text)
+      ::setenv(kDepthVariable, depth_text, 1);
+    else
+      ::unsetenv(kDepthVariable);
+    if (code != 0)
+      std::fprintf(stderr, "demfem run: the prepare scene %s does not pass --check (status %d)\n",
+                   src.prepare_scene.c_str(), code);
+    return code == 0 ? 0 : (code == 2 ? 2 : 1);
   }
   // One run prepares; another one that needs the same state waits for it and then finds
   // it current.
@@ -151,12 +172,17 @@ int run_prepare_scenes(const scene::Document& doc, const fs::path& bin_dir, bool
     return 1;
   }
   int code = 0;
-  if (!dem::state_is_current(src.file, src.prepare_scene)) {
-    std::printf("demfem run: %s needs the end state of %s (%s %s): running that scene first\n",
-                doc.file().c_str(), src.prepare_scene.c_str(), src.file.c_str(),
+  if (!dem::state_is_current(src.file, src.prepare_scene, src.prepare_overrides)) {
+    std::string with;
+    for (const auto& o : src.prepare_overrides) with += " " + o.text();
+    std::printf("demfem run: %s needs the end state of %s%s (%s %s): running that scene first\n",
+                doc.file().c_str(), src.prepare_scene.c_str(),
+                with.empty() ? "" : (" with" + with).c_str(), src.file.c_str(),
                 fs::exists(src.file) ? "was made by another version of it" : "does not exist");
     std::fflush(stdout);
     std::vector<std::string> args = {"--bin-dir", bin_dir.string(), src.prepare_scene.string()};
+    for (const auto& o : src.prepare_overrides)
+      args.insert(args.end(), {"--set", o.key + "=" + o.value});
     if (quiet) args.push_back("--quiet");
     if (in_process) args.push_back("--in-process");
     ::setenv(kDepthVariable, std::to_string(depth + 1).c_str(), 1);
@@ -173,7 +199,7 @@ int run_prepare_scenes(const scene::Document& doc, const fs::path& bin_dir, bool
     if (code != 0) {
       std::fprintf(stderr, "demfem run: the prepare scene %s ended with status %d\n",
                    src.prepare_scene.c_str(), code);
-    } else if (!dem::state_is_current(src.file, src.prepare_scene)) {
+    } else if (!dem::state_is_current(src.file, src.prepare_scene, src.prepare_overrides)) {
       std::fprintf(stderr, "demfem run: the prepare scene %s ended without writing %s\n",
                    src.prepare_scene.c_str(), src.file.c_str());
       code = 1;

@@ -279,6 +279,11 @@ void Table::fail(std::string_view key, const std::string& message) const {
   throw SceneError(where(key) + ": " + message);
 }
 
+const std::vector<Override>& Table::overrides() const {
+  static const std::vector<Override> none;
+  return overrides_ ? *overrides_ : none;
+}
+
 bool Table::has(std::string_view key) const {
   asked_->emplace(key);
   return table_->contains(key);

@@ -173,6 +173,68 @@ TEST_CASE("prepare scenes: made once, reused, made again when the scene changes"
   CHECK_THAT(r.err, Catch::Contains("bad.toml") && Catch::Contains("ended with status 2"));
 }
 
+TEST_CASE("prepare scenes with overrides: each variant of a bed is made once, in its own folder",
+          "[sheet]") {
+  // A sweep member's --set run.seed reaches the bed through [dem.load] pass (its insertion
+  // takes run.seed); [dem.load] set fixes a key of the bed for every member.
+  TempDir d("prepare_overrides");
+  std::ofstream(d / "fill.toml") << "[run]\nend_time = 0.002\n"
+                                 << kSmallDem
+                                 << "[[dem.insert]]\nmaterial = \"wheat\"\nlo = [0, 0, 0]\n"
+                                    "hi = [0.03, 0.03, 0.03]\ncount = 60\n"
+                                    "distribution = { kind = \"constant\", diameter = 0.004 }\n"
+                                    "[dem.output]\nstate = true\nparticles = false\n";
+  std::ofstream(d / "use.toml") << "[run]\nend_time = 0.002\n"
+                                << kSmallDem
+                                << "[dem.load]\nscene = \"fill.toml\"\npass = [\"run.seed\"]\n"
+                                   "set = [\"dem.insert[0].count=50\"]\n"
+                                   "[dem.output]\nparticles = false\n";
+  const std::string use = (d / "use.toml").string();
+  // A sweep checks each member first: the bed to come is checked, nothing is made.
+  Result c = run_demfem(d.path, {use, "--check", "--set", "run.seed=5"});
+  INFO(c.out << c.err);
+  CHECK(c.status == 0);
+  CHECK_FALSE(fs::exists(d.path / "out/fill"));
+  // a bad value for the bed only: found by the check of the bed's scene
+  c = run_demfem(d.path, {use, "--check", "--set", "dem.load.set=[\"dem.insert[0].count=-3\"]"});
+  CHECK(c.status == 2);
+  CHECK_THAT(c.err, Catch::Contains("fill.toml") && Catch::Contains("dem.insert[0].count") &&
+                        Catch::Contains("does not pass --check"));
+  auto variants = [&] {
+    std::vector<fs::path> v;
+    if (fs::exists(d.path / "out/fill"))
+      for (const auto& e : fs::directory_iterator(d.path / "out/fill"))
+        if (e.path().filename().string().rfind("set-", 0) == 0) v.push_back(e.path());
+    return v;
+  };
+  Result r = run_demfem(d.path, {use, "--quiet", "--set", "run.seed=5"});
+  INFO(r.out << r.err);
+  REQUIRE(r.status == 0);
+  CHECK_THAT(r.out, Catch::Contains("running that scene first") &&
+                        Catch::Contains("--set run.seed=5") &&
+                        Catch::Contains("--set dem.insert[0].count=50"));
+  REQUIRE(variants().size() == 1);
+  CHECK(fs::exists(variants()[0] / "dem_state.h5"));
+  CHECK_FALSE(fs::exists(d.path / "out/fill/dem_state.h5"));  // the plain scene's place
+  // the same member again (in process too): reused
+  r = run_demfem(d.path, {use, "--quiet", "--in-process", "--set", "run.seed=5"});
+  REQUIRE(r.status == 0);
+  CHECK_THAT(r.out, !Catch::Contains("running that scene first"));
+  // another seed: another bed beside it; the first stays current
+  r = run_demfem(d.path, {use, "--quiet", "--set", "run.seed=6"});
+  REQUIRE(r.status == 0);
+  CHECK_THAT(r.out, Catch::Contains("running that scene first"));
+  CHECK(variants().size() == 2);
+  r = run_demfem(d.path, {use, "--quiet", "--set", "run.seed=5"});
+  REQUIRE(r.status == 0);
+  CHECK_THAT(r.out, !Catch::Contains("running that scene first"));
+  // the fill run by hand with the plain scene does not stand in for a variant
+  r = run_demfem(d.path, {(d / "fill.toml").string(), "--quiet"});
+  REQUIRE(r.status == 0);
+  CHECK(fs::exists(d.path / "out/fill/dem_state.h5"));
+  CHECK(variants().size() == 2);
+}
+
 TEST_CASE("[[post]] steps: unknown tools are scene errors, a failing tool ends the run with 1",
           "[sheet]") {
   TempDir d("post");

@@ -229,6 +229,7 @@ double estimated_particle_count(const DemScene& s) {
 DemScene read_dem_scene(const Table& dem) {
   DemScene s;
   s.file = dem.file();
+  s.overrides = dem.overrides();
   auto& st = s.settings;
   st.backend = dem.choice("backend", "cpu", {"cpu", "cuda"});
   s.backend_where = dem.where("backend");
@@ -607,7 +608,12 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
     libraries_.push_back(build_shape_library(scene_.shapes[k], seed, k, log));
     shape_base_.push_back(add_library_shapes(*system_, *libraries_.back(), scene_.shapes[k].name));
   }
-  if (scene_.load) {
+  // A check (setup_only) of a scene whose prepare scene has not made its state yet checks
+  // all but the loaded particles: `demfem run --check` checks the prepare scene itself.
+  const bool state_to_come = setup_only && scene_.load && !scene_.load->prepare_scene.empty() &&
+                             !state_is_current(scene_.load->file, scene_.load->prepare_scene,
+                                               scene_.load->prepare_overrides);
+  if (scene_.load && !state_to_come) {
     const std::size_t n = load_particles(*scene_.load, *system_, meshes, log);
     for (std::size_t i = 0; i < n; ++i) ids_.push_back(next_id_++);
   }
@@ -870,7 +876,7 @@ void DemRun::write_state() const {
   io::write_checkpoint_file(file, system_->step_count(), [&](io::H5File& h5) {
     save(h5, "dem");
     h5.set_attribute("/", "scene_file", scene_.file);
-    h5.set_attribute("/", "scene_hash", scene_text_hash(scene_.file));
+    h5.set_attribute("/", "scene_hash", scene_text_hash(scene_.file, scene_.overrides));
     h5.set_attribute("/", "time", system_->time());
     h5.set_attribute("/", "count", static_cast<std::int64_t>(system_->particle_count()));
   });

@@ -404,6 +404,81 @@ void restore_state(const ParticleSource& s, DemSystem& system, std::span<const W
 
 }  // namespace
 
+namespace {
+
+std::string hex16(std::uint64_t h) {
+  char text[17];
+  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(h));
+  return text;
+}
+
+// A TOML basic string of `s` (a path): quotes and backslashes escaped.
+std::string toml_string(const std::string& s) {
+  std::string q = "\"";
+  for (const char c : s) {
+    if (c == '"' || c == '\\') q += '\\';
+    q += c;
+  }
+  return q + "\"";
+}
+
+// Whether override key `key` is `prefix` or lies below it ("dem.pairs" covers
+// "dem.pairs[0].friction"; "dem.pair" does not).
+bool key_under(const std::string& key, const std::string& prefix) {
+  if (key.compare(0, prefix.size(), prefix) != 0) return false;
+  return key.size() == prefix.size() || key[prefix.size()] == '.' || key[prefix.size()] == '[';
+}
+
+// [dem.load] set and pass: the overrides the prepare scene runs with, and its own folder.
+std::vector<scene::Override> read_prepare_overrides(const Table& t,
+                                                    const std::filesystem::path& prepare_scene,
+                                                    const std::string& where) {
+  std::vector<scene::Override> e;
+  if (t.has("set")) {
+    for (const auto& a : t.strings("set")) {
+      try {
+        e.push_back(scene::Override::parse(a));
+      } catch (const SceneError& x) {
+        t.fail("set", std::string(x.what()) + " (each entry is \"KEY=VALUE\", as for --set)");
+      }
+    }
+  }
+  if (t.has("pass")) {
+    const auto prefixes = t.strings("pass");
+    for (const auto& p : prefixes)
+      if (p.empty() || p.find_first_of("= ") != std::string::npos || p == "run.output_dir")
+        t.fail("pass", "'" + p +
+                           "' is not a key prefix (a dotted scene key such as \"dem.pairs\" or "
+                           "\"run.seed\"; run.output_dir is never passed)");
+    for (const auto& o : t.overrides())
+      if (o.key != "run.output_dir" &&
+          std::any_of(prefixes.begin(), prefixes.end(),
+                      [&](const std::string& p) { return key_under(o.key, p); }))
+        e.push_back(o);
+  }
+  const bool own_folder = std::none_of(e.begin(), e.end(), [](const scene::Override& o) {
+    return o.key == "run.output_dir" || o.key == "run";
+  });
+  if (e.empty() || !own_folder) return e;
+  // each variant in a folder of its own, named by its content: members of a sweep that
+  // share a bed share the folder (and its lock), others do not overwrite each other's
+  try {
+    const auto doc = scene::Document::load(prepare_scene, e);
+    const auto run = scene::read_run_settings(doc);
+    const std::string h = hex16(io::fnv1a64(doc.canonical_text()));
+    e.push_back(scene::Override{"run.output_dir",
+                                toml_string((run.output_dir / ("set-" + h)).generic_string())});
+  } catch (const SceneError& x) {
+    throw SceneError(where +
+                     ": the prepare scene cannot be used with the overrides of 'set' and "
+                     "'pass': " +
+                     x.what());
+  }
+  return e;
+}
+
+}  // namespace
+
 // ---------------------------------------------------------------------------------------
 ParticleSource read_particle_source(const Table& t, const std::vector<Material>& materials) {
   ParticleSource s;
@@ -416,12 +491,15 @@ ParticleSource read_particle_source(const Table& t, const std::vector<Material>&
     s.where = t.where("file");
     if (!std::filesystem::is_regular_file(s.file))
       t.fail("file", "\"" + s.file.string() + "\" does not exist or is not a file");
+    for (const char* key : {"set", "pass"})
+      if (t.has(key)) t.fail(key, "is only used with 'scene' (the overrides of a prepare scene)");
   } else {
     s.prepare_scene = t.path("scene");
     s.where = t.where("scene");
     if (!std::filesystem::is_regular_file(s.prepare_scene))
       t.fail("scene", "\"" + s.prepare_scene.string() + "\" does not exist or is not a file");
-    s.file = prepared_state_path(s.prepare_scene, s.where);
+    s.prepare_overrides = read_prepare_overrides(t, s.prepare_scene, s.where);
+    s.file = prepared_state_path(s.prepare_scene, s.prepare_overrides, s.where);
   }
   std::string ext = s.file.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(),
@@ -475,9 +553,10 @@ ParticleSource read_particle_source(const Table& t, const std::vector<Material>&
 }
 
 std::filesystem::path prepared_state_path(const std::filesystem::path& prepare_scene,
+                                          const std::vector<scene::Override>& overrides,
                                           const std::string& where) {
   try {
-    const auto doc = scene::Document::load(prepare_scene);
+    const auto doc = scene::Document::load(prepare_scene, overrides);
     const auto run = scene::read_run_settings(doc);
     const auto dem = doc.root().table("dem");
     const auto out = dem ? dem->table("output") : std::nullopt;
@@ -490,26 +569,21 @@ std::filesystem::path prepared_state_path(const std::filesystem::path& prepare_s
   }
 }
 
-namespace {
-std::string hex16(std::uint64_t h) {
-  char text[17];
-  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(h));
-  return text;
-}
-}  // namespace
-
-std::string scene_text_hash(const std::filesystem::path& file) {
-  return hex16(io::fnv1a64(scene::Document::load(file).canonical_text()));
+std::string scene_text_hash(const std::filesystem::path& file,
+                            const std::vector<scene::Override>& overrides) {
+  return hex16(io::fnv1a64(scene::Document::load(file, overrides).canonical_text()));
 }
 
-bool state_is_current(const std::filesystem::path& state, const std::filesystem::path& scene) {
+bool state_is_current(const std::filesystem::path& state, const std::filesystem::path& scene,
+                      const std::vector<scene::Override>& overrides) {
   if (!std::filesystem::is_regular_file(state)) return false;
   try {
     io::H5File f(state, io::H5File::Mode::read);
     const std::string made_by = f.attribute_string("/", "scene_hash");
+    if (made_by == scene_text_hash(scene, overrides)) return true;
     // States written before the hash was of the content carry the hash of the file's bytes:
     // still current while the file is byte for byte the same (a bed of hours is not redone).
-    return made_by == scene_text_hash(scene) || made_by == hex16(io::fnv1a64_file(scene));
+    return overrides.empty() && made_by == hex16(io::fnv1a64_file(scene));
   } catch (const std::exception&) {
     return false;
   }
@@ -614,7 +688,7 @@ std::size_t load_particles(const ParticleSource& s, DemSystem& system,
                        "run that scene yourself");
     throw SceneError(s.where + ": \"" + s.file.string() + "\" does not exist");
   }
-  if (!s.prepare_scene.empty() && !state_is_current(s.file, s.prepare_scene))
+  if (!s.prepare_scene.empty() && !state_is_current(s.file, s.prepare_scene, s.prepare_overrides))
     throw SceneError(s.where + ": " + s.file.string() + " was made by another version of " +
                      s.prepare_scene.string() +
                      " (its scene_hash differs); run that scene "

@@ -16,6 +16,7 @@
 
 using namespace demfem::dem;
 using demfem::scene::Document;
+using demfem::scene::Override;
 using demfem::scene::SceneError;
 using demfem::test::TempDir;
 
@@ -273,6 +274,76 @@ TEST_CASE("dem.load: a saved state with its contact history continues bit for bi
     (void)scene_file(dir, "nostate.toml", std::string(kHead) + kInsert);
     CHECK_THAT(error_of(dir, std::string(kHead) + "[dem.load]\nscene = \"nostate.toml\"\n", false),
                Catch::Contains("does not write its end state"));
+  }
+}
+
+// A sweep varies a bed's settings: [dem.load] set (fixed overrides of the prepare scene) and
+// pass (this run's own --set overrides under the given keys go on to it). Each variant has a
+// folder of its own, and its state is current only for the overrides that made it.
+TEST_CASE("dem.load: a prepare scene with overrides ('set', 'pass')", "[dem][load]") {
+  TempDir dir("load_prepare_overrides");
+  const std::string fill = std::string(kHead) + kInsert + "[dem.output]\nstate = true\n";
+  (void)scene_file(dir, "fill.toml", fill);
+  const std::string use = std::string(kHead) +
+                          "[dem.load]\nscene = \"fill.toml\"\n"
+                          "set = [\"dem.insert[0].count=120\"]\n"
+                          "pass = [\"run.seed\", \"dem.pairs\"]\n";
+  std::ofstream(dir / "use.toml") << use;
+  auto source = [&](const std::vector<Override>& cli) {
+    const Document d = Document::load(dir / "use.toml", cli);
+    return *read_dem_scene(d.root().required_table("dem")).load;
+  };
+  const Override seed7{"run.seed", "7"}, mu{"dem.pairs[0].friction", "0.3"};
+  const Override dt{"dem.dt", "1e-6"};  // not under a passed key: stays with this run
+  const ParticleSource a = source({seed7, dt, mu});
+  REQUIRE(a.prepare_overrides.size() == 4);
+  CHECK(a.prepare_overrides[0].key == "dem.insert[0].count");
+  CHECK(a.prepare_overrides[1].key == "run.seed");
+  CHECK(a.prepare_overrides[2].key == "dem.pairs[0].friction");
+  CHECK(a.prepare_overrides[3].key == "run.output_dir");
+  // out/fill/set-<16 hex digits of the content>/dem_state.h5
+  const std::string folder = a.file.parent_path().filename().string();
+  CHECK(a.file.parent_path().parent_path() == std::filesystem::path("out/fill"));
+  CHECK(folder.size() == 4 + 16);
+  CHECK(folder.rfind("set-", 0) == 0);
+  // the same content spelt otherwise: the same folder; another seed: another one
+  CHECK(source({Override{"run.seed", "+7"}, mu}).file == a.file);
+  CHECK(source({Override{"run.seed", "8"}, mu}).file != a.file);
+  CHECK(source({}).prepare_overrides.size() == 2);  // set and the folder
+
+  // The state a prepare run with these overrides writes is current for them only.
+  std::vector<Override> made = a.prepare_overrides;
+  made.back() = Override{"run.output_dir", "\"" + (dir / "variant").string() + "\""};
+  const Document fd = Document::load(dir / "fill.toml", made);
+  DemRun prepared(read_dem_scene(fd.root().required_table("dem")), dir / "variant", 1, 0.0,
+                  nullptr);
+  prepared.write_state();
+  const auto state = dir / "variant" / kStateFileName;
+  REQUIRE(std::filesystem::exists(state));
+  CHECK(state_is_current(state, dir / "fill.toml", made));
+  CHECK_FALSE(state_is_current(state, dir / "fill.toml"));
+  made[1].value = "8";
+  CHECK_FALSE(state_is_current(state, dir / "fill.toml", made));
+  // and a state of the plain scene is not current for a variant
+  DemRun plain(read_dem_scene(Document::load(dir / "fill.toml").root().required_table("dem")),
+               dir / "plain", 1, 0.0, nullptr);
+  plain.write_state();
+  CHECK(state_is_current(dir / "plain" / kStateFileName, dir / "fill.toml"));
+  CHECK_FALSE(state_is_current(dir / "plain" / kStateFileName, dir / "fill.toml", made));
+
+  SECTION("bad entries name the key") {
+    const std::string head = std::string(kHead) + "[dem.load]\nscene = \"fill.toml\"\n";
+    CHECK_THAT(error_of(dir, head + "set = [\"no assignment\"]\n", false),
+               Catch::Contains("'dem.load.set'") && Catch::Contains("KEY=VALUE"));
+    CHECK_THAT(error_of(dir, head + "pass = [\"run.output_dir\"]\n", false),
+               Catch::Contains("'dem.load.pass'") && Catch::Contains("never passed"));
+    CHECK_THAT(error_of(dir, head + "set = [\"dem.nothing[3].x=1\"]\n", false),
+               Catch::Contains("fill.toml") && Catch::Contains("'set' and 'pass'"));
+    CHECK_THAT(error_of(dir,
+                        std::string(kHead) +
+                            "[dem.load]\nfile = \"plain/dem_state.h5\"\nset = [\"a=1\"]\n",
+                        false),
+               Catch::Contains("'dem.load.set'") && Catch::Contains("only used with 'scene'"));
   }
 }
 

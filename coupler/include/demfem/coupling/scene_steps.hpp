@@ -42,8 +42,10 @@ int run_post_steps(const std::vector<PostStep>& steps, const std::filesystem::pa
 /// @brief Makes the state that [dem.load] scene = ... of `scene` needs, when it is missing
 /// or stale, by running that scene with `bin_dir`/demfem_run (passing --quiet and
 /// --in-process on). Returns 0 when the state is there (made or found), else the exit status
-/// to end with (2 for a cycle of prepare scenes, the child's status otherwise).
+/// to end with (2 for a cycle of prepare scenes, the child's status otherwise). With
+/// `check_only` a missing or stale state is not made: the prepare scene is checked
+/// (`demfem_run --check` with its overrides, down the chain) and its status returned.
 int run_prepare_scenes(const scene::Document& scene, const std::filesystem::path& bin_dir,
-                       bool quiet, bool in_process);
+                       bool quiet, bool in_process, bool check_only = false);
 
 }  // namespace demfem::coupling

@@ -100,6 +100,7 @@ inline constexpr double kBytesPerParticle = 2048.0;
 /// @brief Everything [dem] says.
 struct DemScene {
   std::string file;
+  std::vector<scene::Override> overrides;  ///< --set overrides of the scene (its state's hash)
   DemSettings settings;
   std::string dt_where;       ///< file:line: key 'dem.dt', for the Rayleigh check
   std::string backend_where;  ///< file:line: key 'dem.backend', for an unavailable backend

@@ -32,6 +32,10 @@ struct ParticleSource {
   enum class Outside : std::uint8_t { error, remove, keep };
   std::filesystem::path file;           ///< resolved path
   std::filesystem::path prepare_scene;  ///< `scene` key: the run that makes `file`; empty if none
+  /// Overrides the prepare scene runs with: `set`, then this run's overrides whose keys
+  /// `pass` names, then (when there are any and none sets it) run.output_dir =
+  /// "<its output folder>/set-<hash>", so that each variant of a bed has a folder of its own.
+  std::vector<scene::Override> prepare_overrides;
   Format format = Format::csv;
   std::string group = "dem";               ///< state: the DemSystem group
   std::int32_t material = -1;              ///< every particle gets this material (-1: not given)
@@ -50,19 +54,25 @@ struct ParticleSource {
 ParticleSource read_particle_source(const scene::Table& load,
                                     const std::vector<Material>& materials);
 
-/// @brief Where the state of a prepare scene lands: <its run.output_dir>/dem_state.h5
-/// (run.output_dir relative to the current directory, as for any run). Throws SceneError
-/// (naming `where`) when the scene cannot be read or does not write its state.
+/// @brief Where the state of a prepare scene run with `overrides` lands: <its
+/// run.output_dir>/dem_state.h5 (run.output_dir relative to the current directory, as for
+/// any run). Throws SceneError (naming `where`) when the scene cannot be read, an override
+/// does not apply to it, or it does not write its state.
 std::filesystem::path prepared_state_path(const std::filesystem::path& prepare_scene,
+                                          const std::vector<scene::Override>& overrides,
                                           const std::string& where);
 
-/// @brief FNV-1a (64 bit) of a scene's content (scene::Document::canonical_text: comments,
-/// layout, key order and number spelling do not count), as 16 hex digits: tells whether a
-/// state file was made by this version of a scene. Throws SceneError when it cannot be read.
-std::string scene_text_hash(const std::filesystem::path& file);
+/// @brief FNV-1a (64 bit) of a scene's content with `overrides` applied
+/// (scene::Document::canonical_text: comments, layout, key order and number spelling do not
+/// count), as 16 hex digits: tells whether a state file was made by this version of a scene
+/// and these overrides. Throws SceneError when it cannot be read.
+std::string scene_text_hash(const std::filesystem::path& file,
+                            const std::vector<scene::Override>& overrides = {});
 
-/// @brief True when `state` exists and was made by the current text of `scene`.
-bool state_is_current(const std::filesystem::path& state, const std::filesystem::path& scene);
+/// @brief True when `state` exists and was made by the current text of `scene` with
+/// `overrides`.
+bool state_is_current(const std::filesystem::path& state, const std::filesystem::path& scene,
+                      const std::vector<scene::Override>& overrides = {});
 
 /// @brief Loads the particles of `source` into `system`, which has its walls (`walls`, the
 /// same meshes at t = 0) and no particles yet. Prints what it loaded and the largest overlap

@@ -117,6 +117,8 @@ class Table {
 
   const std::string& file() const { return *file_; }
   const std::string& dotted_path() const { return path_; }
+  /// The --set overrides applied to the document this table belongs to, in order.
+  const std::vector<Override>& overrides() const;
 
  private:
   const toml::node* get(std::string_view key) const;
