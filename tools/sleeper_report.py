@@ -11,8 +11,9 @@ the rocks' volume) and the packing sensors sensor_packing_*.csv / sensor_under_s
 when there; and from SCENE (the load case's TOML): the load pattern (start, ramp, cycles,
 time scale, levels and seats), the seating load, the sleeper's density and the mesh (its
 volume from the node bounding box), the cells' density and size, and the all_rocks box;
---set KEY=VALUE changes a key of SCENE as `demfem run --set` did for the run (a study that
-ran the scene with overrides passes the same ones here).
+--set KEY=VALUE changes a key of SCENE as `demfem run --set` did for the run; the overrides
+the run recorded in OUTPUT_DIR/run.json are applied first, so the report of a run with
+--set (400 cycles instead of the scene's 100, say) needs none here.
 Writes into OUTPUT_DIR:
   settlement.png       settlement (mean uz of the bottom probes, mm) against time, and at each
                        cycle's minimum load against the cycle number
@@ -157,6 +158,15 @@ def scene_figures(scene_path, rock_density, overrides=()):
             "rocks_box_volume": rocks_box, "gauges": strain_gauges(sc, mesh_nodes)}
 
 
+def run_overrides(out):
+    """The --set overrides the run recorded in OUTPUT_DIR/run.json (none without one)."""
+    path = os.path.join(out, "run.json")
+    if not os.path.exists(path):
+        return []
+    with open(path) as f:
+        return list(json.load(f).get("overrides", []))
+
+
 def main(argv):
     ap = argparse.ArgumentParser(description="sleeper run report")
     ap.add_argument("output")
@@ -169,7 +179,7 @@ def main(argv):
     a = ap.parse_args(argv)
     out = a.output
     try:
-        fig = scene_figures(a.scene, a.rock_density, a.set)
+        fig = scene_figures(a.scene, a.rock_density, run_overrides(out) + a.set)
         mon_path = os.path.join(out, "fem_monitor.csv")
         mon = read_csv(mon_path)
         t = column(mon, "time", mon_path)
