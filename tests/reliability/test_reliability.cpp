@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "demfem/io/h5_file.hpp"
+#include "demfem_test/demfem_run.hpp"
 #include "demfem_test/launch.hpp"
 #include "demfem_test/run_output.hpp"
 #include "demfem_test/scene_variant.hpp"
@@ -40,23 +41,17 @@ using demfem::test::segments_of;
 using demfem::test::started_pids;
 using demfem::test::TempDir;
 
-const fs::path kBin = fs::path(DEMFEM_BINARY_DIR) / "bin";
+using demfem::test::kBin;
 const fs::path kScene = fs::path(DEMFEM_SOURCE_DIR) / "cases" / "beam_checkpoint_ci.toml";
 constexpr const char* kOut = "out/beam_checkpoint_ci";
 constexpr int kSteps = 50;  // coupling steps of the case
 
-struct Result {
-  int status = -1;  // exit code, or 128 + signal
-  std::string out, err;
-};
+using Result = demfem::test::Ended;
 
 // demfem_run in `dir` (relative output paths land there), stdout/stderr to files there.
 Result run(const fs::path& dir, std::vector<std::string> args, const fs::path& scene = kScene) {
-  std::vector<std::string> argv = {(kBin / "demfem_run").string(), "--bin-dir", kBin.string(),
-                                   scene.string(), "--quiet"};
-  argv.insert(argv.end(), args.begin(), args.end());
-  const auto ended = demfem::test::wait_for(demfem::test::launch(dir, argv));
-  return Result{ended.status, ended.out, ended.err};
+  args.insert(args.begin(), {scene.string(), "--quiet"});
+  return demfem::test::run_demfem(dir, args);
 }
 
 // Every solver process of these outputs has ended (a solver whose coupler died leaves within

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "demfem/io/h5_file.hpp"
+#include "demfem_test/demfem_run.hpp"
 #include "demfem_test/launch.hpp"
 #include "demfem_test/run_output.hpp"
 #include "demfem_test/temp_dir.hpp"
@@ -34,13 +35,9 @@ using demfem::test::segments_of;
 using demfem::test::started_pids;
 using demfem::test::TempDir;
 
-const fs::path kBin = fs::path(DEMFEM_BINARY_DIR) / "bin";
-const fs::path kCases = fs::path(DEMFEM_SOURCE_DIR) / "cases";
-
-struct Result {
-  int status = -1;  // exit code, or 128 + signal
-  std::string out, err;
-};
+using demfem::test::kBin;
+using demfem::test::kCases;
+using Result = demfem::test::Ended;
 
 // Starts demfem_run in `dir` (own process group when `group`), stdout/stderr to files.
 pid_t spawn_run(const fs::path& dir, const std::vector<std::string>& args, bool group) {
