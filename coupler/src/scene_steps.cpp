@@ -207,7 +207,9 @@ int run_prepare_scenes(const scene::Document& doc, const fs::path& bin_dir, bool
   }
   ::flock(fd, LOCK_UN);
   ::close(fd);
-  return code == 2 ? 2 : (code != 0 ? 1 : 0);
+  // bad input and a blow-up keep their status (a sweep does not retry them: the same steps
+  // blow up again); any other failure is 1
+  return code == 2 || code == 3 ? code : (code != 0 ? 1 : 0);
 }
 
 }  // namespace demfem::coupling

@@ -139,6 +139,21 @@ std::vector<PolyhedronShape> read_state_shapes(const io::H5File& f, const std::s
 }
 
 namespace {
+// The force-limited walls' drift state: time and rate, 2 per wall.
+template <class ImplT>  // DemSystem::Impl (a private type: deduced)
+std::vector<double> pack_drift(const ImplT& I) {
+  std::vector<double> d;
+  for (std::size_t w = 0; w < I.drift_time.size(); ++w)
+    d.insert(d.end(), {I.drift_time[w], I.drift_rate[w]});
+  return d;
+}
+template <class ImplT>
+void unpack_drift(ImplT& I, const std::vector<double>& d) {
+  if (d.size() != 2 * I.drift_time.size()) return;
+  for (std::size_t w = 0; w < I.drift_time.size(); ++w)
+    I.drift_time[w] = d[2 * w], I.drift_rate[w] = d[2 * w + 1];
+}
+
 // Replaces the table by the state's (a state without one keeps the system's).
 void restore_shapes(detail::ShapeTable& t, const io::H5File& f, const std::string& g) {
   if (!f.exists(g + "shape_nv")) return;
@@ -168,6 +183,7 @@ void DemSystem::save(io::H5File& f, const std::string& group) const {
   f.write(g + "wkey", std::span<const std::int64_t>(I.wkey));
   f.write(g + "wcount", std::span<const std::uint8_t>(I.wcount));
   I.bodies.save(f, g);
+  if (I.force_limited) f.write(g + "wall_drift", std::span<const double>(pack_drift(I)));
 }
 
 namespace {
@@ -200,6 +216,7 @@ void DemSystem::save_state(DemStateCopy& c) const {
   c.wkey.assign(I.wkey.begin(), I.wkey.end());
   c.wcount.assign(I.wcount.begin(), I.wcount.end());
   c.bodies = I.bodies.pack();
+  c.drift = pack_drift(I);
 }
 
 void DemSystem::restore_state(const DemStateCopy& c) {
@@ -228,6 +245,7 @@ void DemSystem::restore_state(const DemStateCopy& c) {
     throw std::logic_error(
         "DemSystem::restore_state: the state copy holds another number of "
         "rigid bodies");
+  unpack_drift(I, c.drift);
   // As restore(): the list is rebuilt from the restored positions and springs.
   I.bx.clear(), I.by.clear(), I.bz.clear();
   I.refresh_particle_derived();
@@ -272,6 +290,16 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
     I.bodies.restore(f, g);
   } catch (const std::invalid_argument& e) {
     bad(std::string("restore: ") + e.what());
+  }
+  // force-limited walls: their drift as saved (a state of another scene's walls, or of one
+  // without such walls, leaves them at their start)
+  I.reset_drift();
+  if (I.force_limited && f.exists(g + "wall_drift")) {
+    const auto d = f.read_doubles(g + "wall_drift");
+    if (d.size() != 2 * nwalls)
+      bad("restore: wall_drift in '" + group + "' of " + f.path().string() + " has " +
+          std::to_string(d.size()) + " values, not 2 per wall (" + std::to_string(nwalls) + ")");
+    unpack_drift(I, d);
   }
   const std::size_t n = st.px.size();
   if (I.vpos.size() != (I.vbuild.size()) || (nwalls > 0 && I.vpos.size() < 3))
@@ -326,6 +354,7 @@ void DemSystem::reset_clock() {
   auto& I = *impl_;
   I.t = 0.0;
   I.steps = 0;
+  I.reset_drift();  // the walls' motions start again
   I.update_walls(I.t, I.flex_tau);
 }
 

@@ -378,6 +378,7 @@ void DemSystem::Impl::step(bool last, ForceMode mode, std::int64_t substeps) {
   if (!bodies.empty()) bodies.kick_drift(s.dt);
   t += s.dt;
   flex_tau += s.dt;
+  if (force_limited) advance_drift(t);
   double wdisp = 0.0;
   if (walls_moving) {
     update_walls(t, flex_tau);
@@ -420,9 +421,12 @@ void DemSystem::Impl::step(bool last, ForceMode mode, std::int64_t substeps) {
     forces_and_kick<Friction>();
   // Wall forces and torques are read after advance(): summed at its last step only. The
   // flexible mesh's node forces are summed every substep when they are averaged, and the
-  // rigid bodies' loads every substep (they move by them).
-  if (!tri_v.empty() && (last || (has_flex && mode == ForceMode::average) || !bodies.empty()))
+  // rigid bodies' loads every substep (they move by them), and so the loads of force-limited
+  // walls (their drift goes on by them).
+  if (!tri_v.empty() &&
+      (last || (has_flex && mode == ForceMode::average) || !bodies.empty() || force_limited))
     wall_reduce(last, mode, substeps);
+  if (force_limited) decide_drift();
   if (!bodies.empty()) {
     for (const auto& w : walls)
       if (w.body >= 0) bodies.set_loads(w.body, w.force, w.torque);

@@ -169,6 +169,13 @@ struct DemSystem::Impl {
   std::size_t nedges = 0;
   bool walls_dirty = true;  // topology must be rebuilt
   bool walls_moving = false;
+  // Force-limited drift (WallMotion::max_force), per wall: the seconds its drift has
+  // advanced, and the fraction of its velocity it advances at in the next step,
+  // 1 - R / max_force in [0, 1] (R: the particles' push against it in the last one). Saved
+  // with the state.
+  std::vector<double> drift_time;
+  std::vector<double> drift_rate;
+  bool force_limited = false;  // some wall has a max_force
   // particle -> candidate triangles (built with the neighbour list)
   std::vector<std::int64_t> prow;
   std::vector<std::int32_t> ptri;
@@ -249,6 +256,12 @@ struct DemSystem::Impl {
   // Vertex positions and velocities of the walls at time tt (tau: time into the advance()),
   // by the kinematics shared with the CUDA backend (physics/wall_motion.hpp).
   void update_walls(double tt, double tau);
+  // Force-limited walls: advance the drift over the step that ends at t (before
+  // update_walls), and decide from this step's wall forces whether it goes on (after
+  // wall_reduce).
+  void advance_drift(double t_end);
+  void decide_drift();
+  void reset_drift();
 
   double wall_displacement() const;
 

@@ -79,10 +79,14 @@ void DemSystem::Impl::build_wall_store() {
   nedges = static_cast<std::size_t>(id + 1);
   walls_moving = has_flex || !bodies.empty();
   wall_motions.clear();
+  force_limited = false;
   for (auto& w : walls) {
     walls_moving = walls_moving || w.mesh.motion.kind != WallMotion::Kind::fixed;
     wall_motions.push_back(rigid_motion(w.mesh.motion));
+    force_limited = force_limited || w.mesh.motion.max_force > 0.0;
   }
+  drift_time.resize(walls.size(), 0.0);  // walls added later start at rest
+  drift_rate.resize(walls.size(), 1.0);
   walls_dirty = false;
   need_rebuild = true;
 }
@@ -95,7 +99,12 @@ void DemSystem::Impl::update_walls(double tt, double tau) {
       continue;
     }
     if (w.mesh.motion.kind == WallMotion::Kind::fixed) continue;
-    const phys::RigidPose pose = phys::rigid_pose(wall_motions[wi], tt);
+    const phys::RigidMotion& m = wall_motions[wi];
+    const phys::RigidPose pose =
+        w.mesh.motion.max_force > 0.0
+            ? phys::rigid_pose(m, tt, drift_time[wi],
+                               tt >= m.start_time && tt < m.end_time ? drift_rate[wi] : 0.0)
+            : phys::rigid_pose(m, tt);
     const std::size_t nv = w.mesh.vertices.size() / 3;
     double* x = vpos.data() + 3 * w.vbase;
     double* v = vvel.data() + 3 * w.vbase;
@@ -109,6 +118,35 @@ void DemSystem::Impl::update_walls(double tt, double tau) {
     for (std::size_t k = 0; k < 3 * nv; ++k)
       phys::flexible_node(flex_x[k], flex_v[k], flex_a[k], tau, x[k], v[k]);
   }
+}
+
+void DemSystem::Impl::advance_drift(double t_end) {
+  for (std::size_t wi = 0; wi < walls.size(); ++wi) {
+    const phys::RigidMotion& m = wall_motions[wi];
+    if (!(walls[wi].mesh.motion.max_force > 0.0) || !(drift_rate[wi] > 0.0)) continue;
+    const double lo = std::max(t_end - s.dt, m.start_time), hi = std::min(t_end, m.end_time);
+    if (hi > lo) drift_time[wi] += drift_rate[wi] * (hi - lo);
+  }
+}
+
+void DemSystem::Impl::decide_drift() {
+  for (std::size_t wi = 0; wi < walls.size(); ++wi) {
+    const WallMotion& m = walls[wi].mesh.motion;
+    if (!(m.max_force > 0.0)) continue;
+    const double v = std::sqrt(m.velocity[0] * m.velocity[0] + m.velocity[1] * m.velocity[1] +
+                               m.velocity[2] * m.velocity[2]);
+    // the particles' force on the wall against its drift
+    const auto& f = walls[wi].force;
+    const double resist = -(f[0] * m.velocity[0] + f[1] * m.velocity[1] + f[2] * m.velocity[2]) / v;
+    // slower as the bed's resistance nears the limit: a step drift would ratchet on at full
+    // speed whenever a bouncing bed let go, and end above the limit
+    drift_rate[wi] = std::clamp(1.0 - resist / m.max_force, 0.0, 1.0);
+  }
+}
+
+void DemSystem::Impl::reset_drift() {
+  std::fill(drift_time.begin(), drift_time.end(), 0.0);
+  std::fill(drift_rate.begin(), drift_rate.end(), 1.0);
 }
 
 double DemSystem::Impl::wall_displacement() const {
@@ -181,6 +219,18 @@ std::int32_t DemSystem::add_wall(WallMesh wall) {
     if (!(a > 0.0)) bad(where + ": motion.axis must be non-zero");
     if (m.kind == WallMotion::Kind::sinusoid)
       for (double& c : wall.motion.axis) c /= a;
+  }
+  if (m.max_force != 0.0) {
+    if (!(m.max_force > 0.0) || !std::isfinite(m.max_force))
+      bad(where + ": motion.max_force must be > 0 N (0: no limit)");
+    if (m.kind != WallMotion::Kind::translation && m.kind != WallMotion::Kind::sinusoid)
+      bad(where + ": motion.max_force limits a drift: a translation or a sinusoid's velocity");
+    if (m.velocity[0] == 0.0 && m.velocity[1] == 0.0 && m.velocity[2] == 0.0)
+      bad(where + ": motion.max_force needs a non-zero motion.velocity (the drift it limits)");
+    if (I.gpu != nullptr || I.s.backend != "cpu")
+      bad(where +
+          ": a force-limited wall (motion.max_force) runs on the CPU backend only (the CUDA "
+          "backend moves walls on the device without their forces)");
   }
   Impl::Wall w;
   if (wall.body.enabled) {

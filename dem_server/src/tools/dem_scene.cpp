@@ -69,6 +69,13 @@ WallMotion read_motion(const Table& m) {
     w.phase = m.number("phase", 0.0);
     w.velocity = m.vec3("velocity", std::array<double, 3>{0, 0, 0});
   }
+  if (m.has("max_force")) {
+    if (w.kind != WallMotion::Kind::translation && w.kind != WallMotion::Kind::sinusoid)
+      m.fail("max_force", "limits a drift: only a translation or a sinusoid with a velocity");
+    w.max_force = m.number("max_force", Range::positive());
+    if (w.velocity == std::array<double, 3>{0, 0, 0})
+      m.fail("max_force", "needs a non-zero velocity (the drift it limits)");
+  }
   m.finish();
   return w;
 }

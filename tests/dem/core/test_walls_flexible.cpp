@@ -7,6 +7,7 @@
 
 #include "dem_test_util.hpp"
 #include "demfem/dem/dem_system.hpp"
+#include "demfem/io/h5_file.hpp"
 
 using namespace demfem::dem;
 using namespace demfem::dem::test;
@@ -190,4 +191,95 @@ TEST_CASE("Prescribed wall motion moves the vertices", "[dem][wall]") {
   const double th = 2.0 * 0.08;
   CHECK(std::abs(r[0] - (std::cos(th) * -0.01 - std::sin(th) * -0.01)) < 1e-15);
   CHECK(std::abs(r[1] - (std::sin(th) * -0.01 + std::cos(th) * -0.01)) < 1e-15);
+}
+
+TEST_CASE("A force-limited plate presses a sphere with its max_force and stops",
+          "[dem][walls][motion]") {
+  // A sphere (r = 5 mm) on a floor, a plate 1 mm above it moving down at 0.05 m/s. With
+  // motion.max_force = F the drift goes on at (1 - R/F) of its speed, R the sphere's push
+  // against it, and stops at R >= F: at rest, floor and plate each press it with F
+  // (reference: the Hertz sphere-wall law, F = 4/3 E* sqrt(r) delta^1.5, so the plate's bottom
+  // is at 2 r - 2 delta). Tolerances: the force within 0.1 % of F, the plate within 1 % of
+  // 2 delta. (A drift that paused at R >= F and went on at full speed otherwise ended at
+  // 1.065 F: each bounce let it on.) Without the limit the plate drives 9 mm into the sphere
+  // (the overlap guard's case). A continuation from a saved state (in memory and HDF5) is
+  // bitwise.
+  const double r = 0.005, gap = 0.001, v = 0.05, F = 1.0;
+  auto make = [&](double max_force) {
+    DemSettings s = two_material_settings(kE, kNu, kRho, 0.5, 0.3, 1e-6);
+    DemSystem sys(s);
+    sys.add_wall(plane_mesh(0.05, 2));
+    WallMesh plate = plane_mesh(0.05, 2);
+    plate.name = "plate";
+    for (std::size_t k = 2; k < plate.vertices.size(); k += 3) plate.vertices[k] = 2 * r + gap;
+    plate.motion.kind = WallMotion::Kind::translation;
+    plate.motion.velocity = {0, 0, -v};
+    plate.motion.max_force = max_force;
+    sys.add_wall(plate);
+    const std::vector<ParticleInit> p = {sphere({0.001, 0.002, r}, r)};
+    sys.add_particles(p);
+    return sys;
+  };
+  const double estar = kE / (2 * (1 - kNu * kNu));
+  const double delta = std::pow(F / (4.0 / 3.0 * estar * std::sqrt(r)), 2.0 / 3.0);
+
+  DemSystem limited = make(F);
+  limited.advance(200000);  // 0.2 s: 20 ms to touch, then pressed and at rest
+  CHECK(limited.wall_force(1)[2] == Approx(F).epsilon(1e-3));
+  CHECK(limited.wall_force(0)[2] == Approx(-limited.wall_force(1)[2]).epsilon(1e-6));
+  CHECK(limited.wall_vertices(1)[2] == Approx(2 * r - 2 * delta).margin(0.01 * 2 * delta));
+  CHECK(limited.advance_max_relative_overlap() < 0.01);
+
+  DemSystem driven = make(0.0);
+  double deepest = 0.0;
+  for (int k = 0; k < 200; ++k) {
+    driven.advance(1000);
+    deepest = std::max(deepest, driven.advance_max_relative_overlap());
+  }
+  CHECK(deepest > 0.5);
+  CHECK(driven.wall_vertices(1)[2] == Approx(2 * r + gap - 0.2 * v).margin(1e-12));
+
+  SECTION("continued from a saved state: bitwise") {
+    DemSystem a = make(F);
+    a.advance(25000);  // pressing: the drift pauses and goes on
+    DemStateCopy copy;
+    a.save_state(copy);
+    const auto file = std::filesystem::temp_directory_path() / "demfem_force_limited_plate.h5";
+    {
+      demfem::io::H5File h5(file, demfem::io::H5File::Mode::create);
+      a.save(h5, "/dem");
+    }
+    a.advance(25000);
+    DemSystem b = make(F);
+    {
+      demfem::io::H5File h5(file, demfem::io::H5File::Mode::read);
+      b.restore(h5, "/dem");
+    }
+    std::filesystem::remove(file);
+    b.advance(25000);
+    DemSystem c = make(F);
+    c.advance(25000);
+    c.advance(7);  // elsewhere, then back to the copy
+    c.restore_state(copy);
+    c.advance(25000);
+    for (DemSystem* s : {&b, &c}) {
+      CHECK(s->particles().pz[0] == a.particles().pz[0]);
+      CHECK(s->particles().vz[0] == a.particles().vz[0]);
+      CHECK(s->wall_vertices(1) == a.wall_vertices(1));
+      CHECK(s->wall_force(1) == a.wall_force(1));
+    }
+  }
+  SECTION("refused where it has no meaning") {
+    DemSystem s(two_material_settings(kE, kNu, kRho, 0.5, 0.3, 1e-6));
+    WallMesh w = plane_mesh(0.05, 2);
+    w.motion.kind = WallMotion::Kind::rotation;
+    w.motion.angular_velocity = 1.0;
+    w.motion.max_force = 1.0;
+    CHECK_THROWS_WITH(s.add_wall(w), Catch::Contains("max_force limits a drift"));
+    w.motion.kind = WallMotion::Kind::translation;
+    CHECK_THROWS_WITH(s.add_wall(w), Catch::Contains("non-zero motion.velocity"));
+    w.motion.velocity = {0, 0, -1};
+    w.motion.max_force = -1.0;
+    CHECK_THROWS_WITH(s.add_wall(w), Catch::Contains("must be > 0 N"));
+  }
 }

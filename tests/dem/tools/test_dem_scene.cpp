@@ -121,7 +121,7 @@ TEST_CASE("a complete [dem] section is read into the settings", "[scene]") {
   CHECK(s.settings.pairs[2].friction == 0.22);
   CHECK(s.settings.pairs[2].rolling_friction == 0.01);
   CHECK(s.settings.pairs[2].rocking_damping == 1.0);  // polyhedra: critical by default
-  CHECK(s.settings.pairs[3].restitution == 0.5);  // steel-steel never meet: default
+  CHECK(s.settings.pairs[3].restitution == 0.5);      // steel-steel never meet: default
   REQUIRE(s.walls.size() == 1);
   CHECK(s.walls[0].kind == WallSpec::Kind::box);
   CHECK(s.walls[0].open_top);
@@ -193,6 +193,28 @@ TEST_CASE("[dem] mistakes are errors naming file, line and key", "[scene]") {
                              "particles but has no density"));
 }
 
+TEST_CASE("motion.max_force: read for a drift, refused elsewhere naming the key", "[scene]") {
+  const std::string wall =
+      "box = { lo = [0.0, 0.0, 0.0], hi = [0.04, 0.04, 0.08], open_top = true }";
+  auto with = [&](const std::string& motion) {
+    return replace(kBase, wall, wall + "\nmotion = " + motion);
+  };
+  const DemScene s = parse(
+      with("{ kind = \"sinusoid\", direction = [0, 0, 1], amplitude = 0.001, frequency = 20.0, "
+           "velocity = [0, 0, -0.1], max_force = 50.0 }"));
+  CHECK(s.walls[0].motion.max_force == 50.0);
+  CHECK_THAT(
+      error_of(with("{ kind = \"rotation\", axis_point = [0, 0, 0], axis = [0, 0, 1], "
+                    "angular_velocity = 1.0, max_force = 50.0 }")),
+      Catch::Contains("key 'dem.walls[0].motion.max_force'") && Catch::Contains("limits a drift"));
+  CHECK_THAT(error_of(with("{ kind = \"sinusoid\", direction = [0, 0, 1], amplitude = 0.001, "
+                           "frequency = 20.0, max_force = 50.0 }")),
+             Catch::Contains("key 'dem.walls[0].motion.max_force'") &&
+                 Catch::Contains("non-zero velocity"));
+  CHECK_THAT(error_of(with("{ kind = \"translation\", velocity = [0, 0, -0.1], max_force = 0 }")),
+             Catch::Contains("key 'dem.walls[0].motion.max_force'"));
+}
+
 TEST_CASE("a repeated insertion pours batches at its times", "[scene]") {
   TempDir dir;
   std::string text =
@@ -254,10 +276,10 @@ TEST_CASE("DemRun builds walls from STL, inserts, and checks dt against Rayleigh
     std::ofstream(dir / "scene.toml") << fast;
     Document d = Document::load(dir / "scene.toml");
     DemRun run(read_dem_scene(d.root().required_table("dem")), dir / "fast", 1, 0.0, nullptr);
-    CHECK_THROWS_WITH(run.run_to(0.004), Catch::Contains("DEM run unstable") &&
-                                             Catch::Contains("of the smaller contact radius of its two bodies") &&
-                                             Catch::Contains("key 'dem.dt'") &&
-                                             Catch::Contains("Rayleigh time step"));
+    CHECK_THROWS_WITH(run.run_to(0.004),
+                      Catch::Contains("DEM run unstable") &&
+                          Catch::Contains("of the smaller contact radius of its two bodies") &&
+                          Catch::Contains("key 'dem.dt'") && Catch::Contains("Rayleigh time step"));
   }
   SECTION("dt above 0.2 of it warns") {
     std::ofstream(dir / "scene.toml") << replace(text, "dt = 2e-6", "dt = 1e-5");
@@ -390,11 +412,11 @@ TEST_CASE("particles placed outside or inside the walls are refused, naming the 
     CHECK_THAT(log.str(), Catch::Contains("warning") && Catch::Contains("dem.lattice[0]"));
   }
   SECTION("without gravity nothing says where particles belong: beside the box is accepted") {
-    const std::string text = with_lattice(
-        replace(replace(kJittered, "lo = [0.0, 0.0, 0.0]", "lo = [0.05, 0.0, 0.0]"),
-                "hi = [0.04, 0.04, 0.04]", "hi = [0.09, 0.04, 0.04]"));
-    DemRun run(parse(replace(text, "gravity = [0.0, 0.0, -9.81]", "gravity = [0.0, 0.0, 0.0]")),
-               "", 1, 0.0, nullptr);
+    const std::string text =
+        with_lattice(replace(replace(kJittered, "lo = [0.0, 0.0, 0.0]", "lo = [0.05, 0.0, 0.0]"),
+                             "hi = [0.04, 0.04, 0.04]", "hi = [0.09, 0.04, 0.04]"));
+    DemRun run(parse(replace(text, "gravity = [0.0, 0.0, -9.81]", "gravity = [0.0, 0.0, 0.0]")), "",
+               1, 0.0, nullptr);
     CHECK(run.system().particle_count() == 8 * 8 * 8);
   }
   SECTION("above an open box the lattice falls in: accepted") {

@@ -132,6 +132,12 @@ struct WallMotion {
   double phase = 0.0;                   ///< sinusoid: rad
   double start_time = 0.0;              ///< s
   double end_time = 1e300;              ///< s
+  /// translation, sinusoid: the drift (velocity) advances in a step at (1 - R / max_force) of
+  /// its speed, none at R >= max_force, R the particles' push against it in the step before
+  /// (their force on the wall along -velocity), N; 0: no limit. A compaction plate then
+  /// presses a jammed bed with a bounded force instead of driving into it (the vibration
+  /// goes on). CPU backend only.
+  double max_force = 0.0;
 };
 
 /// @brief Makes a wall a rigid body moved by the particles' contact forces (pressure cells,
@@ -191,6 +197,7 @@ struct DemStateCopy {
   std::vector<std::int32_t> nbr;
   std::vector<std::uint8_t> wcount;
   std::vector<double> bodies;  ///< rigid mesh bodies ([dem.walls.body]), 19 per body
+  std::vector<double> drift;   ///< force-limited walls: drift time and drifting (0/1), 2 per wall
 };
 
 /// @brief A DEM system of particles, walls and (optionally) the flexible coupled mesh.

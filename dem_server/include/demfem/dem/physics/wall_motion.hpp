@@ -38,9 +38,11 @@ struct RigidPose {
   double c, s, w;   ///< rotation: cos θ, sin θ, angular velocity (0 when inactive)
 };
 
-/// Pose of a wall at time t. The clamped elapsed time el = clamp(t, t0, t1) - t0 gives the
+/// Pose of a wall at time t whose drift (the translation's velocity, the sinusoid's steady
+/// velocity) has advanced for `drift_el` seconds and moves now at `drift_rate` (in [0, 1]) of
+/// its velocity. The clamped elapsed time el = clamp(t, t0, t1) - t0 gives the rest of the
 /// pose; the velocity is zero outside [t0, t1).
-DEMFEM_HD RigidPose rigid_pose(const RigidMotion& m, double t) {
+DEMFEM_HD RigidPose rigid_pose(const RigidMotion& m, double t, double drift_el, double drift_rate) {
   RigidPose p{};
   p.kind = m.kind;
   const double tc = t < m.start_time ? m.start_time : (m.end_time < t ? m.end_time : t);
@@ -48,8 +50,8 @@ DEMFEM_HD RigidPose rigid_pose(const RigidMotion& m, double t) {
   const bool active = t >= m.start_time && t < m.end_time;
   if (m.kind == kMotionTranslation) {
     for (int d = 0; d < 3; ++d) {
-      p.shift[d] = m.velocity[d] * el;
-      p.vel[d] = active ? m.velocity[d] : 0.0;
+      p.shift[d] = m.velocity[d] * drift_el;
+      p.vel[d] = drift_rate > 0.0 ? drift_rate * m.velocity[d] : 0.0;
     }
   } else if (m.kind == kMotionSinusoid) {
     const double pi = 3.14159265358979323846;
@@ -58,8 +60,8 @@ DEMFEM_HD RigidPose rigid_pose(const RigidMotion& m, double t) {
     const double du = active ? m.amplitude * 2 * pi * m.frequency * std::cos(arg) : 0.0;
     // plus a steady drift (a compaction plate that descends while it vibrates; 0 = none)
     for (int d = 0; d < 3; ++d) {
-      p.shift[d] = m.axis[d] * u + m.velocity[d] * el;
-      p.vel[d] = m.axis[d] * du + (active ? m.velocity[d] : 0.0);
+      p.shift[d] = m.axis[d] * u + m.velocity[d] * drift_el;
+      p.vel[d] = m.axis[d] * du + (drift_rate > 0.0 ? drift_rate * m.velocity[d] : 0.0);
     }
   } else if (m.kind == kMotionRotation) {
     const Vec3 ax{m.axis[0], m.axis[1], m.axis[2]};
@@ -72,6 +74,13 @@ DEMFEM_HD RigidPose rigid_pose(const RigidMotion& m, double t) {
     p.w = active ? m.angular_velocity : 0.0;
   }
   return p;
+}
+
+/// Pose of a wall at time t whose drift is not force-limited: it has advanced for the
+/// clamped elapsed time and moves while the motion is active.
+DEMFEM_HD RigidPose rigid_pose(const RigidMotion& m, double t) {
+  const double tc = t < m.start_time ? m.start_time : (m.end_time < t ? m.end_time : t);
+  return rigid_pose(m, t, tc - m.start_time, t >= m.start_time && t < m.end_time ? 1.0 : 0.0);
 }
 
 /// Angular velocity of a wall at time t: ω â for a rotation while it is active, else zero.
