@@ -669,8 +669,10 @@ DEMFEM_HD ConvexContact convex_contact(const Core& A, double ra, const Core& B, 
   // (closest features cached) it is the contact normal and separates nothing, and GJK proves
   // a separation (status 0, or a distance beyond the limit) as well.
   const bool touched = feat != nullptr && feat[0] >= 0;
-  // GJK's start when the axis test fails: its support points, the first point GJK would find
-  // from `axis` (the same bits, two support calls fewer)
+  // GJK's start when the axis test fails: the support pair it found, the first point GJK's
+  // cold start from `axis` would find (the same bits, two support calls fewer); against a
+  // triangle (a wall, whose axis is its normal), A's support vertex paired with all three
+  // triangle vertices: the vertex-face simplex that GJK reached from cold in 5-7 iterations
   int start[6] = {-1, -1, -1, -1, -1, -1};
   if (!touched && norm2(axis) > 0.0) {
     int ia, ib;
@@ -684,7 +686,7 @@ DEMFEM_HD ConvexContact convex_contact(const Core& A, double ra, const Core& B, 
       return c;
     }
     start[0] = ia, start[1] = ib;
-    if (B.kind == Core::kTriangle)  // A's lowest vertex over the whole triangle
+    if (B.kind == Core::kTriangle)
       for (int k = 0; k < 3; ++k) start[2 * k] = ia, start[2 * k + 1] = k;
   }
   const GjkResult g = gjk_distance(A, B, limit, touched ? feat : start, axis);
