@@ -58,9 +58,23 @@ DemSettings settings(int threads, const std::string& backend, double restitution
 struct Result {
   double rate = 0, cpu_rate = 0, det = 0, force = 0, integ = 0, contacts = 0, pairs = 0;
   double bytes = 0;
+  std::uint64_t hash = 0;  ///< FNV-1a of the final positions, velocities, spins, orientations
   bool ok = false;
   std::string note;
 };
+
+// FNV-1a over the bits of the particles' kinematic state: two builds that give the same hash
+// from the same bed and thread count computed the same bits (an A/B check of optimisations
+// meant to change no result).
+std::uint64_t state_hash(const ParticleState& p) {
+  std::uint64_t h = 1469598103934665603ull;
+  for (const auto* v : {&p.px, &p.py, &p.pz, &p.vx, &p.vy, &p.vz, &p.wx, &p.wy, &p.wz, &p.qw,
+                        &p.qx, &p.qy, &p.qz, &p.fx, &p.fy, &p.fz}) {
+    const auto* b = reinterpret_cast<const unsigned char*>(v->data());
+    for (std::size_t k = 0; k < v->size() * sizeof(double); ++k) h = (h ^ b[k]) * 1099511628211ull;
+  }
+  return h;
+}
 
 DemSystem make_system(const Bed& bed, const shapes::ShapeLibrary* lib, int threads,
                       const std::string& backend, double restitution, double dt = kDt) {
@@ -99,6 +113,7 @@ Result measure(const Bed& bed, const shapes::ShapeLibrary* lib, const std::files
     r.pairs = static_cast<double>(sys.neighbour_pairs()) / n;
     r.contacts = 2.0 * static_cast<double>(sys.contact_count()) / n;
     r.bytes = static_cast<double>(sys.state_bytes()) / n;
+    r.hash = state_hash(sys.particles());
     r.ok = true;
   } catch (const std::exception& e) {
     r.note = e.what();
@@ -140,7 +155,7 @@ int main(int argc, char** argv) {
   std::vector<int> threads = {1, 2};
   double settle_min = 0.1, settle_max = 1.0, settle_ke = 1e-3, settle_dt = 4e-5, work = 4e6;
   int settle_threads = 2, repeat = 1;
-  bool gpu = true, spheres = true;
+  bool gpu = true, spheres = true, hashes = false;
   std::string json;
   std::error_code ec;
   const auto exe = std::filesystem::canonical("/proc/self/exe", ec);
@@ -165,6 +180,8 @@ int main(int argc, char** argv) {
   app.add_option("--json", json, "write the results as JSON");
   app.add_flag("!--no-gpu", gpu, "skip the GPU even when one is present");
   app.add_flag("!--no-spheres", spheres, "skip the sphere beds");
+  app.add_flag("--state-hash", hashes,
+               "print a hash of each run's final particle state (bitwise A/B of two builds)");
   CLI11_PARSE(app, argc, argv);
 
   demfem::bench::Report rep(
@@ -225,6 +242,11 @@ int main(int argc, char** argv) {
                          r.note.c_str());
             continue;
           }
+          if (hashes)
+            std::printf("state hash: %zu %s, %s %d threads, %lld steps: %016llx\n", n,
+                        kind.c_str(), runs[c].first.c_str(), runs[c].second,
+                        static_cast<long long>(runs[c].first == "cuda" ? 20 * steps : steps),
+                        static_cast<unsigned long long>(r.hash));
           done[c].push_back(std::move(r));
         }
       for (std::size_t c = 0; c < runs.size(); ++c) {

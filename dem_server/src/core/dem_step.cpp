@@ -142,13 +142,21 @@ void DemSystem::Impl::forces_and_kick() {
   detail::PolyPairs pa{};
   if constexpr (Poly) {
     pp = poly_particles(a.view);
+    // the separation proofs of the last pass hold when it was this step's predecessor and
+    // the list has not been updated since (a build or refilter renumbers the pairs)
+    const bool proofs = pslack_step == steps && steps_at_update < steps &&
+                        pslack.size() == nbr.size() && prot.size() == 9 * n() &&
+                        pxprev.size() == 3 * n();
+    if (!proofs) pslack.assign(nbr.size(), -1.0);
     prot.resize(9 * n());
-    detail::poly_rotations(pp, prot.data(), sn, nt());
+    pxprev.resize(3 * n());
+    pmove.resize(n());
+    detail::poly_rotations(pp, prot.data(), pxprev.data(), pmove.data(), sn, nt());
     pp.rot = prot.data();
-    pa = detail::PolyPairs{pown.data(),  nbr.data(),   st.material.data(), pc.data(),
-                           nmat,         s.dt,         Friction,           rolling,
-                           shear.data(), rhist.data(), pf.data(),          pt.data(),
-                           ptj.data(),   paxis.data(), pfeat.data()};
+    pa = detail::PolyPairs{
+        pown.data(), nbr.data(),   st.material.data(), pc.data(),     nmat,        s.dt,
+        Friction,    rolling,      shear.data(),       rhist.data(),  pf.data(),   pt.data(),
+        ptj.data(),  paxis.data(), pfeat.data(),       pslack.data(), pmove.data()};
   }
 
   const double h = 0.5 * s.dt;
@@ -256,6 +264,7 @@ void DemSystem::Impl::forces_and_kick() {
     }
   }
   if (active == T) balance.adapt();
+  if constexpr (Poly) pslack_step = steps + 1;
   max_ov = mo;
   adv_max_ov = std::max(adv_max_ov, mo);
   adv_max_rel = std::max(adv_max_rel, mr);

@@ -431,8 +431,8 @@ std::size_t DemSystem::state_bytes() const {
   add(st.material), add(st.shape), add(st.shape_id);
   add(I.row), add(I.nbr), add(I.pown), add(I.trow), add(I.tpair), add(I.tsrc);
   add(I.gather_row), add(I.gather_pair), add(I.gather_sign), add(I.shear), add(I.rhist);
-  add(I.pf), add(I.pt), add(I.pr), add(I.ptj), add(I.paxis), add(I.pfeat), add(I.prot), add(I.orow),
-      add(I.onbr);
+  add(I.pf), add(I.pt), add(I.pr), add(I.ptj), add(I.paxis), add(I.pfeat), add(I.prot),
+      add(I.pslack), add(I.pmove), add(I.pxprev), add(I.orow), add(I.onbr);
   add(I.prow), add(I.ptri), add(I.wkey), add(I.wshear), add(I.wroll), add(I.wf), add(I.wp);
   add(I.wb), add(I.wtri), add(I.wcount);
   const auto& a = I.shapes.arrays();

@@ -80,6 +80,12 @@ struct DemSystem::Impl {
   std::vector<double> paxis;        // 3 per pair: separating-axis cache of the narrow phase
   std::vector<std::int32_t> pfeat;  // 6 per pair: closest-feature cache (GJK warm start)
   std::vector<double> prot;         // 9 per particle: the polyhedra's rotations in a force pass
+  // The separation proofs of the CPU pair pass (polyhedra.hpp, PolyPairs::pslack): per pair the
+  // proven separation left, per particle the bound of its motion since the last pass and its
+  // position then. Valid only from the pass of the step before (pslack_step == steps) with no
+  // list update between; derived, never saved (a pass without them computes every pair).
+  std::vector<double> pslack, pmove, pxprev;
+  std::int64_t pslack_step = -1;
 
   ParticleState st;
   std::vector<double> tx, ty, tz;  // torque of the last step

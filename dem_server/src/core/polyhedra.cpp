@@ -24,6 +24,15 @@ OverlapMax pair_range(const PolyParticles& p, const PolyPairs& a, std::int64_t b
   double mo = 0.0, mr = 0.0;
   for (std::int64_t k = begin; k < end; ++k) {
     const std::int32_t i = a.pi[k], j = a.pj[k];
+    // still proven apart: the narrow phase would give no contact and keep the caches
+    const double left = a.pslack[k] - (a.pmove[i] + a.pmove[j]);
+    if (left > 0.0) {
+      a.pslack[k] = left;
+      for (int d = 0; d < 3; ++d) a.pf[3 * k + d] = a.pt[3 * k + d] = a.ptj[3 * k + d] = 0.0;
+      if constexpr (Friction)
+        for (int d = 0; d < 3; ++d) a.shear[3 * k + d] = 0.0;
+      continue;
+    }
     const phys::PairConstants& c =
         a.pc[static_cast<std::size_t>(a.material[i]) * a.nmat + a.material[j]];
     Vec3 sh{0, 0, 0}, rh{0, 0, 0};
@@ -31,8 +40,10 @@ OverlapMax pair_range(const PolyParticles& p, const PolyPairs& a, std::int64_t b
     if (a.rolling) rh = Vec3{a.rhist[3 * k], a.rhist[3 * k + 1], a.rhist[3 * k + 2]};
     Vec3 axis{a.paxis[3 * k], a.paxis[3 * k + 1], a.paxis[3 * k + 2]};
     Vec3 force, ti, tj;
+    double slack = -1.0;
     const double delta = phys::mixed_pair<Friction>(p, i, j, c, a.dt, a.rolling, sh, rh, axis,
-                                                    a.pfeat + 6 * k, force, ti, tj);
+                                                    a.pfeat + 6 * k, force, ti, tj, &slack);
+    a.pslack[k] = slack;
     if (delta > 0.0) {
       mo = mo > delta ? mo : delta;
       const double rel = phys::relative_overlap(delta, phys::particle_contact_radius(p, i),
@@ -52,12 +63,31 @@ OverlapMax pair_range(const PolyParticles& p, const PolyPairs& a, std::int64_t b
 
 }  // namespace
 
-void poly_rotations(const PolyParticles& p, double* rot, std::int64_t n, int threads) {
+void poly_rotations(const PolyParticles& p, double* rot, double* xprev, double* move,
+                    std::int64_t n, int threads) {
 #pragma omp parallel for num_threads(threads) schedule(static)
   for (std::int64_t i = 0; i < n; ++i) {
-    if (p.shape_id[i] < 0) continue;
-    const phys::Rot r = phys::rotation(p.qw[i], p.qx[i], p.qy[i], p.qz[i]);
-    for (int k = 0; k < 9; ++k) rot[9 * i + k] = r.m[k];
+    const double x[3] = {p.p.px[i], p.p.py[i], p.p.pz[i]};
+    double d2 = 0.0;
+    for (int k = 0; k < 3; ++k) {
+      const double e = x[k] - xprev[3 * i + k];
+      d2 += e * e;
+      xprev[3 * i + k] = x[k];
+    }
+    double m = std::sqrt(d2);
+    if (p.shape_id[i] >= 0) {
+      // a core point at r from the centre moves by |x' - x| + |(R' - R) r| at most, and
+      // |(R' - R) r| <= |R' - R|_F r_bound s
+      const phys::Rot r = phys::rotation(p.qw[i], p.qx[i], p.qy[i], p.qz[i]);
+      double e2 = 0.0;
+      for (int k = 0; k < 9; ++k) {
+        const double e = r.m[k] - rot[9 * i + k];
+        e2 += e * e;
+        rot[9 * i + k] = r.m[k];
+      }
+      m += p.scale[i] * p.table.bound[p.shape_id[i]] * std::sqrt(e2);
+    }
+    move[i] = m * (1.0 + 1e-9);  // the rounding of the bound itself
   }
 }
 

@@ -35,11 +35,21 @@ struct PolyPairs {
   double* ptj;          ///< 3 per pair: torque on j
   double* paxis;        ///< 3 per pair: separating-axis cache (unit, i -> j, or zero)
   std::int32_t* pfeat;  ///< 6 per pair: closest-feature cache (GJK warm start)
+  /// Per pair: the separation of the two bodies proven at an earlier pass, less the motion
+  /// since (m; negative: none). A pair whose proof still exceeds the motion of this step
+  /// (pmove of i and j) gives what the narrow phase would (no contact, caches unchanged):
+  /// it is not computed. The proof is the gap of the bounding spheres or along the cached
+  /// separating axis (phys::mixed_pair's `slack`), less a rounding margin.
+  double* pslack;
+  const double* pmove;  ///< per particle: how far any point of its core moved since the last pass
 };
 
 /// The rotation matrices of the polyhedra (9 per particle, rotation(q); spheres untouched),
-/// for PolyView::rot.
-void poly_rotations(const PolyParticles& p, double* rot, std::int64_t n, int threads);
+/// for PolyView::rot; beforehand, `move` gets a bound of how far any point of each core moved
+/// since the last call (|x - xprev| + s r_bound |R - R_prev|_F, from the matrices the narrow
+/// phase uses), and xprev the positions.
+void poly_rotations(const PolyParticles& p, double* rot, double* xprev, double* move,
+                    std::int64_t n, int threads);
 
 /// Forces of the pairs [begin, end) into their slots; returns their largest overlap.
 OverlapMax poly_pair_forces(const PolyParticles& p, const PolyPairs& a, std::int64_t begin,

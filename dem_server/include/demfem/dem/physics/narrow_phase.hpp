@@ -567,13 +567,23 @@ DEMFEM_HD int contact_region(const Core& A, const Core& B, Vec3 n, double rsum, 
   const double* fn =
       I.kind == Core::kTriangle ? nullptr : I.table->fnormal + 3 * I.table->fbase[I.shape];
   Vec3 nb = nrm;  // the reference normal in I's frame (triangle: world)
+  // n_g·nb of the incident faces, once for both loops below (from the columns: SIMD lanes)
+  double fdot[kMaxSoa];
+  const bool fcols = I.kind != Core::kTriangle && I.table->fsoa != nullptr && nfi <= kMaxSoa;
   if (I.kind != Core::kTriangle) {
     // most face-aligned contacts of rocks are a vertex on a face, with no incident face
     // within kRegionTilt: no region, found before any vertex is placed
     nb = to_body(I.r, nrm);
     bool facing = false;
-    for (int g = 0; g < nfi && !facing; ++g)
-      facing = fn[3 * g] * nb.x + fn[3 * g + 1] * nb.y + fn[3 * g + 2] * nb.z < -kRegionCos;
+    if (fcols) {
+      column_dots(I.table->fsoa + I.table->fsoa_base[I.shape], soa_padded(nfi), nb, fdot);
+      int nfacing = 0;
+      for (int g = 0; g < nfi; ++g) nfacing += fdot[g] < -kRegionCos ? 1 : 0;
+      facing = nfacing > 0;
+    } else {
+      for (int g = 0; g < nfi && !facing; ++g)
+        facing = fn[3 * g] * nb.x + fn[3 * g + 1] * nb.y + fn[3 * g + 2] * nb.z < -kRegionCos;
+    }
     if (!facing) return -1;
   }
   Vec3 rp[kMaxFaceVertices];
@@ -609,7 +619,9 @@ DEMFEM_HD int contact_region(const Core& A, const Core& B, Vec3 n, double rsum, 
       if (hmin >= rsum) continue;
     } else {
       // faces the reference within kRegionTilt only (see there)
-      if (!(fn[3 * g] * nb.x + fn[3 * g + 1] * nb.y + fn[3 * g + 2] * nb.z < -kRegionCos)) continue;
+      const double fg =
+          fcols ? fdot[g] : fn[3 * g] * nb.x + fn[3 * g + 1] * nb.y + fn[3 * g + 2] * nb.z;
+      if (!(fg < -kRegionCos)) continue;
       const int gi = I.table->fbase[I.shape] + g;
       ni = I.table->flen[gi];
       if (ni > kMaxFaceVertices) continue;
@@ -657,6 +669,11 @@ DEMFEM_HD ConvexContact convex_contact(const Core& A, double ra, const Core& B, 
   // (closest features cached) it is the contact normal and separates nothing, and GJK proves
   // a separation (status 0, or a distance beyond the limit) as well.
   const bool touched = feat != nullptr && feat[0] >= 0;
+  // GJK's start when the axis test fails: the support pair it found, the first point GJK's
+  // cold start from `axis` would find (the same bits, two support calls fewer); against a
+  // triangle (a wall, whose axis is its normal), A's support vertex paired with all three
+  // triangle vertices: the vertex-face simplex that GJK reached from cold in 5-7 iterations
+  int start[6] = {-1, -1, -1, -1, -1, -1};
   if (!touched && norm2(axis) > 0.0) {
     int ia, ib;
     const double gap = dot(support(B, -1.0 * axis, ib), axis) - dot(support(A, axis, ia), axis);
@@ -668,8 +685,11 @@ DEMFEM_HD ConvexContact convex_contact(const Core& A, double ra, const Core& B, 
         for (int k = 0; k < 6; ++k) feat[k] = -1;
       return c;
     }
+    start[0] = ia, start[1] = ib;
+    if (B.kind == Core::kTriangle)
+      for (int k = 0; k < 3; ++k) start[2 * k] = ia, start[2 * k + 1] = k;
   }
-  const GjkResult g = gjk_distance(A, B, limit, feat, axis);
+  const GjkResult g = gjk_distance(A, B, limit, touched ? feat : start, axis);
   if (feat != nullptr)
     for (int k = 0; k < 3; ++k) {
       feat[2 * k] = g.status == 1 ? g.ia[k] : -1;

@@ -198,14 +198,18 @@ DEMFEM_HD DilatedResult dilated_law(const PairConstants& pc, Vec3 n, double delt
 /// sphere is a point core of radius r). `axis` (unit, i → j, or zero) and `feat` (6 ints, the
 /// closest features) are the pair's narrow-phase cache, updated (warm start; the result does
 /// not depend on them, see gjk_distance). Returns false (out zero, shear reset) when they do
-/// not touch.
+/// not touch. `slack` (may be null) gets, when the narrow phase proved them apart (no GJK
+/// distance: the cached axis or GJK's lower bound), how far the dilated bodies are apart at
+/// least (m), else -1.
 template <bool Friction>
 DEMFEM_HD bool dilated_pair(const Core& ci, double ri, const BodyState& bi, const Core& cj,
                             double rj, const BodyState& bj, const PairConstants& pc, double dt,
-                            Vec3& shear, Vec3& axis, int* feat, DilatedResult& out) {
+                            Vec3& shear, Vec3& axis, int* feat, DilatedResult& out,
+                            double* slack = nullptr) {
   const ConvexContact k = convex_contact(ci, ri, cj, rj, 0.0, axis, false, feat);
   axis = k.axis;
   const double delta = ri + rj - k.dist;
+  if (slack != nullptr) *slack = k.separated ? k.dist - (ri + rj) : -1.0;
   if (k.separated || !(delta > 0.0)) {
     out = DilatedResult{};
     shear = Vec3{0, 0, 0};
@@ -275,11 +279,13 @@ DEMFEM_HD BodyState particle_body(const PolyView& v, int i, const Core& c) {
 /// resistance included), else the dilated law after the bounding spheres (particle radius)
 /// overlap. Fills the force on i and the torques on i and j; updates the spring, the
 /// rolling history (sphere pairs), the axis and feature caches. Returns the overlap (0: no
-/// contact).
+/// contact). `slack` (may be null) gets a distance by which the pair is proven apart, less a
+/// margin for rounding (the gap of the bounding spheres, or dilated_pair's), else -1: while
+/// the two bodies move by less in sum, this function gives no contact and changes no cache.
 template <bool Friction>
 DEMFEM_HD double mixed_pair(const PolyView& v, int i, int j, const PairConstants& c, double dt,
                             bool rolling, Vec3& shear, Vec3& rhist, Vec3& axis, int* feat,
-                            Vec3& force, Vec3& ti, Vec3& tj) {
+                            Vec3& force, Vec3& ti, Vec3& tj, double* slack = nullptr) {
   double delta = 0.0;
   force = ti = tj = Vec3{0, 0, 0};
   if (v.shape_id[i] < 0 && v.shape_id[j] < 0) {
@@ -295,17 +301,23 @@ DEMFEM_HD double mixed_pair(const PolyView& v, int i, int j, const PairConstants
   }
   const double dx = v.p.px[j] - v.p.px[i], dy = v.p.py[j] - v.p.py[i], dz = v.p.pz[j] - v.p.pz[i];
   const double rs = v.p.radius[i] + v.p.radius[j];
-  if (!(dx * dx + dy * dy + dz * dz < rs * rs)) {
+  // rounding of the proofs below (positions, support points): far below 1e-9 of the scale
+  const double eps = 1e-9 * (rs + std::abs(v.p.px[i]) + std::abs(v.p.py[i]) + std::abs(v.p.pz[i]) +
+                             std::abs(v.p.px[j]) + std::abs(v.p.py[j]) + std::abs(v.p.pz[j]));
+  const double d2 = dx * dx + dy * dy + dz * dz;
+  if (!(d2 < rs * rs)) {
     shear = Vec3{0, 0, 0};
+    if (slack != nullptr) *slack = std::sqrt(d2) - rs - eps;
     return 0.0;
   }
   const Core ci = particle_core(v, i), cj = particle_core(v, j);
   DilatedResult r;
   if (dilated_pair<Friction>(ci, particle_contact_radius(v, i), particle_body(v, i, ci), cj,
                              particle_contact_radius(v, j), particle_body(v, j, cj), c, dt, shear,
-                             axis, feat, r)) {
+                             axis, feat, r, slack)) {
     force = r.force, ti = r.torque_i, tj = r.torque_j, delta = r.delta;
   }
+  if (slack != nullptr && *slack >= 0.0) *slack -= eps;
   return delta;
 }
 

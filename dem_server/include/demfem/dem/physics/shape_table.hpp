@@ -68,6 +68,25 @@ DEMFEM_HD int soa_padded(int n) {
   return (n + kSoaPad - 1) / kSoaPad * kSoaPad;
 }
 
+/// The index the scan `best = 0; for k ≥ 1: if (h[k] > h[best]) best = k` finds in h[0..n)
+/// (n ≥ 1: the first of the largest), as the largest value, a reduction that runs in SIMD
+/// lanes, and then the first index holding it; the scalar scan compares and branches once per
+/// entry (most of the support and best-face loops' instructions). The same index wherever h
+/// is free of NaN (a NaN direction gives some index, as the scan does).
+DEMFEM_HD int first_max_index(const double* h, int n) {
+  double m = h[0];
+#if defined(_OPENMP) && !defined(__CUDA_ARCH__)
+#pragma omp simd reduction(max : m)
+#endif
+  for (int k = 1; k < n; ++k) m = h[k] > m ? h[k] : m;
+  for (int k = 0; k < n; ++k)
+    if (h[k] == m) return k;
+  int best = 0;
+  for (int k = 1; k < n; ++k)
+    if (h[k] > h[best]) best = k;
+  return best;
+}
+
 /// A convex core in world coordinates.
 struct Core {
   enum Kind : int { kPoint = 0, kPolyhedron = 1, kTriangle = 2 };
@@ -145,12 +164,8 @@ DEMFEM_HD Vec3 support(const Core& c, Vec3 d, int& idx) {
   if (c.table->vsoa != nullptr && c.nv <= kMaxSoa) {
     double h[kMaxSoa];
     column_dots(c.table->vsoa + c.table->vsoa_base[c.shape], soa_padded(c.nv), db, h);
-    int best = 0;
-    double bv = h[0];
-    for (int k = 1; k < c.nv; ++k)
-      if (h[k] > bv) bv = h[k], best = k;
-    idx = best;
-    return core_vertex(c, best);
+    idx = first_max_index(h, c.nv);
+    return core_vertex(c, idx);
   }
   const double* p = c.v;
   int best = 0;
@@ -217,8 +232,9 @@ DEMFEM_HD int core_best_face(const Core& c, Vec3 d, double& align) {
   if (c.table->fsoa != nullptr && nf <= kMaxSoa) {
     double a[kMaxSoa];
     column_dots(c.table->fsoa + c.table->fsoa_base[c.shape], soa_padded(nf), db, a);
-    for (int f = 0; f < nf; ++f)
-      if (a[f] > align) align = a[f], best = f;
+    best = first_max_index(a, nf);
+    if (!(a[best] > align)) return -1;  // NaN: the scan from -2 finds none
+    align = a[best];
     return best;
   }
   const double* fn = c.table->fnormal + 3 * c.table->fbase[c.shape];
