@@ -8,6 +8,8 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <string>
+#include <vector>
 
 #include "demfem/coupling/supervisor.hpp"
 #include "demfem/dem/dem_scene.hpp"
@@ -50,6 +52,30 @@ int run_child(const std::string& label, const fs::path& exe, const std::vector<s
   for (;;) {
     if (auto c = p.wait_for(std::chrono::milliseconds(500))) return *c;
   }
+}
+
+// demfem_run on the prepare scene of `src`, with its overrides and `extra` arguments, one
+// prepare level deeper (kDepthVariable, restored afterwards). 1 when it cannot be started.
+int run_prepare_child(const std::string& label, const dem::ParticleSource& src,
+                      const fs::path& bin_dir, int depth, std::vector<std::string> extra) {
+  std::vector<std::string> args = {"--bin-dir", bin_dir.string(), src.prepare_scene.string()};
+  for (const auto& o : src.prepare_overrides)
+    args.insert(args.end(), {"--set", o.key + "=" + o.value});
+  args.insert(args.end(), extra.begin(), extra.end());
+  const char* before = std::getenv(kDepthVariable);
+  const std::string saved = before ? before : "";
+  ::setenv(kDepthVariable, std::to_string(depth + 1).c_str(), 1);
+  int code = 1;
+  try {
+    code = run_child(label, bin_dir / "demfem_run", args);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "demfem run: %s\n", e.what());
+  }
+  if (before)
+    ::setenv(kDepthVariable, saved.c_str(), 1);
+  else
+    ::unsetenv(kDepthVariable);
+  return code;
 }
 
 }  // namespace
@@ -141,21 +167,7 @@ int run_prepare_scenes(const scene::Document& doc, const fs::path& bin_dir, bool
     return 2;
   }
   if (check_only) {  // its scene is checked as a run of it would check it, nothing is made
-    std::vector<std::string> args = {"--bin-dir", bin_dir.string(), src.prepare_scene.string(),
-                                     "--check"};
-    for (const auto& o : src.prepare_overrides)
-      args.insert(args.end(), {"--set", o.key + "=" + o.value});
-    ::setenv(kDepthVariable, std::to_string(depth + 1).c_str(), 1);
-    int code = 1;
-    try {
-      code = run_child("prepare check", bin_dir / "demfem_run", args);
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "demfem run: %s\n", e.what());
-    }
-    if (depth_text)
-      ::setenv(kDepthVariable, depth_text, 1);
-    else
-      ::unsetenv(kDepthVariable);
+    const int code = run_prepare_child("prepare check", src, bin_dir, depth, {"--check"});
     if (code != 0)
       std::fprintf(stderr, "demfem run: the prepare scene %s does not pass --check (status %d)\n",
                    src.prepare_scene.c_str(), code);
@@ -173,29 +185,16 @@ int run_prepare_scenes(const scene::Document& doc, const fs::path& bin_dir, bool
   }
   int code = 0;
   if (!dem::state_is_current(src.file, src.prepare_scene, src.prepare_overrides)) {
-    std::string with;
-    for (const auto& o : src.prepare_overrides) with += " " + o.text();
+    std::string with = src.prepare_overrides.empty() ? "" : " with";
+    for (const auto& o : src.prepare_overrides) with.append(" ").append(o.text());
     std::printf("demfem run: %s needs the end state of %s%s (%s %s): running that scene first\n",
-                doc.file().c_str(), src.prepare_scene.c_str(),
-                with.empty() ? "" : (" with" + with).c_str(), src.file.c_str(),
+                doc.file().c_str(), src.prepare_scene.c_str(), with.c_str(), src.file.c_str(),
                 fs::exists(src.file) ? "was made by another version of it" : "does not exist");
     std::fflush(stdout);
-    std::vector<std::string> args = {"--bin-dir", bin_dir.string(), src.prepare_scene.string()};
-    for (const auto& o : src.prepare_overrides)
-      args.insert(args.end(), {"--set", o.key + "=" + o.value});
-    if (quiet) args.push_back("--quiet");
-    if (in_process) args.push_back("--in-process");
-    ::setenv(kDepthVariable, std::to_string(depth + 1).c_str(), 1);
-    try {
-      code = run_child("prepare run", bin_dir / "demfem_run", args);
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "demfem run: %s\n", e.what());
-      code = 1;
-    }
-    if (depth_text)
-      ::setenv(kDepthVariable, depth_text, 1);
-    else
-      ::unsetenv(kDepthVariable);
+    std::vector<std::string> extra;
+    if (quiet) extra.push_back("--quiet");
+    if (in_process) extra.push_back("--in-process");
+    code = run_prepare_child("prepare run", src, bin_dir, depth, extra);
     if (code != 0) {
       std::fprintf(stderr, "demfem run: the prepare scene %s ended with status %d\n",
                    src.prepare_scene.c_str(), code);

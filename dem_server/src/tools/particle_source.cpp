@@ -412,6 +412,11 @@ std::string hex16(std::uint64_t h) {
   return text;
 }
 
+// A scene's content hash (scene_text_hash) of a document already loaded.
+std::string content_hash(const scene::Document& doc) {
+  return hex16(io::fnv1a64(doc.canonical_text()));
+}
+
 // A TOML basic string of `s` (a path): quotes and backslashes escaped.
 std::string toml_string(const std::string& s) {
   std::string q = "\"";
@@ -460,12 +465,12 @@ std::vector<scene::Override> read_prepare_overrides(const Table& t,
     return o.key == "run.output_dir" || o.key == "run";
   });
   if (e.empty() || !own_folder) return e;
-  // each variant in a folder of its own, named by its content: members of a sweep that
-  // share a bed share the folder (and its lock), others do not overwrite each other's
+  // each variant in a folder of its own, named by its content: runs started in one folder
+  // that ask for the same bed share it (and its lock), others do not overwrite each other's
   try {
     const auto doc = scene::Document::load(prepare_scene, e);
     const auto run = scene::read_run_settings(doc);
-    const std::string h = hex16(io::fnv1a64(doc.canonical_text()));
+    const std::string h = content_hash(doc);
     e.push_back(scene::Override{"run.output_dir",
                                 toml_string((run.output_dir / ("set-" + h)).generic_string())});
   } catch (const SceneError& x) {
@@ -571,7 +576,7 @@ std::filesystem::path prepared_state_path(const std::filesystem::path& prepare_s
 
 std::string scene_text_hash(const std::filesystem::path& file,
                             const std::vector<scene::Override>& overrides) {
-  return hex16(io::fnv1a64(scene::Document::load(file, overrides).canonical_text()));
+  return content_hash(scene::Document::load(file, overrides));
 }
 
 bool state_is_current(const std::filesystem::path& state, const std::filesystem::path& scene,
