@@ -3,6 +3,7 @@
 
 #include "dem_system_impl.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
@@ -162,6 +163,47 @@ void restore_shapes(detail::ShapeTable& t, const io::H5File& f, const std::strin
 }
 }  // namespace
 
+namespace {
+// The pair list as a saved state holds it: the pairs that carry a spring (tangential or
+// rolling history), each row in the order of j. restore() rebuilds the list from the
+// positions and takes the springs from these rows, so the list's other entries (neighbours
+// within the skin, which depend on when the list was last built or refiltered, and a
+// restarted process refilters with its own adaptive skin) are not state: two runs that agree
+// in every particle and contact write the same arrays.
+struct PairsWithSprings {
+  std::vector<std::int64_t> row, nbr;
+  std::vector<double> shear, rhist;
+};
+template <class ImplT>  // DemSystem::Impl (a private type: deduced)
+PairsWithSprings pairs_with_springs(const ImplT& I) {
+  PairsWithSprings out;
+  const std::size_t n = I.row.empty() ? 0 : I.row.size() - 1;
+  const bool rolling = I.rhist.size() == I.shear.size();
+  out.row.assign(I.row.empty() ? 0 : n + 1, 0);
+  std::vector<std::pair<std::int32_t, std::size_t>> kept;  // (j, pair index)
+  auto spring = [](const std::vector<double>& h, std::size_t k) {
+    return h[3 * k] != 0.0 || h[3 * k + 1] != 0.0 || h[3 * k + 2] != 0.0;
+  };
+  for (std::size_t i = 0; i < n; ++i) {
+    kept.clear();
+    for (auto k = static_cast<std::size_t>(I.row[i]); k < static_cast<std::size_t>(I.row[i + 1]);
+         ++k)
+      if (spring(I.shear, k) || (rolling && spring(I.rhist, k))) kept.emplace_back(I.nbr[k], k);
+    std::sort(kept.begin(), kept.end());
+    for (const auto& [j, k] : kept) {
+      out.nbr.push_back(j);
+      out.shear.insert(out.shear.end(), I.shear.begin() + std::ptrdiff_t(3 * k),
+                       I.shear.begin() + std::ptrdiff_t(3 * k + 3));
+      if (rolling)
+        out.rhist.insert(out.rhist.end(), I.rhist.begin() + std::ptrdiff_t(3 * k),
+                         I.rhist.begin() + std::ptrdiff_t(3 * k + 3));
+    }
+    out.row[i + 1] = static_cast<std::int64_t>(out.nbr.size());
+  }
+  return out;
+}
+}  // namespace
+
 void DemSystem::save(io::H5File& f, const std::string& group) const {
   const auto& I = *impl_;
   const auto& st = I.st;
@@ -173,13 +215,21 @@ void DemSystem::save(io::H5File& f, const std::string& group) const {
   f.set_attribute(group, "max_overlap", I.max_ov);
   f.set_attribute(group, "flex_max_overlap", I.flex_max_ov);
   f.set_attribute(group, "format", std::string("demfem-dem-state-1"));
-  for (const auto& [name, v] : double_arrays(I)) f.write(g + name, std::span<const double>(*v));
+  const PairsWithSprings pairs = pairs_with_springs(I);
+  for (const auto& [name, v] : double_arrays(I)) {
+    if (std::strcmp(name, "shear") == 0)
+      f.write(g + name, std::span<const double>(pairs.shear));
+    else if (std::strcmp(name, "rhist") == 0)
+      f.write(g + name, std::span<const double>(pairs.rhist));
+    else
+      f.write(g + name, std::span<const double>(*v));
+  }
   f.write(g + "material", std::span<const std::int64_t>(to64(st.material)));
   f.write(g + "shape", std::span<const std::uint8_t>(st.shape));
   f.write(g + "shape_id", std::span<const std::int64_t>(to64(st.shape_id)));
   save_shapes(I.shapes, f, g);
-  f.write(g + "row", std::span<const std::int64_t>(I.row));
-  f.write(g + "nbr", std::span<const std::int64_t>(to64(I.nbr)));
+  f.write(g + "row", std::span<const std::int64_t>(pairs.row));
+  f.write(g + "nbr", std::span<const std::int64_t>(pairs.nbr));
   f.write(g + "wkey", std::span<const std::int64_t>(I.wkey));
   f.write(g + "wcount", std::span<const std::uint8_t>(I.wcount));
   I.bodies.save(f, g);
