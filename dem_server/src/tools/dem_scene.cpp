@@ -249,6 +249,10 @@ DemScene read_dem_scene(const Table& dem) {
   st.track_orientation = dem.boolean("track_orientation", false);
   s.settle_time = dem.number("settle_time", 0.0, Range::non_negative());
   if (dem.has("remove_above")) s.remove_above = dem.number("remove_above");
+  if (dem.has("remove_by")) {
+    if (!s.remove_above) dem.fail("remove_by", "needs remove_above (the height it applies to)");
+    s.remove_by_top = dem.choice("remove_by", {"centre", "top"}) == "top";
+  }
 
   // Materials.
   const auto mats = dem.tables("materials");
@@ -706,7 +710,9 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
     if (log) *log << "dem: settled for " << steps << " steps (" << system_->time() << " s)\n";
   }
   if (scene_.remove_above) {
-    const auto keep = keep_at_or_below(system_->particles(), *scene_.remove_above);
+    const auto keep =
+        keep_at_or_below(system_->particles(), *scene_.remove_above,
+                         scene_.remove_by_top ? particle_tops(*system_) : std::vector<double>{});
     std::size_t removed = 0;
     std::vector<std::int64_t> kept_ids;
     for (std::size_t i = 0; i < keep.size(); ++i) {
@@ -720,8 +726,8 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
       ids_ = std::move(kept_ids);
     }
     if (log)
-      *log << "dem: removed " << removed << " particles above z = " << *scene_.remove_above
-           << " m\n";
+      *log << "dem: removed " << removed << " particles " << (scene_.remove_by_top ? "reaching " : "")
+           << "above z = " << *scene_.remove_above << " m\n";
   }
   output_interval_ = scene_.output_interval.value_or(run_output_interval_);
   if (!defer_output) start_output(false);

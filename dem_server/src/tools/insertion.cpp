@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numbers>
 #include <sstream>
+#include <stdexcept>
 
 #include "demfem/dem/shapes/shape_library.hpp"
 
@@ -407,9 +408,13 @@ std::int64_t first_overlapping(const std::vector<ParticleInit>& added,
   return -1;
 }
 
-std::vector<std::uint8_t> keep_at_or_below(const ParticleState& particles, double height) {
+std::vector<std::uint8_t> keep_at_or_below(const ParticleState& particles, double height,
+                                           std::span<const double> tops) {
+  if (!tops.empty() && tops.size() != particles.size())
+    throw std::logic_error("keep_at_or_below: one top per particle expected");
   std::vector<std::uint8_t> keep(particles.size());
-  for (std::size_t i = 0; i < keep.size(); ++i) keep[i] = particles.pz[i] <= height ? 1 : 0;
+  for (std::size_t i = 0; i < keep.size(); ++i)
+    keep[i] = (tops.empty() ? particles.pz[i] : tops[i]) <= height ? 1 : 0;
   return keep;
 }
 

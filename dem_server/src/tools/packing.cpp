@@ -7,7 +7,21 @@
 #include <stdexcept>
 #include <vector>
 
+#include "demfem/dem/physics/rigid_body.hpp"
+
 namespace demfem::dem {
+
+double particle_top(const DemSystem& system, std::size_t i) {
+  const ParticleState& p = system.particles();
+  if (p.shape_id.size() != p.size() || p.shape_id[i] < 0) return p.pz[i] + p.radius[i];
+  const PolyhedronShape& sh = system.shape(p.shape_id[i]);
+  const phys::Rot r = phys::rotation(p.qw[i], p.qx[i], p.qy[i], p.qz[i]);
+  double hz = -std::numeric_limits<double>::infinity();
+  for (std::size_t k = 0; k + 2 < sh.vertices.size(); k += 3)
+    hz = std::max(
+        hz, phys::to_world(r, phys::Vec3{sh.vertices[k], sh.vertices[k + 1], sh.vertices[k + 2]}).z);
+  return p.pz[i] + p.scale[i] * (hz + sh.dilation);
+}
 
 PackingResult packing_in_box(const DemSystem& system, const std::array<double, 3>& lo,
                              const std::array<double, 3>& hi) {
@@ -26,25 +40,14 @@ PackingResult packing_in_box(const DemSystem& system, const std::array<double, 3
       continue;
     ++r.particles;
     contact_sum += contacts[i];
-    double top = 0.0;
     if (p.shape[i] == static_cast<std::uint8_t>(ParticleShape::polyhedron)) {
-      const PolyhedronShape& s = system.shape(p.shape_id[i]);
       const double sc = p.scale[i];
-      volume += s.volume * sc * sc * sc;
-      // z row of the rotation body -> world of the quaternion (w, x, y, z)
-      const double w = p.qw[i], x = p.qx[i], y = p.qy[i], z = p.qz[i];
-      const double r0 = 2.0 * (x * z - w * y), r1 = 2.0 * (y * z + w * x),
-                   r2 = 1.0 - 2.0 * (x * x + y * y);
-      double up = -std::numeric_limits<double>::infinity();
-      for (std::size_t v = 0; v + 2 < s.vertices.size(); v += 3) {
-        up = std::max(up, r0 * s.vertices[v] + r1 * s.vertices[v + 1] + r2 * s.vertices[v + 2]);
-      }
-      top = p.pz[i] + sc * (up + s.dilation);
+      volume += system.shape(p.shape_id[i]).volume * sc * sc * sc;
     } else {
       const double rad = p.radius[i];
       volume += 4.0 / 3.0 * std::numbers::pi * rad * rad * rad;
-      top = p.pz[i] + rad;
     }
+    const double top = particle_top(system, i);
     r.top = r.particles == 1 ? top : std::max(r.top, top);
   }
   r.solid_fraction = volume / ((hi[0] - lo[0]) * (hi[1] - lo[1]) * (hi[2] - lo[2]));

@@ -46,20 +46,8 @@ double MassFlowCounter::update(const ParticleState& p, std::span<const std::int6
 }
 
 std::vector<double> particle_tops(const DemSystem& system) {
-  const ParticleState& p = system.particles();
-  std::vector<double> tops(p.size());
-  for (std::size_t i = 0; i < p.size(); ++i) {
-    tops[i] = p.pz[i] + p.radius[i];  // a polyhedron's radius is its bounding sphere's
-    if (p.shape_id.size() != p.size() || p.shape_id[i] < 0) continue;
-    const PolyhedronShape& sh = system.shape(p.shape_id[i]);
-    const phys::Rot r = phys::rotation(p.qw[i], p.qx[i], p.qy[i], p.qz[i]);
-    double hz = -std::numeric_limits<double>::infinity();
-    for (std::size_t k = 0; k + 2 < sh.vertices.size(); k += 3)
-      hz = std::max(
-          hz,
-          phys::to_world(r, phys::Vec3{sh.vertices[k], sh.vertices[k + 1], sh.vertices[k + 2]}).z);
-    tops[i] = p.pz[i] + p.scale[i] * (hz + sh.dilation);
-  }
+  std::vector<double> tops(system.particles().size());
+  for (std::size_t i = 0; i < tops.size(); ++i) tops[i] = particle_top(system, i);
   return tops;
 }
 

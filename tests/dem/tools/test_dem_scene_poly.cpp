@@ -246,3 +246,40 @@ TEST_CASE("polyhedra are written as triangle surfaces beside the particles' poin
                              Catch::Contains("TopologyType=\"Triangle\" NumberOfElements=\"12\"") &&
                              Catch::Contains("TopologyType=\"Polyvertex\" NumberOfElements=\"2\""));
 }
+
+TEST_CASE("remove_by = \"top\" removes the rocks that reach above remove_above", "[scene][poly]") {
+  // The highest point of each kept rock, from its core vertices rotated by the quaternion's
+  // z row written out here (not the engine's rotation), plus the scaled dilation.
+  auto top_of = [](const DemSystem& sys, std::size_t i) {
+    const auto& p = sys.particles();
+    const PolyhedronShape& sh = sys.shape(p.shape_id[i]);
+    const double w = p.qw[i], x = p.qx[i], y = p.qy[i], z = p.qz[i];
+    const double r0 = 2.0 * (x * z - w * y), r1 = 2.0 * (y * z + w * x),
+                 r2 = 1.0 - 2.0 * (x * x + y * y);
+    double up = -1e300;
+    for (std::size_t v = 0; v + 2 < sh.vertices.size(); v += 3)
+      up = std::max(up, r0 * sh.vertices[v] + r1 * sh.vertices[v + 1] + r2 * sh.vertices[v + 2]);
+    return p.pz[i] + p.scale[i] * (up + sh.dilation);
+  };
+  const std::string base = replace(kRocks, "threads = 1\n", "threads = 1\nremove_above = 0.5\n");
+  DemRun all(parse(kRocks), "", 1, 0.0, nullptr);
+  DemRun by_centre(parse(base), "", 1, 0.0, nullptr);
+  DemRun by_top(parse(replace(base, "remove_above = 0.5", "remove_above = 0.5\nremove_by = \"top\"")),
+                "", 1, 0.0, nullptr);
+  std::size_t reaching = 0, centre_below = 0;
+  for (std::size_t i = 0; i < all.system().particles().size(); ++i) {
+    const double top = top_of(all.system(), i);
+    reaching += top > 0.5 ? 1 : 0;
+    centre_below += all.system().particles().pz[i] <= 0.5 ? 1 : 0;
+  }
+  REQUIRE(all.system().particles().size() == 60);
+  CHECK(by_centre.system().particles().size() == centre_below);
+  CHECK(by_top.system().particles().size() == 60 - reaching);
+  CHECK(by_top.system().particles().size() < by_centre.system().particles().size());
+  for (std::size_t i = 0; i < by_top.system().particles().size(); ++i)
+    CHECK(top_of(by_top.system(), i) <= 0.5);
+  CHECK_THAT(error_of(replace(kRocks, "threads = 1\n", "threads = 1\nremove_by = \"top\"\n")),
+             Catch::Contains("remove_by") && Catch::Contains("needs remove_above"));
+  CHECK_THAT(error_of(replace(base, "remove_above = 0.5", "remove_above = 0.5\nremove_by = \"any\"")),
+             Catch::Contains("remove_by") && Catch::Contains("top"));
+}

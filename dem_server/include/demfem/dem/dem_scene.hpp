@@ -110,6 +110,7 @@ struct DemScene {
   std::vector<InsertSpec> inserts;
   double settle_time = 0.0;               ///< s of settling after insertion (before remove_above)
   std::optional<double> remove_above;     ///< m
+  bool remove_by_top = false;             ///< remove_by = "top": the particle's highest point
   std::vector<SensorSpec> sensors;        ///< wall_force: wall = index into walls
   std::optional<double> output_interval;  ///< [dem.output] interval (else the run's)
   bool output_particles = true;

@@ -5,6 +5,7 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -118,8 +119,10 @@ inline constexpr double kMaxParticles = 2147483647.0;
 std::int64_t first_overlapping(const std::vector<ParticleInit>& added,
                                const ParticleState& existing);
 
-/// @brief keep[i] = 1 for the particles whose centre is at or below `height` (m).
-std::vector<std::uint8_t> keep_at_or_below(const ParticleState& particles, double height);
+/// @brief keep[i] = 1 for the particles whose centre is at or below `height` (m); with
+/// `tops` (one per particle, e.g. particle_tops()) for those whose top is.
+std::vector<std::uint8_t> keep_at_or_below(const ParticleState& particles, double height,
+                                           std::span<const double> tops = {});
 
 /// @brief Removes the particles whose centre is above `height`; returns how many.
 std::size_t remove_above(DemSystem& system, double height);

@@ -22,6 +22,11 @@ struct PackingResult {
                                 ///< highest core vertex + dilation), m; NaN without particles
 };
 
+/// @brief Height of particle i's highest surface point, m: z + radius for a sphere; for a
+/// polyhedron its highest rotated, scaled core vertex plus the dilation (exact: the dilated
+/// body's top is a core vertex's sphere).
+double particle_top(const DemSystem& system, std::size_t i);
+
 /// @brief Packing of the particles whose centre lies in the box [lo, hi]. The solid fraction
 /// of centre-in-box counting errs at the box faces by about a particle size over the box
 /// size: choose a box of several particle sizes, away from walls. Throws
