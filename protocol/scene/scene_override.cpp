@@ -16,6 +16,11 @@ Override Override::parse(std::string_view assignment) {
   return {std::string(assignment.substr(0, eq)), std::string(assignment.substr(eq + 1))};
 }
 
+bool Override::under(std::string_view prefix) const {
+  if (key.compare(0, prefix.size(), prefix) != 0) return false;
+  return key.size() == prefix.size() || key[prefix.size()] == '.' || key[prefix.size()] == '[';
+}
+
 namespace detail {
 
 namespace {
@@ -112,6 +117,25 @@ void assign_override(toml::table& root, const Override& o, toml::node&& value,
     }
     cur = n;
   }
+}
+
+bool override_target_exists(const toml::table& root, const Override& o, const std::string& file) {
+  const std::vector<KeyStep> steps = parse_key(o, file);
+  const toml::node* cur = &root;
+  for (std::size_t s = 0; s < steps.size(); ++s) {
+    const toml::table* table = cur->as_table();
+    if (!table) return false;
+    if (s + 1 == steps.size() && steps[s].indices.empty()) return true;
+    const toml::node* n = table->get(steps[s].name);
+    if (!n) return false;
+    for (const std::size_t idx : steps[s].indices) {
+      const toml::array* array = n->as_array();
+      if (!array || idx >= array->size()) return false;
+      n = array->get(idx);
+    }
+    cur = n;
+  }
+  return true;
 }
 
 }  // namespace detail

@@ -15,4 +15,8 @@ namespace demfem::scene::detail {
 void assign_override(toml::table& root, const Override& o, toml::node&& value,
                      const std::string& file);
 
+/// Whether the tables and array entries that the override's key walks through exist in
+/// `root` (its last key may be new: assign_override adds it).
+bool override_target_exists(const toml::table& root, const Override& o, const std::string& file);
+
 }  // namespace demfem::scene::detail

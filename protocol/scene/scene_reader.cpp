@@ -546,8 +546,18 @@ Document Document::parse(std::string_view text, const std::string& name,
     throw SceneError(s.str());
   }
   // Overrides go in here, before anyone reads a table, so that every reader of every process
-  // sees the same scene.
+  // sees the same scene. One under a prefix of [dem.load] pass whose table or array entry this
+  // scene lacks is for the prepare scene only (a bed's rock shapes in a sweep of the load
+  // case): it is kept in the list (passed on, hashed) but not applied here.
+  std::vector<std::string> pass;
+  if (const auto* list = d.tree_->at_path("dem.load.pass").as_array()) {
+    for (const auto& e : *list)
+      if (const auto* str = e.as_string()) pass.push_back(str->get());
+  }
   for (const Override& o : overrides) {
+    if (std::any_of(pass.begin(), pass.end(), [&](const std::string& p) { return o.under(p); }) &&
+        !detail::override_target_exists(*d.tree_, o, name))
+      continue;
     toml::table value;
     try {
       value = toml::parse(sanitise_for_toml("value = " + o.value, o.text()), o.text());

@@ -136,3 +136,38 @@ TEST_CASE("scene override (--set) refuses malformed overrides and keys the scene
   // Non-ASCII that toml++ 3.3 mishandles is refused in VALUE as in files.
   CHECK_THAT(refused("run.name=\"caf\xc3\xa9\""), Contains("U+00E9"));
 }
+
+TEST_CASE("scene override (--set) under [dem.load] pass: applied where the scene has its table, "
+          "else only passed on",
+          "[scene]") {
+  const std::string scene = std::string(kScene) + R"(
+[dem.load]
+scene = "bed.toml"
+pass = ["run.seed", "dem.shapes", "dem.pairs[1]"]
+)";
+  auto parse = [&](std::vector<std::string> sets) {
+    std::vector<Override> o;
+    for (const auto& s : sets) o.push_back(Override::parse(s));
+    return Document::parse(scene, "cases/load.toml", o);
+  };
+  // dem.shapes is the bed's (this scene has none): kept in the list for the prepare scene
+  const auto doc = parse({"dem.shapes[0].triangles=30", "run.seed=4", "dem.pairs[1].friction=0.9"});
+  REQUIRE(doc.root().overrides().size() == 3);
+  CHECK(doc.root().overrides()[0].key == "dem.shapes[0].triangles");
+  CHECK_FALSE(doc.root().required_table("dem").has("shapes"));
+  // the ones whose tables exist here are applied here too
+  CHECK(doc.root().required_table("run").integer("seed", 0, 100) == 4);
+  CHECK(doc.root().required_table("dem").tables("pairs")[1].number("friction") == 0.9);
+  // an entry this scene lacks, under a pass prefix: passed on only
+  CHECK_NOTHROW(parse({"dem.pairs[1].restitution=0.5"}));  // a new key of an existing table
+  CHECK_NOTHROW(parse({"dem.shapes.count=3"}));
+  // not under a pass prefix: refused as before, naming the override
+  CHECK_THROWS_WITH(parse({"dem.insert[0].count=3"}),
+                    Contains("--set dem.insert[0].count=3") && Contains("has no array"));
+  CHECK_THROWS_WITH(parse({"dem.pairs[0].shapes[2]=1"}), Contains("has no array"));
+  // Override::under: a prefix covers the key and the keys below it, not a longer name
+  CHECK(Override::parse("dem.pairs[0].friction=1").under("dem.pairs"));
+  CHECK(Override::parse("dem.pairs=1").under("dem.pairs"));
+  CHECK_FALSE(Override::parse("dem.pairsx=1").under("dem.pairs"));
+  CHECK_FALSE(Override::parse("dem.pair=1").under("dem.pairs"));
+}

@@ -427,13 +427,6 @@ std::string toml_string(const std::string& s) {
   return q + "\"";
 }
 
-// Whether override key `key` is `prefix` or lies below it ("dem.pairs" covers
-// "dem.pairs[0].friction"; "dem.pair" does not).
-bool key_under(const std::string& key, const std::string& prefix) {
-  if (key.compare(0, prefix.size(), prefix) != 0) return false;
-  return key.size() == prefix.size() || key[prefix.size()] == '.' || key[prefix.size()] == '[';
-}
-
 // [dem.load] set and pass: the overrides the prepare scene runs with, and its own folder.
 std::vector<scene::Override> read_prepare_overrides(const Table& t,
                                                     const std::filesystem::path& prepare_scene,
@@ -458,7 +451,7 @@ std::vector<scene::Override> read_prepare_overrides(const Table& t,
     for (const auto& o : t.overrides())
       if (o.key != "run.output_dir" &&
           std::any_of(prefixes.begin(), prefixes.end(),
-                      [&](const std::string& p) { return key_under(o.key, p); }))
+                      [&](const std::string& p) { return o.under(p); }))
         e.push_back(o);
   }
   const bool own_folder = std::none_of(e.begin(), e.end(), [](const scene::Override& o) {

@@ -59,6 +59,9 @@ struct Override {
   static Override parse(std::string_view assignment);
   /// "--set KEY=VALUE", as messages name it.
   std::string text() const { return "--set " + key + "=" + value; }
+  /// Whether the key is `prefix` or lies below it ("dem.pairs" covers
+  /// "dem.pairs[0].friction"; "dem.pair" does not).
+  bool under(std::string_view prefix) const;
 };
 
 /// @brief One TOML table of a scene, with its file and dotted path, that tracks which keys
