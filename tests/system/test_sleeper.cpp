@@ -231,7 +231,7 @@ TEST_CASE("sleeper mini chain: prepares the bed, seats and loads the sleeper, ba
     REQUIRE(std::isfinite(settle[i]));
   }
   const double seated = window_mean(t, settle, 0.095, 0.1);
-  const double held = window_mean(t, settle, 0.25, 0.35);
+  const double held = window_mean(t, settle, 0.30, 0.45);
   INFO("settlement seated " << seated << " m, held at the peak " << held << " m");
   CHECK(seated < 0.0);
   CHECK(held < seated);
@@ -243,10 +243,10 @@ TEST_CASE("sleeper mini chain: prepares the bed, seats and loads the sleeper, ba
   // from the packing sensor over the whole box (0.3 x 3.2 x 2.2 m) at 2600 kg/m3.
   const double g = 9.81;
   const auto base = read_csv(out / "sensor_base.csv");
-  const double reaction = -window_mean(column(base, "time"), column(base, "fz"), 0.25, 0.35);
+  const double reaction = -window_mean(column(base, "time"), column(base, "fz"), 0.30, 0.45);
   const auto rocks = read_csv(out / "sensor_all_rocks.csv");
   const double rock_volume =
-      window_mean(column(rocks, "time"), column(rocks, "solid_fraction"), 0.25, 0.35) * 3.2 * 0.3 *
+      window_mean(column(rocks, "time"), column(rocks, "solid_fraction"), 0.30, 0.45) * 3.2 * 0.3 *
       2.2;
   const double expected = rock_volume * 2600.0 * g + 5 * 0.22 * 0.22 * 0.1 * 2000.0 * g +
                           2.5 * 0.2 * 0.18 * 800.0 * g + 100.0 + 2 * 22e3;
@@ -262,7 +262,7 @@ TEST_CASE("sleeper mini chain: prepares the bed, seats and loads the sleeper, ba
     const auto u0 = column(mon, "sg_centre_0_ux"), u1 = column(mon, "sg_centre_1_ux");
     std::vector<double> e(t.size());
     for (std::size_t i = 0; i < t.size(); ++i) e[i] = (u1[i] - u0[i]) / (1.64942 - 1.55058);
-    const double held_strain = window_mean(t, e, 0.25, 0.35);
+    const double held_strain = window_mean(t, e, 0.30, 0.45);
     INFO("centre bottom-fibre strain in the hold " << held_strain);
     REQUIRE(std::isfinite(held_strain));
     CHECK(json_number(report, "centre") == Approx(held_strain).epsilon(1e-4));
@@ -274,7 +274,7 @@ TEST_CASE("sleeper mini chain: prepares the bed, seats and loads the sleeper, ba
     const auto c = read_csv(out / ("sensor_cell" + std::to_string(k) + ".csv"));
     const auto fz = column(c, "fz");
     for (double f : fz) REQUIRE(f <= 0.0);
-    const double held_fz = window_mean(column(c, "time"), fz, 0.25, 0.35);
+    const double held_fz = window_mean(column(c, "time"), fz, 0.30, 0.45);
     INFO("cell" << k << " fz " << held_fz);
     CHECK(held_fz < 0.0);
   }
