@@ -74,6 +74,18 @@ class SceneKeys(unittest.TestCase):
             with self.assertRaisesRegex(scene_keys.KeyError_, why.replace("[", r"\[")):
                 scene_keys.assign(tomllib.loads(SCENE), key, 1)
 
+    def test_pass_only_keys(self):
+        # a key under [dem.load] pass that this scene has no place for goes to the bed only
+        scene = tomllib.loads(SCENE + '[dem.load]\nscene = "bed.toml"\npass = ["dem.shapes", "run.seed"]\n')
+        self.assertFalse(scene_keys.assign(scene, "dem.shapes[0].triangles", 30))
+        self.assertNotIn("shapes", scene["dem"])
+        self.assertTrue(scene_keys.assign(scene, "run.seed", 4))  # [run] exists: applied here
+        self.assertEqual(scene["run"]["seed"], 4)
+        with self.assertRaisesRegex(scene_keys.KeyError_, "no array 'dem.walls'"):
+            scene_keys.assign(scene, "dem.walls[0].stl", 1)  # not under pass: refused
+        self.assertTrue(scene_keys.under("dem.pairs[0].friction", "dem.pairs"))
+        self.assertFalse(scene_keys.under("dem.pairsx", "dem.pairs"))
+
     def test_toml_text_reads_back(self):
         for v in (0.1, 1e-5, 2.0, 210e9, -3, True, "cuda", 'a "q" \\ é', [1, 2.5, "x"],
                   {"kind": "constant", "diameter": 0.024}, [[0.0, 1.0], [2.0, 3.0]]):

@@ -1,7 +1,8 @@
 """Scene keys as `demfem run --set KEY=VALUE` takes them (docs/scenes.md, "Overriding keys"):
 parsing KEY, writing a Python value as TOML text, and applying an override to a scene read
 with tomllib, with the same rules as scene::Document (a key of an existing table may be set
-or added; tables and array entries are never created). The sweep uses this to know each
+or added; tables and array entries are never created; a key under a prefix of the scene's
+[dem.load] pass whose table or array entry the scene lacks is for the prepare scene only). The sweep uses this to know each
 member's effective dem.threads, dem.backend and checkpoint.directory, and to refuse a
 parameter key that the C++ reader would refuse, before any member starts."""
 
@@ -67,10 +68,38 @@ def get(scene, key, default=None):
     return cur
 
 
+def under(key, prefix):
+    """Whether `key` is `prefix` or lies below it (Override::under)."""
+    return key.startswith(prefix) and (len(key) == len(prefix) or key[len(prefix)] in ".[")
+
+
+def _target_exists(scene, steps):
+    cur = scene
+    for s, (name, indices) in enumerate(steps):
+        if not isinstance(cur, dict):
+            return False
+        if s + 1 == len(steps) and not indices:
+            return True
+        if name not in cur:
+            return False
+        cur = cur[name]
+        for i in indices:
+            if not isinstance(cur, list) or i >= len(cur):
+                return False
+            cur = cur[i]
+    return True
+
+
 def assign(scene, key, value):
     """Sets `key` of the tomllib scene dict in place, as scene::Document does for --set;
-    raises KeyError_ with the same reasons as the C++ reader."""
+    raises KeyError_ with the same reasons as the C++ reader. A key under a prefix of the
+    scene's [dem.load] pass that this scene has no place for is left to the prepare scene
+    (returns False); otherwise returns True."""
     steps = parse_key(key)
+    passed = get(scene, "dem.load.pass", [])
+    if (isinstance(passed, list) and any(isinstance(p, str) and under(key, p) for p in passed)
+            and not _target_exists(scene, steps)):
+        return False
     cur = scene
     walked = ""
     for s, (name, indices) in enumerate(steps):
@@ -80,7 +109,7 @@ def assign(scene, key, value):
         here = f"{walked}.{name}" if walked else name
         if last and not indices:
             cur[name] = value
-            return
+            return True
         if name not in cur:
             kind = "array" if indices else "table"
             raise KeyError_(f"the scene has no {kind} '{here}' (an override sets or adds a key of "
@@ -96,6 +125,6 @@ def assign(scene, key, value):
             walked += f"[{i}]"
             if last and j + 1 == len(indices):
                 node[i] = value
-                return
+                return True
             node = node[i]
         cur = node
