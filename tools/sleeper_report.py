@@ -25,7 +25,8 @@ Writes into OUTPUT_DIR:
   sleeper_report.txt   the key figures in words
   sleeper_report.json  the same, for scripts and tests
 Force balance of the static hold (--hold window, the load held at its peak): the base
-reaction (mean of -fz of the box over the window) against the weights of the rocks
+reaction (mean of -fz of the box over the window), plus the force holding the frozen rocks
+when the run froze some (sensor_frozen.csv, [dem.freeze]), against the weights of the rocks
 (all_rocks volume x density x g), the cells and the sleeper plus the applied load (seating
 + every seat's peak). Exit status 2 on a missing file, column or scene key.
 Strain gauges: a pair of monitor probes named sg_<label>_0 and sg_<label>_1 (two nodes of
@@ -210,6 +211,13 @@ def main(argv):
         base_path = os.path.join(out, "sensor_base.csv")
         base = read_csv(base_path)
         tb, fb = column(base, "time", base_path), column(base, "fz", base_path)
+        # rocks frozen by [dem.freeze] are held by the engine, not the box: the force that
+        # holds them (sensor kind "frozen", fz upwards) carries its share
+        frozen_path = os.path.join(out, "sensor_frozen.csv")
+        tf = ff = None
+        if os.path.exists(frozen_path):
+            rows = read_csv(frozen_path)
+            tf, ff = column(rows, "time", frozen_path), column(rows, "fz", frozen_path)
         packing = {}
         for name in ("all_rocks", "packing_lower", "packing_upper", "under_sleeper"):
             path = os.path.join(out, f"sensor_{name}.csv")
@@ -271,10 +279,14 @@ def main(argv):
             w_sleeper = fig["sleeper_mass"] * G
             load = fig["seating_N"] + fig["peak_load_N"]
             expected = w_rocks + w_cells + w_sleeper + load
+            held = (window_mean(tf, ff, h0, h1) or 0.0) if tf is not None else 0.0
+            if tf is not None:
+                hold["frozen_support_N"] = held
             hold.update({
                 "base_reaction_N": -base_hold, "rocks_weight_N": w_rocks,
                 "cells_weight_N": w_cells, "sleeper_weight_N": w_sleeper, "load_N": load,
-                "expected_N": expected, "balance_rel": (-base_hold - expected) / expected,
+                "expected_N": expected,
+                "balance_rel": (-base_hold + held - expected) / expected,
                 "base_reaction_sd_N": math.sqrt(max(0.0, window_mean(
                     tb, [f * f for f in fb], h0, h1) - base_hold ** 2)),
             })
@@ -310,9 +322,11 @@ def main(argv):
     if "hold" in report:
         h = report["hold"]
         if "base_reaction_N" in h:
+            held = (f" + frozen rocks' support {h['frozen_support_N']:.1f} N"
+                    if "frozen_support_N" in h else "")
             lines.append(
                 f"static hold {h['window']}: base reaction {h['base_reaction_N']:.1f} N "
-                f"(sd {h['base_reaction_sd_N']:.1f}) against rocks {h['rocks_weight_N']:.1f} + "
+                f"(sd {h['base_reaction_sd_N']:.1f}){held} against rocks {h['rocks_weight_N']:.1f} + "
                 f"cells {h['cells_weight_N']:.1f} + sleeper {h['sleeper_weight_N']:.1f} + load "
                 f"{h['load_N']:.1f} = {h['expected_N']:.1f} N: {100 * h['balance_rel']:+.3f} %")
         lines.append("cell pressures in the hold (kPa): " + ", ".join(

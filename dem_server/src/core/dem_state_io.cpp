@@ -234,6 +234,7 @@ void DemSystem::save(io::H5File& f, const std::string& group) const {
   f.write(g + "wcount", std::span<const std::uint8_t>(I.wcount));
   I.bodies.save(f, g);
   if (I.force_limited) f.write(g + "wall_drift", std::span<const double>(pack_drift(I)));
+  if (!I.frozen.empty()) f.write(g + "frozen", std::span<const std::uint8_t>(I.frozen));
 }
 
 namespace {
@@ -267,6 +268,7 @@ void DemSystem::save_state(DemStateCopy& c) const {
   c.wcount.assign(I.wcount.begin(), I.wcount.end());
   c.bodies = I.bodies.pack();
   c.drift = pack_drift(I);
+  c.frozen = I.frozen;
 }
 
 void DemSystem::restore_state(const DemStateCopy& c) {
@@ -296,6 +298,8 @@ void DemSystem::restore_state(const DemStateCopy& c) {
         "DemSystem::restore_state: the state copy holds another number of "
         "rigid bodies");
   unpack_drift(I, c.drift);
+  I.frozen = c.frozen;
+  I.refresh_frozen();
   // As restore(): the list is rebuilt from the restored positions and springs.
   I.bx.clear(), I.by.clear(), I.bz.clear();
   I.refresh_particle_derived();
@@ -352,6 +356,11 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
     unpack_drift(I, d);
   }
   const std::size_t n = st.px.size();
+  I.frozen = f.exists(g + "frozen") ? f.read_uint8(g + "frozen") : std::vector<std::uint8_t>{};
+  if (!I.frozen.empty() && I.frozen.size() != n)
+    bad("restore: frozen in '" + group + "' of " + f.path().string() + " has " +
+        std::to_string(I.frozen.size()) + " entries, not one per particle (" + std::to_string(n) +
+        ")");
   if (I.vpos.size() != (I.vbuild.size()) || (nwalls > 0 && I.vpos.size() < 3))
     bad("restore: wall vertex data in '" + group + "' does not match the walls of this system");
   for (std::size_t i = 0; i < n; ++i)
@@ -397,6 +406,7 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   if (I.wcount.size() != n || I.wkey.size() != kMaxWallContacts * n ||
       I.wshear.size() != 3 * kMaxWallContacts * n || I.row.size() != n + 1)
     bad("restore: inconsistent array sizes in '" + group + "' of " + f.path().string());
+  I.refresh_frozen();  // held at their saved poses
   I.need_rebuild = true;
 }
 

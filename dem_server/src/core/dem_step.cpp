@@ -157,6 +157,7 @@ void DemSystem::Impl::forces_and_kick() {
         pown.data(), nbr.data(),   st.material.data(), pc.data(),     nmat,        s.dt,
         Friction,    rolling,      shear.data(),       rhist.data(),  pf.data(),   pt.data(),
         ptj.data(),  paxis.data(), pfeat.data(),       pslack.data(), pmove.data()};
+    if (!frozen_idx.empty()) pa.frozen = frozen.data();
   }
 
   const double h = 0.5 * s.dt;
@@ -380,10 +381,33 @@ double DemSystem::Impl::kick_drift() {
   return have_build ? std::sqrt(m2) : 1e300;
 }
 
+void DemSystem::Impl::refresh_frozen() {
+  frozen_idx.clear();
+  frozen_hold.clear();
+  for (std::size_t i = 0; i < frozen.size(); ++i) {
+    if (frozen[i] == 0) continue;
+    frozen_idx.push_back(static_cast<std::int64_t>(i));
+    frozen_hold.insert(frozen_hold.end(),
+                       {st.px[i], st.py[i], st.pz[i], st.qw[i], st.qx[i], st.qy[i], st.qz[i]});
+  }
+}
+
+void DemSystem::Impl::hold_frozen() {
+  for (std::size_t k = 0; k < frozen_idx.size(); ++k) {
+    const auto i = static_cast<std::size_t>(frozen_idx[k]);
+    const double* h = frozen_hold.data() + 7 * k;
+    st.px[i] = h[0], st.py[i] = h[1], st.pz[i] = h[2];
+    st.qw[i] = h[3], st.qx[i] = h[4], st.qy[i] = h[5], st.qz[i] = h[6];
+    st.vx[i] = st.vy[i] = st.vz[i] = 0.0;
+    st.wx[i] = st.wy[i] = st.wz[i] = 0.0;
+  }
+}
+
 template <bool Friction>
 void DemSystem::Impl::step(bool last, ForceMode mode, std::int64_t substeps) {
   const double t0 = omp_get_wtime();
   const double disp = kick_drift<Friction>();
+  if (!frozen_idx.empty()) hold_frozen();
   if (!bodies.empty()) bodies.kick_drift(s.dt);
   t += s.dt;
   flex_tau += s.dt;
@@ -428,6 +452,7 @@ void DemSystem::Impl::step(bool last, ForceMode mode, std::int64_t substeps) {
     forces_and_kick<Friction, true>();
   else
     forces_and_kick<Friction>();
+  if (!frozen_idx.empty()) hold_frozen();  // their second half kick undone
   // Wall forces and torques are read after advance(): summed at its last step only. The
   // flexible mesh's node forces are summed every substep when they are averaged, and the
   // rigid bodies' loads every substep (they move by them), and so the loads of force-limited

@@ -216,6 +216,7 @@ std::size_t DemSystem::add_particles(std::span<const ParticleInit> particles) {
   I.wf.resize(3 * kMaxWallContacts * n), I.wp.resize(3 * kMaxWallContacts * n),
       I.wb.resize(3 * kMaxWallContacts * n), I.wtri.resize(kMaxWallContacts * n);
   I.wcount.resize(n, 0);
+  if (!I.frozen.empty()) I.frozen.resize(n, 0);
   // keep the pair rows of the old particles (new ones have none yet)
   if (!I.row.empty()) I.row.resize(n + 1, I.row.back());
   I.bx.clear();
@@ -283,6 +284,8 @@ void DemSystem::remove_particles(std::span<const std::uint8_t> keep) {
   compact(I.wf, 3 * kMaxWallContacts), compact(I.wp, 3 * kMaxWallContacts),
       compact(I.wb, 3 * kMaxWallContacts), compact(I.wtri, kMaxWallContacts);
   compact(I.wcount, 1);
+  if (!I.frozen.empty()) compact(I.frozen, 1);
+  I.refresh_frozen();
   I.bx.clear();
   I.refresh_particle_derived();
   I.need_rebuild = true;
@@ -375,6 +378,41 @@ double DemSystem::kinetic_energy() const {
       e += 0.5 * st.mass[i] * (st.vx[i] * st.vx[i] + st.vy[i] * st.vy[i] + st.vz[i] * st.vz[i]) +
            0.5 * st.inertia[i] * (st.wx[i] * st.wx[i] + st.wy[i] * st.wy[i] + st.wz[i] * st.wz[i]);
   return e;
+}
+
+void DemSystem::freeze(std::span<const std::uint8_t> mask) {
+  auto& I = *impl_;
+  if (I.gpu)
+    bad("freeze: frozen particles are held by the CPU backend only (dem.backend = \"cpu\")");
+  if (mask.size() != I.n())
+    bad("freeze: the mask has " + std::to_string(mask.size()) + " entries, need " +
+        std::to_string(I.n()));
+  if (I.frozen.empty()) I.frozen.assign(I.n(), 0);
+  for (std::size_t i = 0; i < mask.size(); ++i)
+    if (mask[i] != 0 && I.frozen[i] == 0) {
+      I.frozen[i] = 1;
+      I.st.vx[i] = I.st.vy[i] = I.st.vz[i] = 0.0;
+      I.st.wx[i] = I.st.wy[i] = I.st.wz[i] = 0.0;
+    }
+  I.refresh_frozen();
+}
+
+std::span<const std::uint8_t> DemSystem::frozen() const {
+  return impl_->frozen;
+}
+
+std::size_t DemSystem::frozen_count() const {
+  return impl_->frozen_idx.size();
+}
+
+std::array<double, 3> DemSystem::frozen_support() const {
+  const auto& I = *impl_;
+  std::array<double, 3> f{0.0, 0.0, 0.0};
+  for (const std::int64_t i : I.frozen_idx) {
+    const auto k = static_cast<std::size_t>(i);
+    f[0] -= I.st.fx[k], f[1] -= I.st.fy[k], f[2] -= I.st.fz[k];
+  }
+  return f;
 }
 
 double DemSystem::max_overlap() const {

@@ -86,6 +86,14 @@ struct DemSystem::Impl {
   // list update between; derived, never saved (a pass without them computes every pair).
   std::vector<double> pslack, pmove, pxprev;
   std::int64_t pslack_step = -1;
+  // Frozen particles (DemSystem::freeze): the mask (empty: none), and derived from it the
+  // frozen particles' indices and the pose each is held at (7 per particle: x, y, z, qw, qx,
+  // qy, qz), which hold_frozen() puts back after each kick and drift.
+  std::vector<std::uint8_t> frozen;
+  std::vector<std::int64_t> frozen_idx;
+  std::vector<double> frozen_hold;
+  void refresh_frozen();
+  void hold_frozen();
 
   ParticleState st;
   std::vector<double> tx, ty, tz;  // torque of the last step

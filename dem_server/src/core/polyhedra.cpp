@@ -24,6 +24,12 @@ OverlapMax pair_range(const PolyParticles& p, const PolyPairs& a, std::int64_t b
   double mo = 0.0, mr = 0.0;
   for (std::int64_t k = begin; k < end; ++k) {
     const std::int32_t i = a.pi[k], j = a.pj[k];
+    if (a.frozen != nullptr && a.frozen[i] != 0 && a.frozen[j] != 0) {
+      // both held: their mutual force moves nothing and cancels in the frozen particles'
+      // total (DemSystem::frozen_support), so it is not computed (the spring is kept)
+      for (int d = 0; d < 3; ++d) a.pf[3 * k + d] = a.pt[3 * k + d] = a.ptj[3 * k + d] = 0.0;
+      continue;
+    }
     // still proven apart: the narrow phase would give no contact and keep the caches
     const double left = a.pslack[k] - (a.pmove[i] + a.pmove[j]);
     if (left > 0.0) {

@@ -42,6 +42,9 @@ struct PolyPairs {
   /// separating axis (phys::mixed_pair's `slack`), less a rounding margin.
   double* pslack;
   const double* pmove;  ///< per particle: how far any point of its core moved since the last pass
+  /// Per particle, or null: a pair of two frozen particles (DemSystem::freeze) is not
+  /// computed (zero force and torques in its slots, its spring kept).
+  const std::uint8_t* frozen = nullptr;
 };
 
 /// The rotation matrices of the polyhedra (9 per particle, rotation(q); spheres untouched),

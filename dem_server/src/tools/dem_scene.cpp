@@ -249,6 +249,24 @@ DemScene read_dem_scene(const Table& dem) {
   st.track_orientation = dem.boolean("track_orientation", false);
   s.settle_time = dem.number("settle_time", 0.0, Range::non_negative());
   if (dem.has("remove_above")) s.remove_above = dem.number("remove_above");
+  if (auto fz = dem.table("freeze")) {
+    FreezeSpec f;
+    f.enabled = fz->boolean("enabled", true);
+    f.time = fz->number("time", Range::non_negative());
+    f.interval = fz->number("interval", 0.0, Range::non_negative());
+    const Table box = fz->required_table("active");
+    f.active_lo = box.vec3("lo");
+    f.active_hi = box.vec3("hi");
+    for (int k = 0; k < 3; ++k)
+      if (!(f.active_hi[static_cast<std::size_t>(k)] > f.active_lo[static_cast<std::size_t>(k)]))
+        fz->fail("active", "needs hi > lo in x, y and z (the box whose particles stay free)");
+    box.finish();
+    f.max_speed = fz->number("max_speed", 0.01, Range::positive());
+    fz->finish();
+    if (f.enabled && st.backend == "cuda")
+      fz->fail("enabled", "frozen particles are held by the CPU backend only (dem.backend)");
+    if (f.enabled) s.freeze = f;
+  }
   if (dem.has("remove_by")) {
     if (!s.remove_above) dem.fail("remove_by", "needs remove_above (the height it applies to)");
     s.remove_by_top = dem.choice("remove_by", {"centre", "top"}) == "top";
@@ -477,7 +495,7 @@ DemScene read_dem_scene(const Table& dem) {
     for (const auto& other : s.sensors)
       if (other.name == ss.name) t.fail("name", "sensor \"" + ss.name + "\" is defined twice");
     const std::string kind =
-        t.choice("kind", {"mass_flow", "wall_force", "kinetic_energy", "repose", "packing"});
+        t.choice("kind", {"mass_flow", "wall_force", "kinetic_energy", "repose", "packing", "frozen"});
     ss.interval = t.number("interval", Range::positive());
     if (kind == "mass_flow") {
       ss.kind = SensorSpec::Kind::mass_flow;
@@ -499,6 +517,8 @@ DemScene read_dem_scene(const Table& dem) {
       }
     } else if (kind == "kinetic_energy") {
       ss.kind = SensorSpec::Kind::kinetic_energy;
+    } else if (kind == "frozen") {
+      ss.kind = SensorSpec::Kind::frozen;
     } else if (kind == "packing") {
       ss.kind = SensorSpec::Kind::packing;
       ss.box_lo = t.vec3("lo");
@@ -679,6 +699,7 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
   }
   seed_ = seed;
   repeats_.assign(scene_.inserts.size(), 0);
+  if (scene_.freeze) next_freeze_ = scene_.freeze->time;
   pour();  // every insertion once at t = 0
   setup_particles_ = system_->particle_count();
   if (system_->particle_count() > 0) {
@@ -734,6 +755,42 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
 }
 
 DemRun::~DemRun() = default;
+
+void DemRun::set_next_freeze() {
+  next_freeze_ = std::numeric_limits<double>::infinity();
+  if (!scene_.freeze) return;
+  const auto& f = *scene_.freeze;
+  const double t = system_->time() + 1e-9 * scene_.settings.dt;  // done at the step end at or after
+  if (f.time > t) {
+    next_freeze_ = f.time;
+  } else if (f.interval > 0.0) {
+    next_freeze_ = f.time + (std::floor((t - f.time) / f.interval) + 1.0) * f.interval;
+  }
+}
+
+void DemRun::freeze_due() {
+  if (!scene_.freeze || system_->time() + 1e-9 * scene_.settings.dt < next_freeze_) return;
+  const auto& f = *scene_.freeze;
+  const ParticleState& p = system_->particles();
+  const auto already = system_->frozen();
+  std::vector<std::uint8_t> mask(p.size(), 0);
+  std::size_t added = 0;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    if (!already.empty() && already[i] != 0) continue;
+    const bool inside = p.px[i] >= f.active_lo[0] && p.px[i] <= f.active_hi[0] &&
+                        p.py[i] >= f.active_lo[1] && p.py[i] <= f.active_hi[1] &&
+                        p.pz[i] >= f.active_lo[2] && p.pz[i] <= f.active_hi[2];
+    if (inside) continue;
+    const double v = std::sqrt(p.vx[i] * p.vx[i] + p.vy[i] * p.vy[i] + p.vz[i] * p.vz[i]);
+    const double w = std::sqrt(p.wx[i] * p.wx[i] + p.wy[i] * p.wy[i] + p.wz[i] * p.wz[i]);
+    if (v + w * p.radius[i] < f.max_speed) mask[i] = 1, ++added;
+  }
+  if (added > 0) system_->freeze(mask);
+  if (log_)
+    *log_ << "dem: froze " << added << " particles at t = " << system_->time() << " s ("
+          << system_->frozen_count() << " of " << p.size() << " held)\n";
+  set_next_freeze();
+}
 
 double DemRun::next_pour_time() const {
   double t = std::numeric_limits<double>::infinity();
@@ -927,6 +984,7 @@ void DemRun::after_advance() {
 
 void DemRun::take_step_outputs() {
   pour();
+  freeze_due();
   if (!sensors_) {
     start_output(false);  // samples the current state itself
     return;
@@ -980,7 +1038,8 @@ void DemRun::run_to(double end_time, const std::function<void(double)>& progress
   start_deferred_output();
   const double dt = scene_.settings.dt;
   while (system_->time() + 0.5 * dt < end_time) {
-    double target = std::min({end_time, sensors_->next_time(), next_pour_time()});
+    double target =
+        std::min({end_time, sensors_->next_time(), next_pour_time(), next_freeze_});
     if (output_ && schedule_.active())
       target = std::min(target, schedule_.nominal(schedule_.next()));
     auto steps = static_cast<std::int64_t>(std::llround((target - system_->time()) / dt));
@@ -1118,6 +1177,7 @@ void DemRun::restore(const io::H5File& file, const std::string& group) {
                              std::to_string(repeats_.size()));
   }
   repeats_ = reps;
+  set_next_freeze();  // the freezings up to the restored time were done (the mask is state)
 }
 
 }  // namespace demfem::dem

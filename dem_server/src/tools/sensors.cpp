@@ -136,6 +136,8 @@ std::vector<std::string> columns_of(SensorSpec::Kind k) {
       return {"time", "fx", "fy", "fz", "force", "pressure"};
     case SensorSpec::Kind::kinetic_energy:
       return {"time", "kinetic_energy"};
+    case SensorSpec::Kind::frozen:
+      return {"time", "frozen", "fx", "fy", "fz"};
     case SensorSpec::Kind::repose:
       return {"time", "angle_deg", "heap_radius", "heap_height"};
     case SensorSpec::Kind::packing:
@@ -285,6 +287,11 @@ void SensorSet::sample(const DemSystem& system, std::span<const std::int64_t> id
       case SensorSpec::Kind::kinetic_energy:
         v = {system.kinetic_energy()};
         break;
+      case SensorSpec::Kind::frozen: {
+        const auto f = system.frozen_support();
+        v = {static_cast<double>(system.frozen_count()), f[0], f[1], f[2]};
+        break;
+      }
       case SensorSpec::Kind::repose: {
         try {
           const auto r = angle_of_repose(system.particles(), e.spec.repose, particle_tops(system));

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <functional>
 #include <iosfwd>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <span>
@@ -97,6 +98,16 @@ inline constexpr std::uint64_t kLatticeSeedOffset = 500009;
 /// included; docs/scene_dem.md); 2 kB leaves room for denser random packings.
 inline constexpr double kBytesPerParticle = 2048.0;
 
+/// @brief [dem.freeze]: particles outside a box around what matters that have come to rest
+/// are held there (DemSystem::freeze), at `time` and every `interval` after it.
+struct FreezeSpec {
+  bool enabled = true;
+  double time = 0.0;      ///< s: the first freezing
+  double interval = 0.0;  ///< s: later ones (0: only the first)
+  std::array<double, 3> active_lo{}, active_hi{};  ///< centres in this box are never frozen, m
+  double max_speed = 0.01;  ///< m/s: frozen when |v| + |omega| r (r: bounding radius) is below
+};
+
 /// @brief Everything [dem] says.
 struct DemScene {
   std::string file;
@@ -117,6 +128,7 @@ struct DemScene {
   bool output_walls = true;              ///< [dem.output] walls: with the particle snapshots
   bool output_state = false;             ///< [dem.output] state: write dem_state.h5 at the end
   std::optional<ParticleSource> load;    ///< [dem.load]: particles from a file, loaded first
+  std::optional<FreezeSpec> freeze;      ///< [dem.freeze] (enabled)
   std::int32_t interface_material = -1;  ///< -1: not given
   std::string interface_material_where;
 };
@@ -284,6 +296,10 @@ class DemRun {
   /// wall: `what` names it, `where` the scene entry.
   void check_falls_past(const std::string& what, const std::string& where) const;
   double next_pour_time() const;
+  /// [dem.freeze]: the particles due to be frozen at the current time, and the next time.
+  void freeze_due();
+  double next_freeze_ = std::numeric_limits<double>::infinity();
+  void set_next_freeze();  ///< the first freezing time after the current time
 };
 
 }  // namespace demfem::dem

@@ -198,6 +198,7 @@ struct DemStateCopy {
   std::vector<std::uint8_t> wcount;
   std::vector<double> bodies;  ///< rigid mesh bodies ([dem.walls.body]), 19 per body
   std::vector<double> drift;   ///< force-limited walls: drift time and drifting (0/1), 2 per wall
+  std::vector<std::uint8_t> frozen;  ///< DemSystem::frozen()
 };
 
 /// @brief A DEM system of particles, walls and (optionally) the flexible coupled mesh.
@@ -279,6 +280,21 @@ class DemSystem {
   double rayleigh_time_step() const;
   /// Total kinetic energy (translational + rotational), J.
   double kinetic_energy() const;
+
+  /// Holds the particles with mask[i] != 0 where they are from now on, as EDEM's and Rocky's
+  /// "settled" particles (CPU backend; throws std::invalid_argument with CUDA or a mask of
+  /// another size): their velocities become and stay zero, their positions and orientations
+  /// do not change. The others still feel them (and the walls too: a frozen particle's wall
+  /// contacts are computed), but a pair of two frozen polyhedra is not computed (it moves
+  /// nothing). Particles frozen earlier stay frozen. The mask is part of the saved state.
+  void freeze(std::span<const std::uint8_t> mask);
+  /// Per particle: 1 when frozen (empty when none ever was).
+  std::span<const std::uint8_t> frozen() const;
+  std::size_t frozen_count() const;
+  /// The force that holds the frozen particles, N: minus the sum of their forces of the
+  /// last step (contacts with particles and walls, and gravity). In a static bed the walls'
+  /// reactions and this force together carry the weights and loads.
+  std::array<double, 3> frozen_support() const;
   /// Largest particle-particle or particle-wall overlap of the last step, m.
   double max_overlap() const;
   /// Largest particle-particle or particle-wall overlap over all steps of the last

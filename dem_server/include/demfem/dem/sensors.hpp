@@ -84,7 +84,7 @@ std::vector<double> particle_tops(const DemSystem& system);
 
 /// @brief A configured sensor.
 struct SensorSpec {
-  enum class Kind { mass_flow, wall_force, kinetic_energy, repose, packing };
+  enum class Kind { mass_flow, wall_force, kinetic_energy, repose, packing, frozen };
   Kind kind = Kind::kinetic_energy;
   std::string name;       ///< CSV file: sensor_<name>.csv
   double interval = 0.0;  ///< sampling interval, s (> 0)
