@@ -15,7 +15,9 @@
 // 100 times stiffer rock stable to 0.32 of it) makes the 10^4 bed 4 times cheaper to settle. The
 // sphere bed is made and settled the same way with spheres whose diameters are drawn from the same
 // distribution. Material as the sphere benchmark (dem_throughput): E 100 MPa, nu 0.3, rho 2600, e
-// 0.2, mu 0.6, dt 1e-5 s.
+// 0.2, mu 0.6, dt 1e-5 s. --frozen F ... adds runs with the lowest fraction F of the particles
+// (by centre height: the deep bed, far from a sleeper) frozen (DemSystem::freeze): the rate
+// still counts every particle, as a user's run of the whole bed would.
 
 #include <unistd.h>
 
@@ -86,13 +88,24 @@ DemSystem make_system(const Bed& bed, const shapes::ShapeLibrary* lib, int threa
 }
 
 Result measure(const Bed& bed, const shapes::ShapeLibrary* lib, const std::filesystem::path& state,
-               int threads, const std::string& backend, std::int64_t steps) {
+               int threads, const std::string& backend, std::int64_t steps, double frozen) {
   Result r;
   try {
     DemSystem sys = make_system(bed, lib, threads, backend, 0.2);
     {
       demfem::io::H5File f(state, demfem::io::H5File::Mode::read);
       sys.restore(f, "/bed");
+    }
+    if (frozen > 0.0) {
+      std::vector<double> z = sys.particles().pz;
+      std::vector<double> sorted = z;
+      const auto k = static_cast<std::size_t>(frozen * static_cast<double>(z.size()));
+      std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(k),
+                       sorted.end());
+      const double cut = k < sorted.size() ? sorted[k] : 1e300;
+      std::vector<std::uint8_t> mask(z.size());
+      for (std::size_t i = 0; i < z.size(); ++i) mask[i] = z[i] < cut ? 1 : 0;
+      sys.freeze(mask);
     }
     sys.advance(10);
     const auto t0 = sys.timings();
@@ -178,6 +191,10 @@ int main(int argc, char** argv) {
                  "folder for settled beds (default: poly_throughput_cache beside the executable; "
                  "empty: no cache)");
   app.add_option("--json", json, "write the results as JSON");
+  std::vector<double> frozen_fracs{0.0};
+  app.add_option("--frozen", frozen_fracs,
+                 "fractions of the particles frozen, the lowest first (default 0; CPU runs)")
+      ->check(CLI::Range(0.0, 1.0));
   app.add_flag("!--no-gpu", gpu, "skip the GPU even when one is present");
   app.add_flag("!--no-spheres", spheres, "skip the sphere beds");
   app.add_flag("--state-hash", hashes,
@@ -186,7 +203,8 @@ int main(int argc, char** argv) {
 
   demfem::bench::Report rep(
       "poly_throughput",
-      {"particles", "shape", "settled s", "KE/(N m g d)", "backend", "threads", "contacts/particle",
+      {"particles", "shape", "settled s", "KE/(N m g d)", "backend", "threads", "frozen",
+       "contacts/particle",
        "list pairs/particle", "particle-steps/s", "per cpu-s", "runs", "median", "ratio to spheres",
        "bytes/particle", "detection", "forces", "integration"});
   rep.set_info("dt", kDt);
@@ -229,14 +247,20 @@ int main(int argc, char** argv) {
                  settle_min, settle_max, settle_ke, settle_dt);
       const std::int64_t steps = std::clamp<std::int64_t>(
           static_cast<std::int64_t>(work / static_cast<double>(n)), 100, 20000);
-      std::vector<std::pair<std::string, int>> runs;
-      for (int t : threads) runs.push_back({"cpu", t});
-      if (have_gpu) runs.push_back({"cuda", 0});
+      struct Run {
+        std::string first;
+        int second;
+        double frozen;
+      };
+      std::vector<Run> runs;
+      for (double f : frozen_fracs)
+        for (int t : threads) runs.push_back({"cpu", t, f});
+      if (have_gpu) runs.push_back({"cuda", 0, 0.0});
       std::vector<std::vector<Result>> done(runs.size());
       for (int k = 0; k < repeat; ++k)
         for (std::size_t c = 0; c < runs.size(); ++c) {
           Result r = measure(bed, lib.get(), state, runs[c].second, runs[c].first,
-                             runs[c].first == "cuda" ? 20 * steps : steps);
+                             runs[c].first == "cuda" ? 20 * steps : steps, runs[c].frozen);
           if (!r.ok) {
             std::fprintf(stderr, "%zu %s, %s: %s\n", n, kind.c_str(), runs[c].first.c_str(),
                          r.note.c_str());
@@ -258,10 +282,13 @@ int main(int argc, char** argv) {
         const double median =
             m % 2 == 1 ? rs[m / 2].rate : 0.5 * (rs[m / 2 - 1].rate + rs[m / 2].rate);
         const Result& r = rs.front();
-        if (!rock && c < 8) sphere_rate[c] = r.rate;
-        const double ratio = rock && c < 8 && sphere_rate[c] > 0 ? sphere_rate[c] / r.rate : 1.0;
+        if (!rock && c < 8 && runs[c].frozen == 0.0) sphere_rate[c] = r.rate;
+        const double ratio = rock && c < 8 && sphere_rate[c] > 0 && runs[c].frozen == 0.0
+                                 ? sphere_rate[c] / r.rate
+                                 : 1.0;
         rep.add_row({static_cast<long long>(n), kind, settled, ke, runs[c].first,
-                     static_cast<long long>(runs[c].second), r.contacts, r.pairs, r.rate,
+                     static_cast<long long>(runs[c].second), runs[c].frozen, r.contacts, r.pairs,
+                     r.rate,
                      r.cpu_rate, static_cast<long long>(m), median, ratio, r.bytes, r.det, r.force,
                      r.integ});
       }

@@ -320,6 +320,7 @@ double DemSystem::Impl::poly_kick_drift() {
                       have_build ? bx.data() : nullptr,
                       have_build ? by.data() : nullptr,
                       have_build ? bz.data() : nullptr};
+  d.frozen = frozen_idx.empty() ? nullptr : frozen.data();
   return detail::poly_kick_drift(d);
 }
 

@@ -129,18 +129,22 @@ double poly_kick_drift(const PolyDrift& d) {
   const bool have_build = d.bx != nullptr;
 #pragma omp parallel for num_threads(d.threads) schedule(static) reduction(max : m2)
   for (std::int64_t i = 0; i < d.n; ++i) {
-    phys::kick(d.vx[i], d.vy[i], d.vz[i], d.fx[i], d.fy[i], d.fz[i], h / d.mass[i]);
-    d.px[i] += dt * d.vx[i];
-    d.py[i] += dt * d.vy[i];
-    d.pz[i] += dt * d.vz[i];
-    const Vec3 t{d.tx[i], d.ty[i], d.tz[i]};
-    if (d.shape_id[i] >= 0) {
-      const Vec3 I{d.ix[i], d.iy[i], d.iz[i]};
-      phys::angular_kick(d.wx[i], d.wy[i], d.wz[i], d.qw[i], d.qx[i], d.qy[i], d.qz[i], I, t, h);
-      phys::free_rotation(d.qw[i], d.qx[i], d.qy[i], d.qz[i], d.wx[i], d.wy[i], d.wz[i], I, dt);
-    } else {
-      phys::kick(d.wx[i], d.wy[i], d.wz[i], t.x, t.y, t.z, h / d.inertia[i]);
-      phys::rotate_quaternion(d.qw[i], d.qx[i], d.qy[i], d.qz[i], d.wx[i], d.wy[i], d.wz[i], dt);
+    // a frozen particle is held at rest (hold_frozen): not moved, but its distance from the
+    // list's build position still counts
+    if (d.frozen == nullptr || d.frozen[i] == 0) {
+      phys::kick(d.vx[i], d.vy[i], d.vz[i], d.fx[i], d.fy[i], d.fz[i], h / d.mass[i]);
+      d.px[i] += dt * d.vx[i];
+      d.py[i] += dt * d.vy[i];
+      d.pz[i] += dt * d.vz[i];
+      const Vec3 t{d.tx[i], d.ty[i], d.tz[i]};
+      if (d.shape_id[i] >= 0) {
+        const Vec3 I{d.ix[i], d.iy[i], d.iz[i]};
+        phys::angular_kick(d.wx[i], d.wy[i], d.wz[i], d.qw[i], d.qx[i], d.qy[i], d.qz[i], I, t, h);
+        phys::free_rotation(d.qw[i], d.qx[i], d.qy[i], d.qz[i], d.wx[i], d.wy[i], d.wz[i], I, dt);
+      } else {
+        phys::kick(d.wx[i], d.wy[i], d.wz[i], t.x, t.y, t.z, h / d.inertia[i]);
+        phys::rotate_quaternion(d.qw[i], d.qx[i], d.qy[i], d.qz[i], d.wx[i], d.wy[i], d.wz[i], dt);
+      }
     }
     if (have_build) {
       const double dx = d.px[i] - d.bx[i], dy = d.py[i] - d.by[i], dz = d.pz[i] - d.bz[i];

@@ -76,6 +76,7 @@ struct PolyDrift {
   const double *fx, *fy, *fz, *tx, *ty, *tz, *mass, *inertia, *ix, *iy, *iz;
   const std::int32_t* shape_id;
   const double *bx, *by, *bz;  ///< positions at the last list update (null: none)
+  const std::uint8_t* frozen = nullptr;  ///< per particle, or null: frozen ones are not moved
 };
 
 /// First half kick (last forces and torques), drift, rotation (spheres: the exact rotation of
