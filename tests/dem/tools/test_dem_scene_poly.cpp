@@ -331,3 +331,18 @@ interval = 0.001
   CHECK_THAT(error_of(replace(frozen, "threads = 1\n", "threads = 1\nbackend = \"cuda\"\n")),
              Catch::Contains("dem.freeze") && Catch::Contains("CPU backend only"));
 }
+
+TEST_CASE("a bed that blows up while it settles stops there, naming the time", "[scene][poly]") {
+  // Rocks thrown onto the floor at 40 m/s press into it by more than half their dilation in
+  // the first hundredth of a second: the settling (0.5 s asked) stops within it.
+  const std::string t = replace(replace(kRocks, "threads = 1\n", "threads = 1\nsettle_time = 0.5\n"),
+                                "count = 60\n", "count = 60\nvelocity = [0.0, 0.0, -40.0]\n");
+  std::string message;
+  try {
+    DemRun run(parse(t), "", 1, 0.0, nullptr);
+  } catch (const Unstable& e) {
+    message = e.what();
+  }
+  CHECK_THAT(message, Catch::Contains("unstable in the steps up to t = 0.0"));
+  CHECK_THAT(message, Catch::Contains("of the smaller contact radius"));
+}
