@@ -73,21 +73,17 @@ def under(key, prefix):
     return key.startswith(prefix) and (len(key) == len(prefix) or key[len(prefix)] in ".[")
 
 
-def _target_exists(scene, steps):
-    cur = scene
-    for s, (name, indices) in enumerate(steps):
-        if not isinstance(cur, dict):
-            return False
-        if s + 1 == len(steps) and not indices:
-            return True
-        if name not in cur:
-            return False
-        cur = cur[name]
-        for i in indices:
-            if not isinstance(cur, list) or i >= len(cur):
-                return False
-            cur = cur[i]
-    return True
+_MISSING = object()
+
+
+def _target_exists(scene, key):
+    """Whether the tables and array entries `key` walks through exist (its last key may be
+    new: assign adds it)."""
+    steps = parse_key(key)
+    if steps[-1][1]:  # ends in an array entry: that entry must exist
+        return get(scene, key, _MISSING) is not _MISSING
+    holder = get(scene, key.rsplit(".", 1)[0], _MISSING) if len(steps) > 1 else scene
+    return isinstance(holder, dict)
 
 
 def assign(scene, key, value):
@@ -98,7 +94,7 @@ def assign(scene, key, value):
     steps = parse_key(key)
     passed = get(scene, "dem.load.pass", [])
     if (isinstance(passed, list) and any(isinstance(p, str) and under(key, p) for p in passed)
-            and not _target_exists(scene, steps)):
+            and not _target_exists(scene, key)):
         return False
     cur = scene
     walked = ""
