@@ -204,9 +204,8 @@ int main(int argc, char** argv) {
   demfem::bench::Report rep(
       "poly_throughput",
       {"particles", "shape", "settled s", "KE/(N m g d)", "backend", "threads", "frozen",
-       "contacts/particle",
-       "list pairs/particle", "particle-steps/s", "per cpu-s", "runs", "median", "ratio to spheres",
-       "bytes/particle", "detection", "forces", "integration"});
+       "contacts/particle", "list pairs/particle", "particle-steps/s", "per cpu-s", "runs",
+       "median", "ratio to spheres", "bytes/particle", "detection", "forces", "integration"});
   rep.set_info("dt", kDt);
   rep.set_info("settle dt", settle_dt);
   rep.set_info("model",
@@ -288,9 +287,8 @@ int main(int argc, char** argv) {
                                  : 1.0;
         rep.add_row({static_cast<long long>(n), kind, settled, ke, runs[c].first,
                      static_cast<long long>(runs[c].second), runs[c].frozen, r.contacts, r.pairs,
-                     r.rate,
-                     r.cpu_rate, static_cast<long long>(m), median, ratio, r.bytes, r.det, r.force,
-                     r.integ});
+                     r.rate, r.cpu_rate, static_cast<long long>(m), median, ratio, r.bytes, r.det,
+                     r.force, r.integ});
       }
       if (!cache) std::filesystem::remove(state);
     }

@@ -137,9 +137,10 @@ TEST_CASE("scene override (--set) refuses malformed overrides and keys the scene
   CHECK_THAT(refused("run.name=\"caf\xc3\xa9\""), Contains("U+00E9"));
 }
 
-TEST_CASE("scene override (--set) under [dem.load] pass: applied where the scene has its table, "
-          "else only passed on",
-          "[scene]") {
+TEST_CASE(
+    "scene override (--set) under [dem.load] pass: applied where the scene has its table, "
+    "else only passed on",
+    "[scene]") {
   const std::string scene = std::string(kScene) + R"(
 [dem.load]
 scene = "bed.toml"

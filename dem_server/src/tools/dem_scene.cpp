@@ -494,8 +494,8 @@ DemScene read_dem_scene(const Table& dem) {
     }
     for (const auto& other : s.sensors)
       if (other.name == ss.name) t.fail("name", "sensor \"" + ss.name + "\" is defined twice");
-    const std::string kind =
-        t.choice("kind", {"mass_flow", "wall_force", "kinetic_energy", "repose", "packing", "frozen"});
+    const std::string kind = t.choice(
+        "kind", {"mass_flow", "wall_force", "kinetic_energy", "repose", "packing", "frozen"});
     ss.interval = t.number("interval", Range::positive());
     if (kind == "mass_flow") {
       ss.kind = SensorSpec::Kind::mass_flow;
@@ -729,8 +729,7 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
         static_cast<std::int64_t>(std::ceil(scene_.settle_time / scene_.settings.dt));
     // in pieces of 0.01 s, each checked: a bed that blows up stops there, naming the time
     // (the same steps as one advance: the particles' bits do not depend on the pieces)
-    const auto piece =
-        std::max<std::int64_t>(1, std::llround(0.01 / scene_.settings.dt));
+    const auto piece = std::max<std::int64_t>(1, std::llround(0.01 / scene_.settings.dt));
     for (std::int64_t done = 0; done < steps; done += piece) {
       system_->advance(std::min(piece, steps - done));
       check_stable();
@@ -754,8 +753,9 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
       ids_ = std::move(kept_ids);
     }
     if (log)
-      *log << "dem: removed " << removed << " particles " << (scene_.remove_by_top ? "reaching " : "")
-           << "above z = " << *scene_.remove_above << " m\n";
+      *log << "dem: removed " << removed << " particles "
+           << (scene_.remove_by_top ? "reaching " : "") << "above z = " << *scene_.remove_above
+           << " m\n";
   }
   output_interval_ = scene_.output_interval.value_or(run_output_interval_);
   if (!defer_output) start_output(false);
@@ -1045,8 +1045,7 @@ void DemRun::run_to(double end_time, const std::function<void(double)>& progress
   start_deferred_output();
   const double dt = scene_.settings.dt;
   while (system_->time() + 0.5 * dt < end_time) {
-    double target =
-        std::min({end_time, sensors_->next_time(), next_pour_time(), next_freeze_});
+    double target = std::min({end_time, sensors_->next_time(), next_pour_time(), next_freeze_});
     if (output_ && schedule_.active())
       target = std::min(target, schedule_.nominal(schedule_.next()));
     auto steps = static_cast<std::int64_t>(std::llround((target - system_->time()) / dt));

@@ -19,7 +19,8 @@ double particle_top(const DemSystem& system, std::size_t i) {
   double hz = -std::numeric_limits<double>::infinity();
   for (std::size_t k = 0; k + 2 < sh.vertices.size(); k += 3)
     hz = std::max(
-        hz, phys::to_world(r, phys::Vec3{sh.vertices[k], sh.vertices[k + 1], sh.vertices[k + 2]}).z);
+        hz,
+        phys::to_world(r, phys::Vec3{sh.vertices[k], sh.vertices[k + 1], sh.vertices[k + 2]}).z);
   return p.pz[i] + p.scale[i] * (hz + sh.dilation);
 }
 

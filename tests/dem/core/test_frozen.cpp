@@ -129,9 +129,9 @@ TEST_CASE("Frozen spheres carry the sphere that rests in their pocket", "[dem][f
   s.gravity = {0, 0, -kG};
   DemSystem sys(s);
   const double r = 0.002, h = 2.0 * r * std::sqrt(2.0 / 3.0);
-  sys.add_particles(std::vector<ParticleInit>{
-      sphere({0, 0, 0}, r), sphere({2 * r, 0, 0}, r), sphere({r, std::sqrt(3.0) * r, 0}, r),
-      sphere({r, r / std::sqrt(3.0), h + 1e-5}, r)});
+  sys.add_particles(std::vector<ParticleInit>{sphere({0, 0, 0}, r), sphere({2 * r, 0, 0}, r),
+                                              sphere({r, std::sqrt(3.0) * r, 0}, r),
+                                              sphere({r, r / std::sqrt(3.0), h + 1e-5}, r)});
   sys.freeze(std::vector<std::uint8_t>{1, 1, 1, 0});
   sys.advance(100000);  // 1 s
   const auto& p = sys.particles();

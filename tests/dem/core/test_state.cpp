@@ -142,14 +142,15 @@ TEST_CASE("Save/restore mid-run continues bitwise identically", "[dem][restart]"
     REQUIRE(row.size() == ref.particle_count() + 1);
     REQUIRE(shear.size() == 3 * nbr.size());
     REQUIRE(rhist.size() == shear.size());  // this scene has rolling resistance
-    CHECK(nbr.size() > 10);  // 24 pairs touch at step 600
+    CHECK(nbr.size() > 10);                 // 24 pairs touch at step 600
     std::size_t unordered = 0, springless = 0;
     for (std::size_t i = 0; i + 1 < row.size(); ++i)
       for (auto k = row[i]; k < row[i + 1]; ++k) {
         const auto u = static_cast<std::size_t>(k);
         if (k > row[i] && nbr[u - 1] >= nbr[u]) ++unordered;
         bool spring = false;
-        for (int c = 0; c < 3; ++c) spring = spring || shear[3 * u + c] != 0 || rhist[3 * u + c] != 0;
+        for (int c = 0; c < 3; ++c)
+          spring = spring || shear[3 * u + c] != 0 || rhist[3 * u + c] != 0;
         if (!spring) ++springless;
       }
     CHECK(unordered == 0);

@@ -264,8 +264,9 @@ TEST_CASE("remove_by = \"top\" removes the rocks that reach above remove_above",
   const std::string base = replace(kRocks, "threads = 1\n", "threads = 1\nremove_above = 0.5\n");
   DemRun all(parse(kRocks), "", 1, 0.0, nullptr);
   DemRun by_centre(parse(base), "", 1, 0.0, nullptr);
-  DemRun by_top(parse(replace(base, "remove_above = 0.5", "remove_above = 0.5\nremove_by = \"top\"")),
-                "", 1, 0.0, nullptr);
+  DemRun by_top(
+      parse(replace(base, "remove_above = 0.5", "remove_above = 0.5\nremove_by = \"top\"")), "", 1,
+      0.0, nullptr);
   std::size_t reaching = 0, centre_below = 0;
   for (std::size_t i = 0; i < all.system().particles().size(); ++i) {
     const double top = top_of(all.system(), i);
@@ -280,8 +281,9 @@ TEST_CASE("remove_by = \"top\" removes the rocks that reach above remove_above",
     CHECK(top_of(by_top.system(), i) <= 0.5);
   CHECK_THAT(error_of(replace(kRocks, "threads = 1\n", "threads = 1\nremove_by = \"top\"\n")),
              Catch::Contains("remove_by") && Catch::Contains("needs remove_above"));
-  CHECK_THAT(error_of(replace(base, "remove_above = 0.5", "remove_above = 0.5\nremove_by = \"any\"")),
-             Catch::Contains("remove_by") && Catch::Contains("top"));
+  CHECK_THAT(
+      error_of(replace(base, "remove_above = 0.5", "remove_above = 0.5\nremove_by = \"any\"")),
+      Catch::Contains("remove_by") && Catch::Contains("top"));
 }
 
 TEST_CASE("[dem.freeze]: the particles outside the active box are held from its time on",
@@ -335,8 +337,9 @@ interval = 0.001
 TEST_CASE("a bed that blows up while it settles stops there, naming the time", "[scene][poly]") {
   // Rocks thrown onto the floor at 40 m/s press into it by more than half their dilation in
   // the first hundredth of a second: the settling (0.5 s asked) stops within it.
-  const std::string t = replace(replace(kRocks, "threads = 1\n", "threads = 1\nsettle_time = 0.5\n"),
-                                "count = 60\n", "count = 60\nvelocity = [0.0, 0.0, -40.0]\n");
+  const std::string t =
+      replace(replace(kRocks, "threads = 1\n", "threads = 1\nsettle_time = 0.5\n"), "count = 60\n",
+              "count = 60\nvelocity = [0.0, 0.0, -40.0]\n");
   std::string message;
   try {
     DemRun run(parse(t), "", 1, 0.0, nullptr);

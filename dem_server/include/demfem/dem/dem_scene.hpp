@@ -102,8 +102,8 @@ inline constexpr double kBytesPerParticle = 2048.0;
 /// are held there (DemSystem::freeze), at `time` and every `interval` after it.
 struct FreezeSpec {
   bool enabled = true;
-  double time = 0.0;      ///< s: the first freezing
-  double interval = 0.0;  ///< s: later ones (0: only the first)
+  double time = 0.0;                               ///< s: the first freezing
+  double interval = 0.0;                           ///< s: later ones (0: only the first)
   std::array<double, 3> active_lo{}, active_hi{};  ///< centres in this box are never frozen, m
   double max_speed = 0.01;  ///< m/s: frozen when |v| + |omega| r (r: bounding radius) is below
 };
