@@ -47,10 +47,21 @@ std::string substitute(std::string s, const fs::path& output, const fs::path& sc
 
 // Runs a child to its end; a stop request (Ctrl-C) is forwarded by SignalGuard.
 int run_child(const std::string& label, const fs::path& exe, const std::vector<std::string>& args) {
+  // A stop signal (Ctrl-C, SIGTERM, a sweep or Slurm stopping the run) goes on to the child,
+  // whose pid the handler knows from start(): a prepare run or a post step must not outlive
+  // its launcher (it did, running its scene to the end, segments and all). A child that has
+  // not ended 10 s after the signal is killed.
+  SignalGuard signals;
   SolverProcess p(label, exe, args);
   p.start();
   for (;;) {
-    if (auto c = p.wait_for(std::chrono::milliseconds(500))) return *c;
+    if (auto c = p.wait_for(std::chrono::milliseconds(500))) {
+      return SignalGuard::stop_flag().load() ? 128 + SignalGuard::signal_number() : *c;
+    }
+    if (SignalGuard::stop_flag().load()) {
+      p.stop(std::chrono::seconds(10));
+      return 128 + SignalGuard::signal_number();
+    }
   }
 }
 
@@ -207,8 +218,8 @@ int run_prepare_scenes(const scene::Document& doc, const fs::path& bin_dir, bool
   ::flock(fd, LOCK_UN);
   ::close(fd);
   // bad input and a blow-up keep their status (a sweep does not retry them: the same steps
-  // blow up again); any other failure is 1
-  return code == 2 || code == 3 ? code : (code != 0 ? 1 : 0);
+  // blow up again), and so does a stop signal (128 + N); any other failure is 1
+  return code == 2 || code == 3 || code > 128 ? code : (code != 0 ? 1 : 0);
 }
 
 }  // namespace demfem::coupling

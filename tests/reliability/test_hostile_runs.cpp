@@ -16,6 +16,7 @@
 #include "demfem/coupling/checkpoint.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "hdf5_patch.hpp"
+#include "demfem_test/box_scene.hpp"
 #include "hostile_run.hpp"
 
 using namespace hostile;  // NOLINT: the shared helpers of hostile_run.hpp
@@ -395,4 +396,55 @@ TEST_CASE("resume refuses a checkpoint whose state or scene cannot be continued 
     CHECK_THAT(r.err, Catch::Contains("the scene differs from the one checkpoint"));
     check_nothing_left(r.out);
   }
+}
+
+TEST_CASE("SIGTERM to the launcher while a prepare scene runs ends that run too") {
+  // 2026-12-02: a stop signal during a [dem.load] preparation ended the launcher only; the
+  // prepare run went on with its dem_server and segment to the end of its scene.
+  TempDir d;
+  demfem::test::BoxScene box;
+  box.end_time = "0.02";
+  const std::string lattice = R"(
+[[dem.lattice]]
+material = "wheat"
+lo = [0.005, 0.005, 0.005]
+hi = [0.035, 0.035, 0.03]
+diameter = 0.004
+spacing = 0.005
+)";
+  {
+    std::ofstream prep(d.path / "prep.toml");  // settles for ever (10^8 steps)
+    std::string t = box.text();
+    t.replace(t.find("threads = 1\n"), 12, "threads = 1\nsettle_time = 1000.0\n");
+    prep << t << lattice << "\n[dem.output]\nstate = true\n";
+  }
+  {
+    std::ofstream top(d.path / "top.toml");
+    top << box.text() << "\n[dem.load]\nscene = \"prep.toml\"\n";
+  }
+  const Launched l = start(d.path, {(d.path / "top.toml").string()});
+  REQUIRE(eventually(
+      [&] { return !started_pids(read_text(d.path / "stdout.txt")).empty(); }, 30s));
+  std::this_thread::sleep_for(500ms);  // the prepare run's dem_server is settling
+  const std::string before = read_text(d.path / "stdout.txt");
+  const auto t0 = std::chrono::steady_clock::now();
+  ::kill(l.pid, SIGTERM);
+  const Ended r = demfem::test::wait_for(l);
+  INFO(r.out << r.err);
+  CHECK(r.status == 128 + SIGTERM);
+  CHECK(seconds_since(t0) < 5.0);
+  check_nothing_left(before + r.out);  // the prepare run's dem_server and its segments
+  // and no process of the prepare scene is left (its own demfem_run included)
+  CHECK(eventually(
+      [&] {
+        for (const auto& e : fs::directory_iterator("/proc")) {
+          const std::string name = e.path().filename().string();
+          if (name.find_first_not_of("0123456789") != std::string::npos) continue;
+          std::ifstream in(e.path() / "cmdline");
+          const std::string cmd((std::istreambuf_iterator<char>(in)), {});
+          if (cmd.find((d.path / "prep.toml").string()) != std::string::npos) return false;
+        }
+        return true;
+      },
+      5s));
 }
