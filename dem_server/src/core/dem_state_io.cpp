@@ -178,8 +178,10 @@ template <class ImplT>  // DemSystem::Impl (a private type: deduced)
 PairsWithSprings pairs_with_springs(const ImplT& I) {
   PairsWithSprings out;
   const std::size_t n = I.row.empty() ? 0 : I.row.size() - 1;
-  const bool rolling = I.rhist.size() == I.shear.size();
   out.row.assign(I.row.empty() ? 0 : n + 1, 0);
+  // without friction no pair has a spring (and no shear array): no pair is state
+  if (I.shear.size() != 3 * I.nbr.size()) return out;
+  const bool rolling = I.rhist.size() == I.shear.size();
   std::vector<std::pair<std::int32_t, std::size_t>> kept;  // (j, pair index)
   auto spring = [](const std::vector<double>& h, std::size_t k) {
     return h[3 * k] != 0.0 || h[3 * k + 1] != 0.0 || h[3 * k + 2] != 0.0;
