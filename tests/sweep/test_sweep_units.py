@@ -181,6 +181,12 @@ class SweepFile(unittest.TestCase):
         self.refused(SWEEP.replace('reduce = "max"', 'reduce = "max"\nat = 0.1'), "exactly one")
         self.refused(SWEEP.replace('reduce = "max"', 'reduce = "mean"\nwindow = [2, 1]'),
                      "t0 < t1")
+        self.refused(SWEEP.replace('reduce = "max"', 'reduce = "mean"\nlast = 0'),
+                     "quantity[0].last", "range > 0")
+        self.refused(SWEEP.replace('reduce = "max"', 'reduce = "mean"\nlast = 1\nwindow = [0, 1]'),
+                     "exactly one of 'window'")
+        self.refused(SWEEP.replace('reduce = "max"', 'reduce = "final"\nlast = 1'),
+                     "does not apply to 'final'")
         self.refused(SWEEP.replace("first_seed = 5", "seeds = [1, 1]"), "a seed twice")
         self.refused(SWEEP.replace('scene = "scene.toml"', 'scene = "nope.toml"'),
                      "key 'sweep.scene'", "cannot read")
@@ -225,6 +231,10 @@ class Extraction(unittest.TestCase):
                                delta=1e-15)
         t, v = self.value(kind="series", window=(1.0, 2.0))
         self.assertEqual((t, v), ([1.0, 2.0], [2.0, 1.0]))
+        # last = 2.5: the window [1.5, 4] from the series' own end (1.5 at 1.5): 0.625 + 6.
+        self.assertAlmostEqual(self.value(kind="mean", last=2.5), 6.625 / 2.5, delta=1e-15)
+        self.assertEqual(self.value(kind="min", last=2.5), 1.0)
+        self.assertEqual(self.value(kind="series", last=2.0), ([2.0, 4.0], [1.0, 5.0]))
         self.assertEqual(interpolate(self.T, self.V, -1.0), 0.0)
 
     def test_errors(self):

@@ -5,7 +5,9 @@ column:
 * at = T, method "linear": linear interpolation between the two rows around T (a row at T
   exactly gives its value); method "nearest": the row nearest to T (the earlier on a tie).
   T outside the series' time span is an error.
-* reduce = "final": the last row. "max", "min": over the rows with t in the window.
+* reduce = "final": the last row. "max", "min": over the rows with t in the window (fixed
+  times, or with `last` = D the member's own last D seconds: members that run for different
+  times, such as a time-scale study's).
   "mean": the time average over the window (clipped to the series' span) by the trapezoidal
   rule, the window's ends interpolated linearly. "series": the rows in the window, kept as a
   time series (plotted over time; not a column of members.csv).
@@ -93,6 +95,8 @@ def extract(q, t, v, where, member_id):
             return v[best]
         return interpolate(t, v, q.at)
     t0, t1 = q.window
+    if q.last == q.last:  # not NaN: members of another duration each take their own end
+        t0, t1 = t[-1] - q.last, t[-1]
     idx = [i for i in range(len(t)) if t0 <= t[i] <= t1]
     if q.kind == "series":
         if not idx:

@@ -169,6 +169,7 @@ class Quantity:
     at: float = math.nan
     method: str = "linear"
     window: tuple = (-math.inf, math.inf)
+    last: float = math.nan  # > 0: the window is the member's last `last` seconds instead
     where: str = ""     # "file:line: key 'quantity[i]'" for messages at collection
 
 
@@ -396,6 +397,13 @@ def read_sweep_file(path):
                             math.isfinite(x) for x in w) or not w[0] < w[1]):
                 t.fail("window", "must be [t0, t1] in s with t0 < t1")
             q.window = (float(w[0]), float(w[1]))
+        if t.has("last"):
+            if q.kind in ("at", "final"):
+                t.fail("last", f"does not apply to {q.kind!r}")
+            if t.has("window"):
+                t.fail("last", "exactly one of 'window' (fixed times) and 'last' (the member's "
+                       "last seconds) may be given")
+            q.last = t.number("last", lo=0.0, lo_open=True)
         t.finish()
         quantities.append(q)
 
