@@ -9,8 +9,10 @@
 // use by another run or not writable; 3 blow-up (the diagnosis names step and quantity, or a
 // solver reported a non-finite or unstable state); 4 a solver kept dying after
 // checkpoint.max_retries restarts from the same checkpoint; 128 + N stopped by signal N
-// (SIGINT: 130, SIGTERM: 143). Every run that got its output folder leaves run.json there
-// (run_record.hpp) saying how it ended.
+// (SIGINT: 130, SIGTERM: 143; SIGUSR2: 140 after its checkpoint). SIGUSR1 asks for a
+// checkpoint at the next coupling-step boundary and the run goes on; SIGUSR2 for one and then
+// a stop (`--resume` continues from it). Every run that got its output folder leaves run.json
+// there (run_record.hpp) saying how it ended.
 
 #include <unistd.h>
 
@@ -77,12 +79,15 @@ struct Options {
   std::string fem_backend;        // --fem-backend: overrides fem.backend ("" = the scene's)
 };
 
-// --debug-kill dem:17, fem:5:always, coupler:30 (docs/reliability.md). Testing only.
+// --debug-kill dem:17, fem:5:always, coupler:30, job:12:usr2 (docs/reliability.md). Testing
+// only. ROLE job: the signal (SIGUSR1/SIGUSR2, a checkpoint request) goes to every process of
+// the run, the launcher and both solvers, as Slurm's --signal sends it to a job's processes.
 struct DebugKill {
   std::string role;
   std::int64_t step = -1;
   bool always = false;
   bool stop = false;
+  int job_signal = 0;
   bool fired = false;
 };
 
@@ -99,6 +104,8 @@ std::optional<DebugKill> parse_debug_kill(const std::string& text) {
       k.always = true;
     } else if (how == "stop") {
       k.stop = true;  // SIGSTOP: a hung process, found by its stale heartbeat
+    } else if (how == "usr1" || how == "usr2") {
+      k.job_signal = how == "usr1" ? SIGUSR1 : SIGUSR2;
     } else {
       throw std::invalid_argument(text);
     }
@@ -107,7 +114,8 @@ std::optional<DebugKill> parse_debug_kill(const std::string& text) {
   std::size_t used = 0;
   k.step = std::stoll(rest, &used);
   if (used != rest.size() || k.step < 0 ||
-      (k.role != "dem" && k.role != "fem" && k.role != "coupler")) {
+      (k.role != "dem" && k.role != "fem" && k.role != "coupler" && k.role != "job") ||
+      ((k.role == "job") != (k.job_signal != 0))) {
     throw std::invalid_argument(text);
   }
   return k;
@@ -363,11 +371,11 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   } catch (const std::exception&) {
     std::fprintf(stderr,
                  "demfem run: --debug-kill '%s': expected ROLE:STEP[:always|:stop] with ROLE dem, "
-                 "fem or coupler and STEP >= 0\n",
+                 "fem or coupler, or job:STEP:usr1|usr2, and STEP >= 0\n",
                  opt.debug_kill.c_str());
     return kExitUsage;
   }
-  if (!remote && debug_kill && debug_kill->role != "coupler") {
+  if (!remote && debug_kill && debug_kill->role != "coupler" && debug_kill->role != "job") {
     std::fprintf(stderr,
                  "demfem run: --debug-kill %s needs solver processes (not with --in-process)\n",
                  opt.debug_kill.c_str());
@@ -482,6 +490,15 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     std::fprintf(stderr, "demfem run: %s\n", m.c_str());
   };
   control.scene_hash = record.scene_hash;
+  control.checkpoint_request = [] {
+    using Request = RunControl::CheckpointRequest;
+    switch (SignalGuard::take_checkpoint_request()) {
+      case SIGUSR1: return Request::go_on;
+      case SIGUSR2: return Request::stop;
+      default: return Request::none;
+    }
+  };
+  control.stop = [] { SignalGuard::request_stop(SIGUSR2); };
   // The folder locks are checked now and then while the run goes on: a folder deleted under a
   // running run (and perhaps made again by another) is no longer this run's to write.
   auto last_lock_check = std::chrono::steady_clock::now();
@@ -769,6 +786,16 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
         control.after_send = [&](protocol::Role role, std::int64_t step) {
           DebugKill& k = *debug_kill;
           if (step != k.step || (k.fired && !k.always)) return;
+          if (k.role == "job") {
+            if (role != protocol::Role::dem) return;
+            k.fired = true;
+            std::fprintf(stderr, "demfem run: --debug-kill: signal %d to every process in step %lld\n",
+                         k.job_signal, static_cast<long long>(step));
+            for (SolverProcess* p : {dem_proc.get(), fem_proc.get()})
+              if (p) ::kill(p->pid(), k.job_signal);
+            ::raise(k.job_signal);
+            return;
+          }
           if (k.role == "coupler") {
             std::fflush(stdout);
             ::raise(SIGKILL);
@@ -785,9 +812,10 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     } else {
       if (debug_kill) {
         control.after_send = [&](protocol::Role, std::int64_t step) {
-          if (step != debug_kill->step) return;
+          if (step != debug_kill->step || debug_kill->fired) return;
+          debug_kill->fired = true;
           std::fflush(stdout);
-          ::raise(SIGKILL);
+          ::raise(debug_kill->job_signal != 0 ? debug_kill->job_signal : SIGKILL);
         };
       }
       auto dem = make_local_dem(*doc, settings, out_dir);
@@ -899,15 +927,17 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   // ---- end the solvers: Shutdown, then wait, then signals ---------------------------------
   // After a stop signal the solvers were sent SIGTERM already: no Shutdown, a short grace.
   // A lost folder: the solvers are stopped as by a signal, so that they write no end state
-  // there (in process, the adapters are told so).
+  // there. In process, the adapters are told so after a stop signal too: a solver process
+  // stopped by SIGTERM writes none, and an end-state snapshot beyond the last checkpoint
+  // would stay in the output series of a `--resume` (an extra fem_NNNNNN.h5).
   const bool stopping = SignalGuard::stop_flag().load() || folder_lost;
   if (folder_lost) {
     for (auto* p : {dem_proc.get(), fem_proc.get()})
       if (p) p->signal(SIGTERM);
-    if (auto* local = dynamic_cast<LocalLink*>(link.get())) {
-      for (auto role : {protocol::Role::dem, protocol::Role::fem})
-        drop_end_state(local->backend(role));
-    }
+  }
+  if (auto* local = dynamic_cast<LocalLink*>(link.get()); local && stopping) {
+    for (auto role : {protocol::Role::dem, protocol::Role::fem})
+      drop_end_state(local->backend(role));
   }
   if (link && !stopping) link->shutdown();
   for (auto* p : {dem_proc.get(), fem_proc.get()}) {
@@ -1008,7 +1038,8 @@ int main(int argc, char** argv) {
       "Runs a demfem scene: starts dem_server and/or fem_server as the scene needs, couples "
       "them, and exits with the run's status (0 ok, 1 failed, 2 bad input, 3 blow-up, 4 a solver "
       "kept dying, "
-      "128+N signal N)."};
+      "128+N signal N). SIGUSR1: a checkpoint at the next coupling step, then on; SIGUSR2: a "
+      "checkpoint, then stop (140)."};
   app.add_option("SCENE", opt.scene, "scene file (TOML)")->required();
   app.add_option("--bin-dir", opt.bin_dir,
                  "folder with dem_server and fem_server (default: this program's folder)");
@@ -1055,7 +1086,8 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.1, 1e6));
   app.add_option("--debug-kill", opt.debug_kill,
                  "testing only: SIGKILL (or with :stop SIGSTOP) a process at a coupling step, "
-                 "ROLE:STEP[:always|:stop] with ROLE dem, fem or coupler (docs/reliability.md)");
+                 "ROLE:STEP[:always|:stop] with ROLE dem, fem or coupler; or job:STEP:usr1|usr2, "
+                 "a checkpoint request to every process (docs/reliability.md)");
   try {
     app.parse(argc, argv);
     opt.hello_timeout_given = app.count("--hello-timeout") > 0;

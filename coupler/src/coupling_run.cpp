@@ -857,6 +857,27 @@ RunSummary CouplingRun::run() {
           if (cps.enabled && last_cp_step != sum.steps) take_checkpoint(sum.steps);
           done = true;
         } else {
+          using Request = RunControl::CheckpointRequest;
+          const Request asked =
+              control_.checkpoint_request ? control_.checkpoint_request() : Request::none;
+          const bool stop_after = asked == Request::stop && control_.stop;
+          if (asked != Request::none) {
+            const std::string at = "step " + std::to_string(i) + " (t = " +
+                                   fmt(static_cast<double>(i) * s.coupling_dt) + " s)";
+            if (!cps.enabled) {
+              report("a checkpoint was asked for at " + at +
+                     ", but the scene has no [checkpoint]: none written" +
+                     (stop_after ? "; stopping, nothing to resume from" : ""));
+            } else {
+              if (last_cp_step != i) take_checkpoint(i);
+              report("checkpoint of " + at + " written on request (" + last_cp->string() +
+                     (stop_after ? "); stopping: `--resume` continues from it" : ")"));
+            }
+            if (stop_after) {
+              control_.stop();
+              continue;  // the stop check at the top ends the run
+            }
+          }
           if (checkpoint_due(i)) take_checkpoint(i);
           if (!one_step(i)) ++i;
         }

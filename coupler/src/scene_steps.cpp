@@ -45,8 +45,10 @@ std::string substitute(std::string s, const fs::path& output, const fs::path& sc
   return s;
 }
 
-// Runs a child to its end; a stop request (Ctrl-C) is forwarded by SignalGuard.
-int run_child(const std::string& label, const fs::path& exe, const std::vector<std::string>& args) {
+// Runs a child to its end; a stop request (Ctrl-C) is forwarded by SignalGuard, and with
+// `checkpoint_requests` (a prepare scene's demfem_run) so is a checkpoint request (SIGUSR1/2).
+int run_child(const std::string& label, const fs::path& exe, const std::vector<std::string>& args,
+              bool checkpoint_requests) {
   // A stop signal (Ctrl-C, SIGTERM, a sweep or Slurm stopping the run) goes on to the child,
   // whose pid the handler knows from start(): a prepare run or a post step must not outlive
   // its launcher (it did, running its scene to the end, segments and all). A child that has
@@ -62,6 +64,8 @@ int run_child(const std::string& label, const fs::path& exe, const std::vector<s
       p.stop(std::chrono::seconds(10));
       return 128 + SignalGuard::signal_number();
     }
+    if (const int sig = SignalGuard::take_checkpoint_request(); sig != 0 && checkpoint_requests)
+      p.signal(sig);
   }
 }
 
@@ -78,7 +82,7 @@ int run_prepare_child(const std::string& label, const dem::ParticleSource& src,
   ::setenv(kDepthVariable, std::to_string(depth + 1).c_str(), 1);
   int code = 1;
   try {
-    code = run_child(label, bin_dir / "demfem_run", args);
+    code = run_child(label, bin_dir / "demfem_run", args, true);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "demfem run: %s\n", e.what());
   }
@@ -142,7 +146,7 @@ int run_post_steps(const std::vector<PostStep>& steps, const fs::path& output_di
     std::fflush(stdout);
     int code = 0;
     try {
-      code = run_child("post step " + s.tool, exe, args);
+      code = run_child("post step " + s.tool, exe, args, false);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "demfem run: post step %s (%s): %s\n", s.tool.c_str(), s.where.c_str(),
                    e.what());

@@ -23,6 +23,7 @@ constexpr int kMaxChildren = 8;
 std::array<std::atomic<pid_t>, kMaxChildren> g_children{};
 std::atomic<bool> g_stop{false};
 std::atomic<int> g_signal{0};
+std::atomic<int> g_checkpoint_request{0};
 static_assert(std::atomic<pid_t>::is_always_lock_free);
 
 void on_signal(int sig) {
@@ -39,6 +40,12 @@ void on_signal(int sig) {
 constexpr int kSignals[] = {SIGINT, SIGTERM, SIGHUP, SIGPIPE};
 constexpr int kSignalCount = static_cast<int>(std::size(kSignals));
 struct sigaction g_old[kSignalCount];
+
+// A long run asked for a checkpoint (SIGUSR1) or for a checkpoint and a stop (SIGUSR2): a
+// Slurm job near its time limit (`#SBATCH --signal=B:USR2@120`), a user who needs the machine.
+void on_checkpoint_signal(int sig) { g_checkpoint_request.store(sig); }
+constexpr int kCheckpointSignals[] = {SIGUSR1, SIGUSR2};
+struct sigaction g_old_checkpoint[std::size(kCheckpointSignals)];
 
 }  // namespace
 
@@ -160,10 +167,20 @@ SignalGuard::SignalGuard() {
     sa.sa_flags = 0;  // no SA_RESTART: blocking calls return early with EINTR
     ::sigaction(kSignals[i], &sa, &g_old[i]);
   }
+  g_checkpoint_request.store(0);
+  for (std::size_t i = 0; i < std::size(kCheckpointSignals); ++i) {
+    struct sigaction sa {};
+    sa.sa_handler = on_checkpoint_signal;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = SA_RESTART;  // a request interrupts nothing
+    ::sigaction(kCheckpointSignals[i], &sa, &g_old_checkpoint[i]);
+  }
 }
 
 SignalGuard::~SignalGuard() {
   for (int i = 0; i < kSignalCount; ++i) ::sigaction(kSignals[i], &g_old[i], nullptr);
+  for (std::size_t i = 0; i < std::size(kCheckpointSignals); ++i)
+    ::sigaction(kCheckpointSignals[i], &g_old_checkpoint[i], nullptr);
 }
 
 const std::atomic<bool>& SignalGuard::stop_flag() {
@@ -171,6 +188,12 @@ const std::atomic<bool>& SignalGuard::stop_flag() {
 }
 int SignalGuard::signal_number() {
   return g_signal.load();
+}
+int SignalGuard::take_checkpoint_request() {
+  return g_checkpoint_request.exchange(0);
+}
+void SignalGuard::request_stop(int sig) {
+  on_signal(sig);
 }
 
 }  // namespace demfem::coupling

@@ -638,3 +638,57 @@ TEST_CASE("after a resume the wall-time shares are of the same wall time") {
   CHECK(shares("wall time of the whole run \\(earlier sessions up to the checkpoint, and this "
                "one\\)") <= 100.5);
 }
+
+TEST_CASE("SIGUSR2 to every process: a checkpoint at the next step, exit 140, --resume to the same bits") {
+  // A Slurm job near its time limit (`--signal=USR2@120`, which reaches the solvers too) or a
+  // user who needs the machine: nothing since the last periodic checkpoint is lost.
+  for (const bool in_process : {false, true}) {
+    INFO((in_process ? "--in-process" : "three processes"));
+    TempDir d;
+    std::vector<std::string> args = {"--debug-kill", "job:23:usr2"};
+    if (in_process) args.push_back("--in-process");
+    const Result r = run(d.path, args);
+    INFO(r.out << r.err);
+    REQUIRE(r.status == 128 + SIGUSR2);
+    CHECK(r.err.find("checkpoint of step 24 (t = 0.0024 s) written on request") !=
+          std::string::npos);
+    // The solvers ignored the signal (they would have died of it): nothing was restarted.
+    CHECK(r.err.find("restarting") == std::string::npos);
+    CHECK(fs::exists(d.path / kOut / "checkpoints" / "step-000024" / "manifest.json"));
+    CHECK(read_csv(d.path / kOut / "coupling.csv").size() == 25);  // header + steps 0..23
+    CHECK(read_text(d.path / kOut / "run.json").find("\"status\": \"interrupted\"") !=
+          std::string::npos);
+    check_nothing_left({r.out});
+    const Result resumed = run(d.path, {"--resume"});
+    INFO(resumed.out << resumed.err);
+    REQUIRE(resumed.status == 0);
+    CHECK(resumed.err.find("step-000024 (step 24") != std::string::npos);
+    check_same_results(reference(), d.path / kOut);
+    check_nothing_left({resumed.out});
+  }
+}
+
+TEST_CASE("SIGUSR1 to every process: a checkpoint at the next step, the run goes on to the same bits") {
+  TempDir d;
+  const Result r = run(d.path, {"--debug-kill", "job:23:usr1"});
+  INFO(r.out << r.err);
+  REQUIRE(r.status == 0);
+  CHECK(r.err.find("checkpoint of step 24 (t = 0.0024 s) written on request") != std::string::npos);
+  CHECK(r.err.find("restarting") == std::string::npos);
+  // Steps 0, 10, 20, 24 (asked for), 30, 40 and the end, 50.
+  CHECK(r.out.find("7 checkpoints") != std::string::npos);
+  check_same_results(reference(), d.path / kOut);
+  check_nothing_left({r.out});
+
+  // Without [checkpoint] the request is answered with a message, and the run goes on.
+  TempDir e;
+  const fs::path scene = variant(e.path, {{"[checkpoint]\n", "\n"},
+                                          {"every_steps = 10 ", "# every_steps = 10 "},
+                                          {"keep = 2 ", "# keep = 2 "},
+                                          {"max_retries = 3 ", "# max_retries = 3 "}});
+  const Result n = run(e.path, {"--debug-kill", "job:23:usr1"}, scene);
+  INFO(n.out << n.err);
+  REQUIRE(n.status == 0);
+  CHECK(n.err.find("the scene has no [checkpoint]: none written") != std::string::npos);
+  check_same_results(reference(), e.path / kOut);
+}

@@ -41,11 +41,20 @@ class SignalGuard {
     sigemptyset(&sa.sa_mask);
     ::sigaction(SIGTERM, &sa, &old_term_);
     ::sigaction(SIGINT, &sa, &old_int_);
+    // SIGUSR1/2 ask demfem_run for a checkpoint; a signal sent to the whole process group or
+    // job step (Slurm's --signal without B:) must not end a solver by the default action.
+    struct sigaction ignore {};
+    ignore.sa_handler = SIG_IGN;
+    sigemptyset(&ignore.sa_mask);
+    ::sigaction(SIGUSR1, &ignore, &old_usr1_);
+    ::sigaction(SIGUSR2, &ignore, &old_usr2_);
   }
   ~SignalGuard() {
     if (!enabled_) return;
     ::sigaction(SIGTERM, &old_term_, nullptr);
     ::sigaction(SIGINT, &old_int_, nullptr);
+    ::sigaction(SIGUSR1, &old_usr1_, nullptr);
+    ::sigaction(SIGUSR2, &old_usr2_, nullptr);
   }
   SignalGuard(const SignalGuard&) = delete;
   SignalGuard& operator=(const SignalGuard&) = delete;
@@ -54,6 +63,8 @@ class SignalGuard {
   bool enabled_;
   struct sigaction old_term_ {};
   struct sigaction old_int_ {};
+  struct sigaction old_usr1_ {};
+  struct sigaction old_usr2_ {};
 };
 
 struct Interrupted {

@@ -179,6 +179,13 @@ struct RunControl {
   /// Called before every coupling step and checkpoint; throws OutputFolderLost when the output
   /// folder is no longer this run's (demfem_run checks its folder lock, at most once a second).
   std::function<void()> check_output_folder;
+  /// Polled before every coupling step: a checkpoint asked for from outside the run
+  /// (demfem_run: SIGUSR1 / SIGUSR2). With [checkpoint], one is taken at this step boundary
+  /// (unless the last one is of this step); with `stop`, `stop` is called then, which makes
+  /// the run end as after a stop signal (Interrupted).
+  enum class CheckpointRequest { none, go_on, stop };
+  std::function<CheckpointRequest()> checkpoint_request;
+  std::function<void()> stop;
   /// Recorded in every checkpoint (coupler.h5): scene_hash() of the scene, so that a resume
   /// can tell a changed scene; and the absolute output folder, so that a run resumed into
   /// another folder finds the series it continues.

@@ -83,6 +83,13 @@ class SignalGuard {
   static const std::atomic<bool>& stop_flag();
   /// The signal that set it (0 = none).
   static int signal_number();
+
+  /// A checkpoint request: SIGUSR1 (take a checkpoint at the next coupling-step boundary and
+  /// go on) or SIGUSR2 (take it, then stop as for SIGTERM); 0 = none. Taking it clears it.
+  /// These signals are not forwarded to the solvers, which ignore them (protocol serve()).
+  static int take_checkpoint_request();
+  /// Stops the run as the stop signal `sig` would: sets the flag, SIGTERM to the children.
+  static void request_stop(int sig);
 };
 
 }  // namespace demfem::coupling

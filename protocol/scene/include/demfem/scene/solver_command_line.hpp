@@ -7,6 +7,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <csignal>
 #include <filesystem>
 #include <iostream>
 #include <optional>
@@ -53,8 +54,12 @@ struct SolverCommandLine {
 };
 
 /// Parses the command line: nullopt to go on, else the exit code (0 after --help, 2 after
-/// a mistake, with CLI11's message).
+/// a mistake, with CLI11's message). Also makes the solver ignore SIGUSR1/SIGUSR2, demfem_run's
+/// checkpoint requests: a request sent to the whole job (Slurm's --signal without B:) must not
+/// end a solver by the default action, also not while dem.settle_time runs before serve().
 inline std::optional<int> parse_solver_command_line(CLI::App& app, int argc, char** argv) {
+  std::signal(SIGUSR1, SIG_IGN);
+  std::signal(SIGUSR2, SIG_IGN);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
