@@ -5,6 +5,8 @@ file reader (messages with file, line, key), the plan, the extraction of quantit
 hand-computed values, the retry classification and the sbatch script."""
 
 import math
+import signal
+import subprocess
 import sys
 import tempfile
 import textwrap
@@ -16,7 +18,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tools"))
 
 from sweep import scene_keys, slurm, stats  # noqa: E402
 from sweep.collect import extract, interpolate  # noqa: E402
-from sweep.member import classify, describe_exit  # noqa: E402
+from sweep.member import Handle, classify, describe_exit  # noqa: E402
 from sweep.plan import build_plan  # noqa: E402
 from sweep.sweep_file import Quantity, SlurmOptions, SweepError, read_sweep_file  # noqa: E402
 
@@ -276,8 +278,26 @@ class Slurm(unittest.TestCase):
                      "#SBATCH --account=proj", "#SBATCH --exclusive",
                      "#SBATCH --output=/scratch/beam/slurm/logs/%A_%a.out",
                      "-m sweep --member-task /scratch/beam/slurm/plan.json "
-                     "\"$SLURM_ARRAY_TASK_ID\""):
+                     "\"$SLURM_ARRAY_TASK_ID\"", "#SBATCH --signal=B:USR2@120"):
             self.assertIn(line, text)
+        # A --signal of the user's replaces ours.
+        text = slurm.script_text(P, Path("/p.json"), 1, False,
+                                 SlurmOptions(options=["--signal=B:USR1@600"]))
+        self.assertIn("#SBATCH --signal=B:USR1@600", text)
+        self.assertNotIn("USR2", text)
+
+    def test_checkpoint_request_forwarded(self):
+        # The task's handler passes SIGUSR1/2 on to demfem_run (here a sleep, which the signal
+        # ends: demfem_run would checkpoint); SIGUSR2 also means no further attempt.
+        h = Handle()
+        h.proc = subprocess.Popen(["sleep", "30"])
+        h.forward(signal.SIGUSR1, False)
+        self.assertEqual(h.proc.wait(timeout=10), -signal.SIGUSR1)
+        self.assertFalse(h.stop.is_set())
+        h.proc = subprocess.Popen(["sleep", "30"])
+        h.forward(signal.SIGUSR2, True)
+        self.assertEqual(h.proc.wait(timeout=10), -signal.SIGUSR2)
+        self.assertTrue(h.stop.is_set())
 
 
 if __name__ == "__main__":

@@ -325,6 +325,10 @@ def member_task(plan_path, index_text):
 
     for s in (signal.SIGINT, signal.SIGTERM):
         signal.signal(s, on_signal)
+    # `#SBATCH --signal=B:USR2@120` (slurm.script_text): a checkpoint, then a clean stop, before
+    # the time limit; SIGUSR1 a checkpoint only. demfem_run takes it at its next coupling step.
+    signal.signal(signal.SIGUSR1, lambda sig, frame: handle.forward(signal.SIGUSR1, False))
+    signal.signal(signal.SIGUSR2, lambda sig, frame: handle.forward(signal.SIGUSR2, True))
     where = {k: os.environ[v] for k, v in (("slurm_job", "SLURM_ARRAY_JOB_ID"),
                                            ("slurm_task", "SLURM_ARRAY_TASK_ID"))
              if v in os.environ}

@@ -79,6 +79,18 @@ class Handle:
                 except ProcessLookupError:
                     pass
 
+    def forward(self, sig, stop):
+        """A checkpoint request (SIGUSR1, or SIGUSR2: checkpoint and stop) for demfem_run;
+        with `stop`, no further attempt is started and the member counts as interrupted."""
+        if stop:
+            self.stop.set()
+        with self._lock:
+            if self.proc is not None and self.proc.poll() is None:
+                try:
+                    os.kill(self.proc.pid, sig)
+                except ProcessLookupError:
+                    pass
+
     def kill(self):
         with self._lock:
             if self.proc is not None and self.proc.poll() is None:

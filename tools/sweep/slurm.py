@@ -17,6 +17,7 @@ from sweep.plan import save_plan
 from sweep.sweep_file import SweepError
 
 JOBS_FILE = "jobs.json"
+CHECKPOINT_BEFORE_LIMIT_S = 120  # s: SIGUSR2 (checkpoint and stop) this long before the limit
 ACTIVE = {"PENDING": "queued", "CONFIGURING": "running", "RUNNING": "running",
           "COMPLETING": "running", "SUSPENDED": "running", "REQUEUED": "queued",
           "RESIZING": "running", "SIGNALING": "running", "STAGE_OUT": "running"}
@@ -72,6 +73,11 @@ def script_text(plan, plan_path, threads, gpu, opt):
             lines.append(f"#SBATCH --{flag}={value}")
     for o in opt.options:
         lines.append(f"#SBATCH {o}")
+    if not any(o.startswith("--signal") for o in opt.options):
+        # Two minutes before the time limit the task asks its demfem_run for a checkpoint and
+        # a stop (cli.member_task): the member goes on from there when the sweep runs again,
+        # instead of from its last periodic checkpoint.
+        lines.append(f"#SBATCH --signal=B:USR2@{CHECKPOINT_BEFORE_LIMIT_S}")
     lines += ["",
               f"export PYTHONPATH={shlex.quote(str(tools))}${{PYTHONPATH:+:$PYTHONPATH}}",
               f"exec {shlex.quote(sys.executable)} -m sweep --member-task "
