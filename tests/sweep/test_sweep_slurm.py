@@ -83,7 +83,7 @@ def _ppid(proc):
 
 def cancelled_and_killed_tasks(tmp, exe):
     f = tmp / "slow.toml"
-    f.write_text(f'[sweep]\nscene = "{SCENE}"\nname = "slow"\n[repetitions]\ncount = 2\n')
+    f.write_text(f'[sweep]\nscene = "{SCENE}"\nname = "slow"\n[repetitions]\ncount = 3\n')
     out = tmp / "slow"
     env = {"DEMFEM_TEST_REAL_RUN": exe, "DEMFEM_TEST_RECORD": "120"}
     run_sweep(out, "--slurm", "--no-check", demfem_run=FAULTS, env=env, sweep_file=f)
@@ -105,11 +105,19 @@ def cancelled_and_killed_tasks(tmp, exe):
     os.kill(task, signal.SIGKILL)
     for c in child:
         os.kill(c, signal.SIGKILL)
+    # What the script's `--signal=B:USR2@120` sends before the limit (the third task runs
+    # once a CPU is free): the task passes it on (a demfem_run would checkpoint and exit 140;
+    # the stand-in dies of it) and records the member interrupted, without another attempt.
+    wait_for(lambda: state("s00_r02") == "running", 60, "the third task running")
+    subprocess.run(["scancel", "--batch", "--signal=USR2", f"{job}_2"], check=True)
     wait_for(lambda: not subprocess.run(["squeue", "-h", "-j", str(job)], capture_output=True,
                                         text=True).stdout.strip(), 60, "the tasks to end")
     r = run_sweep(out, "--status", demfem_run=FAULTS, env=env, sweep_file=f)
-    check("0 done, 0 running, 0 queued, 0 failed, 1 lost, 1 interrupted" in r.stdout,
+    check("0 done, 0 running, 0 queued, 0 failed, 1 lost, 2 interrupted" in r.stdout,
           "--status after scancel")
+    a = json.loads((out / "members" / "s00_r02" / "status.json").read_text())["attempts"]
+    check(len(a) == 1 and a[0]["exit"] == 128 + signal.SIGUSR2,
+          f"s00_r02 after SIGUSR2 to its task: attempts {a}")
     check("s00_r01: lost" in r.stdout and f"Slurm job {job}_1 ended without finishing" in r.stdout,
           "the killed task's member is not reported lost")
     check("s00_r00: interrupted" in r.stdout and "CANCELLED" in r.stdout,
@@ -118,8 +126,8 @@ def cancelled_and_killed_tasks(tmp, exe):
     r = run_sweep(out, "--slurm", "--wait", "--poll", "0.3", "--no-check", demfem_run=FAULTS,
                   env=env, sweep_file=f)
     jobs = json.loads((out / "slurm" / "jobs.json").read_text())["jobs"]
-    check(len(jobs) == 2 and jobs[1]["members"] == [0, 1], f"resubmission: {jobs}")
-    check(state("s00_r00") == "done" and state("s00_r01") == "done", "after resubmission")
+    check(len(jobs) == 2 and jobs[1]["members"] == [0, 1, 2], f"resubmission: {jobs}")
+    check(all(state(f"s00_r0{k}") == "done" for k in range(3)), "after resubmission")
 
 
 if __name__ == "__main__":
