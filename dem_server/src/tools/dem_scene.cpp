@@ -449,6 +449,7 @@ DemScene read_dem_scene(const Table& dem) {
     if (has_mass) q.mass = r.number("mass", Range::positive());
     q.velocity = r.vec3("velocity", std::array<double, 3>{0, 0, 0});
     q.max_attempts = r.integer("max_attempts", 2000, 1, INT64_MAX);
+    q.accept_shortfall = r.choice("shortfall", "error", {"error", "warn"}) == "warn";
     is.shape = shape_index(r);
     is.every = r.number("every", 0.0, Range::non_negative());
     if (is.every > 0) {
@@ -851,9 +852,17 @@ void DemRun::pour() {
         return walls.overlap({x, y, z}, r) > 1e-9 * r;
       };
       try {
+        std::string shortfall;
         add(insert_random(
             q, &system_->particles(),
-            walls.empty() ? std::function<bool(double, double, double, double)>{} : blocked));
+            walls.empty() ? std::function<bool(double, double, double, double)>{} : blocked,
+            &shortfall));
+        if (!shortfall.empty() && log_) {
+          *log_ << "dem: warning: " << in.where << ": " << shortfall
+                << "; the run goes on with these (shortfall = \"warn\")"
+                << (in.every > 0 ? " (repetition " + std::to_string(k) + ")" : std::string())
+                << "\n";
+        }
       } catch (const InsertionError& e) {
         std::ostringstream m;
         m << in.where << ": " << e.what();

@@ -106,7 +106,7 @@ class SphereGrid {
 
 std::vector<ParticleInit> insert_random(
     const RandomInsertion& q, const ParticleState* existing,
-    const std::function<bool(double, double, double, double)>& blocked) {
+    const std::function<bool(double, double, double, double)>& blocked, std::string* shortfall) {
   q.sizes.validate();
   const bool by_count = q.count > 0;
   if (by_count == (q.mass > 0)) {
@@ -236,8 +236,13 @@ std::vector<ParticleInit> insert_random(
       s << "cannot insert " << asked.str() << ": placed only " << out.size() << " particles ("
         << placed_mass << " kg, solid fraction " << placed_mass / q.density / q.region.volume()
         << ") before particle " << out.size() + 1 << " found no free place in " << q.max_attempts
-        << " attempts; enlarge the region or insert in stages";
-      throw InsertionError(s.str());
+        << " attempts";
+      if (!q.accept_shortfall) {
+        s << "; enlarge the region or insert in stages";
+        throw InsertionError(s.str());
+      }
+      if (shortfall) *shortfall = s.str();
+      break;
     }
   }
   // Store the particles in cell order (z, then y, then x; cell = largest diameter), not in the

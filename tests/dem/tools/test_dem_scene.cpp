@@ -307,6 +307,26 @@ TEST_CASE("DemRun builds walls from STL, inserts, and checks dt against Rayleigh
                       Catch::Contains("key 'dem.walls[0].stl'") &&
                           Catch::Contains("floor.stl:2: ends inside a solid"));
   }
+  SECTION("shortfall: \"warn\" keeps what fits and says so; a bad value names the key") {
+    std::ofstream(dir / "scene.toml")
+        << replace(text, "count = 200", "count = 1300\nmax_attempts = 1\nshortfall = \"warn\"");
+    Document d = Document::load(dir / "scene.toml");
+    const DemScene s = read_dem_scene(d.root().required_table("dem"));
+    std::ostringstream log;
+    const DemRun run(s, "", 1, 0.0, &log);
+    CHECK(run.system().particles().size() > 0);
+    CHECK(run.system().particles().size() < 1300);
+    CHECK_THAT(log.str(), Catch::Contains("dem: warning: ") &&
+                              Catch::Contains("key 'dem.insert[0].lo'") &&
+                              Catch::Contains("cannot insert 1300 particles") &&
+                              Catch::Contains("the run goes on with these (shortfall = \"warn\")"));
+    std::ofstream(dir / "scene.toml")
+        << replace(text, "count = 200", "count = 200\nshortfall = \"skip\"");
+    Document bad = Document::load(dir / "scene.toml");
+    CHECK_THROWS_WITH(read_dem_scene(bad.root().required_table("dem")),
+                      Catch::Contains("key 'dem.insert[0].shortfall'") &&
+                          Catch::Contains("warn"));
+  }
   SECTION("an impossible insertion names the scene entry") {
     std::ofstream(dir / "scene.toml") << replace(text, "count = 200", "count = 20000");
     Document d = Document::load(dir / "scene.toml");

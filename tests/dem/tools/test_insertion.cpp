@@ -4,6 +4,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <string>
 
 #include "demfem/dem/insertion.hpp"
 
@@ -98,6 +99,42 @@ TEST_CASE("impossible insertions name what was asked and what was achieved", "[i
     q.count = 1;
     CHECK_THROWS_WITH(insert_random(q), Catch::Contains("narrower than the largest diameter"));
   }
+}
+
+TEST_CASE("shortfall = warn: a full region keeps what it placed, and says so", "[insert]") {
+  RandomInsertion q = wheat_request();
+  q.count = 2400;  // as above: 20 tries per particle cannot place them all
+  q.max_attempts = 20;
+  q.accept_shortfall = true;
+  std::string note;
+  const auto a = insert_random(q, nullptr, {}, &note);
+  CHECK(a.size() > 100);  // 661 here; the strict request throws after the same placements
+  CHECK(a.size() < 2400);
+  CHECK(overlaps(a) == 0);
+  CHECK_THAT(note, Catch::Contains("cannot insert 2400 particles") &&
+                       Catch::Contains("placed only " + std::to_string(a.size()) + " particles") &&
+                       Catch::Contains("found no free place in 20 attempts"));
+  // A request that fits is the same with or without the option, and leaves no note.
+  RandomInsertion fits = wheat_request();
+  fits.count = 1000;
+  const auto strict = insert_random(fits);
+  fits.accept_shortfall = true;
+  std::string none;
+  const auto lenient = insert_random(fits, nullptr, {}, &none);
+  CHECK(none.empty());
+  REQUIRE(lenient.size() == strict.size());
+  for (std::size_t i = 0; i < strict.size(); ++i) {
+    CHECK(lenient[i].position == strict[i].position);
+    CHECK(lenient[i].radius == strict[i].radius);
+  }
+  // The kept ones are the draws before the one that found no place: asking for exactly that
+  // many places the same particles.
+  RandomInsertion exact = q;
+  exact.count = static_cast<std::int64_t>(a.size());
+  exact.accept_shortfall = false;
+  const auto b = insert_random(exact);
+  REQUIRE(b.size() == a.size());
+  for (std::size_t i = 0; i < a.size(); ++i) CHECK(a[i].position == b[i].position);
 }
 
 TEST_CASE("lattice fill and removal above a height", "[insert]") {

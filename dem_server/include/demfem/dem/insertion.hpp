@@ -45,6 +45,10 @@ struct RandomInsertion {
   std::array<double, 3> velocity{};
   std::uint64_t seed = 1;
   std::int64_t max_attempts = 2000;  ///< random positions tried per particle before giving up
+  /// A particle that finds no free place ends the insertion with the particles placed so far
+  /// (reported through insert_random's `shortfall`) instead of throwing: a band filled near
+  /// its capacity, where a few seeds cannot place the last rocks (scene key shortfall = "warn").
+  bool accept_shortfall = false;
   /// Dilated polyhedra instead of spheres: each particle takes a shape of the library
   /// (uniform index) at the size drawn from `sizes` (the library's size definition), a
   /// uniformly random orientation, and the engine shape id shape_base + index (the order in
@@ -66,12 +70,14 @@ inline constexpr double kMaxRandomPackingFraction = 0.40;
 /// request and existing state. Throws InsertionError when the request exceeds
 /// kMaxRandomPackingFraction of the region, when the largest particle does not fit, or when a
 /// particle finds no free place in max_attempts tries (the message names the request and
-/// how many particles / how much mass were placed).
+/// how many particles / how much mass were placed) unless `accept_shortfall`: then the particles
+/// placed so far are returned and `*shortfall` (when given) gets that message.
 /// `blocked(x, y, z, r)`, when given, rejects a position as an overlap does (the scene's walls:
 /// a region may reach into a funnel or across a wall, the particles never do).
 std::vector<ParticleInit> insert_random(
     const RandomInsertion& request, const ParticleState* existing = nullptr,
-    const std::function<bool(double, double, double, double)>& blocked = {});
+    const std::function<bool(double, double, double, double)>& blocked = {},
+    std::string* shortfall = nullptr);
 
 /// @brief Lattice fill: spheres on a simple cubic lattice of the given spacing filling the
 /// box, lowest layer first; optionally with diameters drawn from a distribution and each sphere
