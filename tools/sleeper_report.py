@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Plots and key figures of a sleeper-on-ballast run (thesis ch. 6, cases/sleeper*.toml).
 
-usage: tools/sleeper_report.py OUTPUT_DIR --scene SCENE [--hold T0,T1] [--rock-density RHO]
+usage: tools/sleeper_report.py OUTPUT_DIR --scene SCENE [--hold T0,T1 | last:D] [--rock-density RHO]
                                [--set KEY=VALUE ...]
 
 Reads, from OUTPUT_DIR: fem_monitor.csv (bottom probes b*_uz of the sleeper), sensor_base.csv
@@ -172,7 +172,9 @@ def main(argv):
     ap = argparse.ArgumentParser(description="sleeper run report")
     ap.add_argument("output")
     ap.add_argument("--scene", required=True, help="the load case's scene (TOML)")
-    ap.add_argument("--hold", default=None, help="T0,T1: window of the static hold, s")
+    ap.add_argument("--hold", default=None,
+                    help="T0,T1: window of the static hold, s; or last:D, the run's last D s "
+                         "(runs of another length, e.g. a time-scale study's members)")
     ap.add_argument("--rock-density", type=float, default=None,
                     help="kg/m^3 (default: the scene's granite)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -268,7 +270,11 @@ def main(argv):
             "first": {k: v[first[name]] for k, v in p.items()},
             "last": {k: v[-1] for k, v in p.items()}}
     if a.hold:
-        h0, h1 = (float(x) for x in a.hold.split(","))
+        if a.hold.startswith("last:"):
+            h1 = t[-1]
+            h0 = h1 - float(a.hold[5:])
+        else:
+            h0, h1 = (float(x) for x in a.hold.split(","))
         hold = {"window": [h0, h1]}
         base_hold = window_mean(tb, fb, h0, h1)
         if base_hold is not None and "all_rocks" in packing and fig["rocks_box_volume"]:
@@ -325,7 +331,7 @@ def main(argv):
             held = (f" + frozen rocks' support {h['frozen_support_N']:.1f} N"
                     if "frozen_support_N" in h else "")
             lines.append(
-                f"static hold {h['window']}: base reaction {h['base_reaction_N']:.1f} N "
+                f"static hold [{h['window'][0]:.6g}, {h['window'][1]:.6g}] s: base reaction {h['base_reaction_N']:.1f} N "
                 f"(sd {h['base_reaction_sd_N']:.1f}){held} against rocks {h['rocks_weight_N']:.1f} + "
                 f"cells {h['cells_weight_N']:.1f} + sleeper {h['sleeper_weight_N']:.1f} + load "
                 f"{h['load_N']:.1f} = {h['expected_N']:.1f} N: {100 * h['balance_rel']:+.3f} %")
@@ -366,7 +372,7 @@ def main(argv):
         xs = [c["x"] for c, _, _ in cells]
         ps = [report["hold"]["cell_pressure_kPa"][c["name"]] for c, _, _ in cells]
         ax[1].plot(xs, ps, "o-")
-        ax[1].set_title(f"static hold {report['hold']['window']} s")
+        ax[1].set_title(f"static hold [{report['hold']['window'][0]:.6g}, {report['hold']['window'][1]:.6g}] s")
     ax[1].set_xlabel("cell centre x (m)")
     ax[1].set_ylabel("cell pressure (kPa)")
     ax[1].grid(True)
