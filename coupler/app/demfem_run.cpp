@@ -493,9 +493,12 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   control.checkpoint_request = [] {
     using Request = RunControl::CheckpointRequest;
     switch (SignalGuard::take_checkpoint_request()) {
-      case SIGUSR1: return Request::go_on;
-      case SIGUSR2: return Request::stop;
-      default: return Request::none;
+      case SIGUSR1:
+        return Request::go_on;
+      case SIGUSR2:
+        return Request::stop;
+      default:
+        return Request::none;
     }
   };
   control.stop = [] { SignalGuard::request_stop(SIGUSR2); };
@@ -789,7 +792,8 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
           if (k.role == "job") {
             if (role != protocol::Role::dem) return;
             k.fired = true;
-            std::fprintf(stderr, "demfem run: --debug-kill: signal %d to every process in step %lld\n",
+            std::fprintf(stderr,
+                         "demfem run: --debug-kill: signal %d to every process in step %lld\n",
                          k.job_signal, static_cast<long long>(step));
             for (SolverProcess* p : {dem_proc.get(), fem_proc.get()})
               if (p) ::kill(p->pid(), k.job_signal);

@@ -862,8 +862,8 @@ RunSummary CouplingRun::run() {
               control_.checkpoint_request ? control_.checkpoint_request() : Request::none;
           const bool stop_after = asked == Request::stop && control_.stop;
           if (asked != Request::none) {
-            const std::string at = "step " + std::to_string(i) + " (t = " +
-                                   fmt(static_cast<double>(i) * s.coupling_dt) + " s)";
+            const std::string at = "step " + std::to_string(i) +
+                                   " (t = " + fmt(static_cast<double>(i) * s.coupling_dt) + " s)";
             if (!cps.enabled) {
               report("a checkpoint was asked for at " + at +
                      ", but the scene has no [checkpoint]: none written" +

@@ -43,7 +43,9 @@ struct sigaction g_old[kSignalCount];
 
 // A long run asked for a checkpoint (SIGUSR1) or for a checkpoint and a stop (SIGUSR2): a
 // Slurm job near its time limit (`#SBATCH --signal=B:USR2@120`), a user who needs the machine.
-void on_checkpoint_signal(int sig) { g_checkpoint_request.store(sig); }
+void on_checkpoint_signal(int sig) {
+  g_checkpoint_request.store(sig);
+}
 constexpr int kCheckpointSignals[] = {SIGUSR1, SIGUSR2};
 struct sigaction g_old_checkpoint[std::size(kCheckpointSignals)];
 

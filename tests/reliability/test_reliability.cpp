@@ -639,7 +639,9 @@ TEST_CASE("after a resume the wall-time shares are of the same wall time") {
                "one\\)") <= 100.5);
 }
 
-TEST_CASE("SIGUSR2 to every process: a checkpoint at the next step, exit 140, --resume to the same bits") {
+TEST_CASE(
+    "SIGUSR2 to every process: a checkpoint at the next step, exit 140, --resume to the same "
+    "bits") {
   // A Slurm job near its time limit (`--signal=USR2@120`, which reaches the solvers too) or a
   // user who needs the machine: nothing since the last periodic checkpoint is lost.
   for (const bool in_process : {false, true}) {
@@ -668,7 +670,8 @@ TEST_CASE("SIGUSR2 to every process: a checkpoint at the next step, exit 140, --
   }
 }
 
-TEST_CASE("SIGUSR1 to every process: a checkpoint at the next step, the run goes on to the same bits") {
+TEST_CASE(
+    "SIGUSR1 to every process: a checkpoint at the next step, the run goes on to the same bits") {
   TempDir d;
   const Result r = run(d.path, {"--debug-kill", "job:23:usr1"});
   INFO(r.out << r.err);

@@ -324,8 +324,7 @@ TEST_CASE("DemRun builds walls from STL, inserts, and checks dt against Rayleigh
         << replace(text, "count = 200", "count = 200\nshortfall = \"skip\"");
     Document bad = Document::load(dir / "scene.toml");
     CHECK_THROWS_WITH(read_dem_scene(bad.root().required_table("dem")),
-                      Catch::Contains("key 'dem.insert[0].shortfall'") &&
-                          Catch::Contains("warn"));
+                      Catch::Contains("key 'dem.insert[0].shortfall'") && Catch::Contains("warn"));
   }
   SECTION("an impossible insertion names the scene entry") {
     std::ofstream(dir / "scene.toml") << replace(text, "count = 200", "count = 20000");
