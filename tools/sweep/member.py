@@ -71,17 +71,12 @@ class Handle:
         self._lock = threading.Lock()
 
     def interrupt(self, sig=signal.SIGINT):
-        self.stop.set()
-        with self._lock:
-            if self.proc is not None and self.proc.poll() is None:
-                try:
-                    os.kill(self.proc.pid, sig)
-                except ProcessLookupError:
-                    pass
+        self.forward(sig, True)
 
     def forward(self, sig, stop):
-        """A checkpoint request (SIGUSR1, or SIGUSR2: checkpoint and stop) for demfem_run;
-        with `stop`, no further attempt is started and the member counts as interrupted."""
+        """Sends `sig` to the running demfem_run: a stop (interrupt) or a checkpoint request
+        (SIGUSR1, or SIGUSR2: checkpoint and stop). With `stop`, no further attempt is started
+        and the member counts as interrupted."""
         if stop:
             self.stop.set()
         with self._lock:
