@@ -50,6 +50,11 @@ from sweep import scene_keys
 G = 9.81
 
 
+def window_text(w):
+    """[t0, t1] s, without the round-off of a window taken from a series' last time."""
+    return f"[{w[0]:.6g}, {w[1]:.6g}] s"
+
+
 def window_mean(t, y, t0, t1):
     v = [b for a, b in zip(t, y) if t0 - 1e-9 <= a <= t1 + 1e-9]  # times are sums of steps
     return (sum(v) / len(v)) if v else None
@@ -331,7 +336,7 @@ def main(argv):
             held = (f" + frozen rocks' support {h['frozen_support_N']:.1f} N"
                     if "frozen_support_N" in h else "")
             lines.append(
-                f"static hold [{h['window'][0]:.6g}, {h['window'][1]:.6g}] s: base reaction {h['base_reaction_N']:.1f} N "
+                f"static hold {window_text(h['window'])}: base reaction {h['base_reaction_N']:.1f} N "
                 f"(sd {h['base_reaction_sd_N']:.1f}){held} against rocks {h['rocks_weight_N']:.1f} + "
                 f"cells {h['cells_weight_N']:.1f} + sleeper {h['sleeper_weight_N']:.1f} + load "
                 f"{h['load_N']:.1f} = {h['expected_N']:.1f} N: {100 * h['balance_rel']:+.3f} %")
@@ -372,7 +377,7 @@ def main(argv):
         xs = [c["x"] for c, _, _ in cells]
         ps = [report["hold"]["cell_pressure_kPa"][c["name"]] for c, _, _ in cells]
         ax[1].plot(xs, ps, "o-")
-        ax[1].set_title(f"static hold [{report['hold']['window'][0]:.6g}, {report['hold']['window'][1]:.6g}] s")
+        ax[1].set_title(f"static hold {window_text(report['hold']['window'])}")
     ax[1].set_xlabel("cell centre x (m)")
     ax[1].set_ylabel("cell pressure (kPa)")
     ax[1].grid(True)

@@ -49,6 +49,14 @@ void on_checkpoint_signal(int sig) {
 constexpr int kCheckpointSignals[] = {SIGUSR1, SIGUSR2};
 struct sigaction g_old_checkpoint[std::size(kCheckpointSignals)];
 
+void install(int sig, void (*handler)(int), int flags, struct sigaction* old) {
+  struct sigaction sa {};
+  sa.sa_handler = handler;
+  sigemptyset(&sa.sa_mask);
+  sa.sa_flags = flags;
+  ::sigaction(sig, &sa, old);
+}
+
 }  // namespace
 
 SolverProcess::SolverProcess(std::string label, std::filesystem::path executable,
@@ -162,21 +170,12 @@ int SolverProcess::stop(std::chrono::milliseconds grace) {
 SignalGuard::SignalGuard() {
   g_stop.store(false);
   g_signal.store(0);
-  for (int i = 0; i < kSignalCount; ++i) {
-    struct sigaction sa {};
-    sa.sa_handler = on_signal;
-    sigemptyset(&sa.sa_mask);
-    sa.sa_flags = 0;  // no SA_RESTART: blocking calls return early with EINTR
-    ::sigaction(kSignals[i], &sa, &g_old[i]);
-  }
+  // No SA_RESTART for a stop: blocking calls return early with EINTR. A checkpoint request
+  // interrupts nothing.
+  for (int i = 0; i < kSignalCount; ++i) install(kSignals[i], on_signal, 0, &g_old[i]);
   g_checkpoint_request.store(0);
-  for (std::size_t i = 0; i < std::size(kCheckpointSignals); ++i) {
-    struct sigaction sa {};
-    sa.sa_handler = on_checkpoint_signal;
-    sigemptyset(&sa.sa_mask);
-    sa.sa_flags = SA_RESTART;  // a request interrupts nothing
-    ::sigaction(kCheckpointSignals[i], &sa, &g_old_checkpoint[i]);
-  }
+  for (std::size_t i = 0; i < std::size(kCheckpointSignals); ++i)
+    install(kCheckpointSignals[i], on_checkpoint_signal, SA_RESTART, &g_old_checkpoint[i]);
 }
 
 SignalGuard::~SignalGuard() {

@@ -95,7 +95,7 @@ def extract(q, t, v, where, member_id):
             return v[best]
         return interpolate(t, v, q.at)
     t0, t1 = q.window
-    if q.last == q.last:  # not NaN: members of another duration each take their own end
+    if not math.isnan(q.last):  # members of another duration each take their own end
         t0, t1 = t[-1] - q.last, t[-1]
     idx = [i for i in range(len(t)) if t0 <= t[i] <= t1]
     if q.kind == "series":
