@@ -11,6 +11,7 @@
 #include "dem_test_util.hpp"
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/io/h5_file.hpp"
+#include "demfem_test/temp_dir.hpp"
 
 using namespace demfem::dem;
 using namespace demfem::dem::test;
@@ -95,8 +96,10 @@ TEST_CASE("A run inside a parallel region (fewer threads than asked) gives the s
 
 TEST_CASE("Save/restore mid-run continues bitwise identically", "[dem][restart]") {
   // Reference: an uninterrupted run of 600 steps. Tolerance: none (bitwise).
-  const auto dir = std::filesystem::temp_directory_path() / "demfem_test_dem_core_restart";
-  std::filesystem::create_directories(dir);
+  // A folder of this process: test_dem_core and test_dem_cuda_emu both run this file's tests,
+  // side by side under ctest -j.
+  const demfem::test::TempDir tmp("dem_core_restart");
+  const auto& dir = tmp.path;
   const auto file = dir / "state.h5";
   DemSystem ref = make_scene(2, true);
   ref.advance(600);
@@ -162,7 +165,6 @@ TEST_CASE("Save/restore mid-run continues bitwise identically", "[dem][restart]"
   second.remove_particles(keep);
   CHECK(second.particle_count() == ref.particle_count() - 2);
   second.advance(10);
-  std::filesystem::remove_all(dir);
 }
 
 TEST_CASE("In-memory save point: a step redone from it gives the bits of its first try",
@@ -393,8 +395,8 @@ TEST_CASE("Save/restore of a frictionless system (no springs) continues bitwise"
     sys.add_particles(p);
     return sys;
   };
-  const auto dir = std::filesystem::temp_directory_path() / "demfem_test_frictionless_restart";
-  std::filesystem::create_directories(dir);
+  const demfem::test::TempDir tmp("frictionless_restart");  // per process (see above)
+  const auto& dir = tmp.path;
   DemSystem ref = frictionless();
   ref.advance(300);
   REQUIRE(ref.neighbour_pairs() > 0);  // a list the old save wrote whole
@@ -412,5 +414,4 @@ TEST_CASE("Save/restore of a frictionless system (no springs) continues bitwise"
   ref.advance(200);
   other.advance(200);
   CHECK(same_state(ref.particles(), other.particles()));
-  std::filesystem::remove_all(dir);
 }
