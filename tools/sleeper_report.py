@@ -240,12 +240,13 @@ def main(argv):
     pat = fig["pattern"]
     ts = pat.get("time_scale", 1.0)
     t0 = pat.get("start_time", 0.0)
-    ramp = pat.get("ramp_duration", 0.03)
+    # the cycles begin after the first ramp and the unloading from the peak (if it takes time)
+    c0 = pat.get("ramp_duration", 0.03) + pat.get("unload_duration", 0.0)
     freq = pat.get("cycle_frequency", 100.0)
     ncyc = pat.get("cycles", round(pat.get("cycle_duration", 0.06) * freq))
     cyc = []
     for k in range(int(ncyc) + 1):
-        tk = t0 + ts * (ramp + k / freq)
+        tk = t0 + ts * (c0 + k / freq)
         if tk > t[-1] + 1e-9:
             break
         i = min(range(len(t)), key=lambda j: abs(t[j] - tk))

@@ -360,6 +360,7 @@ def member_series(rec):
     amp = scene_keys.get(sc, SEAT_KEYS[0])
     ts, start, cycles = amp["time_scale"], amp.get("start_time", 0.0), amp["cycles"]
     ramp, f = amp.get("ramp_duration", 0.03), amp.get("cycle_frequency", 100.0)
+    c0 = ramp + amp.get("unload_duration", 0.0)  # the cycles' start (reference time)
     mon_path = os.path.join(out, "fem_monitor.csv")
     mon = read_csv(mon_path)
     t = column(mon, "time", mon_path)
@@ -373,10 +374,10 @@ def member_series(rec):
     s0 = at(start)
     tau = [(x - start) / ts for x in t]
     rel = [x - s0 for x in s]
-    mins = [at(start + ts * (ramp + k / f)) - s0 for k in range(cycles + 1)]
+    mins = [at(start + ts * (c0 + k / f)) - s0 for k in range(cycles + 1)]
     amps = []
     for k in range(cycles):  # the sleeper's up-and-down within each load cycle
-        a0, a1 = start + ts * (ramp + k / f), start + ts * (ramp + (k + 1) / f)
+        a0, a1 = start + ts * (c0 + k / f), start + ts * (c0 + (k + 1) / f)
         w = [x for x, y in zip(s, t) if a0 <= y <= a1]
         amps.append(max(w) - min(w))
     rep = json.load(open(os.path.join(out, "sleeper_report.json")))
@@ -397,7 +398,7 @@ def member_series(rec):
     if rec.get("shared_with"):  # the baseline's run, made once for the studies
         cpu_rec = json.load(open(os.path.join(rec["shared_with"], "member.json")))
     scal["cpu_s"] = cpu_rec.get("cpu_s")
-    return tau, rel, scal, (ramp, f, cycles), mins
+    return tau, rel, scal, (c0, f, cycles), mins
 
 
 def cmd_collect(a):

@@ -497,6 +497,7 @@ TimeFunction read_time_function(const Table& a) {
       } else {
         s.cycle_duration = a.number("cycle_duration", s.cycle_duration, Range::positive());
       }
+      s.unload_duration = a.number("unload_duration", s.unload_duration, Range::non_negative());
       s.time_scale = a.number("time_scale", s.time_scale, Range::positive());
       if (s.cycle_max < s.cycle_min) a.fail("cycle_max", "must not be smaller than cycle_min");
       // the levels are per rail seat, or the total over `seats` seats (each then gets 1/seats)

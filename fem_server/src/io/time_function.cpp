@@ -50,11 +50,13 @@ TimeFunction sinusoid_function(double mean, double amplitude, double frequency, 
 
 double SleeperLoadPattern::operator()(double t) const {
   const double tau = t / time_scale;
-  const double t1 = ramp_duration;
-  const double t2 = ramp_duration + cycle_duration;
+  const double t1 = ramp_duration + unload_duration;
+  const double t2 = t1 + cycle_duration;
   const double t3 = t2 + ramp_duration;
   if (tau < 0.0) return 0.0;
-  if (tau < t1) return peak_force * tau / ramp_duration;
+  if (tau < ramp_duration) return peak_force * tau / ramp_duration;
+  if (tau < t1)
+    return peak_force + (cycle_min - peak_force) * (tau - ramp_duration) / unload_duration;
   if (tau < t2) {
     const double phase = 2.0 * std::numbers::pi * cycle_frequency * (tau - t1);
     return cycle_min + (cycle_max - cycle_min) * 0.5 * (1.0 - std::cos(phase));
@@ -71,6 +73,8 @@ TimeFunction sleeper_load_function(const SleeperLoadPattern& p) {
         "sleeper pattern: ramp_duration, cycle_duration, cycle_frequency and time_scale must "
         "be > 0");
   }
+  if (!std::isfinite(p.unload_duration) || p.unload_duration < 0.0)
+    throw std::invalid_argument("sleeper pattern: unload_duration must be >= 0");
   if (!std::isfinite(p.peak_force) || !std::isfinite(p.cycle_min) || !std::isfinite(p.cycle_max) ||
       p.cycle_min < 0.0 || p.cycle_max < p.cycle_min) {
     throw std::invalid_argument("sleeper pattern: needs 0 <= cycle_min <= cycle_max (finite)");

@@ -279,4 +279,14 @@ TEST_CASE("fem scene: the sleeper pattern by cycle count, per rail seat or in to
              Catch::Contains("'fem.pressures[0].amplitude.cycles'"));
   CHECK_THAT(error_of(base + "amplitude = { type = \"sleeper\", seats = 3 }\n"),
              Catch::Contains("'fem.pressures[0].amplitude.seats'") && Catch::Contains("force_is"));
+  // a finite unloading from the peak: the cycles (and all after them) start 0.25 s later
+  const FemScene u = read(base +
+                          "amplitude = { type = \"sleeper\", cycles = 4, cycle_frequency = "
+                          "2, ramp_duration = 0.5, unload_duration = 0.25 }\n");
+  CHECK(u.problem.pressures[0].amplitude(0.625) == Approx(0.5 * (220e3 + 4.4e3)));
+  for (double t : {0.75, 1.6, 2.4, 2.75, 3.0, 4.0})
+    CHECK(u.problem.pressures[0].amplitude(t + 0.25) == a.problem.pressures[0].amplitude(t));
+  CHECK_THAT(
+      error_of(base + "amplitude = { type = \"sleeper\", unload_duration = -0.1 }\n"),
+      Catch::Contains("'fem.pressures[0].amplitude.unload_duration'") && Catch::Contains(">= 0"));
 }

@@ -104,7 +104,21 @@ TEST_CASE("sleeper load pattern (thesis fig. 6.2) at known times") {
     prev = v;
   }
   CHECK(maxima == 6);
+  // A finite unloading (0.01 s from 220 to 4.4 kN): linear, then the same cycles and second
+  // ramp 0.01 s later; the pattern lasts 0.13 s.
+  SleeperLoadPattern unload;
+  unload.unload_duration = 0.01;
+  CHECK(unload.duration() == Approx(0.13));
+  const auto u = sleeper_load_function(unload);
+  CHECK(u(0.0299999) == Approx(220e3).epsilon(1e-5));
+  CHECK(u(0.035) == Approx(112.2e3).epsilon(1e-12));  // half way down
+  CHECK(u(0.04) == Approx(4.4e3).epsilon(1e-12));     // the cycles start at the minimum
+  for (double t : {0.0325, 0.045, 0.07, 0.095, 0.1, 0.115, 0.2})
+    CHECK(u(t + 0.01) == Approx(f(t)).epsilon(1e-12));
   SleeperLoadPattern bad;
+  bad.unload_duration = -1e-3;
+  CHECK_THROWS(sleeper_load_function(bad));
+  bad = {};
   bad.cycle_min = 50e3;
   CHECK_THROWS(sleeper_load_function(bad));
   bad = {};
