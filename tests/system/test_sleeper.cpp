@@ -158,25 +158,32 @@ void check_kill_and_resume(const fs::path& dir) {
   CHECK_THAT(c.out, Catch::Contains("DIFFERENT: particles_000001.h5: dataset /position"));
 }
 
-TEST_CASE("sleeper mini chain: prepares the bed, seats and loads the sleeper, balances, plots",
-          "[sleeper]") {
-  if (!have_matplotlib()) {
-    WARN("skipped: /usr/bin/python3 has no matplotlib (Debian: python3-matplotlib)");
-    return;
-  }
-  TempDir d("sleeper_mini");
-  const Result r = run_demfem(d.path, {(kCases / "sleeper_mini.toml").string(), "--quiet"});
+// What one chain (a case of the sleeper's prepare -> load -> report family) must produce.
+struct Chain {
+  std::string name;         // the load case: cases/<name>.toml, out/<name>
+  std::string bed1, bed2;   // its preparation scenes: cases/<bed>.toml, out/<bed>
+  double slice_width;       // m: the box's y extent (its x 3.2 m, z 2.2 m)
+  double seat_peak;         // N per rail seat at the pattern's end (held)
+  double hold_t0, hold_t1;  // s: the static hold at that load, as the report averages it
+  double max_drop;          // m: the sleeper starts at most this far above the rocks
+  double max_settlement;    // m: the bed bounds the settlement in the hold
+  int loaded_cells;         // of the five, those that carry rocks in the hold
+};
+
+// `demfem run cases/<name>.toml` in the fresh folder `dir`, every stage checked on what it
+// produced.
+void check_chain(const fs::path& dir, const Chain& c) {
+  const Result r = run_demfem(dir, {(kCases / (c.name + ".toml")).string(), "--quiet"});
   INFO(r.out << r.err);
   REQUIRE(r.status == 0);
   // Both preparation scenes ran first, each once, and wrote their states.
-  CHECK_THAT(r.out, Catch::Contains("sleeper_mini.toml needs the end state"));
-  CHECK_THAT(r.out, Catch::Contains("sleeper_bed2_mini.toml needs the end state"));
-  for (const char* s : {"out/sleeper_bed1_mini/dem_state.h5", "out/sleeper_bed2_mini/dem_state.h5"})
-    CHECK(fs::exists(d.path / s));
+  CHECK_THAT(r.out, Catch::Contains(c.name + ".toml needs the end state"));
+  CHECK_THAT(r.out, Catch::Contains(c.bed2 + ".toml needs the end state"));
+  for (const auto& s : {c.bed1, c.bed2}) CHECK(fs::exists(dir / "out" / s / "dem_state.h5"));
 
   // The bed (packing sensors below the cells, after each preparation scene): a packing of
   // rocks, made denser and better connected by the second layer's weight and compaction.
-  const fs::path bed1 = d.path / "out/sleeper_bed1_mini", bed2 = d.path / "out/sleeper_bed2_mini";
+  const fs::path bed1 = dir / "out" / c.bed1, bed2 = dir / "out" / c.bed2;
   const auto low1 = read_csv(bed1 / "sensor_packing_lower.csv");
   const auto low2 = read_csv(bed2 / "sensor_packing_lower.csv");
   const double phi1 = column(low1, "solid_fraction")[0], phi2 = column(low2, "solid_fraction")[0];
@@ -188,7 +195,7 @@ TEST_CASE("sleeper mini chain: prepares the bed, seats and loads the sleeper, ba
   CHECK(phi2 > phi1);
   CHECK(z2 > z1);
 
-  const fs::path out = d.path / "out/sleeper_mini";
+  const fs::path out = dir / "out" / c.name;
   for (const char* f : {"particles.xdmf", "fem.xdmf", "coupling.csv", "fem_monitor.csv",
                         "sleeper_report.txt", "sleeper_report.json"})
     CHECK(fs::exists(out / f));
@@ -198,7 +205,7 @@ TEST_CASE("sleeper mini chain: prepares the bed, seats and loads the sleeper, ba
   }
 
   // The sleeper starts above every rock under it (no overlap at the first step) and less
-  // than 15 mm above them (it is lowered onto the bed, not dropped).
+  // than max_drop above them (it is lowered onto the bed, not dropped).
   const auto under = read_csv(out / "sensor_under_sleeper.csv");
   const double top0 = column(under, "top")[0];
   const auto mon = read_csv(out / "fem_monitor.csv");
@@ -208,7 +215,7 @@ TEST_CASE("sleeper mini chain: prepares the bed, seats and loads the sleeper, ba
     probes.push_back(column(mon, p));
   double z_bottom = 0.0;
   {
-    std::ifstream in(kCases / "sleeper_mini.toml");
+    std::ifstream in(kCases / (c.name + ".toml"));
     std::string line;
     std::regex re(R"(point = \[0\.35, 0\.5, ([0-9.]+)\])");
     std::smatch m;
@@ -218,11 +225,11 @@ TEST_CASE("sleeper mini chain: prepares the bed, seats and loads the sleeper, ba
   REQUIRE(z_bottom > 0.0);
   INFO("bed top under the sleeper " << top0 << " m, sleeper bottom " << z_bottom << " m");
   CHECK(top0 < z_bottom);
-  CHECK(z_bottom - top0 < 0.015);
+  CHECK(z_bottom - top0 < c.max_drop);
 
   // Settlement: finite, downwards, larger under the load than after the seating, bounded by
-  // the bed (this loose bed of one or two 100 mm rock layers lets the sleeper sink and tilt
-  // by several centimetres, docs/cases.md; it stays well above the cells' tops, 0.18 m below).
+  // the bed (these loose beds of a few rock layers let the sleeper sink and tilt by several
+  // centimetres, docs/cases.md; it stays well above the cells' tops, 0.18 m below).
   std::vector<double> settle(t.size());
   for (std::size_t i = 0; i < t.size(); ++i) {
     double s = 0.0;
@@ -231,25 +238,26 @@ TEST_CASE("sleeper mini chain: prepares the bed, seats and loads the sleeper, ba
     REQUIRE(std::isfinite(settle[i]));
   }
   const double seated = window_mean(t, settle, 0.095, 0.1);
-  const double held = window_mean(t, settle, 0.30, 0.45);
+  const double held = window_mean(t, settle, c.hold_t0, c.hold_t1);
   INFO("settlement seated " << seated << " m, held at the peak " << held << " m");
   CHECK(seated < 0.0);
   CHECK(held < seated);
-  CHECK(held > -0.1);
+  CHECK(held > -c.max_settlement);
 
   // Force balance of the static hold: the box carries rocks + cells + sleeper + load within
   // 1 % (issue 15). Independent of the report: masses from the scene's geometry (cells 0.22 x
   // 0.22 x 0.1 m at 2000 kg/m3, sleeper 2.5 x 0.2 x 0.18 m at 800 kg/m3), the rocks' volume
-  // from the packing sensor over the whole box (0.3 x 3.2 x 2.2 m) at 2600 kg/m3.
+  // from the packing sensor over the whole box (3.2 x slice x 2.2 m) at 2600 kg/m3.
   const double g = 9.81;
   const auto base = read_csv(out / "sensor_base.csv");
-  const double reaction = -window_mean(column(base, "time"), column(base, "fz"), 0.30, 0.45);
+  const double reaction =
+      -window_mean(column(base, "time"), column(base, "fz"), c.hold_t0, c.hold_t1);
   const auto rocks = read_csv(out / "sensor_all_rocks.csv");
   const double rock_volume =
-      window_mean(column(rocks, "time"), column(rocks, "solid_fraction"), 0.30, 0.45) * 3.2 * 0.3 *
-      2.2;
+      window_mean(column(rocks, "time"), column(rocks, "solid_fraction"), c.hold_t0, c.hold_t1) *
+      3.2 * c.slice_width * 2.2;
   const double expected = rock_volume * 2600.0 * g + 5 * 0.22 * 0.22 * 0.1 * 2000.0 * g +
-                          2.5 * 0.2 * 0.18 * 800.0 * g + 100.0 + 2 * 22e3;
+                          2.5 * 0.2 * 0.18 * 800.0 * g + 100.0 + 2 * c.seat_peak;
   INFO("base reaction " << reaction << " N, expected " << expected << " N");
   CHECK(std::abs(reaction - expected) / expected < 0.01);
   const std::string report = read_text(out / "sleeper_report.json");
@@ -262,22 +270,47 @@ TEST_CASE("sleeper mini chain: prepares the bed, seats and loads the sleeper, ba
     const auto u0 = column(mon, "sg_centre_0_ux"), u1 = column(mon, "sg_centre_1_ux");
     std::vector<double> e(t.size());
     for (std::size_t i = 0; i < t.size(); ++i) e[i] = (u1[i] - u0[i]) / (1.64942 - 1.55058);
-    const double held_strain = window_mean(t, e, 0.30, 0.45);
+    const double held_strain = window_mean(t, e, c.hold_t0, c.hold_t1);
     INFO("centre bottom-fibre strain in the hold " << held_strain);
     REQUIRE(std::isfinite(held_strain));
     CHECK(json_number(report, "centre") == Approx(held_strain).epsilon(1e-4));
   }
 
-  // The cells' tops: the rocks only press on them (fz <= 0 at every sample), all five are
-  // loaded in the hold.
+  // The cells' tops: the rocks only press on them (fz <= 0 at every sample).
+  int loaded_cells = 0;
   for (int k = 1; k <= 5; ++k) {
-    const auto c = read_csv(out / ("sensor_cell" + std::to_string(k) + ".csv"));
-    const auto fz = column(c, "fz");
+    const auto cell = read_csv(out / ("sensor_cell" + std::to_string(k) + ".csv"));
+    const auto fz = column(cell, "fz");
     for (double f : fz) REQUIRE(f <= 0.0);
-    const double held_fz = window_mean(column(c, "time"), fz, 0.30, 0.45);
+    const double held_fz = window_mean(column(cell, "time"), fz, c.hold_t0, c.hold_t1);
     INFO("cell" << k << " fz " << held_fz);
-    CHECK(held_fz < 0.0);
+    if (held_fz < 0.0) ++loaded_cells;
   }
+  CHECK(loaded_cells >= c.loaded_cells);
+}
 
+TEST_CASE("sleeper mini chain: prepares the bed, seats and loads the sleeper, balances, plots",
+          "[sleeper]") {
+  if (!have_matplotlib()) {
+    WARN("skipped: /usr/bin/python3 has no matplotlib (Debian: python3-matplotlib)");
+    return;
+  }
+  TempDir d("sleeper_mini");
+  check_chain(d.path, {"sleeper_mini", "sleeper_bed1_mini", "sleeper_bed2_mini", 0.3, 22e3, 0.30,
+                       0.45, 0.015, 0.1, 5});
   check_kill_and_resume(d.path);
+}
+
+// The CI chain, as the issue names it: `./demfem run cases/sleeper_ci.toml` (562 rocks of
+// 60-110 mm in a 0.4 m slice) prepares, loads and plots; its own ctest entry, so that ctest's
+// time for it is the chain's (docs/cases.md, "Measured").
+TEST_CASE("sleeper CI chain: prepares the bed, seats and loads the sleeper, balances, plots",
+          "[sleeper]") {
+  if (!have_matplotlib()) {
+    WARN("skipped: /usr/bin/python3 has no matplotlib (Debian: python3-matplotlib)");
+    return;
+  }
+  TempDir d("sleeper_ci");
+  check_chain(d.path, {"sleeper_ci", "sleeper_bed1_ci", "sleeper_bed2_ci", 0.4, 55e3, 0.30, 0.40,
+                       0.05, 0.15, 5});
 }
