@@ -158,6 +158,13 @@ void check_kill_and_resume(const fs::path& dir) {
   CHECK_THAT(c.out, Catch::Contains("DIFFERENT: particles_000001.h5: dataset /position"));
 }
 
+// The chains end with tools/sleeper_report.py's plots: without matplotlib the test is skipped.
+bool matplotlib_or_skip() {
+  if (have_matplotlib()) return true;
+  WARN("skipped: /usr/bin/python3 has no matplotlib (Debian: python3-matplotlib)");
+  return false;
+}
+
 // What one chain (a case of the sleeper's prepare -> load -> report family) must produce.
 struct Chain {
   std::string name;         // the load case: cases/<name>.toml, out/<name>
@@ -291,10 +298,7 @@ void check_chain(const fs::path& dir, const Chain& c) {
 
 TEST_CASE("sleeper mini chain: prepares the bed, seats and loads the sleeper, balances, plots",
           "[sleeper]") {
-  if (!have_matplotlib()) {
-    WARN("skipped: /usr/bin/python3 has no matplotlib (Debian: python3-matplotlib)");
-    return;
-  }
+  if (!matplotlib_or_skip()) return;
   TempDir d("sleeper_mini");
   check_chain(d.path, {"sleeper_mini", "sleeper_bed1_mini", "sleeper_bed2_mini", 0.3, 22e3, 0.30,
                        0.45, 0.015, 0.1, 5});
@@ -306,10 +310,7 @@ TEST_CASE("sleeper mini chain: prepares the bed, seats and loads the sleeper, ba
 // time for it is the chain's (docs/cases.md, "Measured").
 TEST_CASE("sleeper CI chain: prepares the bed, seats and loads the sleeper, balances, plots",
           "[sleeper]") {
-  if (!have_matplotlib()) {
-    WARN("skipped: /usr/bin/python3 has no matplotlib (Debian: python3-matplotlib)");
-    return;
-  }
+  if (!matplotlib_or_skip()) return;
   TempDir d("sleeper_ci");
   check_chain(d.path, {"sleeper_ci", "sleeper_bed1_ci", "sleeper_bed2_ci", 0.4, 55e3, 0.30, 0.40,
                        0.05, 0.15, 5});
