@@ -986,10 +986,12 @@ void DemRun::check_stable() const {
          "polyhedron's dilation; at most "
       << kMaxStableOverlap << "); the largest overlap was " << system_->advance_max_overlap()
       << " m, the smallest contact radius in the bed " << system_->smallest_contact_radius()
-      << " m";
+      << " m; the particles' kinetic energy " << ke << " J";
   m << ". dt = " << scene_.settings.dt << " s against a Rayleigh time step of "
     << system_->rayleigh_time_step() << " s; reduce dt (" << scene_.dt_where
-    << ") or the velocities and loads of the scene. The output holds the states before it.";
+    << ") or the velocities of the scene where particles collide fast; where a load presses "
+       "a bed at rest, the load is more than its contacts carry within this limit (a smaller "
+       "load, stiffer particles or a larger dilation). The output holds the states before it.";
   throw Unstable(m.str());
 }
 

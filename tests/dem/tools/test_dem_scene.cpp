@@ -279,7 +279,9 @@ TEST_CASE("DemRun builds walls from STL, inserts, and checks dt against Rayleigh
     CHECK_THROWS_WITH(run.run_to(0.004),
                       Catch::Contains("DEM run unstable") &&
                           Catch::Contains("of the smaller contact radius of its two bodies") &&
-                          Catch::Contains("key 'dem.dt'") && Catch::Contains("Rayleigh time step"));
+                          Catch::Contains("key 'dem.dt'") &&
+                          Catch::Contains("Rayleigh time step") &&
+                          Catch::Contains("kinetic energy") && Catch::Contains("a bed at rest"));
   }
   SECTION("dt above 0.2 of it warns") {
     std::ofstream(dir / "scene.toml") << replace(text, "dt = 2e-6", "dt = 1e-5");
