@@ -250,7 +250,9 @@ class Runner:
             start = amp.get("start_time", 0.0)
             o[key + ".time_scale"] = ts
             o[key + ".cycles"] = self.cycles
-        pattern = ts * (2 * 0.03 + self.cycles / 100.0)  # the amplitude's defaults (ramps, f)
+        # the pattern's length (time_function.hpp): two ramps, the unloading, the cycles
+        pattern = ts * (2 * amp.get("ramp_duration", 0.03) + amp.get("unload_duration", 0.0) +
+                        self.cycles / amp.get("cycle_frequency", 100.0))
         end = round(start + pattern + HOLD, 6)
         o["run.end_time"] = end
         o.update(load)
@@ -485,9 +487,9 @@ def cmd_collect(a):
                          yerr=[0.0 if math.isnan(x[1]) else x[1] for x in at_min], marker="o",
                          capsize=3, color=line.get_color(), label=f"{name}")
         if pattern:
-            ramp, f, cycles = pattern
+            c0, f, cycles = pattern
             for k in range(cycles + 1):
-                ax.axvline(ramp + k / f, color="grey", lw=0.4, ls=":")
+                ax.axvline(c0 + k / f, color="grey", lw=0.4, ls=":")
         ax.set_xlabel("reference time (t - load start) / time scale (s); dotted: cycle minima")
         ax.set_ylabel("settlement since the load start (mm)")
         ax.set_title(f"sleeper (small chain): {label}, mean ± sd over seeds", fontsize=10)
