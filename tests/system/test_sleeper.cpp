@@ -305,9 +305,12 @@ TEST_CASE("sleeper mini chain: prepares the bed, seats and loads the sleeper, ba
 
 // The CI chain, as the issue names it: `./demfem run cases/sleeper_ci.toml` (562 rocks of
 // 60-110 mm in a 0.4 m slice) prepares, loads and plots; its own ctest entry, so that ctest's
-// time for it is the chain's (docs/cases.md, "Measured").
+// time for it is the chain's (docs/cases.md, "Measured"). Its DEM runs on all cores (the
+// scenes' dem.threads = 0; the results do not depend on the count), so ctest runs it alone
+// ([serial]): an OpenMP step of a few hundred rocks whose threads share a core with another
+// test waits at every barrier (measured: the chain 474 s beside a busy process, 111 s alone).
 TEST_CASE("sleeper CI chain: prepares the bed, seats and loads the sleeper, balances, plots",
-          "[sleeper]") {
+          "[sleeper][serial]") {
   if (!matplotlib_or_skip()) return;
   TempDir d("sleeper_ci");
   check_chain(d.path, {"sleeper_ci", "sleeper_bed1_ci", "sleeper_bed2_ci", 0.4, 55e3, 0.30, 0.40,
