@@ -303,8 +303,8 @@ TEST_CASE("sleeper mini chain: prepares the bed, seats and loads the sleeper, ba
   check_kill_and_resume(d.path);
 }
 
-// The CI chain, as the issue names it: `./demfem run cases/sleeper_ci.toml` (562 rocks of
-// 60-110 mm in a 0.4 m slice) prepares, loads and plots; its own ctest entry, so that ctest's
+// The CI chain, as the issue names it: `./demfem run cases/sleeper_ci.toml` (about 560 rocks
+// of 60-110 mm, dilated by 0.15 of their size, in a 0.4 m slice) prepares, loads and plots; its own ctest entry, so that ctest's
 // time for it is the chain's (docs/cases.md, "Measured"). Its DEM runs on all cores (the
 // scenes' dem.threads = 0; the results do not depend on the count), so ctest runs it alone
 // ([serial]): an OpenMP step of a few hundred rocks whose threads share a core with another
