@@ -189,6 +189,8 @@ class SweepFile(unittest.TestCase):
                      "exactly one of 'window'")
         self.refused(SWEEP.replace('reduce = "max"', 'reduce = "final"\nlast = 1'),
                      "does not apply to 'final'")
+        self.refused(SWEEP.replace('reduce = "max"', 'reduce = "max"\nrelative_to = "seated"'),
+                     "quantity[0].relative_to", "must be a number")
         self.refused(SWEEP.replace("first_seed = 5", "seeds = [1, 1]"), "a seed twice")
         self.refused(SWEEP.replace('scene = "scene.toml"', 'scene = "nope.toml"'),
                      "key 'sweep.scene'", "cannot read")
@@ -238,6 +240,15 @@ class Extraction(unittest.TestCase):
         self.assertEqual(self.value(kind="min", last=2.5), 1.0)
         self.assertEqual(self.value(kind="series", last=2.0), ([2.0, 4.0], [1.0, 5.0]))
         self.assertEqual(interpolate(self.T, self.V, -1.0), 0.0)
+        # relative_to = 1.5: the value there, 1.5, is subtracted from every row first.
+        self.assertEqual(self.value(kind="final", relative_to=1.5), 3.5)
+        self.assertEqual(self.value(kind="at", at=3.0, relative_to=1.5), 1.5)
+        self.assertEqual(self.value(kind="max", relative_to=1.0), 3.0)
+        self.assertEqual(self.value(kind="mean", relative_to=0.0), 8.5 / 4)
+        self.assertAlmostEqual(self.value(kind="mean", last=2.5, relative_to=1.5),
+                               6.625 / 2.5 - 1.5, delta=1e-15)
+        self.assertEqual(self.value(kind="series", window=(1.0, 2.0), relative_to=2.0),
+                         ([1.0, 2.0], [1.0, 0.0]))
 
     def test_errors(self):
         with self.assertRaisesRegex(SweepError, "outside member m's series"):
@@ -246,6 +257,8 @@ class Extraction(unittest.TestCase):
             self.value(kind="max", window=(2.5, 3.5))
         with self.assertRaisesRegex(SweepError, "do not overlap"):
             self.value(kind="mean", window=(5.0, 6.0))
+        with self.assertRaisesRegex(SweepError, "relative_to = 4.5 s is outside member m's"):
+            self.value(kind="final", relative_to=4.5)
 
 
 class Retries(unittest.TestCase):

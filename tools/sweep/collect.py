@@ -11,6 +11,9 @@ column:
   "mean": the time average over the window (clipped to the series' span) by the trapezoidal
   rule, the window's ends interpolated linearly. "series": the rows in the window, kept as a
   time series (plotted over time; not a column of members.csv).
+* relative_to = T (with any of the above): the column's value at T (linear interpolation) is
+  subtracted from every row first, so the quantity is the change since T (a sleeper's
+  settlement under the load, counted from its seated position rather than from the mesh).
 Outputs (atomically replaced): members.csv (one row per member), summary.csv (per setting:
 n, failed, mean, sd and the Student-t 95 % interval of each scalar quantity), and for each
 series quantity series_<name>.csv (per setting mean and sd over time)."""
@@ -84,6 +87,12 @@ def interpolate(t, v, at):
 
 def extract(q, t, v, where, member_id):
     """The value of quantity `q` from one member's series (a float, or (t, v) for series)."""
+    if not math.isnan(q.relative_to):  # a change since then: the value at relative_to is zero
+        if not t[0] <= q.relative_to <= t[-1]:
+            raise SweepError(f"{where}: relative_to = {q.relative_to:g} s is outside member "
+                             f"{member_id}'s series [{t[0]:g}, {t[-1]:g}] s ({q.file})")
+        v0 = interpolate(t, v, q.relative_to)
+        v = [x - v0 for x in v]
     if q.kind == "final":
         return v[-1]
     if q.kind == "at":

@@ -170,6 +170,7 @@ class Quantity:
     method: str = "linear"
     window: tuple = (-math.inf, math.inf)
     last: float = math.nan  # > 0: the window is the member's last `last` seconds instead
+    relative_to: float = math.nan  # a time: the column's value then is subtracted first
     where: str = ""     # "file:line: key 'quantity[i]'" for messages at collection
 
 
@@ -404,6 +405,8 @@ def read_sweep_file(path):
                 t.fail("last", "exactly one of 'window' (fixed times) and 'last' (the member's "
                        "last seconds) may be given")
             q.last = t.number("last", lo=0.0, lo_open=True)
+        if t.has("relative_to"):
+            q.relative_to = t.number("relative_to")
         t.finish()
         quantities.append(q)
 
