@@ -282,6 +282,12 @@ def main(argv):
         else:
             h0, h1 = (float(x) for x in a.hold.split(","))
         hold = {"window": [h0, h1]}
+        held_settle = window_mean(t, settle, h0, h1)
+        if held_settle is not None:
+            # the settlement under the load alone: counted from the seated sleeper (the load's
+            # start), without the seating, whose size the prepared bed's top decides
+            hold["held_settlement_mm"] = held_settle
+            hold["held_settlement_under_load_mm"] = held_settle - settle[i_seat]
         base_hold = window_mean(tb, fb, h0, h1)
         if base_hold is not None and "all_rocks" in packing and fig["rocks_box_volume"]:
             ar = packing["all_rocks"]
@@ -333,6 +339,10 @@ def main(argv):
                      f"{p['top'][-1]:.4f} m")
     if "hold" in report:
         h = report["hold"]
+        if "held_settlement_mm" in h:
+            lines.append(f"settlement in the hold {window_text(h['window'])}: "
+                         f"{h['held_settlement_mm']:.3f} mm, of it under the load (from the load "
+                         f"start) {h['held_settlement_under_load_mm']:.3f} mm")
         if "base_reaction_N" in h:
             held = (f" + frozen rocks' support {h['frozen_support_N']:.1f} N"
                     if "frozen_support_N" in h else "")

@@ -269,6 +269,10 @@ void check_chain(const fs::path& dir, const Chain& c) {
   const std::string report = read_text(out / "sleeper_report.json");
   CHECK(json_number(report, "balance_rel") ==
         Approx((reaction - expected) / expected).margin(1e-6));
+  // The report's hold settlement (mm), and that under the load alone (from the seated state).
+  CHECK(json_number(report, "held_settlement_mm") == Approx(1e3 * held).epsilon(1e-9));
+  CHECK(json_number(report, "held_settlement_under_load_mm") ==
+        Approx(1e3 * held - json_number(report, "settlement_at_load_start_mm")).epsilon(1e-9));
 
   // The sleeper's strain: the report's centre gauge (bottom-fibre axial strain between the
   // bottom nodes at x = 1.55058 and 1.64942 m) in the hold, recomputed from the monitor.
