@@ -309,6 +309,11 @@ def main(argv):
                     tb, [f * f for f in fb], h0, h1) - base_hold ** 2)),
             })
         hold["cell_pressure_kPa"] = {c["name"]: window_mean(tc, p, h0, h1) for c, tc, p in cells}
+        read = [(p, c) for (c, _, _), p in zip(cells, hold["cell_pressure_kPa"].values())
+                if p is not None]
+        if read:  # the question: is the pressure largest under a rail seat or the centre?
+            p, c = max(read, key=lambda pc: pc[0])
+            hold["largest_cell"] = {"name": c["name"], "x": c["x"], "pressure_kPa": p}
         if strain:
             hold["strain"] = {label: window_mean(t, e, h0, h1) for label, e in strain.items()}
         report["hold"] = hold
@@ -354,6 +359,10 @@ def main(argv):
         lines.append("cell pressures in the hold (kPa): " + ", ".join(
             f"{n} {p:.2f}" if p is not None else f"{n} -"
             for n, p in h["cell_pressure_kPa"].items()))
+        if "largest_cell" in h:
+            c = h["largest_cell"]
+            lines.append(f"largest cell pressure in the hold: {c['name']} at x = {c['x']:.4f} m "
+                         f"({c['pressure_kPa']:.2f} kPa)")
     with open(os.path.join(out, "sleeper_report.txt"), "w") as f:
         f.write("\n".join(lines) + "\n")
     print("\n".join(lines))
