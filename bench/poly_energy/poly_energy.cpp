@@ -8,9 +8,14 @@
 // --point runs the same gas with point cores (spheres through the polyhedron path, no face
 // contacts): the drift of the time integration alone, for comparison.
 //
-// Every force of the run is an elastic Hertz force: the energy changes only by the time
-// integration's error (velocity Verlet, NO_SQUISH rotation) and by the model's non-conservative
-// part, the pressure centre of nearly parallel faces (docs/dem.md, contact point).
+// Both contact laws of polyhedra run (--law): the pressure-centre law, whose face contacts are
+// not the gradient of an energy, and the smooth law (physics/smooth_contact.hpp), the exact
+// gradient of a C¹ energy, whose drift is the time integration's error alone (velocity Verlet,
+// NO_SQUISH rotation), as that of the point cores. --seeds runs other gases (packings and
+// velocities) of the same distributions: the drift of one gas is a sum of many collisions'
+// errors of either sign, and a few large ones can decide it.
+//
+//   build/bench/poly_energy --fraction 0.05 0.1 0.2 --seeds 0 1 2 3 --json out.json
 
 #include <CLI/CLI.hpp>
 #include <cmath>
@@ -34,12 +39,15 @@ struct Run {
 };
 
 // The gas at time step dt; `probe` only builds it (for its Rayleigh step).
-Run run(std::size_t n, double dt, long steps, int threads, bool point, double* rayleigh = nullptr) {
+Run run(std::size_t n, double dt, long steps, int threads, bool point, MaterialPair::PolyLaw law,
+        int seed, double* rayleigh = nullptr) {
   DemSettings s;
   s.dt = dt;
   s.gravity = {0, 0, 0};
   s.materials = {{"rock", 1e8, 0.3, 2600.0}, {"wall", 1e8, 0.3, 0.0}};
-  s.pairs.assign(4, MaterialPair{0.0, 1.0, 0.0});
+  MaterialPair elastic{0.0, 1.0, 0.0};
+  elastic.poly_law = law;
+  s.pairs.assign(4, elastic);
   s.threads = threads;
   DemSystem sys(s);
   shapes::RockParams rp;
@@ -64,11 +72,11 @@ Run run(std::size_t n, double dt, long steps, int threads, bool point, double* r
   q.sizes = SizeDistribution::normal(0.02, 0.003, 0.014, 0.026);
   q.count = static_cast<std::int64_t>(n);
   q.density = 2600.0;
-  q.seed = 5;
+  q.seed = 5 + 1000 * static_cast<std::uint64_t>(seed);
   q.library = &lib;
   q.shape_base = base;
   auto ps = insert_random(q);
-  Rng rng(9);
+  Rng rng(9 + 1000 * static_cast<std::uint64_t>(seed));
   for (auto& p : ps) {
     const auto o = random_orientation(rng);  // a random direction: the rotated x axis
     const double dx = 1 - 2 * (o[2] * o[2] + o[3] * o[3]), dy = 2 * (o[1] * o[2] + o[0] * o[3]),
@@ -115,25 +123,36 @@ int main(int argc, char** argv) {
   app.add_flag("--point", point,
                "point cores (spheres through the polyhedron path): no face contacts, so the "
                "drift is the time integration's alone");
+  std::vector<std::string> laws = {"pressure_centre", "smooth"};
+  std::vector<int> seeds = {0};
+  app.add_option("--seeds", seeds, "gas seeds (packing, velocities); 0 is the gas of the docs");
+  app.add_option("--law", laws, "contact laws of the polyhedra (pressure_centre, smooth)")
+      ->check(CLI::IsMember({"pressure_centre", "smooth"}));
   app.add_option("--json", json, "write the results as JSON");
   CLI11_PARSE(app, argc, argv);
   double rayleigh = 0.0;
-  (void)run(n, 1e-6, 0, threads, point, &rayleigh);
+  (void)run(n, 1e-6, 0, threads, point, MaterialPair::PolyLaw::pressure_centre, 0, &rayleigh);
   if (dts.empty())
     for (double f : fractions) dts.push_back(f * rayleigh);
   demfem::bench::Report rep(
-      "poly_energy", {"rocks", "dt s", "dt / dt_R", "steps", "contact-free samples",
+      "poly_energy", {"law", "seed", "rocks", "dt s", "dt / dt_R", "steps", "contact-free samples",
                       "steps with contacts", "drift (E_end - E_0)/E_0", "largest |E - E_0|/E_0"});
   rep.set_info("machine", demfem::bench::machine_description());
   rep.set_info("rayleigh dt s", rayleigh);
   rep.set_info("particles",
                point ? std::string("point cores (spheres)") : std::string("30-triangle rocks"));
-  for (double dt : dts) {
-    const Run r = run(n, dt, steps, threads, point);
-    rep.add_row({static_cast<long long>(n), dt, dt / rayleigh, static_cast<long long>(steps),
-                 static_cast<long long>(r.samples), static_cast<long long>(r.contacts), r.drift,
-                 r.worst});
-  }
+  for (double dt : dts)
+    for (int seed : seeds)
+      for (const std::string& law : laws) {
+        const Run r = run(n, dt, steps, threads, point,
+                          law == "smooth" ? MaterialPair::PolyLaw::smooth
+                                          : MaterialPair::PolyLaw::pressure_centre,
+                          seed);
+        rep.add_row({law, static_cast<long long>(seed), static_cast<long long>(n), dt,
+                     dt / rayleigh, static_cast<long long>(steps),
+                     static_cast<long long>(r.samples), static_cast<long long>(r.contacts), r.drift,
+                     r.worst});
+      }
   rep.print();
   rep.write_json(json);
   return 0;

@@ -78,9 +78,11 @@ void DemSystem::Impl::setup_pairs() {
       const auto& ma = s.materials[a];
       const auto& mb = s.materials[b];
       const auto& p = s.pairs[a * nmat + b];
-      pc[a * nmat + b] = phys::pair_constants(ma.youngs_modulus, ma.poisson_ratio,
-                                              mb.youngs_modulus, mb.poisson_ratio, p.restitution,
-                                              p.friction, p.rolling_friction, p.rocking_damping);
+      pc[a * nmat + b] = phys::pair_constants(
+          ma.youngs_modulus, ma.poisson_ratio, mb.youngs_modulus, mb.poisson_ratio, p.restitution,
+          p.friction, p.rolling_friction, p.rocking_damping,
+          p.poly_law == MaterialPair::PolyLaw::smooth ? phys::kLawSmooth
+                                                      : phys::kLawPressureCentre);
       friction = friction || p.friction > 0.0 || p.rolling_friction > 0.0;
       rolling = rolling || p.rolling_friction > 0.0;
     }

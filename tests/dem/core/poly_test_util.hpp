@@ -66,7 +66,7 @@ inline PolyhedronShape box_shape(double a, double b, double c, double rd) {
     s.vertices.insert(s.vertices.end(), {k & 1 ? a : -a, k & 2 ? b : -b, k & 4 ? c : -c});
   // faces as quads (outward, CCW), split into two triangles each
   const int quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
-                       {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+                           {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
   for (const auto& f : quads)
     s.triangles.insert(s.triangles.end(), {f[0], f[1], f[2], f[0], f[2], f[3]});
   s.dilation = rd;
@@ -121,6 +121,14 @@ inline PolyhedronShape point_shape(double r) {
   const double I = 0.4 * s.volume * r * r;
   s.inertia = {I, I, I};
   return s;
+}
+
+/// Quaternion product a b (w, x, y, z).
+inline std::array<double, 4> quat_mul(std::array<double, 4> a, std::array<double, 4> b) {
+  return {a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+          a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+          a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+          a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]};
 }
 
 /// Uniformly random unit quaternion.

@@ -173,13 +173,6 @@ std::array<double, 4> align(Vec3 a, Vec3 b) {
   return {w / l, c.x / l, c.y / l, c.z / l};
 }
 
-std::array<double, 4> qmul(std::array<double, 4> a, std::array<double, 4> b) {
-  return {a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
-          a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
-          a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
-          a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]};
-}
-
 std::array<double, 4> axis_angle(Vec3 u, double th) {
   const double s = std::sin(th / 2);
   return {std::cos(th / 2), s * u.x, s * u.y, s * u.z};
@@ -336,12 +329,12 @@ TEST_CASE("Narrow phase: GJK distance, normal and closest points agree with brut
         const int fb = static_cast<int>(U(rng) * phys::core_face_count(B0));
         const Vec3 nb = phys::core_face_normal(B0, fb);
         qb = align(nb, -1.0 * na);
-        qb = qmul(axis_angle(na, 6.28 * U(rng)), qb);
+        qb = quat_mul(axis_angle(na, 6.28 * U(rng)), qb);
         if (kind == 3) {
           const auto r = random_quaternion(rng);
           Vec3 t = phys::cross(na, Vec3{r[1], r[2], r[3]});
           t = (1.0 / std::sqrt(phys::norm2(t))) * t;
-          qb = qmul(axis_angle(t, std::pow(10.0, -12.0 + 9.0 * U(rng))), qb);
+          qb = quat_mul(axis_angle(t, std::pow(10.0, -12.0 + 9.0 * U(rng))), qb);
         }
         // B's lowest point along na at `gap` above A's face plane; B's face centre above A's
         // face centre, shifted sideways
@@ -476,7 +469,8 @@ TEST_CASE("Narrow phase: the column loops of the CPU table give the bits of the 
       const auto r = random_quaternion(rng);
       Vec3 t = phys::cross(na, Vec3{r[1], r[2], r[3]});
       t = (1.0 / std::sqrt(phys::norm2(t))) * t;
-      qb = qmul(axis_angle(t, 0.17 * U(rng) * U(rng)), qmul(axis_angle(na, 6.28 * U(rng)), qb));
+      qb = quat_mul(axis_angle(t, 0.17 * U(rng) * U(rng)),
+                    quat_mul(axis_angle(na, 6.28 * U(rng)), qb));
       Vec3 pa[phys::kMaxFaceVertices];
       phys::core_face_polygon(A0, fa, pa);
       const phys::Core B1 = pose(S.table, S.view, ib, Vec3{0, 0, 0}, qb);
@@ -536,9 +530,9 @@ TEST_CASE("Narrow phase: a wall triangle's GJK start gives the contact of a cold
       const auto r = random_quaternion(rng);
       Vec3 t = phys::cross(nt, Vec3{r[1], r[2], r[3]});
       t = (1.0 / std::sqrt(phys::norm2(t))) * t;
-      qa = qmul(axis_angle(t, 0.17 * U(rng) * U(rng)),
-                qmul(axis_angle(nt, 6.28 * U(rng)),
-                     qmul(align(phys::core_face_normal(A0, fa), -1.0 * nt), qa)));
+      qa = quat_mul(axis_angle(t, 0.17 * U(rng) * U(rng)),
+                    quat_mul(axis_angle(nt, 6.28 * U(rng)),
+                             quat_mul(align(phys::core_face_normal(A0, fa), -1.0 * nt), qa)));
     }
     const phys::Core A1 = pose(S.table, S.view, ia, Vec3{0, 0, 0}, qa);
     int idx;

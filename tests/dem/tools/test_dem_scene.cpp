@@ -121,7 +121,12 @@ TEST_CASE("a complete [dem] section is read into the settings", "[scene]") {
   CHECK(s.settings.pairs[2].friction == 0.22);
   CHECK(s.settings.pairs[2].rolling_friction == 0.01);
   CHECK(s.settings.pairs[2].rocking_damping == 1.0);  // polyhedra: critical by default
-  CHECK(s.settings.pairs[3].restitution == 0.5);      // steel-steel never meet: default
+  CHECK(s.settings.pairs[2].poly_law == MaterialPair::PolyLaw::pressure_centre);  // the default
+  const DemScene sm = parse(
+      replace(kBase, "rolling_friction = 0.01", "rolling_friction = 0.01\npoly_law = \"smooth\""));
+  CHECK(sm.settings.pairs[1].poly_law == MaterialPair::PolyLaw::smooth);
+  CHECK(sm.settings.pairs[2].poly_law == MaterialPair::PolyLaw::smooth);
+  CHECK(s.settings.pairs[3].restitution == 0.5);  // steel-steel never meet: default
   REQUIRE(s.walls.size() == 1);
   CHECK(s.walls[0].kind == WallSpec::Kind::box);
   CHECK(s.walls[0].open_top);
@@ -156,6 +161,8 @@ TEST_CASE("[dem] mistakes are errors naming file, line and key", "[scene]") {
        "key 'dem.pairs[1].restitution': is 0, outside the accepted range (0, 1]"},
       {"rolling_friction = 0.01", "rolling_friction = 0.01\nrocking_damping = -0.5",
        "key 'dem.pairs[1].rocking_damping': is -0.5, outside the accepted range [0, 10]"},
+      {"rolling_friction = 0.01", "rolling_friction = 0.01\npoly_law = \"energy\"",
+       "key 'dem.pairs[1].poly_law': is \"energy\", accepted: \"pressure_centre\", \"smooth\""},
       {"count = 200", "count = 200\nmass = 1.0", "key 'dem.insert[0].count': give exactly one"},
       {"d_max = 0.005", "d_max = 0.002",
        "key 'dem.insert[0].distribution.d_max': must be >= d_min"},

@@ -37,6 +37,9 @@ struct MaterialPair {
   /// Polyhedra: damping of a face contact's rocking as a ratio to critical (docs/polyhedra.md;
   /// 0 = off). Only with restitution < 1 (no dashpot, no rocking damping).
   double rocking_damping = 1.0;
+  /// Polyhedra: the contact law (docs/polyhedra.md): the pressure-centre law, or the smooth
+  /// law (the exact gradient of a contact energy: conserves energy; stiffer where features tie).
+  enum class PolyLaw { pressure_centre, smooth } poly_law = PolyLaw::pressure_centre;
 };
 
 /// @brief Global settings of a DEM system.
@@ -74,9 +77,9 @@ struct PolyhedronShape {
   /// Hull triangles of the core, counter-clockwise seen from outside (outward normals); needed
   /// for four or more vertices (a closed convex surface), empty for fewer.
   std::vector<std::int32_t> triangles;
-  double dilation = 0.0;             ///< r_d, m (> 0)
-  double volume = 0.0;               ///< volume of the dilated body, m³
-  std::array<double, 3> inertia{};   ///< principal moments of the dilated body / density, m⁵
+  double dilation = 0.0;            ///< r_d, m (> 0)
+  double volume = 0.0;              ///< volume of the dilated body, m³
+  std::array<double, 3> inertia{};  ///< principal moments of the dilated body / density, m⁵
 };
 
 /// @brief Initial state of a new particle.

@@ -39,12 +39,18 @@ struct PairConstants {
   /// ζ_r: damping of a polyhedron face contact's rocking mode as a ratio to critical
   /// (poly_contact.hpp, dilated_law; 0 = off; spheres and point contacts ignore it).
   double rocking;
+  /// The contact law of polyhedra: kLawPressureCentre or kLawSmooth (poly_contact.hpp,
+  /// smooth_contact.hpp; spheres ignore it).
+  int law;
 };
+
+constexpr int kLawPressureCentre = 0;
+constexpr int kLawSmooth = 1;
 
 /// E*, G*, β of a pair from the two materials and the restitution coefficient e ∈ (0, 1].
 inline PairConstants pair_constants(double e1, double nu1, double e2, double nu2,
                                     double restitution, double friction, double rolling,
-                                    double rocking = 1.0) {
+                                    double rocking = 1.0, int law = kLawPressureCentre) {
   PairConstants c{};
   c.e_star = 1.0 / ((1.0 - nu1 * nu1) / e1 + (1.0 - nu2 * nu2) / e2);
   // 1/G* = (2 - ν1)/G1 + (2 - ν2)/G2 with G = E / (2(1 + ν)) (Mindlin; the form used by
@@ -61,6 +67,7 @@ inline PairConstants pair_constants(double e1, double nu1, double e2, double nu2
   c.rolling = rolling;
   c.t_over_n = std::sqrt(4.0 * c.g_star / c.e_star);
   c.rocking = rocking;
+  c.law = law;
   return c;
 }
 
@@ -157,7 +164,7 @@ DEMFEM_HD ContactResult hertz_mindlin(const PairConstants& c, Vec3 n, double del
       // parameter (the damping ratio η_r), and the rolling mode is damped through its
       // coupling to the tangential dashpot (measured: a sphere at rest on an incline settles
       // within 0.05 s, tests/dem/core/test_contact_law.cpp).
-      const Vec3 wr = wrel - dot(wrel, n) * n;  // rolling part only (no twist)
+      const Vec3 wr = wrel - dot(wrel, n) * n;            // rolling part only (no twist)
       Vec3 mr = rotate_into_tangent_plane(roll_hist, n);  // as the tangential spring
       // k_r = 2.25 k_n μ_r² R² (Ai et al. 2011) with k_n taken as the tangent stiffness
       // S_n = dF_n/dδ of the Hertz contact, the stiffness a small rolling rocks the contact

@@ -50,6 +50,7 @@
 
 #include "demfem/dem/physics/contact.hpp"
 #include "demfem/dem/physics/narrow_phase.hpp"
+#include "demfem/dem/physics/smooth_contact.hpp"
 #include "demfem/dem/physics/wall_contact.hpp"
 
 namespace demfem::dem::phys {
@@ -92,6 +93,7 @@ struct DilatedResult {
 struct Region {
   double weight;
   double second[6];
+  Vec3 centre;  ///< ∫ x o dA / W: the pivot of the smooth law's couples (see dilated_law)
 };
 
 /// In-plane mean moment of inertia of a body about its centre for axes perpendicular to n:
@@ -128,12 +130,28 @@ DEMFEM_HD double in_plane_inertia(const BodyState& b, Vec3 n) {
 /// dashpot is spread alike: a couple −(γ_t / W) J_p (ω_rel·n) n against the twist about n
 /// (J_p = ∫ o |u|² dA), at most the Coulomb couple μ |F_n| √(J_p / W), since a single point has
 /// no resistance to twisting. For a point contact (W = 0) the law is the single-point law.
+///
+/// Smooth law (`el` not null, smooth_contact.hpp): the elastic force and torques are el's (the
+/// gradient of the contact energy); n, c are el's normal and point, and the Hertz law is
+/// evaluated at the overlap δ_s / g and radius R g⁵, for which its elastic force is el's
+/// (F_H(δ_s) g) and its stiffness dF/dδ along n is F_H'(δ_s) g²: the dashpot (Tsuji's with that
+/// stiffness, so a central impact keeps e), the tangential spring (stiffness in the same ratio
+/// to it) and the Coulomb limit act at c as in the pressure-centre law. `delta` is then the
+/// geometric overlap reported.
 template <bool Friction>
 DEMFEM_HD DilatedResult dilated_law(const PairConstants& pc, Vec3 n, double delta, Vec3 c,
                                     double reff, const BodyState& bi, const BodyState* bj,
                                     Vec3 vwall, Vec3 wwall, const Region& reg, Vec3& shear,
-                                    double dt) {
+                                    double dt, const SmoothElastic* el = nullptr) {
   DilatedResult out{};
+  const double delta_geom = delta;
+  if (el != nullptr) {
+    n = el->n;
+    c = el->point;
+    const double g2 = el->g * el->g;
+    delta = el->delta_s / el->g;
+    reff = reff * g2 * g2 * el->g;
+  }
   const Vec3 ai = c - bi.x;
   double inv_m = normal_inverse_mass(bi, ai, n);
   Vec3 vrel = bi.v + cross(bi.w, ai);
@@ -150,14 +168,24 @@ DEMFEM_HD DilatedResult dilated_law(const PairConstants& pc, Vec3 n, double delt
                                                          Vec3{0, 0, 0}, shear, roll, dt);
   out.force = r.force;
   out.fn = r.fn;
-  out.delta = delta;
-  out.torque_i = cross(ai, r.force);
-  out.torque_j = cross(aj, -1.0 * r.force);
+  out.delta = delta_geom;
+  if (el != nullptr) {
+    const Vec3 rest = r.force - el->fa;  // dashpot and tangential force, at c
+    out.torque_i = el->ta + cross(ai, rest);
+    out.torque_j = el->tb + cross(aj, -1.0 * rest);
+  } else {
+    out.torque_i = cross(ai, r.force);
+    out.torque_j = cross(aj, -1.0 * r.force);
+  }
   if (reg.weight > 0.0 && r.gamma_n != 0.0) {
-    // second moment about c (parallel axes; its components along n do not act below)
+    // second moment about c (parallel axes; its components along n do not act below). The
+    // shift J_c = J_0 − W d dᵀ holds about the region's centre only: the pressure-centre law's
+    // c is that centre (up to a shift along n), the smooth law's c is its terms' weighted
+    // point, so the smooth law's couples pivot on the region's centre (about another point the
+    // shifted moment can turn negative, and the rocking dashpot would drive the rocking).
     const double* s0 = reg.second;
     const double W = reg.weight;
-    const Vec3 d = ai;
+    const Vec3 d = el != nullptr ? reg.centre - bi.x : ai;
     const double sxx = s0[0] - W * d.x * d.x, syy = s0[1] - W * d.y * d.y,
                  szz = s0[2] - W * d.z * d.z, sxy = s0[3] - W * d.x * d.y,
                  sxz = s0[4] - W * d.x * d.z, syz = s0[5] - W * d.y * d.z;
@@ -216,8 +244,19 @@ DEMFEM_HD bool dilated_pair(const Core& ci, double ri, const BodyState& bi, cons
     return false;
   }
   const double reff = ri * rj / (ri + rj);
-  Region reg{k.ref_side >= 0 ? k.weight : 0.0, {}};
+  Region reg{k.ref_side >= 0 ? k.weight : 0.0, {}, Vec3{0, 0, 0}};
   for (int m = 0; m < 6; ++m) reg.second[m] = k.second[m];
+  if (reg.weight > 0.0) reg.centre = (1.0 / reg.weight) * k.moment;
+  if (pc.law == kLawSmooth && ci.kind != Core::kPoint && cj.kind != Core::kPoint && k.dist > 0.0) {
+    SmoothSum sum;
+    SmoothElastic el;
+    if (smooth_pair_sum(ci, ri, cj, rj, k.pa, k.pb, bi.x, bj.x, sum) &&
+        smooth_elastic(sum, pc.e_star, reff, el)) {
+      out = dilated_law<Friction>(pc, k.n, delta, k.point, reff, bi, &bj, Vec3{0, 0, 0},
+                                  Vec3{0, 0, 0}, reg, shear, dt, &el);
+      return true;
+    }
+  }
   out = dilated_law<Friction>(pc, k.n, delta, k.point, reff, bi, &bj, Vec3{0, 0, 0}, Vec3{0, 0, 0},
                               reg, shear, dt);
   return true;
@@ -345,6 +384,8 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
   double cdelta[kMaxPolyWallCandidates], cw[kMaxPolyWallCandidates];
   double cs[kMaxPolyWallCandidates][6];
   Vec3 cn[kMaxPolyWallCandidates], cpt[kMaxPolyWallCandidates], cm[kMaxPolyWallCandidates];
+  Vec3 cpa[kMaxPolyWallCandidates], cpb[kMaxPolyWallCandidates];  // closest core points
+  double cdist[kMaxPolyWallCandidates];
   int nc = 0;
   const double* v = w.vpos;
   for (std::int64_t k = w.prow[i]; k < w.prow[i + 1] && nc < kMaxPolyWallCandidates; ++k) {
@@ -389,6 +430,7 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
     cpt[nc] = k2.point;
     cw[nc] = k2.ref_side >= 0 ? k2.weight : 0.0;
     cm[nc] = k2.moment;
+    cpa[nc] = k2.pa, cpb[nc] = k2.pb, cdist[nc] = k2.dist;
     for (int m = 0; m < 6; ++m) cs[nc][m] = k2.second[m];
     ++nc;
   }
@@ -462,7 +504,7 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
   for (int a = 0; a < nc && cnt < kMaxWallContacts; ++a) {
     if (!keep[a] || group[a] != a) continue;  // each group once, at its first member
     int deep = a;
-    Region reg{0.0, {0, 0, 0, 0, 0, 0}};
+    Region reg{0.0, {0, 0, 0, 0, 0, 0}, Vec3{0, 0, 0}};
     Vec3 nsum{0, 0, 0}, msum{0, 0, 0};
     for (int b = a; b < nc; ++b) {
       if (group[b] != a) continue;
@@ -479,8 +521,31 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
       n = (1.0 / std::sqrt(norm2(nsum))) * nsum;
       const Vec3 cen = (1.0 / reg.weight) * msum;
       c = cen + dot(n, cpt[deep] - cen) * n;
+      reg.centre = cen;
     }
     const double delta = cdelta[deep];
+    const PairConstants& pcw = pc_row[w.tri_mat[ctri[deep]]];
+    SmoothElastic el;
+    bool smooth = false;
+    if (pcw.law == kLawSmooth && p.core.kind == Core::kPolyhedron) {
+      // the group's members, their closest pairs (all at positive distance)
+      Vec3 gt[3 * kMaxPolyWallCandidates], gpa[kMaxPolyWallCandidates], gpb[kMaxPolyWallCandidates];
+      int m = 0;
+      bool apart = true;
+      for (int b = a; b < nc; ++b) {
+        if (group[b] != a) continue;
+        const std::int32_t* tb = w.tri_v + 3 * ctri[b];
+        for (int e = 0; e < 3; ++e)
+          gt[3 * m + e] = Vec3{v[3 * tb[e]], v[3 * tb[e] + 1], v[3 * tb[e] + 2]};
+        gpa[m] = cpa[b], gpb[m] = cpb[b];
+        apart = apart && cdist[b] > 0.0;
+        ++m;
+      }
+      SmoothSum sum;
+      smooth = apart && smooth_wall_sum(p.core, p.r, p.body.x, gt, gpa, gpb, m, sum) &&
+               smooth_elastic(sum, pcw.e_star, p.r, el);
+    }
+    if (smooth) c = el.point;  // the force's point: the carrier's and the record's
     // the carrier: the member triangle nearest the contact point
     std::int32_t tri = ctri[deep];
     ClosestPoint cpc{};
@@ -515,8 +580,9 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
     const std::int32_t wall = w.tri_wall[tri];
     const Vec3 ww =
         w.motion != nullptr && wall >= 0 ? rigid_spin(w.motion[wall], w.time) : Vec3{0, 0, 0};
-    const DilatedResult r = dilated_law<Friction>(pc_row[w.tri_mat[tri]], n, delta, c, p.r, p.body,
-                                                  nullptr, vw, ww, reg, sh, dt);
+    const DilatedResult r =
+        dilated_law<Friction>(pc_row[w.tri_mat[tri]], n, delta, c, p.r, p.body, nullptr, vw, ww,
+                              reg, sh, dt, smooth ? &el : nullptr);
     f = f + r.force;
     q = q + r.torque_i;
     if constexpr (Friction) shr[3 * cnt] = sh.x, shr[3 * cnt + 1] = sh.y, shr[3 * cnt + 2] = sh.z;
