@@ -9,6 +9,7 @@
 #include <random>
 #include <vector>
 
+#include "core/shape_table.hpp"
 #include "demfem/dem/dem_system.hpp"
 
 namespace demfem::dem::test {
@@ -120,6 +121,22 @@ inline PolyhedronShape point_shape(double r) {
   s.volume = 4.0 / 3.0 * pi * r * r * r;
   const double I = 0.4 * s.volume * r * r;
   s.inertia = {I, I, I};
+  return s;
+}
+
+/// Shapes in the engine's shape table (the narrow-phase tests pose cores on its view).
+struct ShapeSet {
+  detail::ShapeTable table;
+  std::vector<PolyhedronShape> list;
+  phys::ShapeTableView view{};
+};
+
+/// The shape set of `list`.
+inline ShapeSet shape_set(std::vector<PolyhedronShape> list) {
+  ShapeSet s;
+  s.list = std::move(list);
+  for (const auto& sh : s.list) s.table.add(sh);
+  s.view = s.table.view();
   return s;
 }
 

@@ -184,32 +184,26 @@ phys::Core pose(const detail::ShapeTable& tab, const phys::ShapeTableView& view,
   return phys::polyhedron_core(view, shape, x, q[0], q[1], q[2], q[3], 1.0);
 }
 
-struct Shapes {
-  detail::ShapeTable table;
-  std::vector<PolyhedronShape> list;
-  phys::ShapeTableView view{};
-};
+using Shapes = ShapeSet;
 
 Shapes make_shapes() {
-  Shapes s;
+  std::vector<PolyhedronShape> list;
   std::mt19937_64 rng(11);
-  s.list.push_back(box_shape(0.01, 0.007, 0.005, 0.001));
-  s.list.push_back(box_shape(0.006, 0.006, 0.006, 0.0005));
+  list.push_back(box_shape(0.01, 0.007, 0.005, 0.001));
+  list.push_back(box_shape(0.006, 0.006, 0.006, 0.0005));
   PolyhedronShape tet;
   tet.name = "tetrahedron";
   tet.vertices = {0.01, 0.01, 0.01, -0.01, -0.01, 0.01, -0.01, 0.01, -0.01, 0.01, -0.01, -0.01};
   tet.triangles = brute_hull(tet.vertices);
   tet.dilation = 0.001, tet.volume = 1e-6, tet.inertia = {1e-11, 1e-11, 1e-11};
-  s.list.push_back(tet);
+  list.push_back(tet);
   for (int k = 0; k < 6; ++k)
-    s.list.push_back(random_rock(rng, 7 + 2 * k, 0.012, 0.008 - 0.0005 * k, 0.005, 0.001));
-  s.list.push_back(point_shape(0.004));
+    list.push_back(random_rock(rng, 7 + 2 * k, 0.012, 0.008 - 0.0005 * k, 0.005, 0.001));
+  list.push_back(point_shape(0.004));
   PolyhedronShape seg = point_shape(0.002);
   seg.vertices = {-0.005, 0, 0, 0.005, 0, 0};
-  s.list.push_back(seg);
-  for (const auto& sh : s.list) s.table.add(sh);
-  s.view = s.table.view();
-  return s;
+  list.push_back(seg);
+  return shape_set(std::move(list));
 }
 
 struct Checked {

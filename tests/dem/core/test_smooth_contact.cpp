@@ -29,23 +29,17 @@ Quat turn(Vec3 w, Quat q) {  // q turned by the world rotation vector w
   return quat_mul({std::cos(th / 2), s * w.x, s * w.y, s * w.z}, q);
 }
 
-struct Shapes {
-  detail::ShapeTable table;
-  std::vector<PolyhedronShape> list;
-  phys::ShapeTableView view{};
-};
+using Shapes = ShapeSet;
 
 Shapes make_shapes() {
-  Shapes s;
+  std::vector<PolyhedronShape> list;
   std::mt19937_64 rng(23);
-  s.list.push_back(box_shape(0.006, 0.006, 0.006, 0.001));   // 0: cube
-  s.list.push_back(box_shape(0.010, 0.007, 0.004, 0.0008));  // 1: flat box
-  for (int k = 0; k < 4; ++k)                                // 2..5: rocks
-    s.list.push_back(random_rock(rng, 9 + 3 * k, 0.011, 0.008, 0.006, 0.001));
-  s.list.push_back(point_shape(0.003));  // 6: sphere
-  for (const auto& sh : s.list) s.table.add(sh);
-  s.view = s.table.view();
-  return s;
+  list.push_back(box_shape(0.006, 0.006, 0.006, 0.001));   // 0: cube
+  list.push_back(box_shape(0.010, 0.007, 0.004, 0.0008));  // 1: flat box
+  for (int k = 0; k < 4; ++k)                              // 2..5: rocks
+    list.push_back(random_rock(rng, 9 + 3 * k, 0.011, 0.008, 0.006, 0.001));
+  list.push_back(point_shape(0.003));  // 6: sphere
+  return shape_set(std::move(list));
 }
 
 struct Pose {
@@ -108,21 +102,29 @@ Vec3 random_unit(std::mt19937_64& rng) {
   return (1.0 / std::sqrt(phys::norm2(v))) * v;
 }
 
+// Two random shapes of S in random orientations, B placed to overlap A by depth() of the
+// smaller dilation.
+template <class Depth>
+std::pair<Pose, Pose> touching_pair(const Shapes& S, std::mt19937_64& rng, Depth depth) {
+  std::uniform_int_distribution<int> pick(0, 5);
+  Pose a{pick(rng), Vec3{0, 0, 0}, random_quaternion(rng)};
+  Pose b{pick(rng), Vec3{0, 0, 0}, random_quaternion(rng)};
+  const double rsum = dil(S, a) + dil(S, b);
+  b = place(S, a, b, random_unit(rng), rsum - depth() * std::min(dil(S, a), dil(S, b)));
+  return {a, b};
+}
+
 }  // namespace
 
 TEST_CASE("Smooth polyhedron law: force and torques are the gradient of its energy",
           "[poly][smooth]") {
   const Shapes S = make_shapes();
   std::mt19937_64 rng(5);
-  std::uniform_int_distribution<int> pick(0, 5);
   std::uniform_real_distribution<double> frac(0.02, 0.4);
   double worst = 0.0;
   int checked = 0;
   for (int trial = 0; trial < 400; ++trial) {
-    Pose a{pick(rng), Vec3{0, 0, 0}, random_quaternion(rng)};
-    Pose b{pick(rng), Vec3{0, 0, 0}, random_quaternion(rng)};
-    const double rsum = dil(S, a) + dil(S, b);
-    b = place(S, a, b, random_unit(rng), rsum - frac(rng) * std::min(dil(S, a), dil(S, b)));
+    const auto [a, b] = touching_pair(S, rng, [&] { return frac(rng); });
     const Eval e0 = evaluate(S, a, b);
     if (!e0.ok) continue;
     ++checked;
@@ -162,7 +164,6 @@ TEST_CASE("Smooth polyhedron law: no kink along paths through ties", "[poly][smo
   // below 1e-3 of the path's largest power.
   const Shapes S = make_shapes();
   std::mt19937_64 rng(8);
-  std::uniform_int_distribution<int> pick(0, 5);
   auto largest_change = [&](const Pose& a, const Pose& b, Vec3 v, Vec3 w, double rmin, int n,
                             double& pmax) {
     double pprev = 0.0, jump = 0.0;
@@ -189,11 +190,8 @@ TEST_CASE("Smooth polyhedron law: no kink along paths through ties", "[poly][smo
   double worst = 0.0;
   int paths = 0;
   for (int trial = 0; trial < 100; ++trial) {
-    Pose a{pick(rng), Vec3{0, 0, 0}, random_quaternion(rng)};
-    Pose b{pick(rng), Vec3{0, 0, 0}, random_quaternion(rng)};
-    const double rsum = dil(S, a) + dil(S, b);
+    const auto [a, b] = touching_pair(S, rng, [] { return 0.25; });
     const double rmin = std::min(dil(S, a), dil(S, b));
-    b = place(S, a, b, random_unit(rng), rsum - 0.25 * rmin);
     const Vec3 v = 0.002 * random_unit(rng), w = 0.3 * random_unit(rng);
     double pmax = 0.0, pmax_fine = 0.0;
     const double coarse = largest_change(a, b, v, w, rmin, 1000, pmax);
@@ -243,15 +241,11 @@ TEST_CASE("Smooth polyhedron law: the overlap against eq. 2.5", "[poly][smooth]"
   // short of it by (s sin θ)² / (2 (r_i + r_j)) at a crossing s from an end: reported.
   const Shapes S = make_shapes();
   std::mt19937_64 rng(17);
-  std::uniform_int_distribution<int> pick(0, 5);
   std::uniform_real_distribution<double> frac(0.02, 0.4);
   double lo = 1e300, hi = 0.0, lo_parallel = 1e300;
   int exact = 0, n = 0, parallel = 0;
   for (int trial = 0; trial < 2000; ++trial) {
-    Pose a{pick(rng), Vec3{0, 0, 0}, random_quaternion(rng)};
-    Pose b{pick(rng), Vec3{0, 0, 0}, random_quaternion(rng)};
-    const double rsum = dil(S, a) + dil(S, b);
-    b = place(S, a, b, random_unit(rng), rsum - frac(rng) * std::min(dil(S, a), dil(S, b)));
+    const auto [a, b] = touching_pair(S, rng, [&] { return frac(rng); });
     const Eval e = evaluate(S, a, b);
     if (!e.ok) continue;
     ++n;

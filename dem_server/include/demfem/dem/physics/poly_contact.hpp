@@ -246,8 +246,8 @@ DEMFEM_HD bool dilated_pair(const Core& ci, double ri, const BodyState& bi, cons
   const double reff = ri * rj / (ri + rj);
   Region reg{k.ref_side >= 0 ? k.weight : 0.0, {}, Vec3{0, 0, 0}};
   for (int m = 0; m < 6; ++m) reg.second[m] = k.second[m];
-  if (reg.weight > 0.0) reg.centre = (1.0 / reg.weight) * k.moment;
   if (pc.law == kLawSmooth && ci.kind != Core::kPoint && cj.kind != Core::kPoint && k.dist > 0.0) {
+    if (reg.weight > 0.0) reg.centre = (1.0 / reg.weight) * k.moment;  // the couples' pivot
     SmoothSum sum;
     SmoothElastic el;
     if (smooth_pair_sum(ci, ri, cj, rj, k.pa, k.pb, bi.x, bj.x, sum) &&

@@ -205,10 +205,51 @@ DEMFEM_HD int band_slot(const int* idx, int n, int k) {
   return -1;
 }
 
+/// Most edges of one body with an end in the contact band (more: the pressure-centre law).
+constexpr int kMaxSmoothEdges = 64;
+
+/// An edge of a core with an end in the band: its ends' band slots (-1: not in the band) and
+/// world positions.
+struct BandEdge {
+  int s0, s1;
+  Vec3 p0, p1;
+};
+
+/// The edges of core c with an end among its band vertices (indices idx, positions pos, n of
+/// them), at most cap; returns the count, or -1 when there are more.
+DEMFEM_HD int band_edges(const Core& c, const int* idx, const Vec3* pos, int n, BandEdge* out,
+                         int cap) {
+  int m = 0;
+  const int ne = core_edge_count(c);
+  for (int e = 0; e < ne; ++e) {
+    int a, b;
+    core_edge_vertices(c, e, a, b);
+    const int s0 = band_slot(idx, n, a), s1 = band_slot(idx, n, b);
+    if (s0 < 0 && s1 < 0) continue;
+    if (m == cap) return -1;
+    out[m++] = BandEdge{s0, s1, s0 >= 0 ? pos[s0] : core_vertex(c, a),
+                        s1 >= 0 ? pos[s1] : core_vertex(c, b)};
+  }
+  return m;
+}
+
+/// Adds coef · ∂Q'_b/∂(poses) to s: Q'_b = S(Q_b, Σ_a V_ab) of B's vertex b (overlap fb with
+/// core A; S's derivatives dm, de; A's band vertices va[0..na)), the term itself (coef 1) or
+/// an edge term's end (coef its ∂/∂E).
+DEMFEM_HD void smooth_add_q_gradient(SmoothSum& s, const FeatureOverlap& fb, double dm, double de,
+                                     const Vec3* va, int na, double coef, double rsum, Vec3 xa,
+                                     Vec3 xb, double ra, double rb) {
+  smooth_add_gradient(s, fb, coef * dm * smooth_dpow(fb.delta), xa, xb, ra, rb);
+  for (int j = 0; j < na; ++j) {
+    const FeatureOverlap v = feature_overlap(va[j], fb.pb, rsum);
+    if (v.delta > 0.0) smooth_add_gradient(s, v, coef * de * smooth_dpow(v.delta), xa, xb, ra, rb);
+  }
+}
+
 /// The terms of the pair (A, B) (dilations ra, rb) into s, given a closest pair (pa, pb) of the
 /// cores at positive distance (GJK's). Returns false when the law does not apply (the cores
-/// touch, or a band holds more than kMaxSmoothBand vertices): the caller takes the
-/// pressure-centre law. xa, xb: the centres the torques are taken about.
+/// touch, or a band holds more than kMaxSmoothBand vertices or kMaxSmoothEdges edges): the
+/// caller takes the pressure-centre law. xa, xb: the centres the torques are taken about.
 DEMFEM_HD bool smooth_pair_sum(const Core& A, double ra, const Core& B, double rb, Vec3 pa, Vec3 pb,
                                Vec3 xa, Vec3 xb, SmoothSum& s) {
   s = smooth_sum_zero();
@@ -261,30 +302,21 @@ DEMFEM_HD bool smooth_pair_sum(const Core& A, double ra, const Core& B, double r
     if (!(c.s > 0.0)) continue;
     Q[k] = c.s, Qdm[k] = c.dm, Qde[k] = c.de;
     s.sum += c.s;
-    smooth_add_gradient(s, fb[k], c.dm * smooth_dpow(fb[k].delta), xa, xb, ra, rb);
-    for (int j = 0; j < na; ++j) {
-      const FeatureOverlap v = feature_overlap(va[j], vb[k], rsum);
-      if (v.delta > 0.0) smooth_add_gradient(s, v, c.de * smooth_dpow(v.delta), xa, xb, ra, rb);
-    }
+    smooth_add_q_gradient(s, fb[k], c.dm, c.de, va, na, 1.0, rsum, xa, xb, ra, rb);
   }
   // M_ef: edges of A against edges of B, each with an end in its band
-  const int ea = core_edge_count(A), eb = core_edge_count(B);
-  for (int e = 0; e < ea; ++e) {
-    int a0, a1;
-    core_edge_vertices(A, e, a0, a1);
-    const int sa0 = band_slot(ia, na, a0), sa1 = band_slot(ia, na, a1);
-    if (sa0 < 0 && sa1 < 0) continue;
-    const Vec3 p0 = sa0 >= 0 ? va[sa0] : core_vertex(A, a0);
-    const Vec3 p1 = sa1 >= 0 ? va[sa1] : core_vertex(A, a1);
+  BandEdge ea[kMaxSmoothEdges], eb[kMaxSmoothEdges];
+  const int nea = band_edges(A, ia, va, na, ea, kMaxSmoothEdges);
+  const int neb = band_edges(B, ib, vb, nb, eb, kMaxSmoothEdges);
+  if (nea < 0 || neb < 0) return false;
+  for (int e = 0; e < nea; ++e) {
+    const int sa0 = ea[e].s0, sa1 = ea[e].s1;
+    const Vec3 p0 = ea[e].p0, p1 = ea[e].p1;
     const Vec3 ma = 0.5 * (p0 + p1);
     const double ha = 0.5 * std::sqrt(norm2(p1 - p0));
-    for (int f = 0; f < eb; ++f) {
-      int b0, b1;
-      core_edge_vertices(B, f, b0, b1);
-      const int sb0 = band_slot(ib, nb, b0), sb1 = band_slot(ib, nb, b1);
-      if (sb0 < 0 && sb1 < 0) continue;
-      const Vec3 q0 = sb0 >= 0 ? vb[sb0] : core_vertex(B, b0);
-      const Vec3 q1 = sb1 >= 0 ? vb[sb1] : core_vertex(B, b1);
+    for (int f = 0; f < neb; ++f) {
+      const int sb0 = eb[f].s0, sb1 = eb[f].s1;
+      const Vec3 q0 = eb[f].p0, q1 = eb[f].p1;
       const double reach = rsum + ha + 0.5 * std::sqrt(norm2(q1 - q0));
       if (!(norm2(0.5 * (q0 + q1) - ma) < reach * reach)) continue;
       Vec3 c1, c2;
@@ -315,15 +347,9 @@ DEMFEM_HD bool smooth_pair_sum(const Core& A, double ra, const Core& B, double r
           smooth_add_gradient(s, fa[ends_a[t]], pf.chi * c.de * smooth_dpow(fa[ends_a[t]].delta),
                               xa, xb, ra, rb);
         const int kb = ends_b[t];
-        if (kb >= 0 && Q[kb] > 0.0) {  // B's end as it counts: after its own subtraction
-          const double ce = pf.chi * c.de;
-          smooth_add_gradient(s, fb[kb], ce * Qdm[kb] * smooth_dpow(fb[kb].delta), xa, xb, ra, rb);
-          for (int j = 0; j < na; ++j) {
-            const FeatureOverlap v = feature_overlap(va[j], vb[kb], rsum);
-            if (v.delta > 0.0)
-              smooth_add_gradient(s, v, ce * Qde[kb] * smooth_dpow(v.delta), xa, xb, ra, rb);
-          }
-        }
+        if (kb >= 0 && Q[kb] > 0.0)  // B's end as it counts: after its own subtraction
+          smooth_add_q_gradient(s, fb[kb], Qdm[kb], Qde[kb], va, na, pf.chi * c.de, rsum, xa, xb,
+                                ra, rb);
       }
       if (pf.dchi != 0.0) {
         // ∂x/∂θ_A = −2 (â·b̂)(â × b̂), ∂x/∂θ_B = −∂x/∂θ_A: a couple
