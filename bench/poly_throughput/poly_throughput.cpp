@@ -35,6 +35,7 @@
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
+#include <map>
 #include <tuple>
 
 #include "ballast_bed.hpp"
@@ -55,12 +56,14 @@ constexpr double kRho = 2600.0;
 
 constexpr double kDt = 1e-5;  // the measured step
 
-DemSettings settings(int threads, const std::string& backend, double restitution, double dt = kDt) {
+DemSettings settings(int threads, const std::string& backend, double restitution, double dt = kDt,
+                     MaterialPair::PolyLaw law = MaterialPair::PolyLaw::pressure_centre) {
   DemSettings s;
   s.dt = dt;
   s.gravity = {0, 0, -9.81};
   s.materials = {{"rock", 1e8, 0.3, kRho}, {"wall", 1e8, 0.3, 0.0}};
   s.pairs.assign(4, MaterialPair{0.6, restitution, 0.0});
+  for (auto& p : s.pairs) p.poly_law = law;
   s.threads = threads;
   s.backend = backend;
   return s;
@@ -88,8 +91,9 @@ std::uint64_t state_hash(const ParticleState& p) {
 }
 
 DemSystem make_system(const Bed& bed, const shapes::ShapeLibrary* lib, int threads,
-                      const std::string& backend, double restitution, double dt = kDt) {
-  DemSystem sys(settings(threads, backend, restitution, dt));
+                      const std::string& backend, double restitution, double dt = kDt,
+                      MaterialPair::PolyLaw law = MaterialPair::PolyLaw::pressure_centre) {
+  DemSystem sys(settings(threads, backend, restitution, dt, law));
   if (lib) add_library_shapes(sys, *lib, "rock");
   for (const auto& w : bed.walls) sys.add_wall(w);
   sys.add_particles(bed.particles);
@@ -97,10 +101,11 @@ DemSystem make_system(const Bed& bed, const shapes::ShapeLibrary* lib, int threa
 }
 
 Result measure(const Bed& bed, const shapes::ShapeLibrary* lib, const std::filesystem::path& state,
-               int threads, const std::string& backend, std::int64_t steps, double frozen) {
+               int threads, const std::string& backend, std::int64_t steps, double frozen,
+               MaterialPair::PolyLaw law) {
   Result r;
   try {
-    DemSystem sys = make_system(bed, lib, threads, backend, 0.2);
+    DemSystem sys = make_system(bed, lib, threads, backend, 0.2, kDt, law);
     {
       demfem::io::H5File f(state, demfem::io::H5File::Mode::read);
       sys.restore(f, "/bed");
@@ -262,13 +267,19 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1.0));
   app.add_flag("!--no-gpu", gpu, "skip the GPU even when one is present");
   app.add_flag("!--no-spheres", spheres, "skip the sphere beds");
+  std::vector<std::string> laws = {"pressure_centre"};
+  app.add_option("--law", laws,
+                 "contact laws of the rocks, measured in turns on the same settled bed "
+                 "(pressure_centre, smooth; default pressure_centre; beds settle under "
+                 "pressure_centre)")
+      ->check(CLI::IsMember({"pressure_centre", "smooth"}));
   app.add_flag("--state-hash", hashes,
                "print a hash of each run's final particle state (bitwise A/B of two builds)");
   CLI11_PARSE(app, argc, argv);
 
   demfem::bench::Report rep(
       "poly_throughput",
-      {"particles", "shape", "settled s", "KE/(N m g d)", "backend", "threads", "frozen",
+      {"particles", "shape", "law", "settled s", "KE/(N m g d)", "backend", "threads", "frozen",
        "contacts/particle", "list pairs/particle", "particle-steps/s", "per cpu-s", "runs",
        "median", "ratio to spheres", "bytes/particle", "detection", "forces", "integration"});
   rep.set_info("dt", kDt);
@@ -285,7 +296,7 @@ int main(int argc, char** argv) {
   std::filesystem::create_directories(tmp);
   for (std::size_t n_asked : counts) {
     // spheres of the same sizes first: the reference rate of the ratio column
-    double sphere_rate[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    std::map<std::pair<std::string, int>, double> sphere_rate;  // by backend and threads
     std::vector<std::string> kinds;
     if (spheres) kinds.push_back("spheres");
     for (int t : triangles) kinds.push_back(std::to_string(t) + " triangles");
@@ -331,24 +342,31 @@ int main(int argc, char** argv) {
         std::string first;
         int second;
         double frozen;
+        std::string law;
       };
       std::vector<Run> runs;
-      for (double f : frozen_fracs)
-        for (int t : threads) runs.push_back({"cpu", t, f});
-      if (have_gpu) runs.push_back({"cuda", 0, 0.0});
+      // spheres do not depend on the polyhedron law: measured once
+      const std::vector<std::string> kind_laws = rock ? laws : std::vector<std::string>{"-"};
+      for (const auto& law : kind_laws) {
+        for (double f : frozen_fracs)
+          for (int t : threads) runs.push_back({"cpu", t, f, law});
+        if (have_gpu) runs.push_back({"cuda", 0, 0.0, law});
+      }
       std::vector<std::vector<Result>> done(runs.size());
       for (int k = 0; k < repeat; ++k)
         for (std::size_t c = 0; c < runs.size(); ++c) {
           Result r = measure(bed, lib.get(), state, runs[c].second, runs[c].first,
-                             runs[c].first == "cuda" ? 20 * steps : steps, runs[c].frozen);
+                             runs[c].first == "cuda" ? 20 * steps : steps, runs[c].frozen,
+                             runs[c].law == "smooth" ? MaterialPair::PolyLaw::smooth
+                                                     : MaterialPair::PolyLaw::pressure_centre);
           if (!r.ok) {
             std::fprintf(stderr, "%zu %s, %s: %s\n", n, kind.c_str(), runs[c].first.c_str(),
                          r.note.c_str());
             continue;
           }
           if (hashes)
-            std::printf("state hash: %zu %s, %s %d threads, %lld steps: %016llx\n", n,
-                        kind.c_str(), runs[c].first.c_str(), runs[c].second,
+            std::printf("state hash: %zu %s %s, %s %d threads, %lld steps: %016llx\n", n,
+                        kind.c_str(), runs[c].law.c_str(), runs[c].first.c_str(), runs[c].second,
                         static_cast<long long>(runs[c].first == "cuda" ? 20 * steps : steps),
                         static_cast<unsigned long long>(r.hash));
           done[c].push_back(std::move(r));
@@ -362,11 +380,12 @@ int main(int argc, char** argv) {
         const double median =
             m % 2 == 1 ? rs[m / 2].rate : 0.5 * (rs[m / 2 - 1].rate + rs[m / 2].rate);
         const Result& r = rs.front();
-        if (!rock && c < 8 && runs[c].frozen == 0.0) sphere_rate[c] = r.rate;
-        const double ratio = rock && c < 8 && sphere_rate[c] > 0 && runs[c].frozen == 0.0
-                                 ? sphere_rate[c] / r.rate
+        const auto key = std::make_pair(runs[c].first, runs[c].second);
+        if (!rock && runs[c].frozen == 0.0) sphere_rate[key] = r.rate;
+        const double ratio = rock && sphere_rate.count(key) && runs[c].frozen == 0.0
+                                 ? sphere_rate[key] / r.rate
                                  : 1.0;
-        rep.add_row({static_cast<long long>(n), kind, settled, ke, runs[c].first,
+        rep.add_row({static_cast<long long>(n), kind, runs[c].law, settled, ke, runs[c].first,
                      static_cast<long long>(runs[c].second), runs[c].frozen, r.contacts, r.pairs,
                      r.rate, r.cpu_rate, static_cast<long long>(m), median, ratio, r.bytes, r.det,
                      r.force, r.integ});

@@ -62,6 +62,7 @@ struct Setup {
   double load = 2.64e5;     // Pa
   double gap = 0.005;       // m, between the platen and each side wall
   double thickness = 0.04;  // m, platen
+  MaterialPair::PolyLaw law = MaterialPair::PolyLaw::pressure_centre;
 };
 
 DemSettings settings(double dt, const Setup& su) {
@@ -70,6 +71,7 @@ DemSettings settings(double dt, const Setup& su) {
   s.gravity = {0, 0, -kG};
   s.materials = {{"ballast", su.E, 0.27, 2600.0}, {"wall", su.E, 0.27, 0.0}};
   s.pairs.assign(4, MaterialPair{0.6, 0.2, 0.0});
+  for (auto& p : s.pairs) p.poly_law = su.law;
   s.threads = su.threads;
   return s;
 }
@@ -280,6 +282,9 @@ int main(int argc, char** argv) {
                  "continue protocol: folder keeping the settled beds for reuse (default: none)");
   app.add_option("--youngs-modulus", su.E, "rock and wall Young's modulus, Pa");
   app.add_option("--threads", su.threads, "CPU threads");
+  std::string law = "pressure_centre";
+  app.add_option("--law", law, "contact law of the rocks (pressure_centre, smooth), settling too")
+      ->check(CLI::IsMember({"pressure_centre", "smooth"}));
   app.add_option("--seeds", seeds, "beds (seeds of shapes, sizes and orientations)")
       ->check(CLI::Range(1, 100));
   app.add_option("--first-seed", first_seed, "continue protocol: seed of the first bed")
@@ -288,6 +293,7 @@ int main(int argc, char** argv) {
   app.add_option("--json", json, "write the results as JSON");
   CLI11_PARSE(app, argc, argv);
   const bool cont = protocol == "continue";
+  if (law == "smooth") su.law = MaterialPair::PolyLaw::smooth;
   std::vector<std::string> cols = {
       "rocks",       "dt s",           "dt / dt_R",   "seed", "bed height m",
       "rel. to ref", "coordination Z", "rel. to ref", "KE J", "max overlap / r_d"};
@@ -300,6 +306,7 @@ int main(int argc, char** argv) {
                             " Pa, nu 0.27, rho 2600, e 0.2, mu 0.6 (thesis table 6.1); sizes "
                             "normal(40, 10) mm in [20, 80] (sieve), r_d 0.1");
   rep.set_info("protocol", protocol);
+  rep.set_info("law", law);
   rep.set_info("machine", demfem::bench::machine_description());
   rep.set_info("commit", demfem::bench::git_commit());
   rep.set_info("threads", static_cast<long long>(su.threads));
@@ -356,8 +363,9 @@ int main(int argc, char** argv) {
       const LoadedBed b = loaded_bed(su, seed);
       // every parameter of the settled state is in its name
       char key[256];
-      std::snprintf(key, sizeof key, "bed_n%zu_s%d_a%g_E%g_p%g_dt%g_t%g.h5", su.n, s, su.aspect,
-                    su.E, su.preload, settle_dt, settle_time);
+      std::snprintf(key, sizeof key, "bed_n%zu_s%d_a%g_E%g_p%g_dt%g_t%g%s.h5", su.n, s, su.aspect,
+                    su.E, su.preload, settle_dt, settle_time,
+                    su.law == MaterialPair::PolyLaw::smooth ? "_smooth" : "");
       const auto state = dir / key;
       if (std::filesystem::exists(state)) {
         std::fprintf(stderr, "seed %d: settled bed from %s\n", s, state.c_str());

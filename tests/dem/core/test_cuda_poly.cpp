@@ -17,8 +17,9 @@ namespace {
 // 96 particles: rocks of three hulls (r_d 0.4 mm, random orientations and spins) and spheres,
 // falling in a converging field onto a mesh floor (rigid, or the flexible coupled mesh with
 // prescribed kinematics); friction 0.5, rolling resistance 0.02 between spheres.
-DemSystem poly_scene(const std::string& backend, bool flexible) {
+DemSystem poly_scene(const std::string& backend, bool flexible, MaterialPair::PolyLaw law) {
   auto s = two_material_settings(1e8, 0.3, 2500.0, 0.4, 0.5, 1e-5, 0.02);
+  for (auto& pair : s.pairs) pair.poly_law = law;
   s.gravity = {0, 0, -9.81};
   s.threads = 1;
   s.backend = backend;
@@ -69,10 +70,13 @@ TEST_CASE("CPU and CUDA backends agree with dilated polyhedra", "[dem][gpu][poly
   // (round-off growth over 600 steps of a colliding packing; the device rounds like the CPU,
   // -fmad=false, except the sin/cos of large rotations): positions 1e-9 of the rock size
   // (5 mm), orientations 1e-9; flexible node forces 1e-6 of the largest (the device sums them
-  // with atomics).
+  // with atomics). Both contact laws of polyhedra (poly_law): the smooth law's terms run in
+  // the same kernels.
+  const auto law = GENERATE(MaterialPair::PolyLaw::pressure_centre, MaterialPair::PolyLaw::smooth);
+  INFO("smooth law: " << (law == MaterialPair::PolyLaw::smooth));
   for (bool flexible : {false, true}) {
     INFO("flexible floor: " << flexible);
-    DemSystem cpu = poly_scene("cpu", flexible);
+    DemSystem cpu = poly_scene("cpu", flexible, law);
     auto run = [&](DemSystem& sys, std::vector<std::vector<double>>& forces) {
       if (!flexible) {
         sys.advance(600);
@@ -99,7 +103,7 @@ TEST_CASE("CPU and CUDA backends agree with dilated polyhedra", "[dem][gpu][poly
       WARN("CPU-vs-CUDA comparison with polyhedra skipped: no CUDA device (or built without CUDA)");
       return;
     }
-    DemSystem gpu = poly_scene("cuda", flexible);
+    DemSystem gpu = poly_scene("cuda", flexible, law);
     run(gpu, fg);
     const auto& a = cpu.particles();
     const auto& b = gpu.particles();

@@ -209,16 +209,19 @@ DEMFEM_HD int band_slot(const int* idx, int n, int k) {
 constexpr int kMaxSmoothEdges = 64;
 
 /// An edge of a core with an end in the band: its ends' band slots (-1: not in the band) and
-/// world positions.
+/// world positions, and the box [lo, hi] of its part inside the band.
 struct BandEdge {
   int s0, s1;
   Vec3 p0, p1;
+  Vec3 lo, hi;
 };
 
 /// The edges of core c with an end among its band vertices (indices idx, positions pos, n of
-/// them), at most cap; returns the count, or -1 when there are more.
-DEMFEM_HD int band_edges(const Core& c, const int* idx, const Vec3* pos, int n, BandEdge* out,
-                         int cap) {
+/// them), at most cap; returns the count, or -1 when there are more. The band is d·x > hmin
+/// (band_vertices); each edge's box bounds its part in the band, where any point of it within
+/// reach of the other body lies (smooth_pair_sum).
+DEMFEM_HD int band_edges(const Core& c, const int* idx, const Vec3* pos, int n, Vec3 d, double hmin,
+                         BandEdge* out, int cap) {
   int m = 0;
   const int ne = core_edge_count(c);
   for (int e = 0; e < ne; ++e) {
@@ -227,10 +230,26 @@ DEMFEM_HD int band_edges(const Core& c, const int* idx, const Vec3* pos, int n, 
     const int s0 = band_slot(idx, n, a), s1 = band_slot(idx, n, b);
     if (s0 < 0 && s1 < 0) continue;
     if (m == cap) return -1;
-    out[m++] = BandEdge{s0, s1, s0 >= 0 ? pos[s0] : core_vertex(c, a),
-                        s1 >= 0 ? pos[s1] : core_vertex(c, b)};
+    BandEdge& be = out[m++];
+    be.s0 = s0, be.s1 = s1;
+    be.p0 = s0 >= 0 ? pos[s0] : core_vertex(c, a);
+    be.p1 = s1 >= 0 ? pos[s1] : core_vertex(c, b);
+    // the end outside the band moved to where the edge leaves it (h = hmin)
+    Vec3 c0 = be.p0, c1 = be.p1;
+    const double h0 = dot(d, c0), h1 = dot(d, c1);
+    if (s0 < 0 && h1 > h0) c0 = c1 + ((h1 - hmin) / (h1 - h0)) * (c0 - c1);
+    if (s1 < 0 && h0 > h1) c1 = c0 + ((h0 - hmin) / (h0 - h1)) * (c1 - c0);
+    be.lo = Vec3{c0.x < c1.x ? c0.x : c1.x, c0.y < c1.y ? c0.y : c1.y, c0.z < c1.z ? c0.z : c1.z};
+    be.hi = Vec3{c0.x > c1.x ? c0.x : c1.x, c0.y > c1.y ? c0.y : c1.y, c0.z > c1.z ? c0.z : c1.z};
   }
   return m;
+}
+
+/// Whether the boxes of two band edges come closer than `reach` along every axis (a pair
+/// farther apart along one axis is farther than reach).
+DEMFEM_HD bool band_boxes_near(const BandEdge& a, const BandEdge& b, double reach) {
+  return a.lo.x < b.hi.x + reach && b.lo.x < a.hi.x + reach && a.lo.y < b.hi.y + reach &&
+         b.lo.y < a.hi.y + reach && a.lo.z < b.hi.z + reach && b.lo.z < a.hi.z + reach;
 }
 
 /// Adds coef · ∂Q'_b/∂(poses) to s: Q'_b = S(Q_b, Σ_a V_ab) of B's vertex b (overlap fb with
@@ -263,8 +282,9 @@ DEMFEM_HD bool smooth_pair_sum(const Core& A, double ra, const Core& B, double r
   const double tol = 1e-9 * (rsum + std::sqrt(norm2(pa)) + std::sqrt(norm2(pb)));
   int ia[kMaxSmoothBand], ib[kMaxSmoothBand];
   Vec3 va[kMaxSmoothBand], vb[kMaxSmoothBand];
-  const int na = band_vertices(A, n0, dot(n0, pa) - o0.delta - tol, ia, va, kMaxSmoothBand);
-  const int nb = band_vertices(B, -1.0 * n0, -dot(n0, pb) - o0.delta - tol, ib, vb, kMaxSmoothBand);
+  const double hmin_a = dot(n0, pa) - o0.delta - tol, hmin_b = -dot(n0, pb) - o0.delta - tol;
+  const int na = band_vertices(A, n0, hmin_a, ia, va, kMaxSmoothBand);
+  const int nb = band_vertices(B, -1.0 * n0, hmin_b, ib, vb, kMaxSmoothBand);
   if (na < 0 || nb < 0) return false;
   // P_a: A's vertices against B
   FeatureOverlap fa[kMaxSmoothBand], fb[kMaxSmoothBand];
@@ -304,21 +324,21 @@ DEMFEM_HD bool smooth_pair_sum(const Core& A, double ra, const Core& B, double r
     s.sum += c.s;
     smooth_add_q_gradient(s, fb[k], c.dm, c.de, va, na, 1.0, rsum, xa, xb, ra, rb);
   }
-  // M_ef: edges of A against edges of B, each with an end in its band
+  // M_ef: edges of A against edges of B, each with an end in its band. Two points within rsum
+  // of each other lie in the bands (see above), so a pair whose in-band parts are farther than
+  // rsum apart along an axis has no overlap: skipped before the segment distance.
   BandEdge ea[kMaxSmoothEdges], eb[kMaxSmoothEdges];
-  const int nea = band_edges(A, ia, va, na, ea, kMaxSmoothEdges);
-  const int neb = band_edges(B, ib, vb, nb, eb, kMaxSmoothEdges);
+  const int nea = band_edges(A, ia, va, na, n0, hmin_a, ea, kMaxSmoothEdges);
+  const int neb = band_edges(B, ib, vb, nb, -1.0 * n0, hmin_b, eb, kMaxSmoothEdges);
   if (nea < 0 || neb < 0) return false;
+  const double reach = rsum + tol;
   for (int e = 0; e < nea; ++e) {
     const int sa0 = ea[e].s0, sa1 = ea[e].s1;
     const Vec3 p0 = ea[e].p0, p1 = ea[e].p1;
-    const Vec3 ma = 0.5 * (p0 + p1);
-    const double ha = 0.5 * std::sqrt(norm2(p1 - p0));
     for (int f = 0; f < neb; ++f) {
+      if (!band_boxes_near(ea[e], eb[f], reach)) continue;
       const int sb0 = eb[f].s0, sb1 = eb[f].s1;
       const Vec3 q0 = eb[f].p0, q1 = eb[f].p1;
-      const double reach = rsum + ha + 0.5 * std::sqrt(norm2(q1 - q0));
-      if (!(norm2(0.5 * (q0 + q1) - ma) < reach * reach)) continue;
       Vec3 c1, c2;
       detail::closest_segments(p0, p1, q0, q1, c1, c2);
       const FeatureOverlap m = feature_overlap(c1, c2, rsum);
