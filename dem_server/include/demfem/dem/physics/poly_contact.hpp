@@ -542,8 +542,11 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
         ++m;
       }
       SmoothSum sum;
+      // the wall's own edges and vertices have no terms (smooth_wall_sum): where the group's
+      // deepest point is one of them in the rock's face, the rock's vertices see less than the
+      // overlap, and the pressure-centre law takes the contact
       smooth = apart && smooth_wall_sum(p.core, p.r, p.body.x, gt, gpa, gpb, m, sum) &&
-               smooth_elastic(sum, pcw.e_star, p.r, el);
+               smooth_elastic(sum, pcw.e_star, p.r, el) && el.delta_s >= kSmoothWallFloor * delta;
     }
     if (smooth) c = el.point;  // the force's point: the carrier's and the record's
     // the carrier: the member triangle nearest the contact point
@@ -580,9 +583,11 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
     const std::int32_t wall = w.tri_wall[tri];
     const Vec3 ww =
         w.motion != nullptr && wall >= 0 ? rigid_spin(w.motion[wall], w.time) : Vec3{0, 0, 0};
+    // the law of the carrier's material; under the smooth law the deepest member's, whose
+    // stiffness el holds (a group of mixed materials)
     const DilatedResult r =
-        dilated_law<Friction>(pc_row[w.tri_mat[tri]], n, delta, c, p.r, p.body, nullptr, vw, ww,
-                              reg, sh, dt, smooth ? &el : nullptr);
+        dilated_law<Friction>(smooth ? pcw : pc_row[w.tri_mat[tri]], n, delta, c, p.r, p.body,
+                              nullptr, vw, ww, reg, sh, dt, smooth ? &el : nullptr);
     f = f + r.force;
     q = q + r.torque_i;
     if constexpr (Friction) shr[3 * cnt] = sh.x, shr[3 * cnt + 1] = sh.y, shr[3 * cnt + 2] = sh.z;

@@ -29,9 +29,10 @@
 //
 // δ_s equals δ wherever one feature pair is closest and the others are clear of it (a vertex
 // on a face, two crossing edges, a vertex on an edge); where k features tie it is k^{1/p} δ
-// (an edge pressed flat on a face: 1.19 δ; a face on a face by its four corners: 1.41 δ, a
-// stiffer contact, as a flat punch is stiffer than a sphere); the subtraction S lets it fall
-// at most 2.5 % below δ where an edge's crossing nears an end, and the fade of nearly
+// (an edge pressed flat on a face: 1.19 δ; a face on a face by its four corners: 1.41 δ, and
+// δ_s grows k^{1/p} times as fast as δ, so the force is k^{5/8} times eq. 2.20's at δ, 2.38
+// for four corners: a stiffer contact, as a flat punch is stiffer than a sphere); the subtraction S
+// lets it fall at most 2.5 % below δ where an edge's crossing nears an end, and the fade of nearly
 // parallel edges a few per cent (kParallelHi).
 // The energy is C¹ in the poses of both bodies, so velocity Verlet and NO_SQUISH conserve it
 // to second order. Each term's gradient is a force along its own closest-point line, so linear
@@ -54,6 +55,12 @@ namespace demfem::dem::phys {
 constexpr int kSmoothPower = 4;
 /// Most vertices of one body within the contact band (more: the pressure-centre law).
 constexpr int kMaxSmoothBand = 24;
+/// The least δ_s / δ of a wall contact under the smooth law (more shallow: the pressure-centre
+/// law). Between two bodies every feature has its terms and δ_s ≥ 0.975 δ (test "the overlap
+/// against eq. 2.5"); against a wall only the rock's vertices have (smooth_wall_sum), so where
+/// a convex wall edge or corner is the deepest point in a rock's face (a ridge, a box's outer
+/// edge, a bent flexible mesh) δ_s falls short of δ, to nothing where no vertex is near.
+constexpr double kSmoothWallFloor = 0.975;
 
 DEMFEM_HD double smooth_pow(double x) {  // x^p
   const double x2 = x * x;
