@@ -22,7 +22,8 @@
 //    continues at the reference step with the load changed by 1e-9 relative, a physically
 //    irrelevant change, to measure that floor. --seeds beds give the scatter of the Δt effect.
 //    Also reported: the platen's settlement under the load (the sleeper settlement the thesis
-//    reads) and its final height.
+//    reads) and its final height, and the means of h and Z over 20 samples in the second half
+//    of the hold (the bed still rings under the load: one sample at the end is a phase of it).
 //  * settle: the earlier protocol, a separate bed settled at each Δt^D (no platen); the
 //    packing's chaos makes two steps settle to different beds. --seeds > 1 settles more beds
 //    at the first step to measure that spread.
@@ -46,10 +47,12 @@ using namespace demfem::dem;
 namespace {
 
 constexpr double kG = 9.81;
+constexpr int kHoldSamples = 20;  // samples of h and Z in the second half of the hold
 
 struct Outcome {
   double height = 0, z = 0, ke = 0, overlap = 0, rayleigh = 0, seconds = 0, cpu = 0;
   double platen = NAN, settlement = NAN;  // continue protocol: platen bottom height, its drop
+  double z_mean = NAN, h_mean = NAN;      // continue protocol: means over the hold's 2nd half
   bool finite = true;
 };
 
@@ -227,8 +230,22 @@ Outcome load(const LoadedBed& b, const std::filesystem::path& state, double dt, 
       sys.restore(f, "/bed");
     }
     if (k == 1) o.rayleigh = sys.rayleigh_time_step(), start = platen_bottom(sys, su);
-    overlap = std::max(overlap, run_for(sys, held ? hold : ramp / stages, dt, o.finite,
-                                        verbose ? "load" : nullptr));
+    if (!held) {
+      overlap =
+          std::max(overlap, run_for(sys, ramp / stages, dt, o.finite, verbose ? "load" : nullptr));
+    } else {
+      // the hold: its first half, then the second half in kHoldSamples equal parts with h and
+      // Z sampled after each (a bed still ringing under the load: their means are steadier
+      // than one sample at the end)
+      overlap = std::max(overlap, run_for(sys, hold / 2, dt, o.finite, verbose ? "load" : nullptr));
+      double zs = 0, hs = 0;
+      for (int j = 0; j < kHoldSamples && o.finite; ++j) {
+        overlap = std::max(overlap, run_for(sys, hold / 2 / kHoldSamples, dt, o.finite, nullptr));
+        const Measure mj = measure(sys);
+        zs += mj.z, hs += mj.height;
+      }
+      o.z_mean = zs / kHoldSamples, o.h_mean = hs / kHoldSamples;
+    }
     if (held) {
       m = measure(sys);
       o.ke = sys.kinetic_energy();
@@ -298,7 +315,8 @@ int main(int argc, char** argv) {
       "rocks",       "dt s",           "dt / dt_R",   "seed", "bed height m",
       "rel. to ref", "coordination Z", "rel. to ref", "KE J", "max overlap / r_d"};
   if (cont)
-    for (const char* c : {"platen height m", "settlement m", "rel. to ref", "CPU s"})
+    for (const char* c : {"platen height m", "settlement m", "rel. to ref", "Z hold mean",
+                          "rel. to ref", "h hold mean m", "rel. to ref", "CPU s"})
       cols.emplace_back(c);
   cols.emplace_back("wall s");
   demfem::bench::Report rep("poly_timestep", cols);
@@ -323,7 +341,9 @@ int main(int argc, char** argv) {
                                           o.ke,
                                           o.overlap};
     if (cont) {
-      r.insert(r.end(), {o.platen, o.settlement, o.settlement / ref.settlement - 1.0, o.cpu});
+      r.insert(r.end(),
+               {o.platen, o.settlement, o.settlement / ref.settlement - 1.0, o.z_mean,
+                o.z_mean / ref.z_mean - 1.0, o.h_mean, o.h_mean / ref.h_mean - 1.0, o.cpu});
     }
     r.emplace_back(o.seconds);
     rep.add_row(std::move(r));
@@ -397,16 +417,20 @@ int main(int argc, char** argv) {
         row(dts[k], std::to_string(s), o);
         std::fprintf(stderr,
                      "  dt %g: h %.6f m (%+.2e), Z %.4f (%+.2e), settlement %.4e m (%+.2e), "
-                     "overlap %.3f r_d, %.0f CPU s\n",
+                     "hold means Z %.4f (%+.2e) h %.6f m (%+.2e), overlap %.3f r_d, %.0f CPU s\n",
                      dts[k], o.height, o.height / ref.height - 1, o.z, o.z / ref.z - 1,
-                     o.settlement, o.settlement / ref.settlement - 1, o.overlap, o.cpu);
+                     o.settlement, o.settlement / ref.settlement - 1, o.z_mean,
+                     o.z_mean / ref.z_mean - 1, o.h_mean, o.h_mean / ref.h_mean - 1, o.overlap,
+                     o.cpu);
       }
       if (control) {
         const Outcome o =
             load(b, state, dts[0], ramp_time, stages, hold_time, su, su.load * (1 + 1e-9), false);
         row(dts[0], std::to_string(s) + " control", o);
-        std::fprintf(stderr, "  control: h %+.2e, Z %+.2e, settlement %+.2e\n",
-                     o.height / ref.height - 1, o.z / ref.z - 1, o.settlement / ref.settlement - 1);
+        std::fprintf(stderr,
+                     "  control: h %+.2e, Z %+.2e, settlement %+.2e, hold means Z %+.2e h %+.2e\n",
+                     o.height / ref.height - 1, o.z / ref.z - 1, o.settlement / ref.settlement - 1,
+                     o.z_mean / ref.z_mean - 1, o.h_mean / ref.h_mean - 1);
       }
       if (cache.empty()) std::filesystem::remove(state);
     }
