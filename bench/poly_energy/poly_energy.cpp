@@ -144,10 +144,7 @@ int main(int argc, char** argv) {
   for (double dt : dts)
     for (int seed : seeds)
       for (const std::string& law : laws) {
-        const Run r = run(n, dt, steps, threads, point,
-                          law == "smooth" ? MaterialPair::PolyLaw::smooth
-                                          : MaterialPair::PolyLaw::pressure_centre,
-                          seed);
+        const Run r = run(n, dt, steps, threads, point, poly_law_from_name(law), seed);
         rep.add_row({law, static_cast<long long>(seed), static_cast<long long>(n), dt,
                      dt / rayleigh, static_cast<long long>(steps),
                      static_cast<long long>(r.samples), static_cast<long long>(r.contacts), r.drift,

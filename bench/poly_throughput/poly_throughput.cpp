@@ -355,10 +355,10 @@ int main(int argc, char** argv) {
       std::vector<std::vector<Result>> done(runs.size());
       for (int k = 0; k < repeat; ++k)
         for (std::size_t c = 0; c < runs.size(); ++c) {
-          Result r = measure(bed, lib.get(), state, runs[c].second, runs[c].first,
-                             runs[c].first == "cuda" ? 20 * steps : steps, runs[c].frozen,
-                             runs[c].law == "smooth" ? MaterialPair::PolyLaw::smooth
-                                                     : MaterialPair::PolyLaw::pressure_centre);
+          Result r = measure(
+              bed, lib.get(), state, runs[c].second, runs[c].first,
+              runs[c].first == "cuda" ? 20 * steps : steps, runs[c].frozen,
+              rock ? poly_law_from_name(runs[c].law) : MaterialPair::PolyLaw::pressure_centre);
           if (!r.ok) {
             std::fprintf(stderr, "%zu %s, %s: %s\n", n, kind.c_str(), runs[c].first.c_str(),
                          r.note.c_str());

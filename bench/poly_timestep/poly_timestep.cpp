@@ -233,6 +233,8 @@ Outcome load(const LoadedBed& b, const std::filesystem::path& state, double dt, 
     if (!held) {
       overlap =
           std::max(overlap, run_for(sys, ramp / stages, dt, o.finite, verbose ? "load" : nullptr));
+      demfem::io::H5File f(chain, demfem::io::H5File::Mode::create);
+      sys.save(f, "/bed");
     } else {
       // the hold: its first half, then the second half in kHoldSamples equal parts with h and
       // Z sampled after each (a bed still ringing under the load: their means are steadier
@@ -245,14 +247,9 @@ Outcome load(const LoadedBed& b, const std::filesystem::path& state, double dt, 
         zs += mj.z, hs += mj.height;
       }
       o.z_mean = zs / kHoldSamples, o.h_mean = hs / kHoldSamples;
-    }
-    if (held) {
       m = measure(sys);
       o.ke = sys.kinetic_energy();
       o.platen = platen_bottom(sys, su);
-    } else {
-      demfem::io::H5File f(chain, demfem::io::H5File::Mode::create);
-      sys.save(f, "/bed");
     }
   }
   std::filesystem::remove(chain);
@@ -310,7 +307,7 @@ int main(int argc, char** argv) {
   app.add_option("--json", json, "write the results as JSON");
   CLI11_PARSE(app, argc, argv);
   const bool cont = protocol == "continue";
-  if (law == "smooth") su.law = MaterialPair::PolyLaw::smooth;
+  su.law = poly_law_from_name(law);
   std::vector<std::string> cols = {
       "rocks",       "dt s",           "dt / dt_R",   "seed", "bed height m",
       "rel. to ref", "coordination Z", "rel. to ref", "KE J", "max overlap / r_d"};

@@ -69,6 +69,12 @@ void validate(const DemSettings& s) {
 }
 }  // namespace
 
+MaterialPair::PolyLaw poly_law_from_name(const std::string& name) {
+  if (name == "pressure_centre") return MaterialPair::PolyLaw::pressure_centre;
+  if (name == "smooth") return MaterialPair::PolyLaw::smooth;
+  throw std::invalid_argument("poly_law '" + name + "', accepted: 'pressure_centre', 'smooth'");
+}
+
 void DemSystem::Impl::setup_pairs() {
   nmat = s.materials.size();
   pc.resize(nmat * nmat);

@@ -302,9 +302,8 @@ DemScene read_dem_scene(const Table& dem) {
     mp.restitution = p.number("restitution", Range::open_closed(0.0, 1.0));
     mp.rolling_friction = p.number("rolling_friction", 0.0, Range::non_negative());
     mp.rocking_damping = p.number("rocking_damping", 1.0, Range::closed(0.0, 10.0));
-    mp.poly_law = p.choice("poly_law", "pressure_centre", {"pressure_centre", "smooth"}) == "smooth"
-                      ? MaterialPair::PolyLaw::smooth
-                      : MaterialPair::PolyLaw::pressure_centre;
+    mp.poly_law =
+        poly_law_from_name(p.choice("poly_law", "pressure_centre", {"pressure_centre", "smooth"}));
     p.finish();
     st.pairs[std::size_t(a) * n + std::size_t(b)] = mp;
     st.pairs[std::size_t(b) * n + std::size_t(a)] = mp;

@@ -14,6 +14,21 @@
 
 namespace demfem::dem::test {
 
+/// A polyhedron of shape `shape` at x, turned by q, moving at v, spinning at w.
+inline ParticleInit poly(std::int32_t shape, std::array<double, 3> x,
+                         std::array<double, 4> q = {1, 0, 0, 0}, std::array<double, 3> v = {},
+                         std::array<double, 3> w = {}, double scale = 1.0) {
+  ParticleInit p;
+  p.shape = ParticleShape::polyhedron;
+  p.shape_id = shape;
+  p.position = x;
+  p.orientation = q;
+  p.velocity = v;
+  p.angular_velocity = w;
+  p.scale = scale;
+  return p;
+}
+
 /// Hull triangles (outward, CCW) of points in general position: every triple whose plane has
 /// all other points on one side.
 inline std::vector<std::int32_t> brute_hull(const std::vector<double>& p) {

@@ -21,20 +21,6 @@ constexpr double kE = 1e8, kNu = 0.3, kRho = 2500.0;
 const double kEstar = kE / (2 * (1 - kNu * kNu));  // two equal materials, eq. 2.7
 const double kPi = 3.14159265358979323846;
 
-ParticleInit poly(std::int32_t shape, std::array<double, 3> x,
-                  std::array<double, 4> q = {1, 0, 0, 0}, std::array<double, 3> v = {},
-                  std::array<double, 3> w = {}, double scale = 1.0) {
-  ParticleInit p;
-  p.shape = ParticleShape::polyhedron;
-  p.shape_id = shape;
-  p.position = x;
-  p.orientation = q;
-  p.velocity = v;
-  p.angular_velocity = w;
-  p.scale = scale;
-  return p;
-}
-
 std::array<double, 4> about(double ax, double ay, double az, double th) {
   const double l = std::sqrt(ax * ax + ay * ay + az * az);
   const double s = std::sin(th / 2) / l;

@@ -324,12 +324,7 @@ Vec3 wall_force(const WallMesh& wall, std::array<double, 3> x, Quat q, MaterialP
   DemSystem sys(s);
   sys.add_shape(box_shape(0.006, 0.006, 0.006, 0.001));
   sys.add_wall(wall);
-  ParticleInit p;
-  p.shape = ParticleShape::polyhedron;
-  p.shape_id = 0;
-  p.position = x;
-  p.orientation = q;
-  sys.add_particles(std::vector<ParticleInit>{p});
+  sys.add_particles(std::vector<ParticleInit>{poly(0, x, q)});
   sys.advance(1);
   const auto& st = sys.particles();
   return Vec3{st.fx[0], st.fy[0], st.fz[0]};

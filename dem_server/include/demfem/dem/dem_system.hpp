@@ -42,6 +42,10 @@ struct MaterialPair {
   enum class PolyLaw { pressure_centre, smooth } poly_law = PolyLaw::pressure_centre;
 };
 
+/// The law of a scene's `poly_law` name ("pressure_centre", "smooth"); throws
+/// std::invalid_argument for any other name.
+MaterialPair::PolyLaw poly_law_from_name(const std::string& name);
+
 /// @brief Global settings of a DEM system.
 struct DemSettings {
   double dt = 1e-5;                            ///< s

@@ -252,15 +252,21 @@ DEMFEM_HD int core_edge_count(const Core& c) {
   return c.table->ne[c.shape];
 }
 
-DEMFEM_HD void core_edge(const Core& c, int e, Vec3& a, Vec3& b) {
+/// The end vertices of edge e of core c: from vertex a to vertex b (local indices).
+DEMFEM_HD void core_edge_vertices(const Core& c, int e, int& a, int& b) {
   if (c.kind == Core::kTriangle) {
-    a = c.t[e];
-    b = c.t[(e + 1) % 3];
+    a = e, b = (e + 1) % 3;
     return;
   }
   const std::int32_t* ev = c.table->edge + 2 * (c.table->ebase[c.shape] + e);
-  a = core_vertex(c, ev[0]);
-  b = core_vertex(c, ev[1]);
+  a = ev[0], b = ev[1];
+}
+
+DEMFEM_HD void core_edge(const Core& c, int e, Vec3& a, Vec3& b) {
+  int ia, ib;
+  core_edge_vertices(c, e, ia, ib);
+  a = core_vertex(c, ia);
+  b = core_vertex(c, ib);
 }
 
 }  // namespace demfem::dem::phys

@@ -195,16 +195,6 @@ DEMFEM_HD int point_core_closest(Vec3 p, const Core& c, double limit, Vec3& q) {
   return g.dist < limit ? 1 : 0;
 }
 
-/// Index of the edge end points of core c: edge e from vertex a to vertex b (local indices).
-DEMFEM_HD void core_edge_vertices(const Core& c, int e, int& a, int& b) {
-  if (c.kind == Core::kTriangle) {
-    a = e, b = (e + 1) % 3;
-    return;
-  }
-  const std::int32_t* ev = c.table->edge + 2 * (c.table->ebase[c.shape] + e);
-  a = ev[0], b = ev[1];
-}
-
 /// The slot of vertex k in a band list, -1 when not in it.
 DEMFEM_HD int band_slot(const int* idx, int n, int k) {
   for (int s = 0; s < n; ++s)
