@@ -704,13 +704,16 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
       }
       if (settings.has_fem && external) {
         // An outside program: the same arguments as fem_server (absolute paths: it runs in the
-        // scene's folder), the same supervision and restarts.
+        // scene's folder), the same supervision and restarts. The output folder always: the
+        // default (run.output_dir) is relative to this process's folder, not to the scene's.
         std::vector<std::string> ext_args = external->arguments;
         for (std::size_t k = 0; k < fem_args.size(); ++k) {
           const bool path =
               k > 0 && (fem_args[k - 1] == "--scene" || fem_args[k - 1] == "--output-dir");
           ext_args.push_back(path ? fs::absolute(fem_args[k]).string() : fem_args[k]);
         }
+        if (opt.output_dir.empty())
+          ext_args.insert(ext_args.end(), {"--output-dir", fs::absolute(out_dir).string()});
         if (const auto py = python_module_dir(bin)) {
           const char* old = std::getenv("PYTHONPATH");
           const std::string value = py->string() + (old && *old ? ":" + std::string(old) : "");

@@ -11,6 +11,8 @@ the minimal Python backend examples/python_spring_plate/spring_plate.py (fem.bac
                 refused (exit 2 on --resume, 1 on a restart), naming it
   version       a backend that speaks another protocol version is refused, naming the program,
                 its pid and both versions
+  elsewhere     the example with checkpoints run as documented from another folder, with the
+                default output folder (relative to that folder): checkpoints and a restart
 
 Usage: test_python_sdk.py CASE DEMFEM_RUN SOURCE_DIR. Nothing may be left in /dev/shm.
 """
@@ -31,11 +33,15 @@ def check(ok, what):
     return ok
 
 
-def run(demfem_run, scene, out, *extra, env=None):
-    r = subprocess.run([demfem_run, scene, "--output-dir", out, "--quiet", *extra],
-                       capture_output=True, text=True, timeout=300, env=env)
+def run(demfem_run, scene, out, *extra, env=None, cwd=None):
+    where = ["--output-dir", out] if out else []
+    r = subprocess.run([demfem_run, scene, *where, "--quiet", *extra],
+                       capture_output=True, text=True, timeout=300, env=env, cwd=cwd)
     for seg in re.findall(r"segment /(demfem-[0-9a-f]+)", r.stdout):
         check(not os.path.exists("/dev/shm/" + seg), f"segment {seg} left in /dev/shm")
+    for pid in re.findall(r"\(pid ([0-9]+)\)", r.stdout):  # every process it started
+        check(not os.path.exists(f"/proc/{pid}") or "zombie" in open(f"/proc/{pid}/status").read()
+              .lower(), f"process {pid} left running")
     return r
 
 
@@ -140,8 +146,30 @@ def case_version(demfem_run, source, d):
           "the refused run wrote coupling steps")
 
 
+def case_elsewhere(demfem_run, source, d):
+    # As docs/backends.md says to run it, but from another folder: run.output_dir (out/<name>)
+    # is relative to that folder, and the backend runs in the scene's folder. Every path it is
+    # given (output folder, checkpoint files) must be absolute.
+    scene = os.path.relpath(os.path.join(source, "examples/python_spring_plate/dynamic_ci.toml"),
+                            d)
+    r = run(demfem_run, scene, None, "--debug-kill", "fem:15", cwd=d)
+    out = os.path.join(d, "out", "spring_plate_dynamic_ci")
+    print(f"elsewhere: exit {r.returncode}: {r.stderr.strip().splitlines()[-1:]}")
+    check(r.returncode == 0, f"run from another folder: exit {r.returncode}: {r.stderr[-2000:]}")
+    check("recovered: every process is back at step 10" in r.stderr, "no recovery reported")
+    check(os.path.isfile(os.path.join(out, "checkpoints", "step-000040", "fem.h5")),
+          "the last checkpoint has no fem.h5")
+    check(len(rows(out)) == 40 if os.path.exists(os.path.join(out, "coupling.csv")) else False,
+          "coupling.csv of 40 rows missing")
+    check(not os.path.exists(os.path.join(source, "examples/python_spring_plate/out")),
+          "the backend wrote into the scene's folder")
+    r = run(demfem_run, scene, None, "--resume", "--set", "run.end_time=0.005", cwd=d)
+    check(r.returncode == 0, f"--resume from another folder: exit {r.returncode}: "
+                             f"{r.stderr[-2000:]}")
+
+
 CASES = {"static": case_static, "restart": case_restart, "handshake": case_handshake,
-         "interface": case_interface, "version": case_version}
+         "interface": case_interface, "version": case_version, "elsewhere": case_elsewhere}
 ENV = None
 
 

@@ -16,7 +16,8 @@ cmd.static asks for a static solve, otherwise advance by cmd.dt. Long steps may 
 self.cancelled. An exception becomes the error demfem reports, naming the backend.
 
 The launcher starts the backend as  fem.command + --scene FILE --segment NAME [--set K=V]...
-[--output-dir DIR] [--resume]  in the scene's folder: parse_args() reads these, load_scene()
+--output-dir DIR [--resume]  in the scene's folder, every path absolute (the checkpoint paths
+of write_checkpoint() and restore_checkpoint() too): parse_args() reads these, load_scene()
 reads the scene with the --set overrides, serve() runs the backend. docs/protocol.md.
 """
 
