@@ -11,6 +11,9 @@ the minimal Python backend examples/python_spring_plate/spring_plate.py (fem.bac
                 refused (exit 2 on --resume, 1 on a restart), naming it
   version       a backend that speaks another protocol version is refused, naming the program,
                 its pid and both versions
+  kinematics    a NaN position or an infinite velocity the backend writes is its blow-up
+                (exit 3, naming the backend and the node), not the DEM's; complex diagnostics
+                or complex values written into an interface array are refused (exit 1)
   elsewhere     the example with checkpoints run as documented from another folder, with the
                 default output folder (relative to that folder): checkpoints and a restart
 
@@ -146,6 +149,33 @@ def case_version(demfem_run, source, d):
           "the refused run wrote coupling steps")
 
 
+def case_kinematics(demfem_run, source, d):
+    scene = os.path.join(source, "examples/python_spring_plate/dynamic_ci.toml")
+    faulty = os.path.join(source, "tests/protocol/python/misbehaving_backend.py")
+    expect = {
+        ("nan-position", "just_in_time"): (3, ["position", "interface node 3", "not finite"]),
+        ("nan-position", "predictive"): (3, ["position", "interface node 3", "not finite"]),
+        ("inf-velocity", "just_in_time"): (3, ["velocity", "interface node 7", "inf"]),
+        ("complex-return", "just_in_time"): (1, ["complex numbers", "complex128"]),
+        ("complex-write", "just_in_time"): (1, ["cast complex numbers to real"]),
+    }
+    for (fault, scheme), (code, texts) in expect.items():
+        r = run(demfem_run, scene, os.path.join(d, fault + scheme), "--set",
+                f'coupling.scheme="{scheme}"', "--set",
+                f'fem.command=["{{python}}", "{faulty}", "--fault", "{fault}"]', env=ENV)
+        last = r.stderr.strip().splitlines()[-3:]
+        print(f"{fault} ({scheme}): exit {r.returncode}: {' | '.join(last)[:400]}")
+        check(r.returncode == code, f"{fault} ({scheme}): exit {r.returncode}, expected {code}")
+        blamed = "FEM solver failed in coupling step 5" in r.stderr and "DEM solver" not in r.stderr
+        check(blamed, f"{fault} ({scheme}): the FEM in step 5 is not blamed: {r.stderr[-1500:]}")
+        if code == 3:  # the coupler's own check names the backend (Hello's name)
+            check('its backend "spring-plate' in r.stderr,
+                  f"{fault} ({scheme}): the backend is not named")
+        for t in texts:
+            check(t in r.stderr, f"{fault} ({scheme}): '{t}' missing: {r.stderr[-1500:]}")
+        check("restarting it" not in r.stderr, f"{fault} ({scheme}): the error was restarted")
+
+
 def case_elsewhere(demfem_run, source, d):
     # As docs/backends.md says to run it, but from another folder: run.output_dir (out/<name>)
     # is relative to that folder, and the backend runs in the scene's folder. Every path it is
@@ -169,7 +199,8 @@ def case_elsewhere(demfem_run, source, d):
 
 
 CASES = {"static": case_static, "restart": case_restart, "handshake": case_handshake,
-         "interface": case_interface, "version": case_version, "elsewhere": case_elsewhere}
+         "interface": case_interface, "version": case_version,
+         "kinematics": case_kinematics, "elsewhere": case_elsewhere}
 ENV = None
 
 

@@ -6,10 +6,16 @@ The spring plate of examples/python_spring_plate, with one fault chosen by --fau
   die-in-mesh          dies (os._exit(7)) in published_mesh(), after attaching
   other-size-on-resume publishes a plate of another size when started with --resume
                        (a restarted or resumed process that is not the one that was running)
+  nan-position         writes NaN into the z position of interface node 3 in step 5
+  inf-velocity         writes +inf into the z velocity of interface node 7 in step 5
+  complex-return       step() returns complex diagnostics in step 5
+  complex-write        step() writes complex velocities into the interface array in step 5
 """
 import argparse
 import os
 import sys
+
+import numpy as np
 
 sys.path.insert(0, os.environ["DEMFEM_EXAMPLES"])  # examples/python_spring_plate
 import demfem  # noqa: E402
@@ -20,6 +26,20 @@ class Faulty(SpringPlate):
     def __init__(self, params, fault):
         super().__init__(params)
         self.fault = fault
+
+    def step(self, cmd, buffers):
+        out = super().step(cmd, buffers)
+        if cmd.step != 5:
+            return out
+        if self.fault == "nan-position":
+            buffers.positions(cmd.buffer)[3, 2] = np.nan
+        elif self.fault == "inf-velocity":
+            buffers.velocities(cmd.buffer)[7, 2] = np.inf
+        elif self.fault == "complex-return":
+            return [np.sqrt(np.complex128(-out[0] - 1.0))] + out[1:]
+        elif self.fault == "complex-write":
+            buffers.velocities(cmd.buffer)[:] = np.array([0.0, 0.0, self.v]) * (1.0 + 1.0j)
+        return out
 
     def published_mesh(self):
         if self.fault == "raise-in-mesh":
