@@ -11,6 +11,10 @@ the minimal Python backend examples/python_spring_plate/spring_plate.py (fem.bac
                 refused (exit 2 on --resume, 1 on a restart), naming it
   version       a backend that speaks another protocol version is refused, naming the program,
                 its pid and both versions
+  hang          a live backend that sleeps in step() or spins in restore_checkpoint() is
+                killed after checkpoint.reply_timeout and restarted from the checkpoint (the
+                run then equals the uninterrupted one), or the run gives up with exit 4, the
+                hung process killed at once; a reply_timeout beyond 10^6 s is refused
   kinematics    a NaN position or an infinite velocity the backend writes is its blow-up
                 (exit 3, naming the backend and the node), not the DEM's; complex diagnostics
                 or complex values written into an interface array are refused (exit 1)
@@ -26,6 +30,7 @@ import re
 import subprocess
 import sys
 import tempfile
+import time
 
 failures = []
 
@@ -149,6 +154,58 @@ def case_version(demfem_run, source, d):
           "the refused run wrote coupling steps")
 
 
+KEYS = ["step", "time", "drift", "work_dem", "work_fem", "max_overlap", "kinetic_energy",
+        "fem_max_displacement", "force_sum_z"]
+
+
+def same_rows(a, b):
+    xa, xb = rows(a), rows(b)
+    return len(xa) == len(xb) == 40 and all(p[k] == q[k] for p, q in zip(xa, xb) for k in KEYS)
+
+
+def case_hang(demfem_run, source, d):
+    scene = os.path.join(source, "examples/python_spring_plate/dynamic_ci.toml")
+    faulty = os.path.join(source, "tests/protocol/python/misbehaving_backend.py")
+    # A limit beyond 10^6 s is refused (in milliseconds it did not fit the wait's clock).
+    r = run(demfem_run, scene, os.path.join(d, "huge"), "--set", "checkpoint.reply_timeout=1e300")
+    check(r.returncode == 2 and "'checkpoint.reply_timeout'" in r.stderr and
+          "outside the accepted range [0, 1e+06]" in r.stderr and "started" not in r.stdout,
+          f"reply_timeout = 1e300: exit {r.returncode}: {r.stderr[-1000:]}")
+    ref = os.path.join(d, "straight")
+    r = run(demfem_run, scene, ref)
+    if not check(r.returncode == 0, f"uninterrupted run failed: {r.stderr[-2000:]}"):
+        return
+    # The backend sleeps an hour (or spins forever); reply_timeout = 1 s finds it.
+    expect = {"hang-in-step": 0, "spin-in-restore-once": 0, "spin-in-restore": 4}
+    for fault, code in expect.items():
+        out = os.path.join(d, fault)
+        t0 = time.monotonic()
+        r = run(demfem_run, scene, out, "--set", "checkpoint.reply_timeout=1", "--set",
+                "checkpoint.max_retries=2", "--set",
+                f'fem.command=["{{python}}", "{faulty}", "--fault", "{fault}"]', env=ENV)
+        secs = time.monotonic() - t0
+        restarts = len(re.findall(r"FEM solver failed \(.*no reply within reply_timeout "
+                                  r"\(1000 ms\).*\); restart [12] of 2", r.stderr))
+        print(f"{fault}: exit {r.returncode} after {secs:.1f} s, {restarts} restarts")
+        check(r.returncode == code, f"{fault}: exit {r.returncode}, expected {code}: "
+                                    f"{r.stderr[-2000:]}")
+        check(secs < 120.0, f"{fault}: the run took {secs:.0f} s (the backend hangs an hour)")
+        check(restarts == (1 if fault == "hang-in-step" else 2),
+              f"{fault}: {restarts} restarts after a reply timeout: {r.stderr[-2000:]}")
+        if code == 0:
+            check("recovered: every process is back at step 10" in r.stderr,
+                  f"{fault}: no recovery to step 10 reported")
+            check(same_rows(ref, out), f"{fault}: the recovered run differs from the "
+                                       "uninterrupted one")
+        else:
+            check("kept failing: 2 restarts from checkpoint" in r.stderr,
+                  f"{fault}: no report of the given-up recovery")
+            # The third process, spinning in restore_checkpoint(), is killed at once: it would
+            # answer neither Shutdown nor SIGTERM (seconds of waiting for both).
+            check("the FEM solver (pid" in r.stderr and "is not answering: killed" in r.stderr,
+                  f"{fault}: the spinning process was not killed at once: {r.stderr[-1000:]}")
+
+
 def case_kinematics(demfem_run, source, d):
     scene = os.path.join(source, "examples/python_spring_plate/dynamic_ci.toml")
     faulty = os.path.join(source, "tests/protocol/python/misbehaving_backend.py")
@@ -199,7 +256,7 @@ def case_elsewhere(demfem_run, source, d):
 
 
 CASES = {"static": case_static, "restart": case_restart, "handshake": case_handshake,
-         "interface": case_interface, "version": case_version,
+         "interface": case_interface, "version": case_version, "hang": case_hang,
          "kinematics": case_kinematics, "elsewhere": case_elsewhere}
 ENV = None
 

@@ -6,6 +6,12 @@ The spring plate of examples/python_spring_plate, with one fault chosen by --fau
   die-in-mesh          dies (os._exit(7)) in published_mesh(), after attaching
   other-size-on-resume publishes a plate of another size when started with --resume
                        (a restarted or resumed process that is not the one that was running)
+  hang-in-step         sleeps (an hour) in step() of coupling step 15, in the first process
+                       only (not in one started with --resume): alive, heartbeat going
+  spin-in-restore      as hang-in-step; every restarted process then spins (a busy loop
+                       holding the GIL) in restore_checkpoint()
+  spin-in-restore-once as spin-in-restore, but only the first restarted process spins (it
+                       leaves a marker file in --output-dir)
   nan-position         writes NaN into the z position of interface node 3 in step 5
   inf-velocity         writes +inf into the z velocity of interface node 7 in step 5
   complex-return       step() returns complex diagnostics in step 5
@@ -14,6 +20,7 @@ The spring plate of examples/python_spring_plate, with one fault chosen by --fau
 import argparse
 import os
 import sys
+import time
 
 import numpy as np
 
@@ -23,11 +30,16 @@ from spring_plate import SpringPlate  # noqa: E402
 
 
 class Faulty(SpringPlate):
-    def __init__(self, params, fault):
+    def __init__(self, params, fault, args):
         super().__init__(params)
         self.fault = fault
+        self.resumed = args.resume
+        self.marker = os.path.join(args.output_dir, "spun-in-restore")
 
     def step(self, cmd, buffers):
+        hang = ("hang-in-step", "spin-in-restore", "spin-in-restore-once")
+        if self.fault in hang and cmd.step == 15 and not self.resumed:
+            time.sleep(3600.0)
         out = super().step(cmd, buffers)
         if cmd.step != 5:
             return out
@@ -40,6 +52,15 @@ class Faulty(SpringPlate):
         elif self.fault == "complex-write":
             buffers.velocities(cmd.buffer)[:] = np.array([0.0, 0.0, self.v]) * (1.0 + 1.0j)
         return out
+
+    def restore_checkpoint(self, path, step):
+        spin = self.fault == "spin-in-restore" or (self.fault == "spin-in-restore-once" and
+                                                   not os.path.exists(self.marker))
+        if spin:
+            open(self.marker, "w").close()
+            while True:  # a busy loop: the GIL stays with this thread
+                pass
+        super().restore_checkpoint(path, step)
 
     def published_mesh(self):
         if self.fault == "raise-in-mesh":
@@ -59,7 +80,7 @@ def main():
     params = demfem.load_scene(args.scene, args.set)["fem"]["external"]
     if args.fault == "other-size-on-resume" and args.resume:
         params["cells"] = [10, 2]
-    return demfem.run(Faulty(params, args.fault), args)
+    return demfem.run(Faulty(params, args.fault, args), args)
 
 
 if __name__ == "__main__":
