@@ -951,7 +951,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   }
   // A solver given up as dead or silent (no reply within reply_timeout) is killed at once: a
   // hung one would answer neither Shutdown nor SIGTERM, and waiting on both costs seconds.
-  if (SolverProcess* p = !given_up                         ? nullptr
+  if (SolverProcess* p = !given_up                          ? nullptr
                          : *given_up == protocol::Role::dem ? dem_proc.get()
                                                             : fem_proc.get();
       p && p->running()) {

@@ -180,23 +180,21 @@ PYBIND11_MODULE(_protocol, m) {
   py::class_<demfem::InterfaceMesh>(m, "InterfaceMesh",
                                     "The coupled surface: node positions (n, 3) in m and "
                                     "triangles (m, 3) of node indices, normals outward")
-      .def(py::init(
-               [](py::object positions_in, py::object triangles_in) {
-                 require_real(positions_in, "InterfaceMesh: positions");
-                 using Doubles = py::array_t<double, py::array::c_style | py::array::forcecast>;
-                 using Ints = py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>;
-                 const auto positions = positions_in.cast<Doubles>();
-                 const auto triangles = triangles_in.cast<Ints>();
-                 if (positions.ndim() != 2 || positions.shape(1) != 3)
-                   throw std::invalid_argument("InterfaceMesh: positions must be an (n, 3) array");
-                 if (triangles.ndim() != 2 || triangles.shape(1) != 3)
-                   throw std::invalid_argument("InterfaceMesh: triangles must be an (m, 3) array");
-                 demfem::InterfaceMesh mesh;
-                 mesh.reference_positions.assign(positions.data(),
-                                                 positions.data() + positions.size());
-                 mesh.triangles.assign(triangles.data(), triangles.data() + triangles.size());
-                 return mesh;
-               }),
+      .def(py::init([](py::object positions_in, py::object triangles_in) {
+             require_real(positions_in, "InterfaceMesh: positions");
+             using Doubles = py::array_t<double, py::array::c_style | py::array::forcecast>;
+             using Ints = py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>;
+             const auto positions = positions_in.cast<Doubles>();
+             const auto triangles = triangles_in.cast<Ints>();
+             if (positions.ndim() != 2 || positions.shape(1) != 3)
+               throw std::invalid_argument("InterfaceMesh: positions must be an (n, 3) array");
+             if (triangles.ndim() != 2 || triangles.shape(1) != 3)
+               throw std::invalid_argument("InterfaceMesh: triangles must be an (m, 3) array");
+             demfem::InterfaceMesh mesh;
+             mesh.reference_positions.assign(positions.data(), positions.data() + positions.size());
+             mesh.triangles.assign(triangles.data(), triangles.data() + triangles.size());
+             return mesh;
+           }),
            py::arg("positions"), py::arg("triangles"))
       .def_property_readonly("node_count", &demfem::InterfaceMesh::node_count)
       .def_property_readonly("triangle_count", &demfem::InterfaceMesh::triangle_count)
