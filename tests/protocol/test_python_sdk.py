@@ -204,6 +204,19 @@ def case_hang(demfem_run, source, d):
             # answer neither Shutdown nor SIGTERM (seconds of waiting for both).
             check("the FEM solver (pid" in r.stderr and "is not answering: killed" in r.stderr,
                   f"{fault}: the spinning process was not killed at once: {r.stderr[-1000:]}")
+    # The handshake: a restarted process that sleeps before its Hello is killed after
+    # --hello-timeout and started again, as one that hangs in a step.
+    t0 = time.monotonic()
+    r = run(demfem_run, scene, os.path.join(d, "mesh"), "--hello-timeout", "1", "--set",
+            "checkpoint.reply_timeout=1", "--set", "checkpoint.max_retries=2", "--set",
+            f'fem.command=["{{python}}", "{faulty}", "--fault", "hang-in-mesh-on-resume"]', env=ENV)
+    secs = time.monotonic() - t0
+    print(f"hang-in-mesh-on-resume: exit {r.returncode} after {secs:.1f} s")
+    check(r.returncode == 4, f"hang in the handshake: exit {r.returncode}: {r.stderr[-2000:]}")
+    check("no Hello within 1000 ms" in r.stderr and "restart 2 of 2" in r.stderr,
+          f"hang in the handshake: no Hello timeout and second restart: {r.stderr[-2000:]}")
+    check("is not answering: killed" in r.stderr, "hang in the handshake: the process left")
+    check(secs < 120.0, f"hang in the handshake: the run took {secs:.0f} s")
 
 
 def case_kinematics(demfem_run, source, d):

@@ -12,6 +12,8 @@ The spring plate of examples/python_spring_plate, with one fault chosen by --fau
                        holding the GIL) in restore_checkpoint()
   spin-in-restore-once as spin-in-restore, but only the first restarted process spins (it
                        leaves a marker file in --output-dir)
+  hang-in-mesh-on-resume as hang-in-step; every restarted process then sleeps (an hour) in
+                       published_mesh(), before its Hello
   nan-position         writes NaN into the z position of interface node 3 in step 5
   inf-velocity         writes +inf into the z velocity of interface node 7 in step 5
   complex-return       step() returns complex diagnostics in step 5
@@ -37,7 +39,8 @@ class Faulty(SpringPlate):
         self.marker = os.path.join(args.output_dir, "spun-in-restore")
 
     def step(self, cmd, buffers):
-        hang = ("hang-in-step", "spin-in-restore", "spin-in-restore-once")
+        hang = ("hang-in-step", "spin-in-restore", "spin-in-restore-once",
+                "hang-in-mesh-on-resume")
         if self.fault in hang and cmd.step == 15 and not self.resumed:
             time.sleep(3600.0)
         out = super().step(cmd, buffers)
@@ -63,6 +66,8 @@ class Faulty(SpringPlate):
         super().restore_checkpoint(path, step)
 
     def published_mesh(self):
+        if self.fault == "hang-in-mesh-on-resume" and self.resumed:
+            time.sleep(3600.0)
         if self.fault == "raise-in-mesh":
             raise ValueError("the mesh file is broken (a test fault)")
         if self.fault == "die-in-mesh":
