@@ -17,7 +17,8 @@ the minimal Python backend examples/python_spring_plate/spring_plate.py (fem.bac
                 hung process killed at once; a reply_timeout beyond 10^6 s is refused
   kinematics    a NaN position or an infinite velocity the backend writes is its blow-up
                 (exit 3, naming the backend and the node), not the DEM's; complex diagnostics
-                or complex values written into an interface array are refused (exit 1)
+                or complex values written into an interface array are refused (exit 1), and so
+                is a published mesh with a NaN node, naming the FEM and the node
   elsewhere     the example with checkpoints run as documented from another folder, with the
                 default output folder (relative to that folder): checkpoints and a restart
 
@@ -244,6 +245,18 @@ def case_kinematics(demfem_run, source, d):
         for t in texts:
             check(t in r.stderr, f"{fault} ({scheme}): '{t}' missing: {r.stderr[-1500:]}")
         check("restarting it" not in r.stderr, f"{fault} ({scheme}): the error was restarted")
+    # A NaN node in the published mesh: refused at the handshake, naming the FEM and the node
+    # (the DEM used to fail on it in step 0, blamed with exit 1).
+    r = run(demfem_run, scene, os.path.join(d, "nan-mesh"), "--set",
+            f'fem.command=["{{python}}", "{faulty}", "--fault", "nan-mesh"]', env=ENV)
+    line = [m for m in r.stderr.splitlines() if "published an interface mesh" in m]
+    print(f"nan-mesh: exit {r.returncode}: {line[-1][:300] if line else r.stderr[-300:]}")
+    check(r.returncode == 1, f"nan-mesh: exit {r.returncode}, expected 1")
+    check(bool(line) and 'backend "spring-plate' in line[-1] and
+          "node 4 is not finite: (nan, 0, 0.1) m" in line[-1] and "DEM solver" not in r.stderr,
+          f"nan-mesh: the FEM and the node are not named: {r.stderr[-1500:]}")
+    check(not os.path.exists(os.path.join(d, "nan-mesh", "coupling.csv")) or
+          len(rows(os.path.join(d, "nan-mesh"))) == 0, "nan-mesh: the refused run took steps")
 
 
 def case_elsewhere(demfem_run, source, d):

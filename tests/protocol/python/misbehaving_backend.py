@@ -14,6 +14,7 @@ The spring plate of examples/python_spring_plate, with one fault chosen by --fau
                        leaves a marker file in --output-dir)
   hang-in-mesh-on-resume as hang-in-step; every restarted process then sleeps (an hour) in
                        published_mesh(), before its Hello
+  nan-mesh             publishes an interface mesh whose node 4 has x = NaN
   nan-position         writes NaN into the z position of interface node 3 in step 5
   inf-velocity         writes +inf into the z velocity of interface node 7 in step 5
   complex-return       step() returns complex diagnostics in step 5
@@ -72,6 +73,10 @@ class Faulty(SpringPlate):
             raise ValueError("the mesh file is broken (a test fault)")
         if self.fault == "die-in-mesh":
             os._exit(7)
+        if self.fault == "nan-mesh":
+            nodes = self.nodes.copy()
+            nodes[4, 0] = np.nan
+            return demfem.InterfaceMesh(nodes, self.triangles)
         return super().published_mesh()
 
 
