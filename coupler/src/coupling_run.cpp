@@ -81,6 +81,19 @@ std::string non_finite_fem_kinematics(protocol::InterfaceBuffers& buf, std::uint
   return {};
 }
 
+// The FEM's published mesh: a node that is not finite would be found by the DEM in its first
+// step and blamed on it. `backend`: the FEM's name (Hello).
+void check_published_mesh(const InterfaceMesh& mesh, const std::string& backend) {
+  const std::ptrdiff_t k = first_non_finite(mesh.reference_positions);
+  if (k < 0) return;
+  const double* x = &mesh.reference_positions[static_cast<std::size_t>(k - k % 3)];
+  throw HandshakeFailed(protocol::Role::fem, "the FEM solver's backend \"" + backend +
+                                                 "\" published an interface mesh whose node " +
+                                                 std::to_string(k / 3) + " is not finite: (" +
+                                                 fmt(x[0]) + ", " + fmt(x[1]) + ", " + fmt(x[2]) +
+                                                 ") m; it is refused");
+}
+
 void copy(std::span<const double> from, std::span<double> to) {
   std::copy(from.begin(), from.end(), to.begin());
 }
@@ -161,16 +174,7 @@ RunSummary CouplingRun::run() {
   auto run_start = Clock::now();  // set again when the steps begin (see below)
   sum.mesh = link_.start();
   const std::size_t n3 = 3 * sum.mesh.node_count();
-  // The FEM's published mesh: a node that is not finite would be found by the DEM in its first
-  // step and blamed on it.
-  if (const std::ptrdiff_t k = first_non_finite(sum.mesh.reference_positions); k >= 0) {
-    const double* x = &sum.mesh.reference_positions[static_cast<std::size_t>(k - k % 3)];
-    throw HandshakeFailed(Role::fem, "the FEM solver's backend \"" + link_.name(Role::fem) +
-                                         "\" published an interface mesh whose node " +
-                                         std::to_string(k / 3) + " is not finite: (" + fmt(x[0]) +
-                                         ", " + fmt(x[1]) + ", " + fmt(x[2]) +
-                                         ") m; it is refused");
-  }
+  check_published_mesh(sum.mesh, link_.name(Role::fem));
   const bool coupled = s.has_dem && s.has_fem;
   InterfaceBuffers& buf = link_.buffers();
   // Buffer 0 for every scheme; the concurrent one gives the FEM buffer 1, so that the two
