@@ -651,6 +651,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   bool folder_lost = false;  // OutputFolderLost: nothing more is written into the folder
   std::string reason;
   std::optional<RunSummary> summary;
+  std::optional<protocol::Role> given_up;  // a solver that died or stopped answering
   std::int64_t steps_done = -1;
   double time_reached = -1.0;
   auto failed = [&](int c, const std::string& text) {
@@ -704,13 +705,16 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
       }
       if (settings.has_fem && external) {
         // An outside program: the same arguments as fem_server (absolute paths: it runs in the
-        // scene's folder), the same supervision and restarts.
+        // scene's folder), the same supervision and restarts. The output folder always: the
+        // default (run.output_dir) is relative to this process's folder, not to the scene's.
         std::vector<std::string> ext_args = external->arguments;
         for (std::size_t k = 0; k < fem_args.size(); ++k) {
           const bool path =
               k > 0 && (fem_args[k - 1] == "--scene" || fem_args[k - 1] == "--output-dir");
           ext_args.push_back(path ? fs::absolute(fem_args[k]).string() : fem_args[k]);
         }
+        if (opt.output_dir.empty())
+          ext_args.insert(ext_args.end(), {"--output-dir", fs::absolute(out_dir).string()});
         if (const auto py = python_module_dir(bin)) {
           const char* old = std::getenv("PYTHONPATH");
           const std::string value = py->string() + (old && *old ? ":" + std::string(old) : "");
@@ -846,6 +850,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   } catch (const BlowUp& e) {
     failed(kExitBlowUp, std::string(e.what()) + "\n  output so far is in " + out_dir.string());
   } catch (const RecoveryExhausted& e) {
+    given_up = e.role();
     failed(kExitRecoveryExhausted,
            std::string(e.what()) + "\n  output so far is in " + out_dir.string());
   } catch (const SolverFailure& e) {
@@ -853,6 +858,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     // be solved (a mechanism, displacements larger than the model) is bad input, found late;
     // a non-finite or unstable state is a blow-up. Errors of a solver that does not classify
     // them are blow-ups when their text says so ("... is not finite", "blew up").
+    if (e.died()) given_up = e.role();
     if (SignalGuard::stop_flag().load()) {
       failed(128 + SignalGuard::signal_number(), "stopped by signal " +
                                                      std::to_string(SignalGuard::signal_number()) +
@@ -942,6 +948,16 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   if (auto* local = dynamic_cast<LocalLink*>(link.get()); local && stopping) {
     for (auto role : {protocol::Role::dem, protocol::Role::fem})
       drop_end_state(local->backend(role));
+  }
+  // A solver given up as dead or silent (no reply within reply_timeout) is killed at once: a
+  // hung one would answer neither Shutdown nor SIGTERM, and waiting on both costs seconds.
+  if (SolverProcess* p = !given_up                          ? nullptr
+                         : *given_up == protocol::Role::dem ? dem_proc.get()
+                                                            : fem_proc.get();
+      p && p->running()) {
+    p->signal(SIGKILL);
+    std::fprintf(stderr, "demfem run: the %s (pid %d) is not answering: killed\n",
+                 p->label().c_str(), static_cast<int>(p->pid()));
   }
   if (link && !stopping) link->shutdown();
   for (auto* p : {dem_proc.get(), fem_proc.get()}) {

@@ -8,6 +8,7 @@
 #include <map>
 #include <optional>
 #include <sstream>
+#include <tuple>
 
 #include "coupling_series.hpp"
 #include "demfem/coupling/acceleration.hpp"
@@ -57,6 +58,40 @@ std::ptrdiff_t first_non_finite(std::span<const double> v) {
     if (!std::isfinite(v[i])) return static_cast<std::ptrdiff_t>(i);
   }
   return -1;
+}
+
+// What the FEM wrote into buffer b that is not finite (the first position, velocity or
+// acceleration, with its node), or "" when everything is. Checked after every FEM step:
+// another process would otherwise be blamed for it (the DEM, moving its mesh with them).
+std::string non_finite_fem_kinematics(protocol::InterfaceBuffers& buf, std::uint32_t b) {
+  const std::tuple<const char*, const char*, std::span<const double>> arrays[] = {
+      {"position", "m", buf.positions(b)},
+      {"velocity", "m/s", buf.velocities(b)},
+      {"acceleration", "m/s^2", buf.accelerations(b)}};
+  for (const auto& [what, unit, v] : arrays) {
+    const std::ptrdiff_t k = first_non_finite(v);
+    if (k < 0) continue;
+    const double* node = &v[static_cast<std::size_t>(k - k % 3)];
+    std::ostringstream m;
+    m.precision(6);
+    m << "the " << what << " it wrote for interface node " << k / 3 << " is not finite: ("
+      << node[0] << ", " << node[1] << ", " << node[2] << ") " << unit;
+    return m.str();
+  }
+  return {};
+}
+
+// The FEM's published mesh: a node that is not finite would be found by the DEM in its first
+// step and blamed on it. `backend`: the FEM's name (Hello).
+void check_published_mesh(const InterfaceMesh& mesh, const std::string& backend) {
+  const std::ptrdiff_t k = first_non_finite(mesh.reference_positions);
+  if (k < 0) return;
+  const double* x = &mesh.reference_positions[static_cast<std::size_t>(k - k % 3)];
+  throw HandshakeFailed(protocol::Role::fem, "the FEM solver's backend \"" + backend +
+                                                 "\" published an interface mesh whose node " +
+                                                 std::to_string(k / 3) + " is not finite: (" +
+                                                 fmt(x[0]) + ", " + fmt(x[1]) + ", " + fmt(x[2]) +
+                                                 ") m; it is refused");
 }
 
 void copy(std::span<const double> from, std::span<double> to) {
@@ -139,6 +174,7 @@ RunSummary CouplingRun::run() {
   auto run_start = Clock::now();  // set again when the steps begin (see below)
   sum.mesh = link_.start();
   const std::size_t n3 = 3 * sum.mesh.node_count();
+  check_published_mesh(sum.mesh, link_.name(Role::fem));
   const bool coupled = s.has_dem && s.has_fem;
   InterfaceBuffers& buf = link_.buffers();
   // Buffer 0 for every scheme; the concurrent one gives the FEM buffer 1, so that the two
@@ -419,12 +455,14 @@ RunSummary CouplingRun::run() {
   };
 
   // A solver that fails or dies inside a step: name it, the step and the time.
-  auto solver_failure = [&](Role role, const StepCommand& cmd, const std::exception& e) {
+  auto solver_failure = [&](Role role, const StepCommand& cmd, const std::exception& e,
+                            std::optional<protocol::ErrorKind> kind = std::nullopt) {
     std::ostringstream m;
     m << "the " << role_label(role) << " solver failed in coupling step " << cmd.step
       << " (t = " << fmt(cmd.time) << " s): " << e.what();
     return SolverFailure(role, cmd.step, cmd.time, m.str(),
-                         dynamic_cast<const protocol::PeerDied*>(&e) != nullptr, error_kind_of(e));
+                         dynamic_cast<const protocol::PeerDied*>(&e) != nullptr,
+                         kind.value_or(error_kind_of(e)));
   };
   auto send = [&](Role role, const StepCommand& cmd) {
     try {
@@ -435,11 +473,21 @@ RunSummary CouplingRun::run() {
     }
   };
   auto wait = [&](Role role, const StepCommand& cmd) {
+    StepResult r;
     try {
-      return link_.wait_step_done(role);
+      r = link_.wait_step_done(role);
     } catch (const std::exception& e) {
       throw solver_failure(role, cmd, e);
     }
+    if (role == Role::fem && n3 > 0) {
+      if (const std::string bad = non_finite_fem_kinematics(buf, cmd.buffer); !bad.empty()) {
+        // The solver's own blow-up (exit status 3), as if it had refused the state itself.
+        throw solver_failure(role, cmd,
+                             std::runtime_error("its backend \"" + link_.name(role) + "\": " + bad),
+                             protocol::ErrorKind::blow_up);
+      }
+    }
+    return r;
   };
   // The outcome of a DEM step (forces and mesh positions in buffer `bb`) and of a FEM step.
   auto dem_done = [&](const StepResult& r, std::uint32_t bb, StepDiagnostics& d) {

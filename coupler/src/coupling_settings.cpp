@@ -276,7 +276,9 @@ CouplingSettings read_coupling_settings(const scene::Document& doc) {
     c.every_wall_time = cp->number("every_wall_time", 0.0, Range::non_negative());
     c.keep = cp->integer("keep", 3, 1, 1000000);
     c.max_retries = cp->integer("max_retries", 3, 0, 1000);
-    c.reply_timeout = cp->number("reply_timeout", c.reply_timeout, Range::non_negative());
+    // At most 10^6 s (11.6 days; 0 = no limit): in milliseconds it must fit the wait's clock.
+    c.reply_timeout =
+        cp->number("reply_timeout", c.reply_timeout, Range::closed(0.0, kMaxReplyTimeout));
     if (cp->has("directory")) c.directory = cp->string("directory");
     cp->finish();
   }

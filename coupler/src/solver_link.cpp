@@ -265,13 +265,15 @@ InterfaceBuffers& RemoteLink::buffers() {
   return session_.buffers();
 }
 
+// Paths go to the solver absolute: it may run in another folder than the coupler (an
+// external backend runs in the scene's folder), where a relative path names another file.
 void RemoteLink::checkpoint(Role role, const std::filesystem::path& file, std::int64_t step) {
-  session_.checkpoint(role, file, step);
+  session_.checkpoint(role, std::filesystem::absolute(file), step);
   session_.wait_done(role);
 }
 
 void RemoteLink::restore(Role role, const std::filesystem::path& file, std::int64_t step) {
-  session_.restore(role, file, step);
+  session_.restore(role, std::filesystem::absolute(file), step);
   session_.wait_done(role);
 }
 

@@ -10,7 +10,7 @@
 // and restores it, and polls the cancel flag.
 //
 //   spring_bed --size X Y --cells NX NY --z Z --stiffness K --mass M [--damping C]
-//              --scene FILE --segment NAME [--set K=V]... [--output-dir DIR] [--resume]
+//              --scene FILE --segment NAME [--set K=V]... --output-dir DIR [--resume]
 //
 // demfem passes the second line; the first comes from fem.command.
 #include <demfem/protocol/protocol.hpp>

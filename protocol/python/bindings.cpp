@@ -31,6 +31,24 @@ std::string python_error_text(const py::error_already_set& e) {
   return text;
 }
 
+/// numpy's ComplexWarning (numpy.exceptions from numpy 1.25 on, numpy before).
+py::object complex_warning() {
+  py::module_ np = py::module_::import("numpy");
+  return py::hasattr(np, "exceptions") ? np.attr("exceptions").attr("ComplexWarning")
+                                       : np.attr("ComplexWarning");
+}
+
+/// Refuses complex numbers where demfem takes real ones (`what` names the value): numpy would
+/// drop their imaginary parts (a ComplexWarning at most).
+void require_real(py::handle values, const std::string& what) {
+  if (values.is_none()) return;
+  const py::array a = py::array::ensure(values);  // null when it is no array of numbers
+  if (a && a.dtype().kind() == 'c')
+    throw std::invalid_argument(what + " holds complex numbers (dtype " +
+                                py::str(a.dtype()).cast<std::string>() +
+                                "); demfem's values are real: pass .real or abs() of them");
+}
+
 /// A (n, 3) float64 numpy view of an interface array, kept alive by `owner`.
 py::array_t<double> view(std::span<double> a, py::handle owner) {
   const auto n = static_cast<py::ssize_t>(a.size() / 3);
@@ -61,6 +79,7 @@ class PySolverBackend : public proto::SolverBackend {
         [](py::object r) {
           proto::StepResult out;
           if (r.is_none()) return out;
+          require_real(r, "the list step() returned");
           const auto values = r.cast<std::vector<double>>();
           if (values.size() > out.values.size())
             throw std::runtime_error("step() returned " + std::to_string(values.size()) +
@@ -82,6 +101,9 @@ class PySolverBackend : public proto::SolverBackend {
   bool cancelled() const { return cancel_ && cancel_->load(std::memory_order_relaxed); }
 
  private:
+  // Calls the Python method with numpy's ComplexWarning raised as an error: a complex value
+  // written into an interface array (a real numpy view of the shared memory) would otherwise
+  // lose its imaginary part with a warning nobody reads.
   template <class R, class Convert, class... Args>
   R call(const char* method, Convert convert, Args&&... args) const {
     py::gil_scoped_acquire gil;
@@ -89,9 +111,28 @@ class PySolverBackend : public proto::SolverBackend {
       py::function f = py::get_override(static_cast<const proto::SolverBackend*>(this), method);
       if (!f)
         throw std::runtime_error(std::string("the backend does not implement ") + method + "()");
-      return convert(f(std::forward<Args>(args)...));
+      py::module_ warnings = py::module_::import("warnings");
+      py::object strict = warnings.attr("catch_warnings")();
+      strict.attr("__enter__")();
+      py::object result;
+      try {
+        warnings.attr("simplefilter")("error", complex_warning());
+        result = f(std::forward<Args>(args)...);
+      } catch (...) {
+        strict.attr("__exit__")(py::none(), py::none(), py::none());
+        throw;
+      }
+      strict.attr("__exit__")(py::none(), py::none(), py::none());
+      return convert(result);
     } catch (py::error_already_set& e) {
       // Converted here, with the GIL held: the error object must not outlive it.
+      if (e.matches(complex_warning()))
+        throw std::runtime_error(
+            std::string(method) +
+            "() cast complex numbers to real, dropping their imaginary parts (into an "
+            "interface array, a float64 view, or elsewhere; an error while demfem calls the "
+            "backend): take .real or abs() of them explicitly: " +
+            python_error_text(e));
       throw std::runtime_error(python_error_text(e));
     } catch (const py::cast_error& e) {
       throw std::runtime_error(std::string(method) + "() returned the wrong type: " + e.what());
@@ -139,19 +180,21 @@ PYBIND11_MODULE(_protocol, m) {
   py::class_<demfem::InterfaceMesh>(m, "InterfaceMesh",
                                     "The coupled surface: node positions (n, 3) in m and "
                                     "triangles (m, 3) of node indices, normals outward")
-      .def(py::init(
-               [](py::array_t<double, py::array::c_style | py::array::forcecast> positions,
-                  py::array_t<std::int32_t, py::array::c_style | py::array::forcecast> triangles) {
-                 if (positions.ndim() != 2 || positions.shape(1) != 3)
-                   throw std::invalid_argument("InterfaceMesh: positions must be an (n, 3) array");
-                 if (triangles.ndim() != 2 || triangles.shape(1) != 3)
-                   throw std::invalid_argument("InterfaceMesh: triangles must be an (m, 3) array");
-                 demfem::InterfaceMesh mesh;
-                 mesh.reference_positions.assign(positions.data(),
-                                                 positions.data() + positions.size());
-                 mesh.triangles.assign(triangles.data(), triangles.data() + triangles.size());
-                 return mesh;
-               }),
+      .def(py::init([](py::object positions_in, py::object triangles_in) {
+             require_real(positions_in, "InterfaceMesh: positions");
+             using Doubles = py::array_t<double, py::array::c_style | py::array::forcecast>;
+             using Ints = py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>;
+             const auto positions = positions_in.cast<Doubles>();
+             const auto triangles = triangles_in.cast<Ints>();
+             if (positions.ndim() != 2 || positions.shape(1) != 3)
+               throw std::invalid_argument("InterfaceMesh: positions must be an (n, 3) array");
+             if (triangles.ndim() != 2 || triangles.shape(1) != 3)
+               throw std::invalid_argument("InterfaceMesh: triangles must be an (m, 3) array");
+             demfem::InterfaceMesh mesh;
+             mesh.reference_positions.assign(positions.data(), positions.data() + positions.size());
+             mesh.triangles.assign(triangles.data(), triangles.data() + triangles.size());
+             return mesh;
+           }),
            py::arg("positions"), py::arg("triangles"))
       .def_property_readonly("node_count", &demfem::InterfaceMesh::node_count)
       .def_property_readonly("triangle_count", &demfem::InterfaceMesh::triangle_count)

@@ -55,12 +55,17 @@ def main():
         found = re.search(r"demfemProtocol_DIR:PATH=(.*)", cache)
         check(found and found.group(1).startswith(prefix), f"demfemProtocol found at {found and found.group(1)}")
 
-        out = os.path.join(d, "out")
+        # As a user runs it: no --output-dir, so run.output_dir (out/<name>) is relative to the
+        # folder demfem_run starts in, not to the scene's, where the backend runs; it is told
+        # the folder (absolute) all the same and writes its spring_bed.csv there.
+        out = os.path.join(d, "out", "spring_bed_static_ci")
         cmd = (f'fem.command=["{exe}", "--size", "1.0", "0.1", "--cells", "40", "4", "--z", "0.1", '
                f'"--stiffness", "1e10", "--mass", "100"]')
         r = subprocess.run([demfem_run, os.path.join(source, "examples/cpp_spring_bed/static_ci.toml"),
-                            "--output-dir", out, "--quiet", "--set", cmd],
-                           capture_output=True, text=True, timeout=300)
+                            "--quiet", "--set", cmd],
+                           capture_output=True, text=True, timeout=300, cwd=d)
+        check(os.path.isfile(os.path.join(out, "spring_bed.csv")),
+              "the backend wrote no spring_bed.csv into the run's output folder")
         if check(r.returncode == 0, f"coupled run failed ({r.returncode}): {r.stderr[-2000:]}"):
             c, b = last_row(os.path.join(out, "coupling.csv")), last_row(os.path.join(out, "spring_bed.csv"))
             weight, spring = -float(c["force_sum_z"]), float(b["spring_force"])

@@ -11,6 +11,16 @@ the minimal Python backend examples/python_spring_plate/spring_plate.py (fem.bac
                 refused (exit 2 on --resume, 1 on a restart), naming it
   version       a backend that speaks another protocol version is refused, naming the program,
                 its pid and both versions
+  hang          a live backend that sleeps in step() or spins in restore_checkpoint() is
+                killed after checkpoint.reply_timeout and restarted from the checkpoint (the
+                run then equals the uninterrupted one), or the run gives up with exit 4, the
+                hung process killed at once; a reply_timeout beyond 10^6 s is refused
+  kinematics    a NaN position or an infinite velocity the backend writes is its blow-up
+                (exit 3, naming the backend and the node), not the DEM's; complex diagnostics
+                or complex values written into an interface array are refused (exit 1), and so
+                is a published mesh with a NaN node, naming the FEM and the node
+  elsewhere     the example with checkpoints run as documented from another folder, with the
+                default output folder (relative to that folder): checkpoints and a restart
 
 Usage: test_python_sdk.py CASE DEMFEM_RUN SOURCE_DIR. Nothing may be left in /dev/shm.
 """
@@ -21,6 +31,7 @@ import re
 import subprocess
 import sys
 import tempfile
+import time
 
 failures = []
 
@@ -31,11 +42,15 @@ def check(ok, what):
     return ok
 
 
-def run(demfem_run, scene, out, *extra, env=None):
-    r = subprocess.run([demfem_run, scene, "--output-dir", out, "--quiet", *extra],
-                       capture_output=True, text=True, timeout=300, env=env)
+def run(demfem_run, scene, out, *extra, env=None, cwd=None):
+    where = ["--output-dir", out] if out else []
+    r = subprocess.run([demfem_run, scene, *where, "--quiet", *extra],
+                       capture_output=True, text=True, timeout=300, env=env, cwd=cwd)
     for seg in re.findall(r"segment /(demfem-[0-9a-f]+)", r.stdout):
         check(not os.path.exists("/dev/shm/" + seg), f"segment {seg} left in /dev/shm")
+    for pid in re.findall(r"\(pid ([0-9]+)\)", r.stdout):  # every process it started
+        check(not os.path.exists(f"/proc/{pid}") or "zombie" in open(f"/proc/{pid}/status").read()
+              .lower(), f"process {pid} left running")
     return r
 
 
@@ -140,8 +155,136 @@ def case_version(demfem_run, source, d):
           "the refused run wrote coupling steps")
 
 
+KEYS = ["step", "time", "drift", "work_dem", "work_fem", "max_overlap", "kinetic_energy",
+        "fem_max_displacement", "force_sum_z"]
+
+
+def same_rows(a, b):
+    xa, xb = rows(a), rows(b)
+    return len(xa) == len(xb) == 40 and all(p[k] == q[k] for p, q in zip(xa, xb) for k in KEYS)
+
+
+def case_hang(demfem_run, source, d):
+    scene = os.path.join(source, "examples/python_spring_plate/dynamic_ci.toml")
+    faulty = os.path.join(source, "tests/protocol/python/misbehaving_backend.py")
+    # A limit beyond 10^6 s is refused (in milliseconds it did not fit the wait's clock).
+    r = run(demfem_run, scene, os.path.join(d, "huge"), "--set", "checkpoint.reply_timeout=1e300")
+    check(r.returncode == 2 and "'checkpoint.reply_timeout'" in r.stderr and
+          "outside the accepted range [0, 1e+06]" in r.stderr and "started" not in r.stdout,
+          f"reply_timeout = 1e300: exit {r.returncode}: {r.stderr[-1000:]}")
+    ref = os.path.join(d, "straight")
+    r = run(demfem_run, scene, ref)
+    if not check(r.returncode == 0, f"uninterrupted run failed: {r.stderr[-2000:]}"):
+        return
+    # The backend sleeps an hour (or spins forever); reply_timeout = 2 s finds it (1 s would
+    # do, but a checkpoint's fsync on a loaded machine may take a second).
+    expect = {"hang-in-step": 0, "spin-in-restore-once": 0, "spin-in-restore": 4}
+    for fault, code in expect.items():
+        out = os.path.join(d, fault)
+        t0 = time.monotonic()
+        r = run(demfem_run, scene, out, "--set", "checkpoint.reply_timeout=2", "--set",
+                "checkpoint.max_retries=2", "--set",
+                f'fem.command=["{{python}}", "{faulty}", "--fault", "{fault}"]', env=ENV)
+        secs = time.monotonic() - t0
+        restarts = len(re.findall(r"FEM solver failed \(.*no reply within reply_timeout "
+                                  r"\(2000 ms\).*\); restart [12] of 2", r.stderr))
+        print(f"{fault}: exit {r.returncode} after {secs:.1f} s, {restarts} restarts")
+        check(r.returncode == code, f"{fault}: exit {r.returncode}, expected {code}: "
+                                    f"{r.stderr[-2000:]}")
+        check(secs < 120.0, f"{fault}: the run took {secs:.0f} s (the backend hangs an hour)")
+        check(restarts == (1 if fault == "hang-in-step" else 2),
+              f"{fault}: {restarts} restarts after a reply timeout: {r.stderr[-2000:]}")
+        if code == 0:
+            check("recovered: every process is back at step 10" in r.stderr,
+                  f"{fault}: no recovery to step 10 reported")
+            check(same_rows(ref, out), f"{fault}: the recovered run differs from the "
+                                       "uninterrupted one")
+        else:
+            check("kept failing: 2 restarts from checkpoint" in r.stderr,
+                  f"{fault}: no report of the given-up recovery")
+            # The third process, spinning in restore_checkpoint(), is killed at once: it would
+            # answer neither Shutdown nor SIGTERM (seconds of waiting for both).
+            check("the FEM solver (pid" in r.stderr and "is not answering: killed" in r.stderr,
+                  f"{fault}: the spinning process was not killed at once: {r.stderr[-1000:]}")
+    # The handshake: a restarted process that sleeps before its Hello is killed after
+    # --hello-timeout and started again, as one that hangs in a step.
+    t0 = time.monotonic()
+    r = run(demfem_run, scene, os.path.join(d, "mesh"), "--hello-timeout", "5", "--set",
+            "checkpoint.reply_timeout=2", "--set", "checkpoint.max_retries=2", "--set",
+            f'fem.command=["{{python}}", "{faulty}", "--fault", "hang-in-mesh-on-resume"]', env=ENV)
+    secs = time.monotonic() - t0
+    print(f"hang-in-mesh-on-resume: exit {r.returncode} after {secs:.1f} s")
+    check(r.returncode == 4, f"hang in the handshake: exit {r.returncode}: {r.stderr[-2000:]}")
+    check("no Hello within 5000 ms" in r.stderr and "restart 2 of 2" in r.stderr,
+          f"hang in the handshake: no Hello timeout and second restart: {r.stderr[-2000:]}")
+    check("is not answering: killed" in r.stderr, "hang in the handshake: the process left")
+    check(secs < 120.0, f"hang in the handshake: the run took {secs:.0f} s")
+
+
+def case_kinematics(demfem_run, source, d):
+    scene = os.path.join(source, "examples/python_spring_plate/dynamic_ci.toml")
+    faulty = os.path.join(source, "tests/protocol/python/misbehaving_backend.py")
+    expect = {
+        ("nan-position", "just_in_time"): (3, ["position", "interface node 3", "not finite"]),
+        ("nan-position", "predictive"): (3, ["position", "interface node 3", "not finite"]),
+        ("inf-velocity", "just_in_time"): (3, ["velocity", "interface node 7", "inf"]),
+        ("complex-return", "just_in_time"): (1, ["complex numbers", "complex128"]),
+        ("complex-write", "just_in_time"): (1, ["cast complex numbers to real"]),
+    }
+    for (fault, scheme), (code, texts) in expect.items():
+        r = run(demfem_run, scene, os.path.join(d, fault + scheme), "--set",
+                f'coupling.scheme="{scheme}"', "--set",
+                f'fem.command=["{{python}}", "{faulty}", "--fault", "{fault}"]', env=ENV)
+        last = r.stderr.strip().splitlines()[-3:]
+        print(f"{fault} ({scheme}): exit {r.returncode}: {' | '.join(last)[:400]}")
+        check(r.returncode == code, f"{fault} ({scheme}): exit {r.returncode}, expected {code}")
+        blamed = "FEM solver failed in coupling step 5" in r.stderr and "DEM solver" not in r.stderr
+        check(blamed, f"{fault} ({scheme}): the FEM in step 5 is not blamed: {r.stderr[-1500:]}")
+        if code == 3:  # the coupler's own check names the backend (Hello's name)
+            check('its backend "spring-plate' in r.stderr,
+                  f"{fault} ({scheme}): the backend is not named")
+        for t in texts:
+            check(t in r.stderr, f"{fault} ({scheme}): '{t}' missing: {r.stderr[-1500:]}")
+        check("restarting it" not in r.stderr, f"{fault} ({scheme}): the error was restarted")
+    # A NaN node in the published mesh: refused at the handshake, naming the FEM and the node
+    # (the DEM used to fail on it in step 0, blamed with exit 1).
+    r = run(demfem_run, scene, os.path.join(d, "nan-mesh"), "--set",
+            f'fem.command=["{{python}}", "{faulty}", "--fault", "nan-mesh"]', env=ENV)
+    line = [m for m in r.stderr.splitlines() if "published an interface mesh" in m]
+    print(f"nan-mesh: exit {r.returncode}: {line[-1][:300] if line else r.stderr[-300:]}")
+    check(r.returncode == 1, f"nan-mesh: exit {r.returncode}, expected 1")
+    check(bool(line) and 'backend "spring-plate' in line[-1] and
+          "node 4 is not finite: (nan, 0, 0.1) m" in line[-1] and "DEM solver" not in r.stderr,
+          f"nan-mesh: the FEM and the node are not named: {r.stderr[-1500:]}")
+    check(not os.path.exists(os.path.join(d, "nan-mesh", "coupling.csv")) or
+          len(rows(os.path.join(d, "nan-mesh"))) == 0, "nan-mesh: the refused run took steps")
+
+
+def case_elsewhere(demfem_run, source, d):
+    # As docs/backends.md says to run it, but from another folder: run.output_dir (out/<name>)
+    # is relative to that folder, and the backend runs in the scene's folder. Every path it is
+    # given (output folder, checkpoint files) must be absolute.
+    scene = os.path.relpath(os.path.join(source, "examples/python_spring_plate/dynamic_ci.toml"),
+                            d)
+    r = run(demfem_run, scene, None, "--debug-kill", "fem:15", cwd=d)
+    out = os.path.join(d, "out", "spring_plate_dynamic_ci")
+    print(f"elsewhere: exit {r.returncode}: {r.stderr.strip().splitlines()[-1:]}")
+    check(r.returncode == 0, f"run from another folder: exit {r.returncode}: {r.stderr[-2000:]}")
+    check("recovered: every process is back at step 10" in r.stderr, "no recovery reported")
+    check(os.path.isfile(os.path.join(out, "checkpoints", "step-000040", "fem.h5")),
+          "the last checkpoint has no fem.h5")
+    check(len(rows(out)) == 40 if os.path.exists(os.path.join(out, "coupling.csv")) else False,
+          "coupling.csv of 40 rows missing")
+    check(not os.path.exists(os.path.join(source, "examples/python_spring_plate/out")),
+          "the backend wrote into the scene's folder")
+    r = run(demfem_run, scene, None, "--resume", "--set", "run.end_time=0.005", cwd=d)
+    check(r.returncode == 0, f"--resume from another folder: exit {r.returncode}: "
+                             f"{r.stderr[-2000:]}")
+
+
 CASES = {"static": case_static, "restart": case_restart, "handshake": case_handshake,
-         "interface": case_interface, "version": case_version}
+         "interface": case_interface, "version": case_version, "hang": case_hang,
+         "kinematics": case_kinematics, "elsewhere": case_elsewhere}
 ENV = None
 
 

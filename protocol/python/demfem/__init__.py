@@ -13,10 +13,13 @@ In step(), buffers.forces(cmd.buffer) is an (n, 3) numpy view of the forces the 
 exert on the interface nodes (N), and positions / velocities / accelerations(cmd.buffer)
 are (n, 3) views the backend writes (m, m/s, m/s^2), all in shared memory, without a copy.
 cmd.static asks for a static solve, otherwise advance by cmd.dt. Long steps may poll
-self.cancelled. An exception becomes the error demfem reports, naming the backend.
+self.cancelled. An exception becomes the error demfem reports, naming the backend. Values are
+real: complex numbers returned, or cast to real while a method runs (numpy's ComplexWarning,
+e.g. written into an interface view), are errors.
 
 The launcher starts the backend as  fem.command + --scene FILE --segment NAME [--set K=V]...
-[--output-dir DIR] [--resume]  in the scene's folder: parse_args() reads these, load_scene()
+--output-dir DIR [--resume]  in the scene's folder, every path absolute (the checkpoint paths
+of write_checkpoint() and restore_checkpoint() too): parse_args() reads these, load_scene()
 reads the scene with the --set overrides, serve() runs the backend. docs/protocol.md.
 """
 

@@ -78,8 +78,13 @@ struct CheckpointSettings {
   /// 0 = no limit. The heartbeat proves a solver alive, not that its step progresses: a
   /// solver that hangs inside a step is treated as dead after this long. Applies with or
   /// without the section (without it there is nothing to recover to: the run stops).
+  /// The default, an hour, is far beyond any step that makes progress (a coupling step of
+  /// 10^6 DEM substeps, a factorisation of a large mesh take minutes) and bounds what a hung
+  /// solver costs; at most kMaxReplyTimeout (the wait counts it in milliseconds).
   double reply_timeout = 3600.0;
 };
+/// Largest checkpoint.reply_timeout, s (11.6 days).
+inline constexpr double kMaxReplyTimeout = 1e6;
 
 /// @brief Everything the coupler takes from a scene.
 struct CouplingSettings {
