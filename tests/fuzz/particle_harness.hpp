@@ -33,6 +33,7 @@
 #include "../dem/core/poly_test_util.hpp"
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/dem/particle_source.hpp"
+#include "demfem/dem/state_check.hpp"
 #include "demfem/io/h5_file.hpp"
 
 namespace fuzz_particles {
@@ -75,7 +76,8 @@ struct Paths {
   }
   ~Paths() {
     std::error_code ec;
-    if (!dir.empty()) fs::remove_all(dir, ec);  // the process's scratch folder
+    // The process's scratch folder (FUZZ_KEEP=1 keeps it, to look at the last input's files).
+    if (!dir.empty() && !std::getenv("FUZZ_KEEP")) fs::remove_all(dir, ec);
   }
 };
 
@@ -214,10 +216,10 @@ inline const fs::path& mutated(const fs::path& seed, Bytes& in) {
     const std::size_t count = width ? bytes.size() / width : 0;
     const std::uint8_t op = in.u8() % 5;
     if (op == 0) {  // another length (first dimension), new entries fuzzed
-      const std::size_t rows = in.u16() % 512, row = count / std::max<hsize_t>(dims[0], 1);
+      const std::size_t rows = in.u16() % 512, row = dims.size() > 1 ? dims[1] : 1;
       dims[0] = rows;
       const std::size_t old = bytes.size();
-      bytes.resize(rows * std::max<std::size_t>(row, 1) * width);
+      bytes.resize(rows * row * width);
       for (std::size_t b = old; b < bytes.size(); ++b) bytes[b] = in.u8();
     } else if (op == 1 && count) {  // one element's bits
       const std::size_t at = in.u16() % count;
@@ -318,7 +320,8 @@ inline void run(Target target, Bytes in) {
         const auto& file = mutated(seeds().state, in);
         DemSystem sys = fuzz_system();
         demfem::io::H5File f(file, demfem::io::H5File::Mode::read);
-        sys.restore(f, "dem");
+        sys.restore(f, "dem");  // as DemRun::restore (dem_server resuming a checkpoint)
+        check_particle_state(sys.particles(), file.string() + ":/dem");
         sys.advance(3);
         break;
       }
