@@ -185,27 +185,16 @@ RunSummary CouplingRun::run() {
     }
   };
   auto write_h5 = [&]() {
-    const auto final_path = output_dir_ / "coupling.h5";
-    io::H5File h5(io::partial_path(final_path), io::H5File::Mode::create);
-    h5.set_attribute("/", "scheme", std::string(scheme_name(s.scheme)));
-    h5.set_attribute("/", "steps", sum.steps);
-    h5.set_attribute("/", "time", sum.time);
-    // The time series stay in coupling.csv only: holding them in memory for the HDF5 file
-    // would grow without bound over a long run.
-    if (n3 > 0) {
-      h5.create_group("interface");
-      h5.write("interface/reference_positions",
-               std::span<const double>(sum.mesh.reference_positions), {sum.mesh.node_count(), 3});
-      std::vector<std::int64_t> tri(sum.mesh.triangles.begin(), sum.mesh.triangles.end());
-      h5.write("interface/triangles", std::span<const std::int64_t>(tri),
-               {sum.mesh.triangle_count(), 3});
-      h5.write("interface/positions", std::span<const double>(pos), {sum.mesh.node_count(), 3});
-      h5.write("interface/forces", std::span<const double>(dem_force), {sum.mesh.node_count(), 3});
-      h5.write("interface/dem_positions", std::span<const double>(dem_end),
-               {sum.mesh.node_count(), 3});
-    }
-    h5.close();
-    io::commit_partial(final_path);
+    InterfaceState st;
+    st.scheme = scheme_name(s.scheme);
+    st.steps = sum.steps;
+    st.time = sum.time;
+    st.mesh = &sum.mesh;
+    st.positions = pos;
+    st.velocities = vel;
+    st.forces = dem_force;
+    st.dem_positions = dem_end;
+    write_interface_output(output_dir_, st);
   };
 
   // ---- checkpoints ------------------------------------------------------------------------
