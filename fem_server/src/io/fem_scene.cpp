@@ -424,7 +424,12 @@ void read_rigid(const Table& fem, FemScene& s) {
         r->fail("fixed", "\"" + d +
                              "\" is not a DOF of the body; accepted: \"x\", \"y\", \"z\", \"rx\", "
                              "\"ry\", \"rz\"");
-      s.rigid.fixed[static_cast<std::size_t>(it - std::begin(names))] = true;
+      const auto k = static_cast<std::size_t>(it - std::begin(names));
+      if (s.rigid.fixed[k])
+        r->fail("fixed", "names \"" + std::string(names[k]) +
+                             "\" twice: give each held DOF once (accepted: \"x\", \"y\", \"z\", "
+                             "\"rx\", \"ry\", \"rz\", each at most once, not all six)");
+      s.rigid.fixed[k] = true;
     }
     if (std::all_of(s.rigid.fixed.begin(), s.rigid.fixed.end(), [](bool b) { return b; }))
       r->fail("fixed", "fixes all six DOFs: the body could not move at all");
