@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <iostream>
 #include <ostream>
 
 #include "demfem/fem/assembly.hpp"
@@ -31,6 +32,9 @@ ModalRunSummary run_modal_analysis(const FemScene& scene, const std::filesystem:
     throw FemModelError("FEM: fem.modal.modes = " + std::to_string(o.count) +
                         " modes asked for, but the model has only " +
                         std::to_string(dofs.free.size()) + " free DOFs");
+  const std::string dense =
+      dense_modes_warning(static_cast<std::int64_t>(dofs.free.size()), o.count);
+  if (!dense.empty()) std::cerr << "fem: warning: " << dense << "\n" << std::flush;
   ModeSet modes;
   try {
     modes = compute_modes(k, m, o);
