@@ -14,6 +14,28 @@
 
 namespace demfem::fem {
 
+namespace {
+
+/// Mass unit of the model in kg: 1 for SI, 1000 when every density of the materials in use
+/// is at most kTonneDensity kg/m^3 (no solid is that light: the numbers are tonne/mm^3, e.g.
+/// 7.85e-9 for steel, of the mm-tonne-s system of many Abaqus and CalculiX decks, whose
+/// masses come out in tonnes).
+constexpr double kTonneDensity = 1e-3;
+
+double model_mass_unit(const FemProblem& p, double* density_seen) {
+  bool any = false, all_tonne = true;
+  for (const auto& sec : p.sections) {
+    const double rho = p.materials[static_cast<std::size_t>(sec.material)].density;
+    if (!(rho > 0.0)) continue;
+    any = true;
+    *density_seen = rho;
+    if (rho > kTonneDensity) all_tonne = false;
+  }
+  return any && all_tonne ? 1000.0 : 1.0;
+}
+
+}  // namespace
+
 ModalRunSummary run_modal_analysis(const FemScene& scene, const std::filesystem::path& dir,
                                    std::ostream* progress) {
   using clock = std::chrono::steady_clock;
@@ -61,6 +83,21 @@ ModalRunSummary run_modal_analysis(const FemScene& scene, const std::filesystem:
   const Eigen::Vector3d free_mass = (r.transpose() * mr).diagonal();
   const Eigen::MatrixXd gamma = modes.shapes.transpose() * mr;  // modes x 3
 
+  // Effective masses and participations go out in kg and sqrt(kg) whatever the model's units.
+  double density_seen = 0.0;
+  const double mass_unit = model_mass_unit(p, &density_seen);
+  if (mass_unit != 1.0) {
+    char text[500];
+    std::snprintf(text, sizeof text,
+                  "fem: note: the densities (e.g. %.3g) are tonne/mm^3 (mm-tonne-s units: "
+                  "no solid is lighter than %g kg/m^3): the effective masses are converted "
+                  "from tonnes to kg (x 1000) and the participations to sqrt(kg); the mode "
+                  "shapes stay in the model's units (mm/sqrt(tonne)); frequencies are in Hz "
+                  "either way\n",
+                  density_seen, kTonneDensity);
+    std::cerr << text << std::flush;
+  }
+  const Eigen::MatrixXd gamma_si = gamma * std::sqrt(mass_unit);
   std::filesystem::create_directories(dir);
   io::CsvWriter csv(
       dir / "fem_modes.csv",
@@ -80,8 +117,8 @@ ModalRunSummary run_modal_analysis(const FemScene& scene, const std::filesystem:
     sum.frequencies_hz.push_back(f);
     std::vector<double> row = {static_cast<double>(j + 1), f, w, w > 0 ? 1.0 / f : INFINITY,
                                modes.residual(j)};
-    for (int c = 0; c < 3; ++c) row.push_back(gamma(j, c));
-    for (int c = 0; c < 3; ++c) row.push_back(gamma(j, c) * gamma(j, c));
+    for (int c = 0; c < 3; ++c) row.push_back(gamma_si(j, c));
+    for (int c = 0; c < 3; ++c) row.push_back(gamma_si(j, c) * gamma_si(j, c));
     for (int c = 0; c < 3; ++c)
       row.push_back(free_mass(c) > 0 ? gamma(j, c) * gamma(j, c) / free_mass(c) : 0.0);
     csv.row(row);
@@ -106,8 +143,8 @@ ModalRunSummary run_modal_analysis(const FemScene& scene, const std::filesystem:
     if (progress) {
       char line[160];
       std::snprintf(line, sizeof line, "   %4d   %14.6g   %.4g, %.4g, %.4g\n", j + 1, f,
-                    gamma(j, 0) * gamma(j, 0), gamma(j, 1) * gamma(j, 1),
-                    gamma(j, 2) * gamma(j, 2));
+                    gamma_si(j, 0) * gamma_si(j, 0), gamma_si(j, 1) * gamma_si(j, 1),
+                    gamma_si(j, 2) * gamma_si(j, 2));
       *progress << line;
     }
   }
