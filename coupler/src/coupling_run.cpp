@@ -15,6 +15,8 @@
 #include "demfem/io/atomic_file.hpp"
 #include "demfem/io/checkpoint_file.hpp"
 #include "demfem/io/h5_file.hpp"
+#include "demfem/io/output_schedule.hpp"
+#include "interface_output.hpp"
 
 namespace demfem::coupling {
 
@@ -184,17 +186,20 @@ RunSummary CouplingRun::run() {
       last_flush = now;
     }
   };
+  // The interface (coupling.h5 at the end, the series of coupling.xdmf at the output times):
+  // the FEM's positions and velocities as the scheme holds them, the DEM's forces.
+  auto interface_state = [&] { return InterfaceState{&sum.mesh, pos, vel, dem_force, dem_end}; };
   auto write_h5 = [&]() {
-    InterfaceState st;
-    st.scheme = scheme_name(s.scheme);
-    st.steps = sum.steps;
-    st.time = sum.time;
-    st.mesh = &sum.mesh;
-    st.positions = pos;
-    st.velocities = vel;
-    st.forces = dem_force;
-    st.dem_positions = dem_end;
-    write_interface_output(output_dir_, st);
+    write_coupling_h5(output_dir_, interface_state(), scheme_name(s.scheme), sum.steps, sum.time);
+  };
+  std::optional<InterfaceSeries> series;
+  if (n3 > 0) series.emplace(output_dir_, sum.mesh, control_.resume_from.has_value());
+  io::OutputSchedule out_schedule(s.run.output_interval);
+  std::int64_t last_output_step = -1;  // sum.steps of the last series output
+  auto write_output = [&](double label) {
+    if (!series) return;
+    series->write(interface_state(), label, sum.time);
+    last_output_step = sum.steps;
   };
 
   // ---- checkpoints ------------------------------------------------------------------------
@@ -214,6 +219,8 @@ RunSummary CouplingRun::run() {
       h5.set_attribute("/", "work_fem", work_fem);
       h5.set_attribute("/", "settled", static_cast<std::int64_t>(settled));
       h5.set_attribute("/", "csv_rows", csv_rows);
+      h5.set_attribute("/", "output_next", out_schedule.next());
+      h5.set_attribute("/", "output_last_step", last_output_step);
       // Wall times of the whole run so far: earlier sessions (a resumed run) and this one.
       h5.set_attribute("/", "wall_total", sum.earlier.total + seconds(run_start, Clock::now()));
       h5.set_attribute("/", "wall_dem", sum.earlier.dem + sum.wall_dem);
@@ -343,6 +350,19 @@ RunSummary CouplingRun::run() {
     sum.unconverged_steps = h5.attribute_int64("/", "unconverged_steps");
     if (accel) accel->load(h5, "acceleration");
     sum.steps = steps;
+    // The interface series: the outputs taken so far, and none of states after the checkpoint
+    // (written before the attributes existed: the outputs up to its time were taken).
+    if (h5.has_attribute("/", "output_next")) {
+      out_schedule.set_next(h5.attribute_int64("/", "output_next"));
+      last_output_step = h5.attribute_int64("/", "output_last_step");
+    } else {
+      out_schedule.skip_to_after(sum.time);
+      last_output_step = -1;
+    }
+    if (series) {
+      series->rollback(sum.time);
+      if (series->last_state_time() == sum.time) last_output_step = steps;
+    }
   };
 
   // Writes the checkpoint after `steps` coupling steps; a solver failing here is a
@@ -757,6 +777,8 @@ RunSummary CouplingRun::run() {
     d.wall_coupling = std::max(0.0, seconds(step_start, Clock::now()) - solver_wall(d));
     sum.steps = i + 1;
     sum.time = d.time;
+    if (out_schedule.due(sum.time, s.coupling_dt))
+      write_output(out_schedule.take(sum.time, s.coupling_dt));
     sum.wall_dem += d.wall_dem;
     sum.wall_fem += d.wall_fem;
     const bool row_due = (i + 1) % s.diagnostics_interval == 0 || i + 1 == s.step_count || settled;
@@ -810,6 +832,10 @@ RunSummary CouplingRun::run() {
   run_start = Clock::now();  // wall_total: from the first step (or restore) to the last
   try {
     std::int64_t i = 0;
+    if (!control_.resume_from) {  // the reference state: output 0
+      write_output(out_schedule.label(0.0, s.coupling_dt));
+      out_schedule.skip_to_after(0.0);
+    }
     if (control_.resume_from) {
       try {
         i = restore_from(*control_.resume_from, true);
@@ -891,6 +917,8 @@ RunSummary CouplingRun::run() {
     try {
       if (csv) csv->flush();
       write_h5();
+      // Not into the series: a resumed run continues from the checkpoint, and the series
+      // must hold what the uninterrupted run's does (as the solvers' end states).
     } catch (...) {
       // The original error matters more than a failed final file.
     }
@@ -902,6 +930,7 @@ RunSummary CouplingRun::run() {
   sum.positions = pos;
   sum.forces = dem_force;
   write_h5();
+  if (last_output_step != sum.steps) write_output(out_schedule.label(sum.time, s.coupling_dt));
   return sum;
 }
 

@@ -1,11 +1,5 @@
 #include "coupling_series.hpp"
 
-#include <sstream>
-
-#include "demfem/io/h5_file.hpp"
-#include "demfem/io/output_schedule.hpp"
-#include "demfem/io/xdmf.hpp"
-
 namespace demfem::coupling {
 
 const std::vector<std::string>& coupling_columns() {
@@ -78,73 +72,6 @@ StepDiagnostics diagnostics_of(std::span<const double> r) {
   d.wall_dem_compute = r[18];
   d.wall_fem_compute = r[19];
   return d;
-}
-
-void write_interface_output(const std::filesystem::path& dir, const InterfaceState& st) {
-  const auto h5_path = dir / "coupling.h5";
-  const std::size_t n = st.mesh ? st.mesh->node_count() : 0;
-  const std::size_t nt = st.mesh ? st.mesh->triangle_count() : 0;
-  {
-    io::H5File h5(io::partial_path(h5_path), io::H5File::Mode::create);
-    h5.set_attribute("/", "scheme", st.scheme);
-    h5.set_attribute("/", "steps", st.steps);
-    h5.set_attribute("/", "time", st.time);
-    // The time series stay in coupling.csv only: holding them in memory for the HDF5 file
-    // would grow without bound over a long run.
-    if (n > 0) {
-      const auto& ref = st.mesh->reference_positions;
-      std::vector<double> displacement(3 * n);
-      for (std::size_t k = 0; k < 3 * n; ++k) displacement[k] = st.positions[k] - ref[k];
-      h5.create_group("interface");
-      h5.write("interface/reference_positions", std::span<const double>(ref), {n, 3});
-      std::vector<std::int64_t> tri(st.mesh->triangles.begin(), st.mesh->triangles.end());
-      h5.write("interface/triangles", std::span<const std::int64_t>(tri), {nt, 3});
-      h5.write("interface/positions", st.positions, {n, 3});
-      h5.write("interface/displacements", std::span<const double>(displacement), {n, 3});
-      h5.write("interface/velocities", st.velocities, {n, 3});
-      h5.write("interface/forces", st.forces, {n, 3});
-      h5.write("interface/dem_positions", st.dem_positions, {n, 3});
-    }
-    h5.close();
-  }
-  io::commit_partial(h5_path);
-
-  // The index, written after the data it points to (none for a run without an interface:
-  // DEM or FEM alone).
-  if (n == 0) return;
-  std::ostringstream x;
-  x << "<?xml version=\"1.0\" ?>\n"
-    << "<Xdmf Version=\"3.0\" xmlns:xi=\"http://www.w3.org/2001/XInclude\">\n"
-    << " <Domain>\n"
-    << "  <Grid Name=\"interface\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
-  {
-    const std::string nodes = std::to_string(n) + " 3";
-    const std::string file = "coupling.h5:/interface/";
-    x << "   <Grid Name=\"interface\" GridType=\"Uniform\">\n"
-      << "    <Time Value=\"" << io::format_time(st.time) << "\"/>\n"
-      << "    <Topology TopologyType=\"Triangle\" NumberOfElements=\"" << nt
-      << "\" NodesPerElement=\"3\">\n"
-      << "     " << io::xdmf_hdf_item(std::to_string(nt) + " 3", "Int", file + "triangles") << "\n"
-      << "    </Topology>\n"
-      << "    <Geometry GeometryType=\"XYZ\">\n"
-      << "     " << io::xdmf_hdf_item(nodes, "Float", file + "reference_positions") << "\n"
-      << "    </Geometry>\n";
-    const std::pair<const char*, const char*> arrays[] = {{"force", "forces"},
-                                                          {"displacement", "displacements"},
-                                                          {"position", "positions"},
-                                                          {"velocity", "velocities"},
-                                                          {"dem_position", "dem_positions"}};
-    for (const auto& [name, dataset] : arrays) {
-      x << "    <Attribute Name=\"" << name << "\" AttributeType=\"Vector\" Center=\"Node\">\n"
-        << "     " << io::xdmf_hdf_item(nodes, "Float", file + dataset) << "\n"
-        << "    </Attribute>\n";
-    }
-    x << "   </Grid>\n";
-  }
-  x << "  </Grid>\n"
-    << " </Domain>\n"
-    << "</Xdmf>\n";
-  io::write_file_atomic(dir / "coupling.xdmf", x.str());
 }
 
 }  // namespace demfem::coupling

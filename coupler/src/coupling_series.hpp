@@ -23,24 +23,6 @@ std::vector<double> row_of(const StepDiagnostics& d);
 /// @brief The inverse of row_of() (a checkpoint keeps the last row).
 StepDiagnostics diagnostics_of(std::span<const double> row);
 
-/// @brief The FEM interface at the end of a run (or at a blow-up or stop), as coupling.h5
-/// holds it (docs/coupling.md, "Output"). Arrays are node-major xyz, 3 per node.
-struct InterfaceState {
-  std::string scheme;
-  std::int64_t steps = 0;
-  double time = 0.0;  ///< s
-  const InterfaceMesh* mesh = nullptr;
-  std::span<const double> positions;      ///< the FEM's interface positions, m
-  std::span<const double> velocities;     ///< the coupler's copy of the FEM's velocities, m/s
-  std::span<const double> forces;         ///< the DEM's forces on the nodes, N
-  std::span<const double> dem_positions;  ///< where the DEM last had the nodes, m
-};
-
-/// @brief Writes `dir`/coupling.h5 (under a temporary name, renamed when complete) and
-/// `dir`/coupling.xdmf, the index that opens it in ParaView: the interface triangles with the
-/// node arrays force, displacement, position, velocity and dem_position at `time`.
-void write_interface_output(const std::filesystem::path& dir, const InterfaceState& state);
-
 // coupling.csv, one row per coupling step. Numbers are written with std::to_chars in their
 // shortest form that reads back as the same double (exact, like CsvWriter's %.17g, but about
 // five times faster: at one row per step, formatting was most of the coupler's own time).

@@ -51,7 +51,8 @@ bool is_owned_output(const std::string& file_name) {
       "fem_modes.csv", "fem_modes.xdmf", "fem_modes_mesh.h5"};
   for (const char* n : kNames)
     if (name == n) return true;
-  if (numbered_h5(name, "fem") || numbered_h5(name, "particles") || numbered_h5(name, "fem_modes"))
+  if (numbered_h5(name, "fem") || numbered_h5(name, "particles") ||
+      numbered_h5(name, "fem_modes") || numbered_h5(name, "coupling"))
     return true;
   return starts_with(name, "sensor_") && ends_with(name, ".csv") && name.size() > 11;
 }

@@ -9,8 +9,8 @@ python3-paraview), and checks what ParaView shows:
   beam check's probe point equals the mid-span deflection the run prints;
 * fem_series.csv has the same two rows, the second with the static solution's largest |u|;
 * coupling.xdmf opens (the interface triangles with node arrays force, displacement,
-  position, velocity, dem_position) and its node forces sum along z to the force the run
-  reports.
+  position, velocity, dem_position) with the same times as fem.xdmf, and at the last its node
+  forces sum along z to the force the run reports.
 
 The printed numbers carry 10 significant digits (the deflection) and 9 (the force): they are
 compared to 1e-8 relative; beam_check.csv's full-precision values to 1e-12 (the force) and
@@ -121,8 +121,15 @@ def main():
     c = seen.get("coupling.xdmf")
     if check(c is not None, "coupling.xdmf not opened"):
         check(c["reader"].startswith("Xdmf3Reader"), f"coupling: reader {c['reader']}")
-        check(len(c["times"]) == 1 and close(c["times"][0], t_settle, 1e-5),
-              f"coupling: times {c['times']}, expected [{t_settle}]")
+        # the series: the reference state (t = 0, no forces) and the settled one
+        check(c["times"] == f["times"] if f is not None else False,
+              f"coupling: times {c['times']}, fem.xdmf's {f['times'] if f else None}")
+        check(len(c["times"]) == 2 and c["times"][0] == 0.0 and
+              close(c["times"][-1], t_settle, 1e-5),
+              f"coupling: times {c['times']}, expected [0, {t_settle}]")
+        first = c["steps"][0]["arrays"].get("force", {})
+        check(first.get("min") == 0.0 and first.get("max") == 0.0,
+              "coupling t=0: forces on the interface before the first step")
         step = c["steps"][-1]
         # the top face z = 0.1: 21 x 3 nodes, 20 x 2 quads as 80 triangles (VTK_TRIANGLE = 5)
         check(step["points"] == 63 and step["cells"] == 80 and step["cell_types"] == [5],
