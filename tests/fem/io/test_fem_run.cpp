@@ -278,8 +278,17 @@ TEST_CASE("modal analysis of a mm-tonne model: effective masses in kg, as the SI
            ", poisson_ratio = 0.3, density = " + rho +
            " }]\n[fem.modal]\nmodes = 4\n[[fem.clamps]]\nnodes = \"x <= 0\"\n";
   };
-  run_modal_analysis(scene_from(beam("[1, 0.1, 0.05]", "2.1e11", "7850")), dir / "si", nullptr);
-  run_modal_analysis(scene_from(beam("[1000, 100, 50]", "2.1e5", "7.85e-9")), dir / "mm", nullptr);
+  std::ostringstream table_si, table_mm, table_other;
+  run_modal_analysis(scene_from(beam("[1, 0.1, 0.05]", "2.1e11", "7850")), dir / "si", &table_si);
+  run_modal_analysis(scene_from(beam("[1000, 100, 50]", "2.1e5", "7.85e-9")), dir / "mm",
+                     &table_mm);
+  // Densities of another system (in-lbf-s: 7.3e-4 for steel; here the SI beam with 1e-7 of its
+  // density): not taken for tonnes, not converted, labelled as the model's mass unit.
+  run_modal_analysis(scene_from(beam("[1, 0.1, 0.05]", "2.1e11", "7.85e-4")), dir / "other",
+                     &table_other);
+  CHECK_THAT(table_si.str(), Catch::Contains("eff. mass x, y, z (kg)"));
+  CHECK_THAT(table_mm.str(), Catch::Contains("eff. mass x, y, z (kg)"));
+  CHECK_THAT(table_other.str(), Catch::Contains("eff. mass x, y, z (the model's mass unit)"));
   auto rows = [](const std::filesystem::path& csv) {
     std::istringstream in(read_text(csv));
     std::string line;
@@ -293,7 +302,11 @@ TEST_CASE("modal analysis of a mm-tonne model: effective masses in kg, as the SI
     }
     return out;
   };
-  const auto si = rows(dir / "si/fem_modes.csv"), mm = rows(dir / "mm/fem_modes.csv");
+  const auto si = rows(dir / "si/fem_modes.csv"), mm = rows(dir / "mm/fem_modes.csv"),
+             other = rows(dir / "other/fem_modes.csv");
+  REQUIRE(other.size() == 4);
+  for (std::size_t j = 0; j < 4; ++j)  // effective mass z: 1e-7 of the SI beam's
+    CHECK(other[j][10] == Approx(1e-7 * si[j][10]).epsilon(1e-8).margin(1e-9 * 39.25e-7));
   REQUIRE(si.size() == 4);
   REQUIRE(mm.size() == 4);
   double zmass = 0.0;
