@@ -1,6 +1,7 @@
-"""What ParaView sees of a run's output: opens particles.xdmf, walls.xdmf, fem.xdmf and
-fem_modes.xdmf (a modal analysis: one time step per mode) of an output folder with ParaView's own default reader (Xdmf3ReaderS in 5.11) and prints, as JSON, for
-every file and time step: the reader, the time values, the point and cell counts, the cell
+"""What ParaView sees of a run's output: opens particles.xdmf, walls.xdmf, fem.xdmf,
+fem_modes.xdmf (a modal analysis: one time step per mode) and coupling.xdmf (the coupling
+interface) of an output folder with ParaView's own default reader (Xdmf3ReaderS in 5.11) and
+prints, as JSON, for every file and time step: the reader, the time values, the point and cell counts, the cell
 types, and each array (point or cell data: components, range, first tuple). For arrays of 9
 (or 6) components it also gives ParaView's largest eigenvalue of each cell's tensor, computed
 by ParaView's Tensor Glyph filter (which reads 6 components as the symmetric tensor XX, YY,
@@ -69,6 +70,10 @@ def describe_step(reader, time, max_values):
     step = {"time": time, "points": 0, "cells": 0, "cell_types": [], "arrays": {}}
     types = set()
     for block in unstructured_blocks(data):
+        if 0 < block.GetNumberOfPoints() <= max_values:
+            # the point coordinates as ParaView placed them (after the values of its arrays)
+            step.setdefault("coordinates", []).extend(
+                [float(x) for x in row] for row in vtk_to_numpy(block.GetPoints().GetData()))
         step["points"] += block.GetNumberOfPoints()
         step["cells"] += block.GetNumberOfCells()
         for c in range(block.GetNumberOfCells()):
@@ -109,7 +114,10 @@ def describe_file(path, steps, max_values):
     reader = pv.OpenDataFile(path)
     if reader is None:
         return {"file": path, "error": "ParaView found no reader"}
-    times = [float(t) for t in reader.TimestepValues] if reader.TimestepValues else [0.0]
+    values = reader.TimestepValues
+    if isinstance(values, (int, float)):  # one time step: ParaView gives the number itself
+        values = [values]
+    times = [float(t) for t in values] if values else [0.0]
     chosen = times if steps == "all" else sorted(set([times[0], times[-1]]))
     out = {"file": os.path.basename(path), "reader": reader.GetXMLName(), "times": times,
            "steps": [describe_step(reader, t, max_values) for t in chosen]}
@@ -122,15 +130,17 @@ def main():
     parser.add_argument("output_dir")
     parser.add_argument("--steps", choices=["all", "first-last"], default="first-last")
     parser.add_argument("--values", type=int, default=0, metavar="N",
-                        help="also list every value of the arrays of at most N tuples")
+                        help="also list every value of the arrays of at most N tuples (and the "
+                             "point coordinates of blocks of at most N points)")
     args = parser.parse_args()
     seen = {}
-    for name in ("particles.xdmf", "walls.xdmf", "fem.xdmf", "fem_modes.xdmf"):
+    for name in ("particles.xdmf", "walls.xdmf", "fem.xdmf", "fem_modes.xdmf", "coupling.xdmf"):
         path = os.path.join(args.output_dir, name)
         if os.path.exists(path):
             seen[name] = describe_file(path, args.steps, args.values)
     if not seen:
-        print(f"{args.output_dir}: none of particles.xdmf, walls.xdmf, fem.xdmf, fem_modes.xdmf found",
+        print(f"{args.output_dir}: none of particles.xdmf, walls.xdmf, fem.xdmf, fem_modes.xdmf, "
+              "coupling.xdmf found",
               file=sys.stderr)
         return 2
     json.dump(seen, sys.stdout, indent=1)

@@ -16,6 +16,8 @@
 #include "demfem/io/atomic_file.hpp"
 #include "demfem/io/checkpoint_file.hpp"
 #include "demfem/io/h5_file.hpp"
+#include "demfem/io/output_schedule.hpp"
+#include "interface_output.hpp"
 
 namespace demfem::coupling {
 
@@ -220,28 +222,20 @@ RunSummary CouplingRun::run() {
       last_flush = now;
     }
   };
+  // The interface (coupling.h5 at the end, the series of coupling.xdmf at the output times):
+  // the FEM's positions and velocities as the scheme holds them, the DEM's forces.
+  auto interface_state = [&] { return InterfaceState{&sum.mesh, pos, vel, dem_force, dem_end}; };
   auto write_h5 = [&]() {
-    const auto final_path = output_dir_ / "coupling.h5";
-    io::H5File h5(io::partial_path(final_path), io::H5File::Mode::create);
-    h5.set_attribute("/", "scheme", std::string(scheme_name(s.scheme)));
-    h5.set_attribute("/", "steps", sum.steps);
-    h5.set_attribute("/", "time", sum.time);
-    // The time series stay in coupling.csv only: holding them in memory for the HDF5 file
-    // would grow without bound over a long run.
-    if (n3 > 0) {
-      h5.create_group("interface");
-      h5.write("interface/reference_positions",
-               std::span<const double>(sum.mesh.reference_positions), {sum.mesh.node_count(), 3});
-      std::vector<std::int64_t> tri(sum.mesh.triangles.begin(), sum.mesh.triangles.end());
-      h5.write("interface/triangles", std::span<const std::int64_t>(tri),
-               {sum.mesh.triangle_count(), 3});
-      h5.write("interface/positions", std::span<const double>(pos), {sum.mesh.node_count(), 3});
-      h5.write("interface/forces", std::span<const double>(dem_force), {sum.mesh.node_count(), 3});
-      h5.write("interface/dem_positions", std::span<const double>(dem_end),
-               {sum.mesh.node_count(), 3});
-    }
-    h5.close();
-    io::commit_partial(final_path);
+    write_coupling_h5(output_dir_, interface_state(), scheme_name(s.scheme), sum.steps, sum.time);
+  };
+  std::optional<InterfaceSeries> series;
+  if (n3 > 0) series.emplace(output_dir_, sum.mesh, control_.resume_from.has_value());
+  io::OutputSchedule out_schedule(s.run.output_interval);
+  std::int64_t last_output_step = -1;  // sum.steps of the last series output
+  auto write_output = [&](double label) {
+    if (!series) return;
+    series->write(interface_state(), label, sum.time);
+    last_output_step = sum.steps;
   };
 
   // ---- checkpoints ------------------------------------------------------------------------
@@ -261,6 +255,8 @@ RunSummary CouplingRun::run() {
       h5.set_attribute("/", "work_fem", work_fem);
       h5.set_attribute("/", "settled", static_cast<std::int64_t>(settled));
       h5.set_attribute("/", "csv_rows", csv_rows);
+      h5.set_attribute("/", "output_next", out_schedule.next());
+      h5.set_attribute("/", "output_last_step", last_output_step);
       // Wall times of the whole run so far: earlier sessions (a resumed run) and this one.
       h5.set_attribute("/", "wall_total", sum.earlier.total + seconds(run_start, Clock::now()));
       h5.set_attribute("/", "wall_dem", sum.earlier.dem + sum.wall_dem);
@@ -390,6 +386,19 @@ RunSummary CouplingRun::run() {
     sum.unconverged_steps = h5.attribute_int64("/", "unconverged_steps");
     if (accel) accel->load(h5, "acceleration");
     sum.steps = steps;
+    // The interface series: the outputs taken so far, and none of states after the checkpoint
+    // (written before the attributes existed: the outputs up to its time were taken).
+    if (h5.has_attribute("/", "output_next")) {
+      out_schedule.set_next(h5.attribute_int64("/", "output_next"));
+      last_output_step = h5.attribute_int64("/", "output_last_step");
+    } else {
+      out_schedule.skip_to_after(sum.time);
+      last_output_step = -1;
+    }
+    if (series) {
+      series->rollback(sum.time);
+      if (series->last_state_time() == sum.time) last_output_step = steps;
+    }
   };
 
   // Writes the checkpoint after `steps` coupling steps; a solver failing here is a
@@ -816,6 +825,8 @@ RunSummary CouplingRun::run() {
     d.wall_coupling = std::max(0.0, seconds(step_start, Clock::now()) - solver_wall(d));
     sum.steps = i + 1;
     sum.time = d.time;
+    if (out_schedule.due(sum.time, s.coupling_dt))
+      write_output(out_schedule.take(sum.time, s.coupling_dt));
     sum.wall_dem += d.wall_dem;
     sum.wall_fem += d.wall_fem;
     const bool row_due = (i + 1) % s.diagnostics_interval == 0 || i + 1 == s.step_count || settled;
@@ -869,6 +880,10 @@ RunSummary CouplingRun::run() {
   run_start = Clock::now();  // wall_total: from the first step (or restore) to the last
   try {
     std::int64_t i = 0;
+    if (!control_.resume_from) {  // the reference state: output 0
+      write_output(out_schedule.label(0.0, s.coupling_dt));
+      out_schedule.skip_to_after(0.0);
+    }
     if (control_.resume_from) {
       try {
         i = restore_from(*control_.resume_from, true);
@@ -950,6 +965,8 @@ RunSummary CouplingRun::run() {
     try {
       if (csv) csv->flush();
       write_h5();
+      // Not into the series: a resumed run continues from the checkpoint, and the series
+      // must hold what the uninterrupted run's does (as the solvers' end states).
     } catch (...) {
       // The original error matters more than a failed final file.
     }
@@ -961,6 +978,7 @@ RunSummary CouplingRun::run() {
   sum.positions = pos;
   sum.forces = dem_force;
   write_h5();
+  if (last_output_step != sum.steps) write_output(out_schedule.label(sum.time, s.coupling_dt));
   return sum;
 }
 

@@ -3,6 +3,7 @@
 #include <omp.h>
 
 #include <iostream>
+#include <stdexcept>
 #include <type_traits>
 
 #include "demfem/coupling/solver_link.hpp"
@@ -185,17 +186,30 @@ std::unique_ptr<protocol::SolverBackend> make_local_fem(const scene::Document& s
   const auto fem = scene.root().table("fem");
   if (!fem) return nullptr;
   fem::FemScene fs = fem::read_fem_scene(*fem);
+  // A model the reduced backends refuse at set-up (a rigid reference point too far out, more
+  // modes than DOFs) is bad input, as fem_server reports it (exit status 2).
+  auto reduced = [&](auto make) -> std::unique_ptr<protocol::SolverBackend> {
+    try {
+      return make();
+    } catch (const fem::FemModelError& e) {
+      throw protocol::BackendError(protocol::ErrorKind::bad_input, e.what());
+    } catch (const std::invalid_argument& e) {
+      throw protocol::BackendError(protocol::ErrorKind::bad_input, e.what());
+    }
+  };
   switch (fs.backend) {
-    case fem::FemBackendKind::modal: {
-      fem::ModalSolver solver(std::move(fs.problem), fs.modal);
-      return std::make_unique<LocalFem<fem::ModalSolver>>(std::move(solver), fs, settings.run, out,
-                                                          resume);
-    }
-    case fem::FemBackendKind::rigid: {
-      fem::RigidSolver solver(std::move(fs.problem), fs.rigid);
-      return std::make_unique<LocalFem<fem::RigidSolver>>(std::move(solver), fs, settings.run, out,
-                                                          resume);
-    }
+    case fem::FemBackendKind::modal:
+      return reduced([&] {
+        fem::ModalSolver solver(std::move(fs.problem), fs.modal);
+        return std::make_unique<LocalFem<fem::ModalSolver>>(std::move(solver), fs, settings.run,
+                                                            out, resume);
+      });
+    case fem::FemBackendKind::rigid:
+      return reduced([&] {
+        fem::RigidSolver solver(std::move(fs.problem), fs.rigid);
+        return std::make_unique<LocalFem<fem::RigidSolver>>(std::move(solver), fs, settings.run,
+                                                            out, resume);
+      });
     case fem::FemBackendKind::external:
       throw scene::SceneError(fem->where("backend") +
                               ": \"external\" runs the program of fem.command in its own "

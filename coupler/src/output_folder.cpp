@@ -45,13 +45,14 @@ std::vector<fs::path> owned_files(const fs::path& dir) {
 bool is_owned_output(const std::string& file_name) {
   std::string name = file_name;
   if (ends_with(name, ".part")) name.resize(name.size() - 5);
-  static const char* const kNames[] = {"coupling.csv",   "coupling.h5",    "timing.csv",
-                                       "beam_check.csv", "coupling.png",   "fem.xdmf",
-                                       "fem_series.csv", "fem_mesh.h5",    "particles.xdmf",
-                                       "fem_modes.csv",  "fem_modes.xdmf", "fem_modes_mesh.h5"};
+  static const char* const kNames[] = {
+      "coupling.csv",  "coupling.h5",    "coupling.xdmf",    "timing.csv",  "beam_check.csv",
+      "coupling.png",  "fem.xdmf",       "fem_series.csv",   "fem_mesh.h5", "particles.xdmf",
+      "fem_modes.csv", "fem_modes.xdmf", "fem_modes_mesh.h5"};
   for (const char* n : kNames)
     if (name == n) return true;
-  if (numbered_h5(name, "fem") || numbered_h5(name, "particles") || numbered_h5(name, "fem_modes"))
+  if (numbered_h5(name, "fem") || numbered_h5(name, "particles") ||
+      numbered_h5(name, "fem_modes") || numbered_h5(name, "coupling"))
     return true;
   return starts_with(name, "sensor_") && ends_with(name, ".csv") && name.size() > 11;
 }

@@ -237,3 +237,37 @@ TEST_CASE("dem.settle_time runs before the DEM attaches: only a given --hello-ti
   CHECK_THAT(r.err, Catch::Contains("did not attach within 1 s"));
   check_nothing_left(r.out);
 }
+
+TEST_CASE(
+    "issue 34: a modal request beyond the DOFs fails --check; a far rigid reference exits 2") {
+  // Item 14: --check passed a modal scene asking for more modes than free DOFs, which then
+  // exited 2 at run time. Item 15: fem.rigid.reference_point = [1e8, 0, 0] m ended in "the
+  // reduced mass matrix is not positive definite" (in process: exit 1).
+  TempDir d;
+  const fs::path modes = fs::path(DEMFEM_SOURCE_DIR) / "cases" / "beam_modes.toml";
+  const Ended c = run(d.path, {modes.string(), "--check", "--set", "fem.modal.modes=100000"});
+  INFO(c.out << c.err);
+  CHECK(c.status == 2);
+  CHECK_THAT(c.err,
+             Catch::Contains("key 'fem.modal.modes'") &&
+                 Catch::Contains("100000 modes asked for, but the model has 513 free DOFs") &&
+                 Catch::Contains("accepted: 1 to 513"));
+  const std::string rigid =
+      "fem.rigid={springs=[{point=[0.5, 0.05, 0], stiffness=[1e6, 1e6, 1e6]}, {point=[0, 0, 0], "
+      "stiffness=[1e6, 1e6, 1e6]}, {point=[1, 0.1, 0.1], stiffness=[1e6, 1e6, 1e6]}], "
+      "reference_point=[1e8, 0, 0]}";
+  for (const char* mode : {"three processes", "--in-process"}) {
+    INFO(mode);
+    std::vector<std::string> args = {
+        kStaticCase.string(), "--set",    "fem.backend=\"rigid\"", "--set", rigid,
+        "--output-dir",       "out/rigid"};
+    if (std::string(mode) == "--in-process") args.push_back(mode);
+    const Ended r = run(d.path, args);
+    INFO(r.out << r.err);
+    CHECK(r.status == 2);
+    CHECK_THAT(r.err, Catch::Contains("fem.rigid.reference_point (1e+08, 0, 0) m lies 1e+08 m") &&
+                          Catch::Contains("Accepted: within 1e+05 radii of gyration"));
+    CHECK(record_field(d.path / "out/rigid", "exit_code") == "2");
+    check_nothing_left(r.out);
+  }
+}

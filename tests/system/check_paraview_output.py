@@ -6,7 +6,8 @@ what ParaView shows: every particle is a cell (a vertex), the arrays have their 
 component counts and known values, both files carry exactly the requested times (the same
 doubles, so the animation has one frame per output), both series start at file 000000, and
 ParaView's largest eigenvalue of the FEM strain tensor equals the solver's own
-max_principal_strain in every cell.
+max_principal_strain in every cell, and coupling.xdmf (the interface series) carries the
+same times with its node arrays.
 
 Usage: check_paraview_output.py DEMFEM_RUN SOURCE_DIR. Exit 77 (ctest: skipped) when pvpython
 is not installed (or DEMFEM_PVPYTHON names none).
@@ -64,7 +65,7 @@ def main():
 
     requested = [0.0, 0.0005, 0.001, 0.0015, 0.002]
     # Both series are numbered from 0 (the initial state).
-    for stem in ("particles", "walls", "fem"):
+    for stem in ("particles", "walls", "fem", "coupling"):
         check(f"{stem}_000000.h5" in files and f"{stem}_000004.h5" in files and
               f"{stem}_000005.h5" not in files,
               f"{stem}: files numbered 000000 .. 000004 expected, found "
@@ -176,6 +177,26 @@ def main():
                 check(abs(a - b) <= 1e-5 * scale,
                       f"fem cell {c}: ParaView's largest strain eigenvalue {a} differs from "
                       f"max_principal_strain {b}")
+
+    # --- coupling.xdmf: the interface at the same output times ----------------------------
+    c = seen.get("coupling.xdmf")
+    if check(c is not None, "coupling.xdmf not opened"):
+        check(c["reader"].startswith("Xdmf3Reader"), f"coupling: reader {c['reader']}")
+        check(c["times"] == requested, f"coupling: times {c['times']}, requested {requested}")
+        for step in c["steps"]:
+            t = step["time"]
+            check(step["cell_types"] == [5] and step["cells"] > 0,
+                  f"coupling t={t}: cell types {step['cell_types']}, expected [5] (VTK_TRIANGLE)")
+            for name in ("force", "displacement", "position", "velocity", "dem_position"):
+                a = step["arrays"].get(name)
+                if check(a is not None, f"coupling t={t}: no array '{name}'"):
+                    check(a["components"] == 3 and a["association"] == "point",
+                          f"coupling t={t}: '{name}' has {a['components']} components "
+                          f"({a['association']})")
+        last = c["steps"][-1]["arrays"].get("force") if c["steps"] else None
+        if last is not None:
+            check(last["min"] < 0.0, f"coupling t=0.002: no downward force on the interface "
+                  f"(force min {last['min']})")
 
     if failures:
         print(f"{len(failures)} checks failed:")

@@ -3,6 +3,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <fstream>
 #include <numeric>
 #include <stdexcept>
 #include <vector>
@@ -68,7 +70,60 @@ ModeSet dense_modes(const SparseMatrix& k, const SparseMatrix& m, const ModalOpt
   return r;
 }
 
+/// Speed of the dense generalized eigensolver (Eigen, one core), measured on the development
+/// machine (3000 DOFs: 28 s of CPU; docs/scene_fem.md, "Modal analysis"): only for the
+/// estimate in the warning.
+constexpr double kDenseFlopsPerSecond = 1.0e10;
+
+std::string gigabytes(double bytes) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.3g GB", bytes / 1e9);
+  return text;
+}
+
 }  // namespace
+
+bool uses_dense_modes(std::int64_t dofs, int count) {
+  const std::int64_t ncv = std::min<std::int64_t>(dofs, std::max<std::int64_t>(2 * count + 1, 20));
+  return dofs <= 200 || ncv >= dofs;
+}
+
+int max_lanczos_modes(std::int64_t dofs) {
+  if (dofs <= 200) return 0;
+  // ncv = max(2 count + 1, 20) < dofs
+  return static_cast<int>(std::min<std::int64_t>((dofs - 2) / 2, 1 << 30));
+}
+
+DenseModesCost dense_modes_cost(std::int64_t dofs) {
+  const double n = static_cast<double>(dofs);
+  return {6.0 * n * n * sizeof(double), 10.0 * n * n * n / kDenseFlopsPerSecond};
+}
+
+std::string dense_modes_warning(std::int64_t dofs, int count) {
+  if (dofs <= 200 || !uses_dense_modes(dofs, count)) return {};
+  const DenseModesCost c = dense_modes_cost(dofs);
+  char text[600];
+  std::snprintf(text, sizeof text,
+                "%d modes of %lld free DOFs: more than shift-invert Lanczos can compute (at most "
+                "%d: its Krylov space of 2 x modes + 1 vectors must be smaller than the model), "
+                "so the dense eigensolver runs instead: about %s of memory and of the order of "
+                "%.0f s (it grows as DOFs^3); ask for at most %d modes to keep Lanczos",
+                count, static_cast<long long>(dofs), max_lanczos_modes(dofs),
+                gigabytes(c.bytes).c_str(), c.seconds, max_lanczos_modes(dofs));
+  return text;
+}
+
+std::uint64_t available_memory_bytes() {
+  std::ifstream in("/proc/meminfo");
+  std::string key;
+  std::uint64_t value = 0;
+  std::string unit;
+  while (in >> key >> value) {
+    std::getline(in, unit);
+    if (key == "MemAvailable:") return value * 1024;  // kB
+  }
+  return 0;
+}
 
 ModeSet compute_modes(const SparseMatrix& k, const SparseMatrix& m, const ModalOptions& o) {
   const Eigen::Index n = k.rows();
@@ -82,7 +137,20 @@ ModeSet compute_modes(const SparseMatrix& k, const SparseMatrix& m, const ModalO
   // Lanczos needs a Krylov space larger than the modes wanted and smaller than the system;
   // for small systems or nearly all modes the dense solver is both exact and cheap.
   const Eigen::Index ncv = std::min<Eigen::Index>(n, std::max<Eigen::Index>(2 * o.count + 1, 20));
-  if (n <= 200 || ncv >= n) {
+  if (uses_dense_modes(n, o.count)) {
+    const DenseModesCost cost = dense_modes_cost(n);
+    const std::uint64_t avail = o.memory_available ? o.memory_available : available_memory_bytes();
+    if (avail > 0 && cost.bytes > static_cast<double>(avail)) {
+      const int most = max_lanczos_modes(n);
+      throw std::invalid_argument(
+          "modal analysis: " + std::to_string(o.count) + " modes of " + std::to_string(n) +
+          " free DOFs need the dense eigensolver (" +
+          (most > 0 ? "shift-invert Lanczos computes at most " + std::to_string(most) + " of them"
+                    : std::string("the model is small")) +
+          "), whose matrices take " + gigabytes(cost.bytes) + ", more than the " +
+          gigabytes(static_cast<double>(avail)) + " of memory available (MemAvailable)" +
+          (most > 0 ? "; ask for at most " + std::to_string(most) + " modes" : std::string()));
+    }
     r = dense_modes(k, m, o);
   } else {
     ShiftInvertOp op(k, m, o.backend);

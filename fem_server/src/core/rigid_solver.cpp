@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 
 #include "demfem/fem/assembly.hpp"
@@ -105,6 +106,40 @@ struct RigidSolver::Impl {
   }
 };
 
+namespace {
+
+/// A reference point d away from the centre of mass adds m d^2 to the rotational inertia and
+/// m d to the coupling of rotation and translation: the six-coordinate mass matrix's condition
+/// number grows as (d / rho)^2, rho the smallest radius of gyration. Beyond
+/// kMaxReferenceDistance radii of gyration (a condition number of about 1e10, leaving six of
+/// sixteen digits) its factorisation loses the body's motion in round-off and, further out,
+/// fails. Translations alone (every rotation fixed) do not couple: any point serves.
+constexpr double kMaxReferenceDistance = 1e5;
+
+void check_reference_point(const RigidSettings& settings, const Vector3d& r0, const Vector3d& com,
+                           const Matrix3d& inertia_com, double mass) {
+  if (!settings.has_reference_point) return;
+  const auto& f = settings.fixed;
+  if (f[3] && f[4] && f[5]) return;
+  const double d = (r0 - com).norm();
+  const Eigen::SelfAdjointEigenSolver<Matrix3d> eig(inertia_com);
+  const double rho = std::sqrt(std::max(eig.eigenvalues().minCoeff(), 0.0) / mass);
+  if (std::isfinite(d) && d <= kMaxReferenceDistance * rho) return;
+  char text[700];
+  std::snprintf(text, sizeof text,
+                "FEM (rigid): fem.rigid.reference_point (%.6g, %.6g, %.6g) m lies %.3g m from "
+                "the body's centre of mass (%.6g, %.6g, %.6g) m, %.3g times its smallest radius "
+                "of gyration (%.3g m): the six-coordinate mass matrix would have a condition "
+                "number of about %.1e and its factorisation would lose the motion in round-off. "
+                "Accepted: within %.0e radii of gyration of the centre of mass (%.3g m); leave "
+                "the key out to use the centre of mass",
+                r0(0), r0(1), r0(2), d, com(0), com(1), com(2), d / rho, rho,
+                1.0 + (d / rho) * (d / rho), kMaxReferenceDistance, kMaxReferenceDistance * rho);
+  throw FemModelError(text);
+}
+
+}  // namespace
+
 RigidSolver::RigidSolver(FemProblem problem, RigidSettings settings) {
   validate_problem(problem);
   impl_ = std::make_unique<Impl>();
@@ -143,13 +178,14 @@ RigidSolver::RigidSolver(FemProblem problem, RigidSettings settings) {
              ? Vector3d(s.settings.reference_point[0], s.settings.reference_point[1],
                         s.settings.reference_point[2])
              : s.com;
-  s.map_full = rigid_map(s.r0);
-  s.m6 = s.map_full.transpose() * (m_full * s.map_full);
-  s.m6 = 0.5 * (s.m6 + s.m6.transpose()).eval();
   {
     const MatrixXd gc = rigid_map(s.com);
     s.inertia_com = (gc.transpose() * (m_full * gc)).block<3, 3>(3, 3);
   }
+  check_reference_point(s.settings, s.r0, s.com, s.inertia_com, s.total_mass);
+  s.map_full = rigid_map(s.r0);
+  s.m6 = s.map_full.transpose() * (m_full * s.map_full);
+  s.m6 = 0.5 * (s.m6 + s.m6.transpose()).eval();
   // Loads projected on the six motions (with their moments about r0).
   LoadVectors loads = load_vectors(unclamped, dofs, m_full);
   s.f_const6 = s.map_full.transpose() * loads.constant;

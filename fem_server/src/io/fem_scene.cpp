@@ -404,6 +404,43 @@ void read_modal(const Table& fem, FemScene& s) {
   m->finish();
 }
 
+/// The mode count of a modal analysis whose deck has a *FREQUENCY step: the deck's number of
+/// eigenvalues unless fem.modal.modes is given; a note says which wins. Returns the deck's
+/// "file:line" when the count is the deck's, else "".
+std::string modal_mode_source(const Table& fem, const InpStep& step, FemScene& s) {
+  const auto modal = fem.table("modal");
+  const bool scene_modes = modal && modal->has("modes");
+  if (!step.frequency || step.modes == 0) return {};
+  if (scene_modes) {
+    if (s.modal.modes != step.modes)
+      s.notes.push_back(modal->where("modes") + ": fem.modal.modes = " +
+                        std::to_string(s.modal.modes) + " wins over the deck's *FREQUENCY (" +
+                        std::to_string(step.modes) + " eigenvalues, " + step.procedure_where + ")");
+    return {};
+  }
+  s.modal.modes = step.modes;
+  s.notes.push_back(step.procedure_where + ": " + std::to_string(step.modes) +
+                    " modes, as the deck's *FREQUENCY asks (fem.modal.modes is not given; when "
+                    "given it wins)");
+  return step.procedure_where;
+}
+
+/// A mode count above the free DOFs (the clamped ones eliminated) has no answer: refused
+/// here, so that --check finds it too. `deck_where`: the deck's *FREQUENCY gave the count.
+void check_mode_count(const Table& fem, const FemScene& s, const std::string& deck_where) {
+  const std::size_t dofs = make_dof_map(s.problem).free.size();
+  if (static_cast<std::size_t>(s.modal.modes) <= dofs) return;
+  const std::string text = std::to_string(s.modal.modes) + " modes asked for, but the model has " +
+                           std::to_string(dofs) + " free DOFs (the clamped ones eliminated); " +
+                           "accepted: 1 to " + std::to_string(dofs);
+  const auto modal = fem.table("modal");
+  if (!deck_where.empty())
+    fem.table("mesh")->fail(
+        "file", deck_where + ": *FREQUENCY: " + text + " (or give fem.modal.modes, which wins)");
+  if (modal && modal->has("modes")) modal->fail("modes", text);
+  fem.fail("modal", "fem.modal.modes is not given, and its default " + text);
+}
+
 /// [fem.rigid]: springs, dashpots, fixed DOFs and the reference point of the rigid body.
 void read_rigid(const Table& fem, FemScene& s) {
   auto r = fem.table("rigid");
@@ -424,7 +461,12 @@ void read_rigid(const Table& fem, FemScene& s) {
         r->fail("fixed", "\"" + d +
                              "\" is not a DOF of the body; accepted: \"x\", \"y\", \"z\", \"rx\", "
                              "\"ry\", \"rz\"");
-      s.rigid.fixed[static_cast<std::size_t>(it - std::begin(names))] = true;
+      const auto k = static_cast<std::size_t>(it - std::begin(names));
+      if (s.rigid.fixed[k])
+        r->fail("fixed", "names \"" + std::string(names[k]) +
+                             "\" twice: give each held DOF once (accepted: \"x\", \"y\", \"z\", "
+                             "\"rx\", \"ry\", \"rz\", each at most once, not all six)");
+      s.rigid.fixed[k] = true;
     }
     if (std::all_of(s.rigid.fixed.begin(), s.rigid.fixed.end(), [](bool b) { return b; }))
       r->fail("fixed", "fixes all six DOFs: the body could not move at all");
@@ -599,6 +641,9 @@ FemScene read_fem_scene(const Table& fem) {
     b->finish();
   }
   read_modal(fem, s);
+  std::string modes_where;
+  if (s.analysis == Analysis::modal)
+    modes_where = modal_mode_source(fem, deck_loads ? inp.step : InpStep{}, s);
   read_rigid(fem, s);
   if (auto d = fem.table("damping")) {
     // Upper bounds: beyond them every mode of interest is overdamped (a typo guard, and the
@@ -653,6 +698,7 @@ FemScene read_fem_scene(const Table& fem) {
     for (const char* k : kFemOutputFields) s.output.fields.emplace_back(k);
   }
   check_model(fem, s, origin);
+  if (s.analysis == Analysis::modal) check_mode_count(fem, s, modes_where);
   fem.finish();
   return s;
 }

@@ -24,25 +24,37 @@ void apply_inp_history(const InpModel& inp, const scene::Table& fem, const scene
   auto fail = [&](const std::string& where, const std::string& message) {
     mesh.fail("file", where + ": " + message);
   };
-  if (step.present) {
+  if (step.present && step.frequency) {
+    // The coupler reads fem.analysis from the scene alone: the deck cannot change it.
+    if (s.analysis != Analysis::modal)
+      fail(step.procedure_where,
+           std::string("the deck's step is *FREQUENCY (natural frequencies), but fem.analysis ") +
+               (analysis_given ? "= \"" + std::string(analysis_name(s.analysis)) + "\""
+                               : std::string("is not given (default \"dynamic\")")) +
+               ": set fem.analysis = \"modal\" to compute the modes, or replace the deck's "
+               "*FREQUENCY by *STATIC or *DYNAMIC");
+    // The mode count: the deck's unless the scene's fem.modal.modes is given (read_fem_scene
+    // says which one wins).
+  } else if (step.present) {
     const Analysis deck = step.dynamic ? Analysis::dynamic : Analysis::static_analysis;
     if (s.analysis == Analysis::modal) {
-      s.notes.push_back(fem.where("analysis") + ": fem.analysis = \"modal\" computes the natural "
-                        "frequencies; the deck's " + (step.dynamic ? "*DYNAMIC" : "*STATIC") +
-                        " step and its loads do not change them (" + step.procedure_where + ")");
+      s.notes.push_back(fem.where("analysis") +
+                        ": fem.analysis = \"modal\" computes the natural "
+                        "frequencies; the deck's " +
+                        step.procedure() + " step and its loads do not change them (" +
+                        step.procedure_where + ")");
     } else if (!analysis_given && deck != s.analysis) {
       // The coupler reads fem.analysis from the scene alone: the deck cannot change it.
       fail(step.procedure_where,
-           std::string("the deck's step is ") + (step.dynamic ? "*DYNAMIC" : "*STATIC") +
+           std::string("the deck's step is ") + step.procedure() +
                " but fem.analysis is not given (default \"dynamic\"): set fem.analysis = \"" +
                (step.dynamic ? "dynamic" : "static") +
                "\" to follow the deck, or the other "
                "value to override it");
     } else if (deck != s.analysis) {
-      s.notes.push_back(fem.where("analysis") + ": fem.analysis = \"" +
-                        analysis_name(s.analysis) +
-                        "\" overrides the deck's " + (step.dynamic ? "*DYNAMIC" : "*STATIC") +
-                        " (" + step.procedure_where + ")");
+      s.notes.push_back(fem.where("analysis") + ": fem.analysis = \"" + analysis_name(s.analysis) +
+                        "\" overrides the deck's " + step.procedure() + " (" +
+                        step.procedure_where + ")");
     }
   }
   const bool dynamic = s.analysis != Analysis::static_analysis;
@@ -130,10 +142,9 @@ void apply_inp_history(const InpModel& inp, const scene::Table& fem, const scene
                   ": taken from the deck: %d boundary condition(s), %d concentrated load(s), %d "
                   "pressure load(s)%s",
                   bcs, forces, pressures, inp.gravity.empty() ? "" : ", gravity");
-    s.notes.push_back(file_where + buf +
-                      (step.present ? " (step at " + step.where + ", " +
-                                          (step.dynamic ? "*DYNAMIC" : "*STATIC") + ")"
-                                    : std::string()));
+    s.notes.push_back(
+        file_where + buf +
+        (step.present ? " (step at " + step.where + ", " + step.procedure() + ")" : std::string()));
   }
 }
 

@@ -145,6 +145,7 @@ class Parser {
   void read_dsload(const Keyword& kw, std::size_t begin, std::size_t end);
   void read_amplitude(const Keyword& kw, std::size_t begin, std::size_t end);
   void read_procedure(const Keyword& kw, std::size_t begin, std::size_t end, bool dynamic);
+  void read_frequency(const Keyword& kw, std::size_t begin, std::size_t end);
   void resolve_history();
   std::vector<std::int32_t> history_nodes(const std::string& token, Loc loc) const;
   std::vector<std::int32_t> history_elements(const std::string& token, Loc loc) const;

@@ -260,7 +260,8 @@ bool Parser::handle_structure(const Keyword& kw, std::size_t begin, std::size_t 
     // Data lines of *STEP are its subheading (text).
   } else if (k == "END STEP") {
     if (!in_step_) deck_.fail(kw.loc, "*END STEP without *STEP");
-    if (!procedure_) deck_.fail(kw.loc, "the *STEP has no procedure (*STATIC or *DYNAMIC)");
+    if (!procedure_)
+      deck_.fail(kw.loc, "the *STEP has no procedure (*STATIC, *DYNAMIC or *FREQUENCY)");
     in_step_ = false;
     no_data();
   } else {

@@ -13,8 +13,7 @@ namespace demfem::fem::inp {
 namespace {
 
 /// Procedures of Abaqus that demfem does not run.
-const std::set<std::string> kOtherProcedures = {"FREQUENCY",
-                                                "BUCKLE",
+const std::set<std::string> kOtherProcedures = {"BUCKLE",
                                                 "HEAT TRANSFER",
                                                 "COUPLED TEMPERATURE-DISPLACEMENT",
                                                 "COUPLED THERMAL-ELECTRICAL",
@@ -75,10 +74,13 @@ bool Parser::handle_history(const Keyword& kw, std::size_t begin, std::size_t en
     read_amplitude(kw, begin, end);
   } else if (k == "STATIC" || k == "DYNAMIC") {
     read_procedure(kw, begin, end, k == "DYNAMIC");
+  } else if (k == "FREQUENCY") {
+    read_frequency(kw, begin, end);
   } else if (kOtherProcedures.count(k)) {
     deck_.fail(kw.loc, "procedure *" + k +
-                           " is not supported: demfem runs a linear static analysis (*STATIC) "
-                           "or a Bossak-Newmark dynamic one (*DYNAMIC)");
+                           " is not supported: demfem runs a linear static analysis (*STATIC), "
+                           "a Bossak-Newmark dynamic one (*DYNAMIC) or a modal analysis "
+                           "(*FREQUENCY, with fem.analysis = \"modal\")");
   } else {
     return false;
   }
@@ -125,6 +127,41 @@ void Parser::read_procedure(const Keyword& kw, std::size_t begin, std::size_t en
   // Abaqus' default variation of loads without AMPLITUDE=: ramp over a static step, step
   // (applied at once) in a dynamic one.
   if (!explicit_step_amplitude_) st.ramp = !dynamic;
+}
+
+void Parser::read_frequency(const Keyword& kw, std::size_t begin, std::size_t end) {
+  const auto& lines = deck_.lines();
+  if (!in_step_) deck_.fail(kw.loc, "*FREQUENCY outside a *STEP");
+  if (procedure_) deck_.fail(kw.loc, "a second procedure in one *STEP");
+  procedure_ = true;
+  // Abaqus' and CalculiX' choices of eigensolver and normalisation: demfem has its own
+  // (shift-invert Lanczos, mass-normalised modes).
+  check_params(kw, {"EIGENSOLVER", "NORMALIZATION", "SOLVER", "STORAGE", "GLOBAL", "CYCMPC",
+                    "ALPHA", "SIM", "ACOUSTIC COUPLING", "PROPERTY EVALUATION"});
+  InpStep& st = model_.step;
+  st.frequency = true;
+  st.procedure_where = deck_.where(kw.loc);
+  if (end - begin > 1) deck_.fail(lines[begin + 1].loc, "*FREQUENCY takes one data line");
+  std::string ignored;
+  if (begin < end) {
+    const Loc l = lines[begin].loc;
+    const auto v = split_commas(lines[begin].text);
+    if (!v.empty() && !v[0].empty()) {
+      const double n = deck_.number(v[0], l, "number of eigenvalues");
+      if (!(n >= 1 && n <= 100000 && n == std::floor(n)))
+        deck_.fail(l, "number of eigenvalues " + v[0] + " is outside [1, 100000] (a whole number)");
+      st.modes = static_cast<int>(n);
+    }
+    for (std::size_t i = 1; i < v.size(); ++i)
+      if (!v[i].empty())
+        ignored =
+            "; the data line's other fields (frequency range, shift) are "
+            "ignored: give fem.modal.shift in the scene";
+  }
+  note(kw.loc,
+       "*FREQUENCY: demfem computes the modes nearest fem.modal.shift by shift-invert "
+       "Lanczos (mass-normalised), not with the deck's eigensolver" +
+           ignored);
 }
 
 void Parser::read_boundary(const Keyword& kw, std::size_t begin, std::size_t end) {

@@ -291,3 +291,46 @@ TEST_CASE("modal analysis refuses what it cannot compute", "[fem][modal]") {
   o.count = static_cast<int>(k.rows()) + 1;
   CHECK_THROWS_AS(compute_modes(k, m, o), std::invalid_argument);
 }
+
+TEST_CASE("modal analysis: the dense solver's switch is announced, refused above memory",
+          "[fem][modal]") {
+  // Issue 34, item 14: asking for nearly all modes switched to the dense solver silently
+  // (10^4 modes ended in bad_alloc). 41 x 2 x 2 nodes, no clamp: 492 free DOFs; Lanczos takes
+  // up to 245 modes (its 2 x 245 + 1 = 491 vectors < 492).
+  auto p =
+      test::make_problem(box_mesh_hex({0, 0, 0}, {4.0, 0.1, 0.1}, {40, 1, 1}), 210e9, 0.3, 7800);
+  const DofMap dofs = make_dof_map(p);
+  REQUIRE(dofs.free.size() == 492);
+  CHECK(max_lanczos_modes(492) == 245);
+  CHECK_FALSE(uses_dense_modes(492, 245));
+  CHECK(uses_dense_modes(492, 246));
+  CHECK(uses_dense_modes(132, 10));  // small models: always dense, without a warning
+  CHECK(dense_modes_warning(132, 10).empty());
+  CHECK(dense_modes_warning(492, 245).empty());
+  CHECK_THAT(dense_modes_warning(492, 250),
+             Catch::Contains("250 modes of 492 free DOFs: more than shift-invert Lanczos can "
+                             "compute (at most 245") &&
+                 Catch::Contains("the dense eigensolver runs instead: about 0.0116 GB") &&
+                 Catch::Contains("ask for at most 245 modes"));
+  // 6 n^2 doubles; the time grows as n^3
+  CHECK(dense_modes_cost(1000).bytes == 48e6);
+  CHECK(dense_modes_cost(2000).seconds == 8.0 * dense_modes_cost(1000).seconds);
+
+  const SparseMatrix k = reduce_matrix(assemble_stiffness(p, dofs), dofs);
+  const SparseMatrix m = reduce_matrix(assemble_mass(p, dofs), dofs);
+  ModalOptions o;
+  o.count = 250;
+  o.shift = -1e3;
+  o.memory_available = 10'000'000;  // 10 MB: less than the 11.6 MB the dense matrices take
+  CHECK_THROWS_WITH(compute_modes(k, m, o),
+                    Catch::Contains("250 modes of 492 free DOFs need the dense eigensolver "
+                                    "(shift-invert Lanczos computes at most 245 of them), whose "
+                                    "matrices take 0.0116 GB, more than the 0.01 GB of memory "
+                                    "available (MemAvailable); ask for at most 245 modes"));
+  o.memory_available = 12'000'000;
+  const ModeSet r = compute_modes(k, m, o);
+  CHECK(r.method == "dense");
+  CHECK(r.omega2.size() == 250);
+  // MemAvailable is read from /proc/meminfo (Linux): some memory is always available.
+  CHECK(available_memory_bytes() > 0);
+}

@@ -137,3 +137,35 @@ TEST_CASE("rigid body: save and restore continue bitwise", "[fem][rigid]") {
       other.restore(demfem::io::H5File(dir.path / "r.h5", demfem::io::H5File::Mode::read), "fem"),
       Catch::Contains("another body"));
 }
+
+TEST_CASE("rigid body: a reference point far from the body is refused, naming the key and range",
+          "[fem][rigid]") {
+  // Issue 34, item 15: reference_point = [1e8, 0, 0] m ended in "the reduced mass matrix is
+  // not positive definite". The block's smallest radius of gyration is
+  // sqrt((0.2^2 + 0.1^2) / 12) = 0.0645 m: the limit is 1e5 of it, 6455 m.
+  RigidSettings rs;
+  rs.springs.push_back({{0.5, 0.1, 0.0}, {1e6, 1e6, 1e6}, {0, 0, 0}});
+  rs.springs.push_back({{0.0, 0.0, 0.0}, {1e6, 1e6, 1e6}, {0, 0, 0}});
+  rs.springs.push_back({{1.0, 0.2, 0.1}, {1e6, 1e6, 1e6}, {0, 0, 0}});
+  rs.has_reference_point = true;
+  rs.reference_point = {1e8, 0.0, 0.0};
+  CHECK_THROWS_WITH(RigidSolver(block(), rs),
+                    Catch::Contains("fem.rigid.reference_point (1e+08, 0, 0) m lies 1e+08 m from "
+                                    "the body's centre of mass (0.5, 0.1, 0.05) m") &&
+                        Catch::Contains("condition number of about") &&
+                        Catch::Contains("Accepted: within 1e+05 radii of gyration of the centre "
+                                        "of mass (6.45e+03 m)"));
+  CHECK_THROWS_AS(RigidSolver(block(), rs), FemModelError);
+  // Inside the range: accepted.
+  rs.reference_point = {1000.0, 0.0, 0.0};
+  RigidSolver far(block(), rs);
+  rs.has_reference_point = false;
+  RigidSolver near(block(), rs);
+  CHECK(far.mass() == near.mass());
+  CHECK(far.reference_point()[0] == 1000.0);
+  // With every rotation fixed the point only names where the translation is measured.
+  rs.has_reference_point = true;
+  rs.reference_point = {1e8, 0.0, 0.0};
+  rs.fixed = {false, false, false, true, true, true};
+  CHECK_NOTHROW(RigidSolver(block(), rs));
+}

@@ -88,6 +88,58 @@ TEST_CASE("FemBackend: static step = direct solve, kinematics written into the b
   CHECK(r.values[0] == umax);
 }
 
+TEST_CASE("FemBackend: the static solution is written, at the time it applies (issue 34, 10)") {
+  // One-way static coupling: the reference state at t = 0, then one static solve with the
+  // forces of the coupling step that ends at 0.021 s. Reference: the solver's own field
+  // (bitwise) and that time. Before the fix only the t = 0 state was written.
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("demfem_fem_static_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  FemSolver solver(plate_problem());
+  {
+    FemOutput output(dir, "fem", solver.problem().mesh);
+    FemBackend backend(solver, &output, 0.0);
+    backend.write_initial_output();
+    LocalBuffers local(*backend.published_mesh());
+    const auto f = downward(local.buffers.node_count(), -50.0);
+    std::copy(f.begin(), f.end(), local.buffers.forces(0).begin());
+    protocol::StepCommand cmd;
+    cmd.step = 20;
+    cmd.time = 0.020;
+    cmd.dt = 1e-3;
+    cmd.flags = protocol::kStepStatic;
+    backend.step(cmd, local.buffers);
+    backend.write_checkpoint(dir / "fem.h5", 21);
+    backend.write_final_output();
+    REQUIRE(output.steps() == 2);
+    CHECK(output.last_state_time() == 0.021);
+    // A restore of the checkpoint taken after the solve keeps the static output and does not
+    // write it twice.
+    backend.restore_checkpoint(dir / "fem.h5", 21);
+    backend.write_final_output();
+    CHECK(output.steps() == 2);
+  }
+  io::H5File h5(dir / "fem_000001.h5", io::H5File::Mode::read);
+  CHECK(h5.attribute_double("/", "time") == 0.021);
+  const auto u = h5.read_doubles("displacement");
+  const auto expected = solver.displacements();
+  CHECK(u == std::vector<double>(expected.begin(), expected.end()));
+  double umax = 0.0;
+  for (std::size_t i = 0; i + 2 < u.size(); i += 3)
+    umax = std::max(umax, std::sqrt(u[i] * u[i] + u[i + 1] * u[i + 1] + u[i + 2] * u[i + 2]));
+  CHECK(umax > 0.0);
+  std::ifstream csv(dir / "fem_series.csv");
+  std::string header, row0, row1, extra;
+  std::getline(csv, header);
+  std::getline(csv, row0);
+  std::getline(csv, row1);
+  CHECK_FALSE(std::getline(csv, extra));
+  const auto comma = row1.find(',');
+  CHECK(std::stod(row1.substr(0, comma)) == 0.021);
+  CHECK(std::stod(row1.substr(comma + 1)) == umax);
+  std::filesystem::remove_all(dir);
+}
+
 TEST_CASE("FemBackend: checkpoint/restore continues bitwise identically, bad input refused") {
   const auto dir =
       std::filesystem::temp_directory_path() / ("demfem_fem_backend_" + std::to_string(::getpid()));

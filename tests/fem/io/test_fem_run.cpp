@@ -17,6 +17,7 @@
 #include "demfem/fem/fem_output.hpp"
 #include "demfem/fem/fem_scene.hpp"
 #include "demfem/fem/fem_solver.hpp"
+#include "demfem/fem/modal_run.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem_test/temp_dir.hpp"
 
@@ -218,7 +219,8 @@ TEST_CASE("fem_server executable: --help, standalone run, bad scene exits 2 nami
 
   CHECK(run_command(exe + " --scene " + (tmp.path / "missing.toml").string() + " > " +
                     log.string() + " 2>&1") == 2);
-  CHECK_THAT(read_text(log), Catch::Contains("missing.toml: cannot open: no such file; expected a scene file"));
+  CHECK_THAT(read_text(log),
+             Catch::Contains("missing.toml: cannot open: no such file; expected a scene file"));
 }
 
 TEST_CASE("standalone static runs of a shell .inp and a tet box write their topologies") {
@@ -260,5 +262,60 @@ total_force = -1000
   double rx = 0.0;
   for (std::size_t i = 0; i < r.size(); i += 3) rx += r[i];
   CHECK(rx == Approx(-1000.0).epsilon(1e-8));
-  CHECK(read_text(tmp.path / "tet/fem.xdmf").find("TopologyType=\"Tetrahedron\"") != std::string::npos);
+  CHECK(read_text(tmp.path / "tet/fem.xdmf").find("TopologyType=\"Tetrahedron\"") !=
+        std::string::npos);
+}
+
+TEST_CASE("modal analysis of a mm-tonne model: effective masses in kg, as the SI model's") {
+  // Issue 34, item 14: a deck in mm, tonne, s (steel 7.85e-9 t/mm^3, E in MPa) had its
+  // effective masses, in tonnes, labelled kg. The same beam in SI is the reference (a 2:1
+  // section: no pair of equal frequencies, whose shapes a solver may mix): the
+  // frequencies (Hz in both systems) and the effective masses in kg agree to round-off.
+  TempDir dir;
+  auto beam = [](const char* hi, const char* e, const char* rho) {
+    return std::string("[fem]\nanalysis = \"modal\"\nmesh = { box = { lo = [0, 0, 0], hi = ") + hi +
+           ", cells = [10, 1, 1] } }\nmaterials = [{ name = \"steel\", youngs_modulus = " + e +
+           ", poisson_ratio = 0.3, density = " + rho +
+           " }]\n[fem.modal]\nmodes = 4\n[[fem.clamps]]\nnodes = \"x <= 0\"\n";
+  };
+  std::ostringstream table_si, table_mm, table_other;
+  run_modal_analysis(scene_from(beam("[1, 0.1, 0.05]", "2.1e11", "7850")), dir / "si", &table_si);
+  run_modal_analysis(scene_from(beam("[1000, 100, 50]", "2.1e5", "7.85e-9")), dir / "mm",
+                     &table_mm);
+  // Densities of another system (in-lbf-s: 7.3e-4 for steel; here the SI beam with 1e-7 of its
+  // density): not taken for tonnes, not converted, labelled as the model's mass unit.
+  run_modal_analysis(scene_from(beam("[1, 0.1, 0.05]", "2.1e11", "7.85e-4")), dir / "other",
+                     &table_other);
+  CHECK_THAT(table_si.str(), Catch::Contains("eff. mass x, y, z (kg)"));
+  CHECK_THAT(table_mm.str(), Catch::Contains("eff. mass x, y, z (kg)"));
+  CHECK_THAT(table_other.str(), Catch::Contains("eff. mass x, y, z (the model's mass unit)"));
+  auto rows = [](const std::filesystem::path& csv) {
+    std::istringstream in(read_text(csv));
+    std::string line;
+    std::getline(in, line);  // header
+    std::vector<std::vector<double>> out;
+    while (std::getline(in, line)) {
+      std::vector<double> r;
+      std::istringstream cells(line);
+      for (std::string c; std::getline(cells, c, ',');) r.push_back(std::stod(c));
+      out.push_back(r);
+    }
+    return out;
+  };
+  const auto si = rows(dir / "si/fem_modes.csv"), mm = rows(dir / "mm/fem_modes.csv"),
+             other = rows(dir / "other/fem_modes.csv");
+  REQUIRE(other.size() == 4);
+  for (std::size_t j = 0; j < 4; ++j)  // effective mass z: 1e-7 of the SI beam's
+    CHECK(other[j][10] == Approx(1e-7 * si[j][10]).epsilon(1e-8).margin(1e-9 * 39.25e-7));
+  REQUIRE(si.size() == 4);
+  REQUIRE(mm.size() == 4);
+  double zmass = 0.0;
+  for (std::size_t j = 0; j < 4; ++j) {
+    CHECK(mm[j][1] == Approx(si[j][1]).epsilon(1e-9));  // frequency, Hz
+    // participation (sqrt kg), effective mass (kg) and fraction along x, y, z
+    for (std::size_t c = 5; c < 14; ++c)
+      CHECK(mm[j][c] == Approx(si[j][c]).epsilon(1e-8).margin(1e-9 * 39.25));
+    zmass += si[j][10] + si[j][9];
+  }
+  CHECK(zmass > 10.0);  // the bending modes carry kilograms of the 39 kg beam
 }

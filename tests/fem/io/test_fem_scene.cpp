@@ -247,6 +247,19 @@ thickness = 1e-7
              Catch::Contains("'fem.mesh'") && Catch::Contains("below 1e-5 of its longest edge"));
 }
 
+TEST_CASE("fem scene: [fem.rigid] names each held DOF once (issue 34, item 15)") {
+  // fixed = ["x", "x", "x"] was accepted as if it held one DOF.
+  const std::string rigid = kBox + "backend = \"rigid\"\n[fem.rigid]\n";
+  CHECK_THAT(error_of(rigid + "fixed = [\"x\", \"x\", \"x\"]\n"),
+             Catch::Contains("test_scene.toml:6:") && Catch::Contains("'fem.rigid.fixed'") &&
+                 Catch::Contains("names \"x\" twice") &&
+                 Catch::Contains("each at most once, not all six"));
+  CHECK_THAT(error_of(rigid + "fixed = [\"y\", \"RZ\", \"rz\"]\n"),
+             Catch::Contains("names \"rz\" twice"));
+  CHECK(read(rigid + "fixed = [\"x\", \"y\", \"rz\"]\n").rigid.fixed ==
+        std::array<bool, 6>{true, true, false, false, false, true});
+}
+
 TEST_CASE("fem scene: the sleeper pattern by cycle count, per rail seat or in total") {
   // 4 cycles at 2 Hz after a 0.5 s ramp: the cyclic stage ends at 0.5 + 2 s, the second ramp
   // reaches the peak at 3 s (as cycle_duration = 2 would)

@@ -441,8 +441,8 @@ TOPS, P, 100
              Contains("deck.inp:33: a second *STEP (the first is at deck.inp:30)"));
   CHECK_THAT(error_of(kBar + "*STEP, NLGEOM=YES\n*STATIC\n*END STEP\n"),
              Contains("deck.inp:30: *STEP, NLGEOM=YES asks for geometric nonlinearity"));
-  CHECK_THAT(error_of(kBar + "*STEP\n*FREQUENCY\n10\n*END STEP\n"),
-             Contains("deck.inp:31: procedure *FREQUENCY is not supported"));
+  CHECK_THAT(error_of(kBar + "*STEP\n*BUCKLE\n10\n*END STEP\n"),
+             Contains("deck.inp:31: procedure *BUCKLE is not supported"));
   CHECK_THAT(error_of(kBar + "*STEP\n*BOUNDARY\nFIX, 1\n*END STEP\n"),
              Contains("deck.inp:33: the *STEP has no procedure"));
   CHECK_THAT(error_of(kBar + "*STEP\n*STATIC\n"), Contains("deck.inp:30: *STEP without *END STEP"));
@@ -454,6 +454,51 @@ TOPS, P, 100
              Contains("deck.inp:30: *AMPLITUDE W: times must increase strictly"));
   CHECK_THAT(error_of(kBar + "*STEP\n*STATIC\n*CLOAD, AMPLITUDE=NOPE\nTIP, 1, 1\n*END STEP\n"),
              Contains("deck.inp:33: amplitude NOPE is not defined"));
+}
+
+TEST_CASE("inp *FREQUENCY: a modal analysis, the deck's mode count unless the scene's wins",
+          "[inp]") {
+  // Issue 34, item 14: *FREQUENCY was refused even under fem.analysis = "modal". The clamp
+  // holds nodes 1, 4, 7, 10 of the bar's 12: 24 free DOFs.
+  test::TempDir dir;
+  const std::string clamped = kBar + "*BOUNDARY\nFIX, ENCASTRE\n";
+  const std::string five = clamped + "*STEP\n*FREQUENCY\n5, 0., 1000.\n*END STEP\n";
+  const FemScene deck = scene_with_deck(dir, five, "analysis = \"modal\"\n");
+  CHECK(deck.analysis == Analysis::modal);
+  CHECK(deck.modal.modes == 5);
+  CHECK(has_note(deck.notes, "deck.inp:33: 5 modes, as the deck's *FREQUENCY asks"));
+  CHECK(has_note(deck.notes, "the data line's other fields (frequency range, shift) are ignored"));
+  const FemScene scene =
+      scene_with_deck(dir, five, "analysis = \"modal\"\n[fem.modal]\nmodes = 3\n");
+  CHECK(scene.modal.modes == 3);
+  CHECK(has_note(scene.notes,
+                 "fem.modal.modes = 3 wins over the deck's *FREQUENCY (5 "
+                 "eigenvalues, "));
+  CHECK(has_note(scene.notes, "deck.inp:33)"));
+  // Another analysis: refused, naming the deck's line and the key to set.
+  CHECK_THAT(scene_error(dir, five),
+             Contains("deck.inp:33: the deck's step is *FREQUENCY (natural frequencies), but "
+                      "fem.analysis is not given (default \"dynamic\"): set fem.analysis = "
+                      "\"modal\""));
+  CHECK_THAT(scene_error(dir, five, "analysis = \"static\"\n"),
+             Contains("but fem.analysis = \"static\""));
+  // More modes than free DOFs: refused when the scene is read (so demfem run --check finds
+  // it), naming where the count comes from and the accepted range.
+  CHECK_THAT(
+      scene_error(dir, clamped + "*STEP\n*FREQUENCY\n30\n*END STEP\n", "analysis = \"modal\"\n"),
+      Contains("deck.inp:33: *FREQUENCY: 30 modes asked for, but the model has 24 free "
+               "DOFs (the clamped ones eliminated); accepted: 1 to 24"));
+  CHECK_THAT(scene_error(dir, five, "analysis = \"modal\"\n[fem.modal]\nmodes = 25\n"),
+             Contains("key 'fem.modal.modes': 25 modes asked for, but the model has 24 free DOFs"));
+  // Both ends clamped: 12 free DOFs, fewer than the default 20 modes.
+  CHECK_THAT(scene_error(dir, clamped + "TIP, ENCASTRE\n", "analysis = \"modal\"\n"),
+             Contains("key 'fem.modal': fem.modal.modes is not given, and its default 20 modes "
+                      "asked for, but the model has 12 free DOFs"));
+  CHECK(scene_error(dir, clamped, "analysis = \"modal\"\n[fem.modal]\nmodes = 24\n") == "no error");
+  CHECK_THAT(error_of(kBar + "*STEP\n*FREQUENCY\n0\n*END STEP\n"),
+             Contains("deck.inp:32: number of eigenvalues 0 is outside [1, 100000]"));
+  CHECK_THAT(error_of(kBar + "*STEP\n*FREQUENCY, STABILIZE\n5\n*END STEP\n"),
+             Contains("deck.inp:31: parameter STABILIZE of *FREQUENCY is not supported"));
 }
 
 TEST_CASE("inp element types map to named formulations; C3D8R needs the scene's consent", "[inp]") {

@@ -12,7 +12,8 @@
 namespace demfem::coupling {
 
 /// @brief True for a file name demfem writes into an output folder: coupling.csv,
-/// coupling.h5, timing.csv, beam_check.csv, coupling.png, fem.xdmf, fem_series.csv,
+/// coupling.h5, coupling.xdmf, coupling_NNNNNN.h5, timing.csv, beam_check.csv, coupling.png,
+/// fem.xdmf, fem_series.csv,
 /// fem_mesh.h5, fem_NNNNNN.h5, particles.xdmf, particles_NNNNNN.h5, sensor_<name>.csv, and
 /// any of these with ".part" appended (a write cut short). Not run.json nor the lock file.
 bool is_owned_output(const std::string& file_name);

@@ -127,9 +127,16 @@ class StructureBackend final : public protocol::SolverBackend {
     last_output_step_ = solver_.step_count();
   }
 
-  /// The end state, unless the last output is of it (or no step was taken).
+  /// The end state, unless the last output is of it (or no step was taken). After a static
+  /// solve (kStepStatic) that no scheduled output took: the static solution, labelled with the
+  /// end of the coupling step whose forces it carries.
   void write_final_output() {
-    if (!output_ || solver_.step_count() == 0 || last_output_step_ == solver_.step_count()) return;
+    if (!output_) return;
+    if (static_pending_) {
+      write_static_output(schedule_.label(static_time_, static_dt_));
+      return;
+    }
+    if (solver_.step_count() == 0 || last_output_step_ == solver_.step_count()) return;
     FemFields f = gather_fields(solver_);
     f.time = schedule_.label(output_clock(), step_dt_);
     f.state_time = solver_.time();
@@ -173,9 +180,15 @@ class StructureBackend final : public protocol::SolverBackend {
     try {
       if (cmd.flags & protocol::kStepStatic) {
         solver_.solve_static();
+        // The solution carries the forces of the coupling step's end (the solver's clock
+        // does not move in a static solve): its output is labelled with that time.
+        static_time_ = cmd.time + (cmd.dt > 0.0 && std::isfinite(cmd.dt) ? cmd.dt : 0.0);
+        static_dt_ = cmd.dt > 0.0 && std::isfinite(cmd.dt) ? cmd.dt : 0.0;
+        static_pending_ = true;
       } else {
         solver_.advance(cmd.dt);
         step_dt_ = cmd.dt;
+        static_pending_ = false;
       }
     } catch (const FemModelError& e) {
       // A model the solver cannot solve (a mechanism, a displacement larger than the model):
@@ -260,6 +273,10 @@ class StructureBackend final : public protocol::SolverBackend {
       h5.write("fem_output_schedule", std::span<const std::int64_t>(sched));
       const double dt[1] = {step_dt_};
       h5.write("fem_output_step", std::span<const double>(dt));
+      if (static_time_ > 0.0 || static_pending_) {  // a static solution and its output
+        const double st[3] = {static_time_, static_dt_, static_pending_ ? 1.0 : 0.0};
+        h5.write("fem_output_static", std::span<const double>(st));
+      }
     });
   }
 
@@ -295,9 +312,21 @@ class StructureBackend final : public protocol::SolverBackend {
       schedule_.skip_to_after(solver_.time());
       last_output_step_ = -1;
     }
-    // Output of states after the checkpoint is rewritten by the continuation.
+    static_time_ = static_dt_ = 0.0;
+    static_pending_ = false;
+    if (h5.exists("fem_output_static")) {
+      const auto st = h5.read_doubles("fem_output_static");
+      if (st.size() != 3)
+        throw std::runtime_error(file.string() + ": fem_output_static is malformed");
+      static_time_ = st[0];
+      static_dt_ = st[1];
+      static_pending_ = st[2] != 0.0;
+    }
+    // Output of states after the checkpoint is rewritten by the continuation (a static
+    // solution applies at its own time, which the solver's clock does not reach).
     if (output_) {
-      output_->rollback(solver_.time());
+      output_->rollback(std::max(solver_.time(), static_time_));
+      if (static_pending_ && output_->last_state_time() == static_time_) static_pending_ = false;
       // The series may keep an output of the restored state itself (the end state of a
       // finished run, written after its final checkpoint): it is not written again.
       if (output_->last_state_time() == solver_.time()) last_output_step_ = solver_.step_count();
@@ -309,13 +338,28 @@ class StructureBackend final : public protocol::SolverBackend {
   double output_clock() const { return static_cast<double>(solver_.step_count()) * step_dt_; }
 
   void maybe_write_output() {
-    if (!output_ || !(step_dt_ > 0.0)) return;
+    if (!output_) return;
+    if (static_pending_) {  // a static solve: written when an output is due, else at the end
+      if (static_dt_ > 0.0 && schedule_.due(static_time_, static_dt_))
+        write_static_output(schedule_.take(static_time_, static_dt_));
+      return;
+    }
+    if (!(step_dt_ > 0.0)) return;
     const double t = output_clock();
     if (!schedule_.due(t, step_dt_)) return;
     FemFields f = gather_fields(solver_);
     f.time = schedule_.take(t, step_dt_);
     f.state_time = solver_.time();
     output_->write(f);
+    last_output_step_ = solver_.step_count();
+  }
+
+  void write_static_output(double label) {
+    FemFields f = gather_fields(solver_);
+    f.time = label;
+    f.state_time = static_time_;
+    output_->write(f);
+    static_pending_ = false;
     last_output_step_ = solver_.step_count();
   }
 
@@ -327,6 +371,9 @@ class StructureBackend final : public protocol::SolverBackend {
   std::int64_t last_output_step_ = -1;  ///< solver step count of the last output
   FemStateCopy save_point_;             ///< save_iteration_state()
   double save_point_dt_ = 0.0;
+  double static_time_ = 0.0;         ///< the time the last static solution applies at, s
+  double static_dt_ = 0.0;           ///< the coupling step of that static solve, s
+  bool static_pending_ = false;      ///< a static solution that no output holds yet
   bool held_back_ = false;           ///< an iterated step whose output waits for accept_step()
   std::vector<double> held_forces_;  ///< the forces of the held-back step (for the monitor)
 };

@@ -2,9 +2,9 @@
 // Reader for Abaqus input (.inp) decks as Abaqus/CAE, Gmsh, Salome and hand-written decks
 // hold them: nodes, elements, sets, element surfaces, materials, solid and shell sections,
 // *INCLUDE, parts and instances (flattened, with translation and rotation), *BOUNDARY, *CLOAD,
-// *DLOAD, *DSLOAD, *AMPLITUDE and one *STEP with *STATIC or *DYNAMIC. Every other keyword is
-// refused naming the keyword and line, except a documented list of harmless ones (*HEADING,
-// output requests, ...), some of them with a note. docs/scene_fem.md has the table.
+// *DLOAD, *DSLOAD, *AMPLITUDE and one *STEP with *STATIC, *DYNAMIC or *FREQUENCY. Every other
+// keyword is refused naming the keyword and line, except a documented list of harmless ones
+// (*HEADING, output requests, ...), some of them with a note. docs/scene_fem.md has the table.
 //
 // Labels become 0-based indices in file order; the labels are kept in Mesh::node_labels /
 // Mesh::element_labels and the source of each node and element in Mesh::*_sources. Every
@@ -89,10 +89,16 @@ struct InpAmplitude {
   std::string where;
 };
 
-/// @brief The deck's analysis step (*STEP with *STATIC or *DYNAMIC).
+/// @brief The deck's analysis step (*STEP with *STATIC, *DYNAMIC or *FREQUENCY).
 struct InpStep {
   bool present = false;
-  bool dynamic = false;    ///< *DYNAMIC (else *STATIC)
+  bool dynamic = false;    ///< *DYNAMIC (else *STATIC or *FREQUENCY)
+  bool frequency = false;  ///< *FREQUENCY: natural frequencies (fem.analysis = "modal")
+  int modes = 0;           ///< *FREQUENCY: number of eigenvalues asked for (0 = not given)
+  /// "*STATIC", "*DYNAMIC" or "*FREQUENCY"
+  const char* procedure() const {
+    return frequency ? "*FREQUENCY" : dynamic ? "*DYNAMIC" : "*STATIC";
+  }
   double period = 1.0;     ///< time period of the step (data line of the procedure), s
   double increment = 0.0;  ///< initial time increment given, s (0 = not given)
   bool ramp = false;       ///< loads without AMPLITUDE= ramp over the step (else step)
