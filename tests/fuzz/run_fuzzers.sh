@@ -16,7 +16,7 @@ targets=("$@")
 out="$root/fuzz-out"
 mkdir -p "$out"
 
-flags=(-std=c++20 -O1 -g -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined
+flags=(-std=c++20 -O1 -g -Wno-pass-failed -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined
   -DTOML_HEADER_ONLY=1 -DNDEBUG -I"$root/protocol/scene/include" -I"$root/protocol/io/include"
   -I"$root/protocol/interface/include" -I"$root/fem_server/include" -I"$root/fem_server/src"
   -I"$root/dem_server/include" -I"$root/dem_server/src" -I/usr/include/eigen3
@@ -41,7 +41,7 @@ build_dem_objects() {
     for src in "$root"/dem_server/src/{core,shapes,tools}/*.cpp "$root"/protocol/io/*.cpp \
       "$root"/protocol/scene/*.cpp; do
       o="$obj/$(echo "${src#"$root"/}" | tr / _).o"
-      clang++ "${flags[@]/-fsanitize=fuzzer,/-fsanitize=fuzzer-no-link,}" -fopenmp -c "$src" \
+      clang++ "${flags[@]/-fsanitize=fuzzer,/-fsanitize=fuzzer-no-link,}" -fopenmp=libgomp -c "$src" \
         -o "$o" >&2 &
       if (((++n) % $(nproc) == 0)); then wait; fi
     done
@@ -54,7 +54,7 @@ for t in "${targets[@]}"; do
   harness="$root/tests/fuzz/fuzz_$t.cpp"
   [ -f "$harness" ] || { echo "no harness for $t"; continue; }
   libs=()
-  case "$t" in csv | h5) build_dem_objects && libs=(-fopenmp -lhdf5_serial -lqhull_r) ;; esac
+  case "$t" in csv | h5) build_dem_objects && libs=(-fopenmp=libgomp -lhdf5_serial -lqhull_r) ;; esac
   # shellcheck disable=SC2046
   clang++ "${flags[@]}" "$harness" $(sources_for "$t") "${libs[@]}" -o "$out/fuzz_$t"
   mkdir -p "$out/$t/corpus" "$out/$t/crashes"
