@@ -5,6 +5,7 @@ file reader (messages with file, line, key), the plan, the extraction of quantit
 hand-computed values, the retry classification and the sbatch script."""
 
 import math
+import re
 import signal
 import subprocess
 import sys
@@ -205,6 +206,171 @@ class SweepFile(unittest.TestCase):
         spec = self.read(SWEEP)
         with self.assertRaisesRegex(SweepError, "checkpoint.directory"):
             build_plan(spec, Path(self.tmp.name) / "out", "/bin/true")
+
+
+class Injection(SweepFile):
+    """Issue 34, item 2: every value that reaches the sbatch script (or a folder name) is
+    checked; a newline would be a shell command of the script."""
+
+    def test_sweep_file_values_with_control_characters(self):
+        cmd = "\\ntouch /tmp/demfem-injected"   # TOML escape: a newline in the value
+        for table, key, value, part in (
+                ("slurm", "partition", f'"debug{cmd}"', "key 'slurm.partition'"),
+                ("slurm", "account", f'"proj{cmd}"', "key 'slurm.account'"),
+                ("slurm", "qos", f'"normal{cmd}"', "key 'slurm.qos'"),
+                ("slurm", "mem", f'"8G{cmd}"', "key 'slurm.mem'"),
+                ("slurm", "time", f'"10{cmd}"', "key 'slurm.time'"),
+                ("slurm", "options", f'["--exclusive", "--constraint=a100{cmd}"]',
+                 "key 'slurm.options'"),
+                ("execution", "args", f'["--quiet{cmd}"]', "key 'execution.args'")):
+            text = SWEEP + f"[{table}]\n{key} = {value}\n"
+            msg = self.refused(text, part, "U+000A")
+            self.assertIn(":25:", msg)  # the key's line
+        self.refused(SWEEP.replace('name = "t"', 'name = "t"\noutput_dir = "out/a\\nb"'),
+                     "key 'sweep.output_dir'", "U+000A")
+        self.refused(SWEEP.replace('unit = "kg"', 'unit = "kg\\rx"'), "parameter[0].unit",
+                     "U+000D")
+
+    def test_slurm_values_that_are_not_one_word(self):
+        for key, value, part in (
+                ("partition", '"debug --wrap=x"', "a partition name"),
+                ("account", '"a;b"', "an account name"),
+                ("qos", '"$(id)"', "a QOS name"),
+                ("mem", '"8 G"', "a Slurm size"),
+                ("options", '["--exclusive --wrap=x"]', "one sbatch option as one word"),
+                ("options", '["--comment=\\"x y\\""]', "one sbatch option as one word"),
+                ("options", '["exclusive"]', "one sbatch option as one word"),
+                ("options", '["--output=/tmp/x"]', "sets --output"),
+                ("options", '["--chd=/tmp"]', "sets --chdir"),
+                ("options", '["-o/tmp/x"]', "sets --output"),
+                ("options", '["--array=0-9"]', "sets --array")):
+            self.refused(SWEEP + f"[slurm]\n{key} = {value}\n", f"key 'slurm.{key}'", part)
+        spec = self.read(SWEEP + '[slurm]\npartition = "gpu,debug"\naccount = "proj-1"\n'
+                         'qos = "high"\nmem = "8G"\noptions = ["--constraint=a100&nvlink", '
+                         '"-Cv100", "--exclusive", "--mail-type=END"]\n')
+        self.assertEqual(spec.slurm.partition, "gpu,debug")
+
+    def test_script_text_refuses_what_it_cannot_carry(self):
+        class P:
+            name, output_dir = "beam", "/scratch/beam"
+        for opt in (SlurmOptions(partition="a\ntouch /tmp/x"),
+                    SlurmOptions(options=["--exclusive\ntouch /tmp/x"])):
+            with self.assertRaisesRegex(SweepError, "U\\+000A"):
+                slurm.script_text(P, Path("/p.json"), 1, False, opt)
+        for folder, why in (("/scratch/my beam", "' '"), ("/scratch/a\nb", "U\\+000A"),
+                            ("/scratch/100%", "'%'"), ('/scratch/"x"', "'\"'")):
+            P.output_dir = folder
+            with self.assertRaisesRegex(SweepError, "the sweep folder .*" + why):
+                slurm.script_text(P, Path("/p.json"), 1, False, SlurmOptions())
+        # The shell lines quote their words: a checkout path with a blank stays one word.
+        P.output_dir = "/scratch/beam"
+        text = slurm.script_text(P, Path("/scratch/beam/slurm/plan 1.json"), 1, False,
+                                 SlurmOptions())
+        self.assertIn("--member-task '/scratch/beam/slurm/plan 1.json'", text)
+
+    def test_command_line_values(self):
+        from sweep import cli
+        sweep_file = write(self.tmp.name, "s.toml", SWEEP)
+        out = Path(self.tmp.name) / "out"
+        for extra, part in ((["--partition", "debug\ntouch /tmp/x"], "--partition: is"),
+                            (["--mem", "8G;id"], "--mem: is"),
+                            (["--sbatch-option=--exclusive\nid"],
+                             "[slurm] options or --sbatch-option"),
+                            (["--output-dir", str(out) + "\nid"], "--output-dir")):
+            args = [str(sweep_file), "--slurm", "--no-check", "--demfem-run", "/bin/true",
+                    "--output-dir", str(out)] + extra
+            err = _stderr_of(cli.main, args)
+            self.assertEqual(err[0], 2, err[1])
+            self.assertIn(part, err[1])
+            self.assertFalse(out.exists(), "something was written before the refusal")
+
+
+def _stderr_of(fn, *args):
+    import contextlib
+    import io
+    buf = io.StringIO()
+    with contextlib.redirect_stderr(buf), contextlib.redirect_stdout(io.StringIO()):
+        code = fn(*args)
+    return code, buf.getvalue()
+
+
+class MemberFolders(SweepFile):
+    """Issue 34, item 8: every folder a member writes stays inside its own folder."""
+
+    def plan(self, text=SWEEP):
+        return build_plan(self.read(text), Path(self.tmp.name) / "out", "/bin/true")
+
+    def test_checkpoint_directory(self):
+        for d in ("../../../x", "a/../../x", ".."):
+            write(self.tmp.name, "scene.toml", SCENE + f'directory = "{d}"\n')
+            with self.assertRaisesRegex(SweepError, "checkpoint.directory' of member s00_r00 is "
+                                        f"'{re.escape(d)}'.*inside the member's folder"):
+                self.plan()
+        write(self.tmp.name, "scene.toml", SCENE + 'directory = "a/../ck"\n')
+        self.assertEqual(self.plan().members[0].checkpoints, "a/../ck")  # stays inside
+        write(self.tmp.name, "scene.toml", SCENE)
+        text = SWEEP.replace('"dem.insert[0].mass" = [10.0, 20.0]',
+                             '"dem.insert[0].mass" = [10.0, 20.0]\n'
+                             '"checkpoint.directory" = ["ck", "../ck"]')
+        with self.assertRaisesRegex(SweepError, r"member s03_r00 is '../ck' \(from the sweep's "
+                                    r"--set checkpoint.directory=\"../ck\"\)"):
+            self.plan(text)
+
+    def test_output_dir_is_the_sweeps(self):
+        self.refused(SWEEP.replace('"dem.pairs[0].friction" = [0.1, 0.2, 0.3]',
+                                   '"run.output_dir" = ["a", "b"]'),
+                     "key 'parameter[1].keys.\"run.output_dir\"'", "set by the sweep itself")
+        self.refused(SWEEP.replace("first_seed = 5", 'key = "run.output_dir"'),
+                     "key 'repetitions.key'", "set by the sweep itself")
+
+    def test_prepared_beds(self):
+        write(self.tmp.name, "bed1.toml", '[run]\nend_time = 1.0\noutput_dir = "/tmp/beds"\n')
+        write(self.tmp.name, "bed2.toml", '[run]\nend_time = 1.0\n[dem.load]\nscene = '
+              '"bed1.toml"\n')
+        load = '[dem.load]\nscene = "bed2.toml"\npass = ["run.seed"]\n'
+        write(self.tmp.name, "scene.toml", SCENE.replace("[[dem.pairs]]", load + "[[dem.pairs]]"))
+        with self.assertRaisesRegex(SweepError, "member s00_r00 prepares its bed with bed2.toml"
+                                    ".*bed1.toml: key 'run.output_dir' is '/tmp/beds', outside"):
+            self.plan()
+        write(self.tmp.name, "bed1.toml", '[run]\nend_time = 1.0\n')
+        self.assertEqual(len(self.plan().members), 12)
+        write(self.tmp.name, "scene.toml", SCENE.replace(
+            "[[dem.pairs]]", load + "set = ['run.output_dir=\"../../beds\"']\n[[dem.pairs]]"))
+        with self.assertRaisesRegex(SweepError, "set \"run.output_dir=...\" of .*bed2.toml is "
+                                    "'../../beds', outside"):
+            self.plan()
+
+
+class MemberCount(SweepFile):
+    """Issue 34, item 9: a cap on the members, and progress while planning a large sweep."""
+
+    def big(self, n_a, n_b, extra=""):
+        return (SWEEP.replace("[10.0, 20.0]", repr([10.0 + i for i in range(n_a)]))
+                .replace("[0.1, 0.2, 0.3]", repr([0.1 + i * 1e-3 for i in range(n_b)])) + extra)
+
+    def test_cap(self):
+        spec = self.read(self.big(1000, 1000))   # 10^6 settings x 2 repetitions
+        with self.assertRaisesRegex(SweepError, r"2000000 members \(1000 \(mass\) x 1000 "
+                                    r"\(dem.pairs\[0\].friction\) x 2 repetition\(s\)\), more "
+                                    r"than execution.max_members = 10000"):
+            build_plan(spec, Path(self.tmp.name) / "out", "/bin/true")
+        self.refused(SWEEP + "[execution]\nmax_members = 1000001\n",
+                     "key 'execution.max_members'", "[1, 1000000]")
+        spec = self.read(SWEEP + "[execution]\nmax_members = 11\n")
+        with self.assertRaisesRegex(SweepError, "12 members"):
+            build_plan(spec, Path(self.tmp.name) / "out", "/bin/true")
+        spec = self.read(SWEEP + "[execution]\nmax_members = 12\n")
+        self.assertEqual(len(build_plan(spec, Path(self.tmp.name) / "out", "/bin/true")
+                             .members), 12)
+
+    def test_progress(self):
+        spec = self.read(self.big(100, 100, "[execution]\nmax_members = 20000\n"))
+        seen = []
+        plan = build_plan(spec, Path(self.tmp.name) / "out", "/bin/true",
+                          progress=lambda done, total: seen.append((done, total)))
+        self.assertEqual(seen, [(10000, 20000), (20000, 20000)])
+        self.assertEqual(plan.members[-1].id, "s9999_r01")
+        self.assertEqual(plan.members[-1].overrides[-2:], ["run.seed=6", "dem.threads=1"])
 
 
 class Extraction(unittest.TestCase):
