@@ -479,5 +479,50 @@ class Slurm(unittest.TestCase):
         self.assertTrue(h.stop.is_set())
 
 
+# Run in a child process by SignalWhileStarting: a signal that reaches a Slurm task's handler
+# (cli.member_task) while its main thread starts demfem_run.
+_START_RACE = r"""
+import os, signal, subprocess, sys, types
+sys.path.insert(0, sys.argv[1])
+from sweep import member
+folder, sig = sys.argv[2], getattr(signal, sys.argv[3])
+h = member.Handle()
+signal.signal(sig, lambda s, f: h.forward(signal.SIGUSR2, True))
+real = subprocess.Popen
+def popen(*a, **kw):
+    os.kill(os.getpid(), sig)  # the handler runs now, inside Handle.start, under its lock
+    return real(*a, **kw)
+subprocess.Popen = popen
+stand_in = os.path.join(folder, "demfem_run")
+with open(stand_in, "w") as f:
+    f.write("#!/bin/sh\nexec sleep 60\n")
+os.chmod(stand_in, 0o755)
+plan = types.SimpleNamespace(demfem_run=stand_in, scene="s.toml", args=[], timeout=0)
+m = types.SimpleNamespace(folder=folder, overrides=[], threads=1)
+code, _, _ = member._attempt(plan, m, False, os.path.join(folder, "a.log"), h, None)
+print(code, h.stop.is_set())
+"""
+
+
+class SignalWhileStarting(unittest.TestCase):
+    """Issue 34, item 16: a Slurm task that got SIGUSR2 (or scancel's SIGTERM) while starting
+    demfem_run deadlocked in its own signal handler (a non-re-entrant lock taken twice by the
+    main thread) and hung until Slurm killed it; under load the window is wide. Now the
+    signal is kept and sent to demfem_run as soon as it runs."""
+
+    def test_signal_during_popen(self):
+        tools = str(Path(__file__).resolve().parents[2] / "tools")
+        for sig in ("SIGUSR2", "SIGTERM"):
+            with tempfile.TemporaryDirectory() as d:
+                try:
+                    r = subprocess.run([sys.executable, "-c", _START_RACE, tools, d, sig],
+                                       capture_output=True, text=True, timeout=120)
+                except subprocess.TimeoutExpired:
+                    self.fail(f"{sig} while starting demfem_run: the task hangs (deadlock)")
+                self.assertEqual(r.returncode, 0, r.stderr)
+                # The stand-in got the forwarded SIGUSR2 at once (not its 60 s sleep's end).
+                self.assertEqual(r.stdout.split(), [str(128 + signal.SIGUSR2), "True"])
+
+
 if __name__ == "__main__":
     unittest.main(verbosity=1)
