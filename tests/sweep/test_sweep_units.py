@@ -129,7 +129,9 @@ reduce = "max"
 """
 
 
-class SweepFile(unittest.TestCase):
+class SweepFileCase(unittest.TestCase):
+    """A folder with the scene; reads sweep files written there (no tests of its own)."""
+
     def setUp(self):
         self.tmp = tempfile.TemporaryDirectory()
         write(self.tmp.name, "scene.toml", SCENE)
@@ -147,6 +149,8 @@ class SweepFile(unittest.TestCase):
             self.assertIn(p, str(c.exception))
         return str(c.exception)
 
+
+class SweepFile(SweepFileCase):
     def test_plan(self):
         spec = self.read(SWEEP)
         plan = build_plan(spec, Path(self.tmp.name) / "out", "/bin/true")
@@ -201,6 +205,22 @@ class SweepFile(unittest.TestCase):
         self.refused(SWEEP.replace("first_seed = 5", 'key = "dem.pairs[0].friction"'),
                      "is also a parameter")
 
+    def test_files_that_are_not_text(self):
+        # Found by tests/fuzz/fuzz_sweep.py: a device as the scene was read without end, a
+        # sweep file that is not UTF-8 raised UnicodeDecodeError; a FIFO would block.
+        import os
+        fifo = Path(self.tmp.name) / "fifo.toml"
+        os.mkfifo(fifo)
+        for scene, why in (("/dev/zero", "is not a regular file"), (str(fifo), "not a regular"),
+                           (".", "is a directory")):
+            self.refused(SWEEP.replace('scene = "scene.toml"', f'scene = "{scene}"'),
+                         "key 'sweep.scene'", why, "expected a scene file (TOML)")
+        p = Path(self.tmp.name) / "bad.toml"
+        p.write_bytes(SWEEP.encode().replace(b'name = "t"', b'name = "t\x9b"'))
+        with self.assertRaisesRegex(SweepError, "is not UTF-8 text .byte 38.; expected a sweep "
+                                    "file"):
+            read_sweep_file(p)
+
     def test_absolute_checkpoint_folder_is_refused(self):
         write(self.tmp.name, "scene.toml", SCENE + 'directory = "/tmp/ck"\n')
         spec = self.read(SWEEP)
@@ -208,7 +228,7 @@ class SweepFile(unittest.TestCase):
             build_plan(spec, Path(self.tmp.name) / "out", "/bin/true")
 
 
-class Injection(SweepFile):
+class Injection(SweepFileCase):
     """Issue 34, item 2: every value that reaches the sbatch script (or a folder name) is
     checked; a newline would be a shell command of the script."""
 
@@ -294,7 +314,7 @@ def _stderr_of(fn, *args):
     return code, buf.getvalue()
 
 
-class MemberFolders(SweepFile):
+class MemberFolders(SweepFileCase):
     """Issue 34, item 8: every folder a member writes stays inside its own folder."""
 
     def plan(self, text=SWEEP):
@@ -341,7 +361,7 @@ class MemberFolders(SweepFile):
             self.plan()
 
 
-class MemberCount(SweepFile):
+class MemberCount(SweepFileCase):
     """Issue 34, item 9: a cap on the members, and progress while planning a large sweep."""
 
     def big(self, n_a, n_b, extra=""):

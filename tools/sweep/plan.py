@@ -12,7 +12,7 @@ from pathlib import Path
 
 from sweep import scene_keys
 from sweep.records import IDENTITY_FILE, read_json, write_json_atomic
-from sweep.sweep_file import MAX_MEMBERS_LIMIT, SweepError
+from sweep.sweep_file import MAX_MEMBERS_LIMIT, SweepError, read_text
 
 
 @dataclass
@@ -94,8 +94,8 @@ def _prepare_problem(path, sets, depth=0):
     it prepares in turn, writes its state outside the folder the run starts in: None when
     nowhere. An unreadable scene is left to demfem_run --check, which names it."""
     try:
-        data = tomllib.loads(Path(path).read_text())
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        data = tomllib.loads(read_text(path, "a scene file (TOML)"))
+    except (SweepError, tomllib.TOMLDecodeError):
         return None
     run = data.get("run") if isinstance(data.get("run"), dict) else {}
     out = _set_value(sets, "run.output_dir")

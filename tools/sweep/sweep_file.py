@@ -6,6 +6,7 @@ import copy
 import math
 import os
 import re
+import stat
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,6 +30,34 @@ SWEEP_OWN_KEYS = ("run.output_dir",)
 
 class SweepError(Exception):
     """Bad input (sweep file, scene, command line): exit status 2."""
+
+
+# The largest sweep file or scene read, as the C++ scene reader's io::kSceneFileLimit.
+FILE_LIMIT = 16 << 20
+
+
+def read_text(path, what):
+    """The UTF-8 text of the regular file `path` (at most FILE_LIMIT bytes); SweepError
+    naming the file and `what` it should be otherwise. A FIFO or a device is refused before
+    it is opened (a FIFO would block, /dev/zero never end)."""
+    try:
+        st = os.stat(path)
+    except OSError as e:
+        raise SweepError(f"{path}: cannot read {what} ({e.strerror})")
+    if not stat.S_ISREG(st.st_mode):
+        kind = "a directory" if stat.S_ISDIR(st.st_mode) else "not a regular file"
+        raise SweepError(f"{path}: is {kind}; expected {what}")
+    try:
+        with open(path, "rb") as f:
+            data = f.read(FILE_LIMIT + 1)
+    except OSError as e:
+        raise SweepError(f"{path}: cannot read {what} ({e.strerror})")
+    if len(data) > FILE_LIMIT:
+        raise SweepError(f"{path}: is larger than {FILE_LIMIT >> 20} MiB, the limit for {what}")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise SweepError(f"{path}: is not UTF-8 text (byte {e.start}); expected {what}")
 
 
 def _show(path):
@@ -247,10 +276,7 @@ def _scene_value_ok(v):
 def read_sweep_file(path):
     """Reads and checks a sweep file; raises SweepError (exit 2) naming file, line and key."""
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as e:
-        raise SweepError(f"{path}: cannot read the sweep file ({e.strerror})")
+    text = read_text(path, "a sweep file (TOML)")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
@@ -271,9 +297,9 @@ def read_sweep_file(path):
     output_dir = Path(sw.string("output_dir", str(Path("out") / "sweeps" / name)))
     sw.finish()
     try:
-        scene_data = tomllib.loads(scene.read_text())
-    except OSError as e:
-        sw.fail("scene", f"cannot read the scene {scene} ({e.strerror})")
+        scene_data = tomllib.loads(read_text(scene, "a scene file (TOML)"))
+    except SweepError as e:
+        sw.fail("scene", f"cannot read the scene: {e}")
     except tomllib.TOMLDecodeError as e:
         sw.fail("scene", f"the scene {scene} is not valid TOML: {e}")
 
