@@ -221,6 +221,13 @@ class SweepFile(SweepFileCase):
                                     "file"):
             read_sweep_file(p)
 
+    def test_inline_tables_have_lines(self):
+        # (fuzz_sweep.py's structured inputs are inline tables: their messages had no line)
+        f = str(Path(self.tmp.name) / "s.toml")
+        self.refused('quantity = [{ name = "a", file = "c.csv", column = "x", reduce = "max" },'
+                     '\n  { name = "b", typo = 1 }]\n[sweep]\nscene = "scene.toml"\n',
+                     f"{f}:1: key 'quantity[1]")
+
     def test_absolute_checkpoint_folder_is_refused(self):
         write(self.tmp.name, "scene.toml", SCENE + 'directory = "/tmp/ck"\n')
         spec = self.read(SWEEP)

@@ -81,7 +81,10 @@ class Table:
 
     def where(self, key=None):
         path = self.path + ((key,) if key is not None else ())
-        line = self.lines.get(path) or self.lines.get(self.path)
+        # The key's own line, else its nearest table's (a key inside an inline table or a
+        # multi-line array has no line of its own: the line where that value starts).
+        line = next((self.lines[path[:n]] for n in range(len(path), 0, -1)
+                     if path[:n] in self.lines), None)
         loc = f"{self.file}:{line}" if line else str(self.file)
         return f"{loc}: key '{_show(path)}'" if path else loc
 
