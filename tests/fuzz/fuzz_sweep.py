@@ -99,8 +99,7 @@ def _alarm(sig, frame):
     raise Finding(f"hang: one input took more than {HANG_S} s")
 
 
-SCRIPT_PREFIXES = ("#!/bin/bash", "# demfem sweep ", "#SBATCH --", "export PYTHONPATH=",
-                   "exec ")
+SCRIPT_PREFIXES = ("#!/bin/bash", "# demfem sweep ", "export PYTHONPATH=", "exec ")
 
 
 def target(data, root):
@@ -116,7 +115,9 @@ def target(data, root):
         check_plan(plan, out)
         text = slurm.script_text(plan, out / "slurm" / "plan.json", 1, False, spec.slurm)
         for line in text.split("\n"):
-            if line and not line.startswith(SCRIPT_PREFIXES):
+            # An #SBATCH line is one option, one word (sbatch splits it at blanks).
+            sbatch = line.startswith("#SBATCH -") and len(line.split()) == 2
+            if line and not sbatch and not line.startswith(SCRIPT_PREFIXES):
                 raise Finding(f"the sbatch script has a line of its own: {line!r}")
         return f"planned {len(plan.members)} member(s)"
     except SweepError as e:
