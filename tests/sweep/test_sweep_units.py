@@ -399,6 +399,17 @@ class MemberCount(SweepFileCase):
         self.assertEqual(plan.members[-1].id, "s9999_r01")
         self.assertEqual(plan.members[-1].overrides[-2:], ["run.seed=6", "dem.threads=1"])
 
+    def test_progress_of_the_check(self):
+        import contextlib
+        import io
+        from sweep import cli
+        plan = build_plan(self.read(self.big(5, 50)), Path(self.tmp.name) / "out", "/bin/true")
+        buf = io.StringIO()
+        with contextlib.redirect_stdout(buf):
+            cli.check_settings(plan, plan.members)  # /bin/true accepts every setting
+        self.assertEqual(buf.getvalue().splitlines(), ["sweep t: checked 100 of 250 settings",
+                                                       "sweep t: checked 200 of 250 settings"])
+
 
 class Extraction(unittest.TestCase):
     T = [0.0, 1.0, 2.0, 4.0]

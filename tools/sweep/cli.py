@@ -193,10 +193,13 @@ def check_settings(plan, todo):
     """demfem_run --check of one member per setting: a bad parameter value is found before
     any member starts, with the scene reader's own message (naming the --set)."""
     seen = set()
+    total = len({m.setting for m in todo})
     for m in todo:
         if m.setting in seen:
             continue
         seen.add(m.setting)
+        if len(seen) % 100 == 0:  # tens of ms each: a large grid takes a while
+            print(f"sweep {plan.name}: checked {len(seen)} of {total} settings", flush=True)
         cmd = [plan.demfem_run, plan.scene, "--check"]
         for o in m.overrides:
             cmd += ["--set", o]
