@@ -117,8 +117,9 @@ def main(cases, argv):
 
 # How long a test waits for something that must happen before it calls it a hang. Not a
 # measure of speed: a loaded machine (issue 34 item 16: load 4-7 on 2 cores) only makes the
-# wait longer, so this is far above any normal wait and below the ctest TIMEOUT (300 s,
-# CMakeLists.txt), which would end the test without saying what it waited for.
+# wait longer, so this is far above any normal wait (seconds) and well below the ctest
+# TIMEOUT (600 s, CMakeLists.txt: a whole test takes 20-60 s, under load too), which would end
+# the test without saying what it waited for.
 HANG_GUARD_S = 240.0
 
 
