@@ -126,13 +126,6 @@ void Report::write_json(const std::string& path) const {
   std::cout << "# wrote " << path << "\n";
 }
 
-std::string json_path_from_args(int argc, char** argv) {
-  for (int i = 1; i + 1 < argc; ++i) {
-    if (std::string(argv[i]) == "--json") return argv[i + 1];
-  }
-  return "";
-}
-
 // Both are asked by print() and write_json(); they shell out, so each is computed once.
 std::string machine_description() {
   static const std::string cached = [] {

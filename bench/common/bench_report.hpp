@@ -28,8 +28,6 @@ class Report {
   std::vector<std::pair<std::string, Cell>> info_;
 };
 
-/// @brief "--json FILE" from argv, or "" when absent.
-std::string json_path_from_args(int argc, char** argv);
 /// @brief CPU model and core count, and the GPU where one is given.
 std::string machine_description();
 /// @brief `git rev-parse --short HEAD` of the source tree, or "unknown".

@@ -414,11 +414,19 @@ struct Options {
   std::set<std::string> schemes;  // of the work-precision part; empty: all
   std::set<double> dts;           // dt_F of the work-precision part; empty: all of its grid
   std::string json;
+  bool help = false;  // --help: the usage only, nothing run
 };
+
+constexpr const char* kUsage =
+    "usage: coupling_schemes [--json FILE] [--parts work,stability,concurrency,sheet]\n"
+    "  [--problems beam_drop,beam_drop_elastic,plate_bed] [--repeat N] [--quick] [--work DIR]\n"
+    "  [--schemes LIST] [--dts LIST] [--beam-dem-dts LIST] [--sheet-end S] [--sheet-dts LIST]\n"
+    "  [--sheet-schemes LIST]\n"
+    "Work-precision, stability and concurrency of the coupling schemes (real demfem_run runs;\n"
+    "the header of bench/coupling_schemes/coupling_schemes.cpp says what each part does).\n";
 
 Options parse(int argc, char** argv) {
   Options o;
-  o.json = demfem::bench::json_path_from_args(argc, argv);
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> std::string {
@@ -442,8 +450,10 @@ Options parse(int argc, char** argv) {
       const auto v = words();
       return std::set<std::string>(v.begin(), v.end());
     };
-    if (a == "--json") {
-      ++i;
+    if (a == "--help" || a == "-h") {
+      o.help = true;
+    } else if (a == "--json") {
+      o.json = next();
     } else if (a == "--parts") {
       o.parts = word_set();
     } else if (a == "--problems") {
@@ -468,12 +478,7 @@ Options parse(int argc, char** argv) {
     } else if (a == "--sheet-schemes") {
       o.sheet_schemes = word_set();
     } else {
-      throw std::invalid_argument(
-          "unknown option " + a +
-          " (--json FILE, --parts work,stability,concurrency,sheet, "
-          "--problems beam_drop,beam_drop_elastic,plate_bed, --repeat N, --quick, "
-          "--work DIR, --schemes LIST, --dts LIST, --beam-dem-dts LIST, --sheet-end S, "
-          "--sheet-dts LIST, --sheet-schemes LIST)");
+      throw std::invalid_argument("unknown option " + a + "\n" + kUsage);
     }
   }
   return o;
@@ -555,6 +560,10 @@ void add_row(Report& rep, const std::string& part, const Problem& pb, const std:
 
 int main(int argc, char** argv) try {
   const Options opt = parse(argc, argv);
+  if (opt.help) {
+    std::fputs(kUsage, stdout);
+    return 0;
+  }
   Report rep("coupling_schemes", kColumns);
   rep.set_info("repeat", static_cast<long long>(opt.repeat));
   rep.set_info("quick", static_cast<long long>(opt.quick ? 1 : 0));

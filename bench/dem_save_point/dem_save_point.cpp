@@ -17,6 +17,8 @@
 #include <string>
 #include <vector>
 
+#include <CLI/CLI.hpp>
+
 #include "bench_report.hpp"
 #include "demfem/dem/dem_system.hpp"
 
@@ -77,15 +79,16 @@ double median(std::vector<double> v) {
 int main(int argc, char** argv) try {
   std::size_t max_n = 100000;
   int repeat = 9, threads = 1;
-  for (int i = 1; i + 1 < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--max")
-      max_n = std::stoul(argv[++i]);
-    else if (a == "--repeat")
-      repeat = std::stoi(argv[++i]);
-    else if (a == "--threads")
-      threads = std::stoi(argv[++i]);
-  }
+  std::string json;
+  CLI::App app{"Cost of the DEM's in-memory save point (save_state, restore_state) against a "
+               "DEM step, beds of 10^3 spheres up to --max"};
+  app.add_option("--max", max_n, "largest bed, spheres (10^3, 10^4, ... up to it)")
+      ->check(CLI::Range(std::size_t{1000}, std::size_t{100000000}));
+  app.add_option("--repeat", repeat, "measurements of each (median and best)")
+      ->check(CLI::Range(1, 100000));
+  app.add_option("--threads", threads, "CPU threads")->check(CLI::Range(1, 4096));
+  app.add_option("--json", json, "write the results as JSON");
+  CLI11_PARSE(app, argc, argv);
   demfem::bench::Report rep(
       "dem_save_point",
       {"particles", "pairs", "copy_bytes_per_particle", "save_ms_median", "save_ms_best",
@@ -128,7 +131,7 @@ int main(int argc, char** argv) try {
                  *std::min_element(step_after.begin(), step_after.end())});
   }
   rep.print();
-  rep.write_json(demfem::bench::json_path_from_args(argc, argv));
+  rep.write_json(json);
   return 0;
 } catch (const std::exception& e) {
   std::fprintf(stderr, "dem_save_point: %s\n", e.what());

@@ -14,7 +14,8 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <sstream>
+
+#include <CLI/CLI.hpp>
 
 #include "bench_report.hpp"
 #include "demfem/fem/fem_solver.hpp"
@@ -79,15 +80,17 @@ double step_time(Solver& s, int n) {
 int main(int argc, char** argv) {
   std::vector<int> modes = {5, 10, 20, 40};
   int max_cells = 80;
-  for (int i = 1; i + 1 < argc; ++i) {
-    if (std::string(argv[i]) == "--modes") {
-      modes.clear();
-      std::stringstream s(argv[i + 1]);
-      for (std::string item; std::getline(s, item, ',');) modes.push_back(std::stoi(item));
-    } else if (std::string(argv[i]) == "--max-cells") {
-      max_cells = std::stoi(argv[i + 1]);
-    }
-  }
+  std::string json;
+  CLI::App app{"The modal-reduced and rigid-body FEM backends against the full FEM: accuracy "
+               "on the coupled dynamic beam, cost of one step"};
+  app.add_option("--modes", modes, "mode counts of the modal backend, e.g. 5,10,20,40")
+      ->delimiter(',')
+      ->check(CLI::PositiveNumber);
+  app.add_option("--max-cells", max_cells, "longest beam of the cost part, cells")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--json", json,
+                 "write the cost as JSON to FILE and the accuracy to FILE.accuracy.json");
+  CLI11_PARSE(app, argc, argv);
   const std::string scene = std::string(DEMFEM_SOURCE_DIR) + "/cases/beam_dynamic_ci.toml";
   const auto tmp =
       std::filesystem::temp_directory_path() / ("fem_backends_" + std::to_string(::getpid()));
@@ -157,7 +160,6 @@ int main(int argc, char** argv) {
   cost.set_info("machine", bench::machine_description());
   cost.set_info("commit", bench::git_commit());
   cost.print();
-  const std::string json = bench::json_path_from_args(argc, argv);
   acc.write_json(json.empty() ? "" : json + ".accuracy.json");
   cost.write_json(json);
   std::filesystem::remove_all(tmp);

@@ -17,6 +17,8 @@
 #include <string>
 #include <vector>
 
+#include <CLI/CLI.hpp>
+
 #include "bench_report.hpp"
 #include "demfem/protocol/protocol.hpp"
 
@@ -156,9 +158,13 @@ int main(int argc, char** argv) {
     for (int i = 1; i < argc; ++i)
       if (std::strcmp(argv[i], "--serve") == 0) return serve_mode(argc, argv);
     int iterations = 20000;
-    for (int i = 1; i + 1 < argc; ++i)
-      if (std::strcmp(argv[i], "--iterations") == 0) iterations = std::stoi(argv[i + 1]);
-    if (iterations < 100) throw std::invalid_argument("--iterations must be at least 100");
+    std::string json;
+    CLI::App app{"Round trip of a Step -> StepDone exchange over the shared-memory protocol, "
+                 "for several interface sizes, spinning and blocking waits"};
+    app.add_option("--iterations", iterations, "round trips per configuration")
+        ->check(CLI::Range(100, 100000000));
+    app.add_option("--json", json, "write the results as JSON");
+    CLI11_PARSE(app, argc, argv);
 
     demfem::bench::Report report("protocol_roundtrip", {"nodes", "wait", "solver work", "median_us",
                                                         "p99_us", "mean_us", "samples"});
@@ -180,7 +186,7 @@ int main(int argc, char** argv) {
       }
     }
     report.print();
-    report.write_json(demfem::bench::json_path_from_args(argc, argv));
+    report.write_json(json);
     return 0;
   } catch (const std::exception& e) {
     std::cerr << "protocol_roundtrip: " << e.what() << '\n';

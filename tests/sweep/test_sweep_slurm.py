@@ -93,7 +93,7 @@ def cancelled_and_killed_tasks(tmp, exe):
         p = out / "members" / m / "status.json"
         return json.loads(p.read_text()).get("state") if p.exists() else None
 
-    wait_for(lambda: state("s00_r00") == "running" and state("s00_r01") == "running", 60,
+    wait_for(lambda: state("s00_r00") == "running" and state("s00_r01") == "running",
              "both tasks running")
     subprocess.run(["scancel", f"{job}_0"], check=True)  # SIGTERM, as at a time limit
     # A task that dies without a word (node failure, OOM killer): SIGKILL to the task's
@@ -108,10 +108,10 @@ def cancelled_and_killed_tasks(tmp, exe):
     # What the script's `--signal=B:USR2@120` sends before the limit (the third task runs
     # once a CPU is free): the task passes it on (a demfem_run would checkpoint and exit 140;
     # the stand-in dies of it) and records the member interrupted, without another attempt.
-    wait_for(lambda: state("s00_r02") == "running", 60, "the third task running")
+    wait_for(lambda: state("s00_r02") == "running", "the third task running")
     subprocess.run(["scancel", "--batch", "--signal=USR2", f"{job}_2"], check=True)
     wait_for(lambda: not subprocess.run(["squeue", "-h", "-j", str(job)], capture_output=True,
-                                        text=True).stdout.strip(), 60, "the tasks to end")
+                                        text=True).stdout.strip(), "the tasks to end")
     r = run_sweep(out, "--status", demfem_run=FAULTS, env=env, sweep_file=f)
     check("0 done, 0 running, 0 queued, 0 failed, 1 lost, 2 interrupted" in r.stdout,
           "--status after scancel")

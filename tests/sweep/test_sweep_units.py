@@ -5,6 +5,7 @@ file reader (messages with file, line, key), the plan, the extraction of quantit
 hand-computed values, the retry classification and the sbatch script."""
 
 import math
+import re
 import signal
 import subprocess
 import sys
@@ -128,7 +129,9 @@ reduce = "max"
 """
 
 
-class SweepFile(unittest.TestCase):
+class SweepFileCase(unittest.TestCase):
+    """A folder with the scene; reads sweep files written there (no tests of its own)."""
+
     def setUp(self):
         self.tmp = tempfile.TemporaryDirectory()
         write(self.tmp.name, "scene.toml", SCENE)
@@ -146,6 +149,8 @@ class SweepFile(unittest.TestCase):
             self.assertIn(p, str(c.exception))
         return str(c.exception)
 
+
+class SweepFile(SweepFileCase):
     def test_plan(self):
         spec = self.read(SWEEP)
         plan = build_plan(spec, Path(self.tmp.name) / "out", "/bin/true")
@@ -200,11 +205,210 @@ class SweepFile(unittest.TestCase):
         self.refused(SWEEP.replace("first_seed = 5", 'key = "dem.pairs[0].friction"'),
                      "is also a parameter")
 
+    def test_files_that_are_not_text(self):
+        # Found by tests/fuzz/fuzz_sweep.py: a device as the scene was read without end, a
+        # sweep file that is not UTF-8 raised UnicodeDecodeError; a FIFO would block.
+        import os
+        fifo = Path(self.tmp.name) / "fifo.toml"
+        os.mkfifo(fifo)
+        for scene, why in (("/dev/zero", "is not a regular file"), (str(fifo), "not a regular"),
+                           (".", "is a directory")):
+            self.refused(SWEEP.replace('scene = "scene.toml"', f'scene = "{scene}"'),
+                         "key 'sweep.scene'", why, "expected a scene file (TOML)")
+        p = Path(self.tmp.name) / "bad.toml"
+        p.write_bytes(SWEEP.encode().replace(b'name = "t"', b'name = "t\x9b"'))
+        with self.assertRaisesRegex(SweepError, "is not UTF-8 text .byte 38.; expected a sweep "
+                                    "file"):
+            read_sweep_file(p)
+
+    def test_inline_tables_have_lines(self):
+        # (fuzz_sweep.py's structured inputs are inline tables: their messages had no line)
+        f = str(Path(self.tmp.name) / "s.toml")
+        self.refused('quantity = [{ name = "a", file = "c.csv", column = "x", reduce = "max" },'
+                     '\n  { name = "b", typo = 1 }]\n[sweep]\nscene = "scene.toml"\n',
+                     f"{f}:1: key 'quantity[1]")
+
     def test_absolute_checkpoint_folder_is_refused(self):
         write(self.tmp.name, "scene.toml", SCENE + 'directory = "/tmp/ck"\n')
         spec = self.read(SWEEP)
         with self.assertRaisesRegex(SweepError, "checkpoint.directory"):
             build_plan(spec, Path(self.tmp.name) / "out", "/bin/true")
+
+
+class Injection(SweepFileCase):
+    """Issue 34, item 2: every value that reaches the sbatch script (or a folder name) is
+    checked; a newline would be a shell command of the script."""
+
+    def test_sweep_file_values_with_control_characters(self):
+        cmd = "\\ntouch /tmp/demfem-injected"   # TOML escape: a newline in the value
+        for table, key, value, part in (
+                ("slurm", "partition", f'"debug{cmd}"', "key 'slurm.partition'"),
+                ("slurm", "account", f'"proj{cmd}"', "key 'slurm.account'"),
+                ("slurm", "qos", f'"normal{cmd}"', "key 'slurm.qos'"),
+                ("slurm", "mem", f'"8G{cmd}"', "key 'slurm.mem'"),
+                ("slurm", "time", f'"10{cmd}"', "key 'slurm.time'"),
+                ("slurm", "options", f'["--exclusive", "--constraint=a100{cmd}"]',
+                 "key 'slurm.options'"),
+                ("execution", "args", f'["--quiet{cmd}"]', "key 'execution.args'")):
+            text = SWEEP + f"[{table}]\n{key} = {value}\n"
+            msg = self.refused(text, part, "U+000A")
+            self.assertIn(":25:", msg)  # the key's line
+        self.refused(SWEEP.replace('name = "t"', 'name = "t"\noutput_dir = "out/a\\nb"'),
+                     "key 'sweep.output_dir'", "U+000A")
+        self.refused(SWEEP.replace('unit = "kg"', 'unit = "kg\\rx"'), "parameter[0].unit",
+                     "U+000D")
+
+    def test_slurm_values_that_are_not_one_word(self):
+        for key, value, part in (
+                ("partition", '"debug --wrap=x"', "a partition name"),
+                ("account", '"a;b"', "an account name"),
+                ("qos", '"$(id)"', "a QOS name"),
+                ("mem", '"8 G"', "a Slurm size"),
+                ("options", '["--exclusive --wrap=x"]', "one sbatch option as one word"),
+                ("options", '["--comment=\\"x y\\""]', "one sbatch option as one word"),
+                ("options", '["exclusive"]', "one sbatch option as one word"),
+                ("options", '["--output=/tmp/x"]', "sets --output"),
+                ("options", '["--chd=/tmp"]', "sets --chdir"),
+                ("options", '["-o/tmp/x"]', "sets --output"),
+                ("options", '["--array=0-9"]', "sets --array")):
+            self.refused(SWEEP + f"[slurm]\n{key} = {value}\n", f"key 'slurm.{key}'", part)
+        spec = self.read(SWEEP + '[slurm]\npartition = "gpu,debug"\naccount = "proj-1"\n'
+                         'qos = "high"\nmem = "8G"\noptions = ["--constraint=a100&nvlink", '
+                         '"-Cv100", "--exclusive", "--mail-type=END"]\n')
+        self.assertEqual(spec.slurm.partition, "gpu,debug")
+
+    def test_script_text_refuses_what_it_cannot_carry(self):
+        class P:
+            name, output_dir = "beam", "/scratch/beam"
+        for opt in (SlurmOptions(partition="a\ntouch /tmp/x"),
+                    SlurmOptions(options=["--exclusive\ntouch /tmp/x"])):
+            with self.assertRaisesRegex(SweepError, "U\\+000A"):
+                slurm.script_text(P, Path("/p.json"), 1, False, opt)
+        for folder, why in (("/scratch/my beam", "' '"), ("/scratch/a\nb", "U\\+000A"),
+                            ("/scratch/100%", "'%'"), ('/scratch/"x"', "'\"'")):
+            P.output_dir = folder
+            with self.assertRaisesRegex(SweepError, "the sweep folder .*" + why):
+                slurm.script_text(P, Path("/p.json"), 1, False, SlurmOptions())
+        # The shell lines quote their words: a checkout path with a blank stays one word.
+        P.output_dir = "/scratch/beam"
+        text = slurm.script_text(P, Path("/scratch/beam/slurm/plan 1.json"), 1, False,
+                                 SlurmOptions())
+        self.assertIn("--member-task '/scratch/beam/slurm/plan 1.json'", text)
+
+    def test_command_line_values(self):
+        from sweep import cli
+        sweep_file = write(self.tmp.name, "s.toml", SWEEP)
+        out = Path(self.tmp.name) / "out"
+        for extra, part in ((["--partition", "debug\ntouch /tmp/x"], "--partition: is"),
+                            (["--mem", "8G;id"], "--mem: is"),
+                            (["--sbatch-option=--exclusive\nid"],
+                             "[slurm] options or --sbatch-option"),
+                            (["--output-dir", str(out) + "\nid"], "--output-dir")):
+            args = [str(sweep_file), "--slurm", "--no-check", "--demfem-run", "/bin/true",
+                    "--output-dir", str(out)] + extra
+            err = _stderr_of(cli.main, args)
+            self.assertEqual(err[0], 2, err[1])
+            self.assertIn(part, err[1])
+            self.assertFalse(out.exists(), "something was written before the refusal")
+
+
+def _stderr_of(fn, *args):
+    import contextlib
+    import io
+    buf = io.StringIO()
+    with contextlib.redirect_stderr(buf), contextlib.redirect_stdout(io.StringIO()):
+        code = fn(*args)
+    return code, buf.getvalue()
+
+
+class MemberFolders(SweepFileCase):
+    """Issue 34, item 8: every folder a member writes stays inside its own folder."""
+
+    def plan(self, text=SWEEP):
+        return build_plan(self.read(text), Path(self.tmp.name) / "out", "/bin/true")
+
+    def test_checkpoint_directory(self):
+        for d in ("../../../x", "a/../../x", ".."):
+            write(self.tmp.name, "scene.toml", SCENE + f'directory = "{d}"\n')
+            with self.assertRaisesRegex(SweepError, "checkpoint.directory' of member s00_r00 is "
+                                        f"'{re.escape(d)}'.*inside the member's folder"):
+                self.plan()
+        write(self.tmp.name, "scene.toml", SCENE + 'directory = "a/../ck"\n')
+        self.assertEqual(self.plan().members[0].checkpoints, "a/../ck")  # stays inside
+        write(self.tmp.name, "scene.toml", SCENE)
+        text = SWEEP.replace('"dem.insert[0].mass" = [10.0, 20.0]',
+                             '"dem.insert[0].mass" = [10.0, 20.0]\n'
+                             '"checkpoint.directory" = ["ck", "../ck"]')
+        with self.assertRaisesRegex(SweepError, r"member s03_r00 is '../ck' \(from the sweep's "
+                                    r"--set checkpoint.directory=\"../ck\"\)"):
+            self.plan(text)
+
+    def test_output_dir_is_the_sweeps(self):
+        self.refused(SWEEP.replace('"dem.pairs[0].friction" = [0.1, 0.2, 0.3]',
+                                   '"run.output_dir" = ["a", "b"]'),
+                     "key 'parameter[1].keys.\"run.output_dir\"'", "set by the sweep itself")
+        self.refused(SWEEP.replace("first_seed = 5", 'key = "run.output_dir"'),
+                     "key 'repetitions.key'", "set by the sweep itself")
+
+    def test_prepared_beds(self):
+        write(self.tmp.name, "bed1.toml", '[run]\nend_time = 1.0\noutput_dir = "/tmp/beds"\n')
+        write(self.tmp.name, "bed2.toml", '[run]\nend_time = 1.0\n[dem.load]\nscene = '
+              '"bed1.toml"\n')
+        load = '[dem.load]\nscene = "bed2.toml"\npass = ["run.seed"]\n'
+        write(self.tmp.name, "scene.toml", SCENE.replace("[[dem.pairs]]", load + "[[dem.pairs]]"))
+        with self.assertRaisesRegex(SweepError, "member s00_r00 prepares its bed with bed2.toml"
+                                    ".*bed1.toml: key 'run.output_dir' is '/tmp/beds', outside"):
+            self.plan()
+        write(self.tmp.name, "bed1.toml", '[run]\nend_time = 1.0\n')
+        self.assertEqual(len(self.plan().members), 12)
+        write(self.tmp.name, "scene.toml", SCENE.replace(
+            "[[dem.pairs]]", load + "set = ['run.output_dir=\"../../beds\"']\n[[dem.pairs]]"))
+        with self.assertRaisesRegex(SweepError, "set \"run.output_dir=...\" of .*bed2.toml is "
+                                    "'../../beds', outside"):
+            self.plan()
+
+
+class MemberCount(SweepFileCase):
+    """Issue 34, item 9: a cap on the members, and progress while planning a large sweep."""
+
+    def big(self, n_a, n_b, extra=""):
+        return (SWEEP.replace("[10.0, 20.0]", repr([10.0 + i for i in range(n_a)]))
+                .replace("[0.1, 0.2, 0.3]", repr([0.1 + i * 1e-3 for i in range(n_b)])) + extra)
+
+    def test_cap(self):
+        spec = self.read(self.big(1000, 1000))   # 10^6 settings x 2 repetitions
+        with self.assertRaisesRegex(SweepError, r"2000000 members \(1000 \(mass\) x 1000 "
+                                    r"\(dem.pairs\[0\].friction\) x 2 repetition\(s\)\), more "
+                                    r"than execution.max_members = 10000"):
+            build_plan(spec, Path(self.tmp.name) / "out", "/bin/true")
+        self.refused(SWEEP + "[execution]\nmax_members = 1000001\n",
+                     "key 'execution.max_members'", "[1, 1000000]")
+        spec = self.read(SWEEP + "[execution]\nmax_members = 11\n")
+        with self.assertRaisesRegex(SweepError, "12 members"):
+            build_plan(spec, Path(self.tmp.name) / "out", "/bin/true")
+        spec = self.read(SWEEP + "[execution]\nmax_members = 12\n")
+        self.assertEqual(len(build_plan(spec, Path(self.tmp.name) / "out", "/bin/true")
+                             .members), 12)
+
+    def test_progress(self):
+        spec = self.read(self.big(100, 100, "[execution]\nmax_members = 20000\n"))
+        seen = []
+        plan = build_plan(spec, Path(self.tmp.name) / "out", "/bin/true",
+                          progress=lambda done, total: seen.append((done, total)))
+        self.assertEqual(seen, [(10000, 20000), (20000, 20000)])
+        self.assertEqual(plan.members[-1].id, "s9999_r01")
+        self.assertEqual(plan.members[-1].overrides[-2:], ["run.seed=6", "dem.threads=1"])
+
+    def test_progress_of_the_check(self):
+        import contextlib
+        import io
+        from sweep import cli
+        plan = build_plan(self.read(self.big(5, 50)), Path(self.tmp.name) / "out", "/bin/true")
+        buf = io.StringIO()
+        with contextlib.redirect_stdout(buf):
+            cli.check_settings(plan, plan.members)  # /bin/true accepts every setting
+        self.assertEqual(buf.getvalue().splitlines(), ["sweep t: checked 100 of 250 settings",
+                                                       "sweep t: checked 200 of 250 settings"])
 
 
 class Extraction(unittest.TestCase):
@@ -311,6 +515,51 @@ class Slurm(unittest.TestCase):
         h.forward(signal.SIGUSR2, True)
         self.assertEqual(h.proc.wait(timeout=10), -signal.SIGUSR2)
         self.assertTrue(h.stop.is_set())
+
+
+# Run in a child process by SignalWhileStarting: a signal that reaches a Slurm task's handler
+# (cli.member_task) while its main thread starts demfem_run.
+_START_RACE = r"""
+import os, signal, subprocess, sys, types
+sys.path.insert(0, sys.argv[1])
+from sweep import member
+folder, sig = sys.argv[2], getattr(signal, sys.argv[3])
+h = member.Handle()
+signal.signal(sig, lambda s, f: h.forward(signal.SIGUSR2, True))
+real = subprocess.Popen
+def popen(*a, **kw):
+    os.kill(os.getpid(), sig)  # the handler runs now, inside Handle.start, under its lock
+    return real(*a, **kw)
+subprocess.Popen = popen
+stand_in = os.path.join(folder, "demfem_run")
+with open(stand_in, "w") as f:
+    f.write("#!/bin/sh\nexec sleep 60\n")
+os.chmod(stand_in, 0o755)
+plan = types.SimpleNamespace(demfem_run=stand_in, scene="s.toml", args=[], timeout=0)
+m = types.SimpleNamespace(folder=folder, overrides=[], threads=1)
+code, _, _ = member._attempt(plan, m, False, os.path.join(folder, "a.log"), h, None)
+print(code, h.stop.is_set())
+"""
+
+
+class SignalWhileStarting(unittest.TestCase):
+    """Issue 34, item 16: a Slurm task that got SIGUSR2 (or scancel's SIGTERM) while starting
+    demfem_run deadlocked in its own signal handler (a non-re-entrant lock taken twice by the
+    main thread) and hung until Slurm killed it; under load the window is wide. Now the
+    signal is kept and sent to demfem_run as soon as it runs."""
+
+    def test_signal_during_popen(self):
+        tools = str(Path(__file__).resolve().parents[2] / "tools")
+        for sig in ("SIGUSR2", "SIGTERM"):
+            with tempfile.TemporaryDirectory() as d:
+                try:
+                    r = subprocess.run([sys.executable, "-c", _START_RACE, tools, d, sig],
+                                       capture_output=True, text=True, timeout=120)
+                except subprocess.TimeoutExpired:
+                    self.fail(f"{sig} while starting demfem_run: the task hangs (deadlock)")
+                self.assertEqual(r.returncode, 0, r.stderr)
+                # The stand-in got the forwarded SIGUSR2 at once (not its 60 s sleep's end).
+                self.assertEqual(r.stdout.split(), [str(128 + signal.SIGUSR2), "True"])
 
 
 if __name__ == "__main__":

@@ -15,6 +15,7 @@ from sweep.member import Handle, describe_exit, run_member
 from sweep.plan import build_plan, check_identity, load_plan, save_plan
 from sweep.pool import LocalPool, machine_cpus, machine_gpus
 from sweep.progress import Reporter, eta_seconds, line
+from sweep.safe_text import control_character
 from sweep.sweep_file import EXIT_BAD_INPUT, SlurmOptions, SweepError, read_sweep_file
 
 EXIT_FAILED = 1
@@ -118,12 +119,19 @@ def run(args):
         raise SweepError("--poll must be > 0 and --progress-interval >= 0 (seconds)")
     if args.wait and not args.slurm:
         raise SweepError("--wait goes with --slurm (a local run always waits)")
+    if args.output_dir and control_character(args.output_dir):
+        raise SweepError(f"--output-dir {args.output_dir!r} "
+                         f"{control_character(args.output_dir)}: not accepted in a folder name")
     out = Path(args.output_dir) if args.output_dir else spec.output_dir
     exe = Path(args.demfem_run) if args.demfem_run else default_demfem_run()
     exe = Path(os.path.abspath(exe))
-    plan = build_plan(spec, out, exe)
+    plan = build_plan(spec, out, exe, progress=lambda done, total: print(
+        f"sweep {spec.name}: planned {done} of {total} members", flush=True))
     if args.max_retries is not None:
         plan.max_retries = args.max_retries
+    if args.slurm:  # before anything is written: the values go into the job scripts
+        args.slurm_options = slurm_options(args, spec)
+        slurm.check_folder(plan)
 
     if args.status or args.collect:
         states = status.gather(plan)
@@ -185,10 +193,13 @@ def check_settings(plan, todo):
     """demfem_run --check of one member per setting: a bad parameter value is found before
     any member starts, with the scene reader's own message (naming the --set)."""
     seen = set()
+    total = len({m.setting for m in todo})
     for m in todo:
         if m.setting in seen:
             continue
         seen.add(m.setting)
+        if len(seen) % 100 == 0:  # tens of ms each: a large grid takes a while
+            print(f"sweep {plan.name}: checked {len(seen)} of {total} settings", flush=True)
         cmd = [plan.demfem_run, plan.scene, "--check"]
         for o in m.overrides:
             cmd += ["--set", o]
@@ -252,7 +263,7 @@ def finish_report(plan, states):
 
 def slurm_options(args, spec):
     s = spec.slurm
-    return SlurmOptions(
+    opt = SlurmOptions(
         partition=args.partition if args.partition is not None else s.partition,
         time=args.time if args.time is not None else s.time,
         account=args.account if args.account is not None else s.account,
@@ -262,9 +273,17 @@ def slurm_options(args, spec):
                         else s.max_concurrent),
         options=list(s.options) + list(args.sbatch_option))
 
+    def source(name):
+        if name == "options":
+            return "[slurm] options or --sbatch-option"
+        cli = getattr(args, name) is not None
+        return f"--{name}" if cli else f"{spec.file}: [slurm] {name}"
+    slurm.check_options(opt, source)
+    return opt
+
 
 def run_slurm(args, spec, plan, todo):
-    opt = slurm_options(args, spec)
+    opt = args.slurm_options
     if todo:
         slurm.submit(plan, todo, opt)
     else:

@@ -62,13 +62,35 @@ def describe_exit(code):
     return f"exit {code}"
 
 
+class _Flag:
+    """A flag that a signal handler may set: threading.Event.set() takes a lock, which a
+    second signal's handler, landing inside the first, would wait for forever."""
+
+    def __init__(self):
+        self._set = False
+
+    def set(self):
+        self._set = True
+
+    def is_set(self):
+        return self._set
+
+
 class Handle:
-    """Lets another thread stop a member's running attempt."""
+    """Lets another thread, or a signal handler, stop a member's running attempt.
+
+    A Slurm task (cli.member_task) forwards signals from a handler that runs in the main
+    thread, the thread that also starts demfem_run under the lock: a plain Lock would
+    deadlock there when the signal lands while Popen runs (the task then hangs until Slurm
+    kills it, issue 34 item 16). So the lock is re-entrant, and a signal that comes while the
+    process is being started is kept and sent to it as soon as it exists (started())."""
 
     def __init__(self):
         self.proc = None
-        self.stop = threading.Event()
-        self._lock = threading.Lock()
+        self.stop = _Flag()
+        self._lock = threading.RLock()
+        self._starting = False
+        self._pending = []
 
     def interrupt(self, sig=signal.SIGINT):
         self.forward(sig, True)
@@ -80,11 +102,32 @@ class Handle:
         if stop:
             self.stop.set()
         with self._lock:
-            if self.proc is not None and self.proc.poll() is None:
+            if self._starting:
+                self._pending.append(sig)  # a handler inside start(): sent once it runs
+            elif self.proc is not None and self.proc.poll() is None:
                 try:
                     os.kill(self.proc.pid, sig)
                 except ProcessLookupError:
                     pass
+
+    def start(self, cmd, **kw):
+        """Popen(cmd) unless a stop was asked for (returns None then); signals forwarded
+        meanwhile reach the new process."""
+        with self._lock:
+            if self.stop.is_set():
+                return None
+            self._starting, self._pending = True, []
+            try:
+                self.proc = subprocess.Popen(cmd, **kw)
+            finally:
+                self._starting = False
+            for sig in self._pending:
+                try:
+                    os.kill(self.proc.pid, sig)
+                except ProcessLookupError:
+                    pass
+            self._pending = []
+            return self.proc
 
     def kill(self):
         with self._lock:
@@ -194,20 +237,17 @@ def _attempt(plan, member, resume, log_path, handle, env):
     with open(log_path, "w") as out:
         out.write("$ " + " ".join(_command(plan, member, resume)) + "\n")
         out.flush()
-        with handle._lock:
-            if handle.stop.is_set():
-                return 128 + signal.SIGINT, start, 0.0
-            # Its own session: a Ctrl-C in the sweep's terminal reaches the sweep only, which
-            # stops the members itself (SIGINT to demfem_run, which stops its solvers).
-            try:
-                handle.proc = subprocess.Popen(_command(plan, member, resume),
-                                               cwd=member.folder, stdout=out,
-                                               stderr=subprocess.STDOUT, env=full_env,
-                                               start_new_session=True)
-            except OSError as e:
-                out.write(f"demfem sweep: cannot start {plan.demfem_run}: {e.strerror}\n")
-                return EXIT_NOT_STARTED, start, 0.0
-        proc = handle.proc
+        # Its own session: a Ctrl-C in the sweep's terminal reaches the sweep only, which
+        # stops the members itself (SIGINT to demfem_run, which stops its solvers).
+        try:
+            proc = handle.start(_command(plan, member, resume), cwd=member.folder, stdout=out,
+                                stderr=subprocess.STDOUT, env=full_env,
+                                start_new_session=True)
+        except OSError as e:
+            out.write(f"demfem sweep: cannot start {plan.demfem_run}: {e.strerror}\n")
+            return EXIT_NOT_STARTED, start, 0.0
+        if proc is None:
+            return 128 + signal.SIGINT, start, 0.0
         timeout = plan.timeout if plan.timeout > 0 else None
         try:
             code = proc.wait(timeout=timeout)

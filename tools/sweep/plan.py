@@ -6,12 +6,13 @@ import copy
 import hashlib
 import itertools
 import os
+import tomllib
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from sweep import scene_keys
 from sweep.records import IDENTITY_FILE, read_json, write_json_atomic
-from sweep.sweep_file import SweepError
+from sweep.sweep_file import MAX_MEMBERS_LIMIT, SweepError, read_text
 
 
 @dataclass
@@ -54,17 +55,109 @@ class Plan:
         return Plan(**d)
 
 
+def member_count(spec):
+    n = spec.repetitions.count
+    for p in spec.parameters:
+        n *= p.count
+    return n
+
+
+def too_many_members(spec, total):
+    axes = " x ".join(f"{p.count} ({p.name})" for p in spec.parameters) or "1 setting"
+    return (f"{spec.file}: the sweep has {total} members ({axes} x {spec.repetitions.count} "
+            f"repetition(s)), more than execution.max_members = {spec.execution.max_members}. "
+            "Every member is a folder with its own run, logs and records, and the plan lists "
+            "them all (docs/sweeps.md, \"How many members\"): split the study into several "
+            "sweeps, or raise [execution] max_members (at most "
+            f"{MAX_MEMBERS_LIMIT}) if this is meant")
+
+
+def _escapes(path_text):
+    """Whether a folder, relative to the member's folder, lies outside it."""
+    norm = os.path.normpath(path_text)
+    return os.path.isabs(path_text) or norm == ".." or norm.startswith("../")
+
+
+def _set_value(sets, key):
+    """The value that a [dem.load] set entry "KEY=VALUE" gives `key`, or None."""
+    for entry in sets if isinstance(sets, list) else []:
+        if isinstance(entry, str) and "=" in entry and entry.split("=", 1)[0].strip() == key:
+            try:
+                return tomllib.loads("v = " + entry.split("=", 1)[1])["v"]
+            except tomllib.TOMLDecodeError:
+                return None  # demfem_run --check names it
+    return None
+
+
+def _prepare_problem(path, sets, depth=0):
+    """Where the prepare scene at `path` (a [dem.load] scene, with its `set` overrides), or one
+    it prepares in turn, writes its state outside the folder the run starts in: None when
+    nowhere. An unreadable scene is left to demfem_run --check, which names it."""
+    try:
+        data = tomllib.loads(read_text(path, "a scene file (TOML)"))
+    except (SweepError, tomllib.TOMLDecodeError):
+        return None
+    run = data.get("run") if isinstance(data.get("run"), dict) else {}
+    out = _set_value(sets, "run.output_dir")
+    where = f"its [dem.load] set \"run.output_dir=...\" of {path}"
+    if out is None:
+        out = run.get("output_dir", "out")
+        where = f"{path}: key 'run.output_dir'"
+    if isinstance(out, str) and _escapes(out):
+        return (f"{where} is {out!r}, outside the member's folder (a prepare scene's "
+                "run.output_dir is relative to the folder the run starts in, the member's): "
+                "members would write the same bed folder. Give it a relative folder without "
+                "'..' (the default is out/<run.name>)")
+    load = data.get("dem", {}).get("load") if isinstance(data.get("dem"), dict) else None
+    if isinstance(load, dict) and isinstance(load.get("scene"), str) and depth < 16:
+        return _prepare_problem(Path(path).parent / load["scene"], load.get("set", []),
+                                depth + 1)
+    return None
+
+
+def member_paths(spec, scene, mid, overrides, cache):
+    """Checks that every folder the member writes lies inside its own folder (its scene with
+    its overrides: checkpoint.directory, the output folders of the beds that [dem.load]
+    prepares); returns the checkpoint folder relative to the member folder ("" = none)."""
+    checkpoints = ""
+    if isinstance(scene.get("checkpoint"), dict):
+        checkpoints = scene_keys.get(scene, "checkpoint.directory", "checkpoints")
+        if not isinstance(checkpoints, str) or _escapes(checkpoints):
+            set_by = [o for o in overrides if o.startswith("checkpoint")]
+            raise SweepError(
+                f"{spec.scene}: key 'checkpoint.directory' of member {mid} is {checkpoints!r}"
+                + (f" (from the sweep's --set {' '.join(set_by)})" if set_by else "") +
+                ": a sweep needs a relative path inside the member's folder (no '..' out of "
+                "it), so that every member has its own checkpoints")
+    dem = scene.get("dem")
+    load = dem.get("load") if isinstance(dem, dict) else None
+    if isinstance(load, dict) and isinstance(load.get("scene"), str):
+        sets = load.get("set", [])
+        key = (load["scene"], repr(sets))
+        if key not in cache:
+            cache[key] = _prepare_problem(spec.scene.parent / load["scene"], sets)
+        if cache[key]:
+            raise SweepError(f"member {mid} prepares its bed with {load['scene']}: {cache[key]}")
+    return checkpoints
+
+
 def _width(n):
     return max(2, len(str(max(n - 1, 0))))
 
 
-def build_plan(spec, output_dir, demfem_run):
+def build_plan(spec, output_dir, demfem_run, progress=None):
+    """The members in order. `progress(done, total)`, when given, is called every 10^4
+    members (a large plan takes seconds)."""
+    total = member_count(spec)
+    if total > spec.execution.max_members:
+        raise SweepError(too_many_members(spec, total))
     scene_bytes = spec.scene.read_bytes()
     axes = [range(p.count) for p in spec.parameters]
-    settings = list(itertools.product(*axes)) if axes else [()]
-    ws, wr = _width(len(settings)), _width(spec.repetitions.count)
+    settings = itertools.product(*axes) if axes else [()]
+    ws, wr = _width(total // spec.repetitions.count), _width(spec.repetitions.count)
     out = Path(os.path.abspath(output_dir))
     members = []
+    checked_paths = {}
     for si, combo in enumerate(settings):
         base = []
         values = {}
@@ -72,36 +165,34 @@ def build_plan(spec, output_dir, demfem_run):
             for k, vals in zip(p.keys, p.values):
                 base.append((k, vals[vi]))
             values[p.name] = p.values[0][vi]
+        # One copy per setting: a repetition sets the same key each time (its seed), so the
+        # copy is reused and only that key is written again.
+        scene = copy.deepcopy(spec.scene_data)
+        for k, v in base:
+            scene_keys.assign(scene, k, v)  # checked when the file was read
+        base_text = [f"{k}={scene_keys.toml_value(v)}" for k, v in base]
         for ri, seed in enumerate(spec.repetitions.seeds):
-            sets = base + [(spec.repetitions.key, seed)]
-            scene = copy.deepcopy(spec.scene_data)
-            for k, v in sets:
-                scene_keys.assign(scene, k, v)  # checked when the file was read
+            scene_keys.assign(scene, spec.repetitions.key, seed)
+            overrides = base_text + [f"{spec.repetitions.key}={scene_keys.toml_value(seed)}"]
+            mid = f"s{si:0{ws}d}_r{ri:0{wr}d}"
             has_dem = isinstance(scene.get("dem"), dict)
             threads = scene_keys.get(scene, "dem.threads", 0) if has_dem else 0
             if not isinstance(threads, int) or isinstance(threads, bool) or threads < 0:
-                raise SweepError(f"{spec.scene}: dem.threads of member s{si}_r{ri} is "
+                raise SweepError(f"{spec.scene}: dem.threads of member {mid} is "
                                  f"{threads!r}, not an integer >= 0")
             if threads == 0:
                 # 0 would give every member all the cores: members get execution.threads.
                 threads = spec.execution.threads
                 if has_dem:
-                    sets.append(("dem.threads", threads))
+                    overrides.append(f"dem.threads={threads}")
             gpu = has_dem and scene_keys.get(scene, "dem.backend", "cpu") == "cuda"
-            checkpoints = ""
-            if isinstance(scene.get("checkpoint"), dict):
-                checkpoints = scene_keys.get(scene, "checkpoint.directory", "checkpoints")
-                if not isinstance(checkpoints, str) or Path(checkpoints).is_absolute():
-                    raise SweepError(
-                        f"{spec.scene}: key 'checkpoint.directory' is {checkpoints!r}: a sweep "
-                        "needs a path relative to the output folder, so that every member "
-                        "has its own checkpoints")
-            mid = f"s{si:0{ws}d}_r{ri:0{wr}d}"
+            checkpoints = member_paths(spec, scene, mid, overrides, checked_paths)
             members.append(Member(
                 index=len(members), id=mid, setting=si, repetition=ri, seed=seed,
-                values=values, overrides=[f"{k}={scene_keys.toml_value(v)}" for k, v in sets],
-                threads=threads, gpu=gpu, checkpoints=checkpoints,
-                folder=str(out / "members" / mid)))
+                values=values, overrides=overrides, threads=threads, gpu=gpu,
+                checkpoints=checkpoints, folder=str(out / "members" / mid)))
+            if progress and len(members) % 10000 == 0:
+                progress(len(members), total)
     return Plan(
         name=spec.name, sweep_file=str(Path(os.path.abspath(spec.file))), scene=str(spec.scene),
         scene_sha256=hashlib.sha256(scene_bytes).hexdigest(), output_dir=str(out),

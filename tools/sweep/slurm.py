@@ -14,6 +14,8 @@ from pathlib import Path
 
 from sweep import records
 from sweep.plan import save_plan
+from sweep.safe_text import (SLURM_VALUE_RULES, sbatch_option_problem, script_path_problem,
+                             slurm_value_problem)
 from sweep.sweep_file import SweepError
 
 JOBS_FILE = "jobs.json"
@@ -53,8 +55,36 @@ def load_jobs(plan):
     return rec.get("jobs", []) if rec else []
 
 
+def check_options(opt, source):
+    """Refuses a value that the sbatch script cannot carry as it is (safe_text); `source(name)`
+    names where it came from (the sweep file's key or the command line's option)."""
+    for name in SLURM_VALUE_RULES:
+        bad = slurm_value_problem(name, getattr(opt, name))
+        if bad:
+            raise SweepError(f"{source(name)}: {bad}")
+    for o in opt.options:
+        bad = sbatch_option_problem(o)
+        if bad:
+            raise SweepError(f"{source('options')}: {bad}")
+
+
+def check_folder(plan):
+    """The sweep folder and name go into #SBATCH lines (--chdir, --output, --job-name)."""
+    bad = script_path_problem(plan.output_dir)
+    if bad:
+        raise SweepError(f"the sweep folder {plan.output_dir!r} {bad}; --slurm needs a folder "
+                         "without them (sweep.output_dir or --output-dir)")
+    if not re.fullmatch(r"[A-Za-z0-9_.-]+", plan.name):
+        raise SweepError(f"the sweep name {plan.name!r} is not letters, digits and _.-")
+
+
 def script_text(plan, plan_path, threads, gpu, opt):
-    """The sbatch script of one array; `opt` is a sweep_file.SlurmOptions."""
+    """The sbatch script of one array; `opt` is a sweep_file.SlurmOptions. Every value is
+    checked again here (the sweep file's reader and the command line check them first, with
+    the key or option named): the #SBATCH lines are read by sbatch, the others by bash, and a
+    newline in any value would be a command of its own."""
+    check_options(opt, lambda name: f"[slurm] {name}")
+    check_folder(plan)
     d = slurm_dir(plan)
     tools = Path(__file__).resolve().parent.parent
     lines = ["#!/bin/bash",

@@ -6,11 +6,13 @@ import copy
 import math
 import os
 import re
+import stat
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from sweep import scene_keys
+from sweep.safe_text import control_character, sbatch_option_problem, slurm_value_problem
 from sweep.toml_lines import key_lines
 
 EXIT_BAD_INPUT = 2
@@ -18,10 +20,44 @@ REQUIRED = object()
 _NAME = re.compile(r"[A-Za-z0-9_.-]+")
 _PARAMETER_NAME = re.compile(r"[A-Za-z0-9_.\[\]-]+")  # a scene key is a good default
 REDUCTIONS = ("final", "max", "min", "mean", "series")
+# Members of one sweep (settings x repetitions): execution.max_members, by default
+# MAX_MEMBERS_DEFAULT, at most MAX_MEMBERS_LIMIT (docs/sweeps.md, "How many members").
+MAX_MEMBERS_DEFAULT = 10000
+MAX_MEMBERS_LIMIT = 1000000
+# Keys the sweep sets for every member itself (--output-dir gives each its folder).
+SWEEP_OWN_KEYS = ("run.output_dir",)
 
 
 class SweepError(Exception):
     """Bad input (sweep file, scene, command line): exit status 2."""
+
+
+# The largest sweep file or scene read, as the C++ scene reader's io::kSceneFileLimit.
+FILE_LIMIT = 16 << 20
+
+
+def read_text(path, what):
+    """The UTF-8 text of the regular file `path` (at most FILE_LIMIT bytes); SweepError
+    naming the file and `what` it should be otherwise. A FIFO or a device is refused before
+    it is opened (a FIFO would block, /dev/zero never end)."""
+    try:
+        st = os.stat(path)
+    except OSError as e:
+        raise SweepError(f"{path}: cannot read {what} ({e.strerror})")
+    if not stat.S_ISREG(st.st_mode):
+        kind = "a directory" if stat.S_ISDIR(st.st_mode) else "not a regular file"
+        raise SweepError(f"{path}: is {kind}; expected {what}")
+    try:
+        with open(path, "rb") as f:
+            data = f.read(FILE_LIMIT + 1)
+    except OSError as e:
+        raise SweepError(f"{path}: cannot read {what} ({e.strerror})")
+    if len(data) > FILE_LIMIT:
+        raise SweepError(f"{path}: is larger than {FILE_LIMIT >> 20} MiB, the limit for {what}")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise SweepError(f"{path}: is not UTF-8 text (byte {e.start}); expected {what}")
 
 
 def _show(path):
@@ -45,7 +81,10 @@ class Table:
 
     def where(self, key=None):
         path = self.path + ((key,) if key is not None else ())
-        line = self.lines.get(path) or self.lines.get(self.path)
+        # The key's own line, else its nearest table's (a key inside an inline table or a
+        # multi-line array has no line of its own: the line where that value starts).
+        line = next((self.lines[path[:n]] for n in range(len(path), 0, -1)
+                     if path[:n] in self.lines), None)
         loc = f"{self.file}:{line}" if line else str(self.file)
         return f"{loc}: key '{_show(path)}'" if path else loc
 
@@ -98,6 +137,7 @@ class Table:
             return v
         if not isinstance(v, str):
             self.fail(key, f"must be a string, found {_type(v)}")
+        self._no_control(key, v)
         if not allow_empty and not v:
             self.fail(key, "must not be empty")
         if choices and v not in choices:
@@ -110,7 +150,17 @@ class Table:
             return v
         if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
             self.fail(key, f"must be an array of strings, found {_type(v)}")
+        for i, x in enumerate(v):
+            self._no_control(key, x, f"entry {i} ")
         return list(v)
+
+    def _no_control(self, key, text, which=""):
+        # Names, paths and options end up in file names, logs and job scripts, where a
+        # newline would start a new line (safe_text).
+        bad = control_character(text)
+        if bad:
+            self.fail(key, f"{which}{bad}: control characters are not accepted in the values "
+                      "of a sweep file (they are written into file names and job scripts)")
 
     def table(self, key):
         v, found = self._get(key, None)
@@ -188,6 +238,7 @@ class Execution:
     timeout: float = 0.0
     jobs: int = 0
     args: list = field(default_factory=list)
+    max_members: int = MAX_MEMBERS_DEFAULT
 
 
 @dataclass
@@ -228,10 +279,7 @@ def _scene_value_ok(v):
 def read_sweep_file(path):
     """Reads and checks a sweep file; raises SweepError (exit 2) naming file, line and key."""
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as e:
-        raise SweepError(f"{path}: cannot read the sweep file ({e.strerror})")
+    text = read_text(path, "a sweep file (TOML)")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
@@ -252,9 +300,9 @@ def read_sweep_file(path):
     output_dir = Path(sw.string("output_dir", str(Path("out") / "sweeps" / name)))
     sw.finish()
     try:
-        scene_data = tomllib.loads(scene.read_text())
-    except OSError as e:
-        sw.fail("scene", f"cannot read the scene {scene} ({e.strerror})")
+        scene_data = tomllib.loads(read_text(scene, "a scene file (TOML)"))
+    except SweepError as e:
+        sw.fail("scene", f"cannot read the scene: {e}")
     except tomllib.TOMLDecodeError as e:
         sw.fail("scene", f"the scene {scene} is not valid TOML: {e}")
 
@@ -278,6 +326,9 @@ def read_sweep_file(path):
                             "lengths)")
             if k in seen_keys:
                 keys_t.fail(k, f"is already set by {seen_keys[k]}")
+            if k in SWEEP_OWN_KEYS:
+                keys_t.fail(k, "is set by the sweep itself: every member writes into its own "
+                            "folder, <output_dir>/members/<member>")
             try:
                 probe = copy.deepcopy(scene_data)
                 scene_keys.assign(probe, k, v[0])
@@ -320,6 +371,8 @@ def read_sweep_file(path):
             seeds = [first + i for i in range(count)]
         if key in seen_keys:
             rt.fail("key", f"'{key}' is also a parameter ({seen_keys[key]})")
+        if key in SWEEP_OWN_KEYS:
+            rt.fail("key", f"'{key}' is set by the sweep itself (each member's own folder)")
         try:
             scene_keys.assign(copy.deepcopy(scene_data), key, seeds[0])
         except scene_keys.KeyError_ as e:
@@ -335,6 +388,7 @@ def read_sweep_file(path):
         ex.timeout = et.number("timeout", 0.0, 0.0)
         ex.jobs = et.integer("jobs", 0, 0, 100000)
         ex.args = et.strings("args", [])
+        ex.max_members = et.integer("max_members", MAX_MEMBERS_DEFAULT, 1, MAX_MEMBERS_LIMIT)
         for a in ex.args:
             if a in ("--output-dir", "--resume", "--set", "--check", "--bin-dir") or \
                     a.startswith(("--output-dir=", "--resume=", "--set=")):
@@ -344,19 +398,17 @@ def read_sweep_file(path):
     sl = SlurmOptions()
     st = root.table("slurm")
     if st is not None:
-        sl.partition = st.string("partition", "")
-        sl.time = st.string("time", "")
-        if sl.time and not re.fullmatch(r"(\d+-)?\d+(:\d+){0,2}", sl.time):
-            st.fail("time", f'is "{sl.time}", expected a Slurm time such as "30", "2:00:00" or '
-                    '"1-12:00:00"')
-        sl.account = st.string("account", "")
-        sl.qos = st.string("qos", "")
-        sl.mem = st.string("mem", "")
+        for k in ("partition", "time", "account", "qos", "mem"):
+            setattr(sl, k, st.string(k, ""))
+            bad = slurm_value_problem(k, getattr(sl, k))
+            if bad:
+                st.fail(k, bad)
         sl.max_concurrent = st.integer("max_concurrent", 0, 0, 1000000)
         sl.options = st.strings("options", [])
         for o in sl.options:
-            if not o.startswith("-"):
-                st.fail("options", f"'{o}' is not an sbatch option (they start with '-')")
+            bad = sbatch_option_problem(o)
+            if bad:
+                st.fail("options", bad)
         st.finish()
 
     quantities = []
