@@ -4,7 +4,13 @@
 // together with the particles. Same file rules as ParticleOutput: one HDF5 file per output
 // (<dir>/walls_NNNNNN.h5, written under a temporary name and renamed) and an XDMF 3 index
 // (<dir>/walls.xdmf) rewritten atomically after each, a temporal collection whose every time
-// is a spatial collection of one triangle grid per wall, named by the wall.
+// is a spatial collection of one triangle grid per wall, named by the wall. ParaView's default
+// reader (Xdmf3ReaderS) merges a spatial collection into unnamed pieces of one data set, so
+// each wall also has its own index, <dir>/walls_<name>.xdmf (the name with characters other
+// than letters, digits, '-', '_' and '.' replaced by '_'; a repeated name gets "_<w>"): opened
+// beside the others, each wall is a source of its own, shown, hidden or coloured by name.
+// Every triangle carries the cell field `wall` (the wall's index in the scene's order), so a
+// Threshold picks walls out of walls.xdmf too.
 
 #include <array>
 #include <cstdint>
@@ -44,18 +50,24 @@ class WallOutput {
   /// forgets later ones, rewrites the index.
   void resume(std::size_t keep);
   std::filesystem::path index_path() const;
+  /// The index of wall w alone (<dir>/<stem>_<name>.xdmf).
+  std::filesystem::path wall_index_path(std::size_t w) const;
   std::filesystem::path snapshot_path(std::size_t k) const;
 
  private:
   struct Entry {
     double time;
     std::vector<std::size_t> points;  ///< vertex count per wall
+    bool wall_field = true;           ///< has wall_<w>/wall (files before issue 34 do not)
   };
   void write_index() const;
+  /// The Uniform grid of wall w in snapshot k (empty when the wall has no triangles).
+  std::string wall_grid(std::size_t k, std::size_t w, const std::string& indent) const;
   std::filesystem::path dir_;
   std::string stem_;
   std::vector<Wall> walls_;
   std::vector<Entry> entries_;
+  std::vector<std::string> file_names_;  ///< per wall: its own index's file name
 };
 
 }  // namespace demfem::dem
