@@ -118,7 +118,7 @@ def main():
     # --- walls -------------------------------------------------------------------------------
     w = seen.get("walls.xdmf")
     if check(w is not None, "walls.xdmf not opened"):
-        check("wall" in w["cell_arrays"] and "force" in w["cell_arrays"],
+        check(all(n in w["cell_arrays"] for n in ("wall", "force", "sensor_force")),
               f"walls.xdmf: cell arrays {w['cell_arrays']}")
         indexes = sorted(set(v for q in w["leaves"] for v in q["cell"].get("wall", [])))
         check(indexes == [0, 1], f"walls.xdmf: wall indexes {indexes}, expected [0, 1]")

@@ -65,6 +65,8 @@ void WallOutput::write(std::span<const Pose> poses, double time, double state_ti
       std::vector<double> force(3 * t);
       for (std::size_t k = 0; k < force.size(); ++k) force[k] = poses[w].force[k % 3];
       f.write(g + "/force", std::span<const double>(force), {t, 3});
+      for (std::size_t k = 0; k < force.size(); ++k) force[k] = poses[w].sensor_force[k % 3];
+      f.write(g + "/sensor_force", std::span<const double>(force), {t, 3});
       const std::vector<std::int64_t> index(t, static_cast<std::int64_t>(w));
       f.write(g + "/wall", std::span<const std::int64_t>(index), {t});
       entry.points.push_back(n);
@@ -111,6 +113,8 @@ std::string WallOutput::wall_grid(std::size_t k, std::size_t w, const std::strin
     << indent << "  <Attribute Name=\"force\" AttributeType=\"Vector\" Center=\"Cell\">"
     << io::xdmf_hdf_item(t + " 3", "Float", g + "/force") << "</Attribute>\n";
   if (entries_[k].wall_field) {
+    x << indent << "  <Attribute Name=\"sensor_force\" AttributeType=\"Vector\" Center=\"Cell\">"
+      << io::xdmf_hdf_item(t + " 3", "Float", g + "/sensor_force") << "</Attribute>\n";
     x << indent << "  <Attribute Name=\"wall\" AttributeType=\"Scalar\" Center=\"Cell\">"
       << io::xdmf_hdf_item(t, "Int", g + "/wall") << "</Attribute>\n";
   }

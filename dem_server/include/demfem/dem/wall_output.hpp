@@ -29,20 +29,23 @@ class WallOutput {
     std::string name;
     std::vector<std::int32_t> triangles;
   };
-  /// What a snapshot holds of one wall: its vertex positions now (3 per vertex, m) and the
-  /// particles' total force on it (N).
+  /// What a snapshot holds of one wall: its vertex positions now (3 per vertex, m), the
+  /// particles' total force on it (N) and the force that a wall_force sensor of it reads (N:
+  /// with `face`, that face's only, e.g. a pressure cell's top; else the total force).
   struct Pose {
     std::span<const double> vertices;
     std::array<double, 3> force{};
+    std::array<double, 3> sensor_force{};
   };
 
   WallOutput(std::filesystem::path dir, std::vector<Wall> walls, std::string stem = "walls");
 
   /// Writes one snapshot labelled `time` of the state at `state_time` (NaN: = time); `poses`
   /// has one entry per wall, in the order of the constructor's. File k holds per wall w the
-  /// group wall_<w> with datasets points (n x 3), triangles (t x 3, int64) and force (t x 3:
-  /// the wall's total force, repeated on each of its triangles so ParaView colours by it) and
-  /// the attribute name; on "/" the attributes time, state_time and walls.
+  /// group wall_<w> with datasets points (n x 3), triangles (t x 3, int64), force and
+  /// sensor_force (t x 3: the wall's total force and its sensor's, repeated on each of its
+  /// triangles so ParaView colours by them) and wall (t, int64: w), and the attribute name; on
+  /// "/" the attributes time, state_time and walls.
   void write(std::span<const Pose> poses, double time,
              double state_time = std::numeric_limits<double>::quiet_NaN());
   std::size_t count() const { return entries_.size(); }
@@ -58,7 +61,7 @@ class WallOutput {
   struct Entry {
     double time;
     std::vector<std::size_t> points;  ///< vertex count per wall
-    bool wall_field = true;           ///< has wall_<w>/wall (files before issue 34 do not)
+    bool wall_field = true;  ///< has wall_<w>/wall and sensor_force (files before issue 34 do not)
   };
   void write_index() const;
   /// The Uniform grid of wall w in snapshot k (empty when the wall has no triangles).
