@@ -285,6 +285,36 @@ Passage local_search(const SquareFit& f, Passage start, double last_step, std::u
   return cur;
 }
 
+/// The indices of unit vectors sorted along a Morton curve over their octahedral map.
+std::vector<std::size_t> curve_order(const std::vector<Vec3>& normals) {
+  auto spread = [](std::uint64_t v) {  // 16 bits to the even bits of 32
+    v &= 0xffff;
+    v = (v | (v << 8)) & 0x00ff00ff;
+    v = (v | (v << 4)) & 0x0f0f0f0f;
+    v = (v | (v << 2)) & 0x33333333;
+    return (v | (v << 1)) & 0x55555555;
+  };
+  std::vector<std::pair<std::uint64_t, std::size_t>> keyed;
+  for (std::size_t t = 0; t < normals.size(); ++t) {
+    const Vec3& n = normals[t];
+    const double l1 = std::abs(n[0]) + std::abs(n[1]) + std::abs(n[2]);
+    double x = n[0] / l1, y = n[1] / l1;
+    if (n[2] < 0) {
+      const double xf = (1.0 - std::abs(y)) * (x < 0 ? -1.0 : 1.0);
+      y = (1.0 - std::abs(x)) * (y < 0 ? -1.0 : 1.0);
+      x = xf;
+    }
+    const auto q = [](double c) {
+      return std::uint64_t(std::clamp((c + 1.0) * 32767.5, 0.0, 65535.0));
+    };
+    keyed.emplace_back(spread(q(x)) | (spread(q(y)) << 1), t);
+  }
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<std::size_t> order;
+  for (const auto& [key, t] : keyed) order.push_back(t);
+  return order;
+}
+
 /// The candidate passages in their order (the Fibonacci directions, the face normals, the
 /// principal axes), sorted by side (stably): only the first `starts` are used, so a face
 /// normal that cannot be among them is not evaluated (side +inf). The objective is Lipschitz:
@@ -328,7 +358,12 @@ std::vector<Passage> candidate_passages(const ConvexPolyhedron& core, const Squa
   for (const Vec3& v : core.vertices())
     rho = std::max(rho, (detail::to_eigen(v) - box.center()).norm());
   const double slope = 2.0 * rho, margin = 1e-9 * rho;
-  for (std::size_t t = 0; t < nf; ++t) {
+  // Evaluated in the order of a space-filling curve over the normals (each result goes to its
+  // own slot, so the order changes nothing but the cost): the next direction's silhouette band
+  // is near the last one's, its vertices in cache and the climb to it short.
+  const std::vector<std::size_t> order = curve_order(core.normals());
+  for (std::size_t step = 0; step < nf; ++step) {
+    const std::size_t t = order[step];
     const Vector3d u = detail::to_eigen(core.normals()[t]);
     const double bar =
         best.size() < starts || !search.skip_hopeless_normals ? INFINITY : best.top();
@@ -339,8 +374,8 @@ std::vector<Passage> candidate_passages(const ConvexPolyhedron& core, const Squa
     }
     out[std::size_t(nd) + t] = skip ? Passage{INFINITY, Eigen::Matrix3d::Identity()} : f(u);
     if (!skip) keep(out[std::size_t(nd) + t].side);
-    if (search.progress && (t + 1) % 4096 == 0)
-      search.progress("candidates", t + 1, nf, f.evaluations());
+    if (search.progress && (step + 1) % 4096 == 0)
+      search.progress("candidates", step + 1, nf, f.evaluations());
   }
   if (search.progress) search.progress("candidates", nf, nf, f.evaluations());
   std::stable_sort(out.begin(), out.end(),
