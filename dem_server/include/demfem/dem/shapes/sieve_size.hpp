@@ -37,9 +37,11 @@
 // projects only the silhouette band (the vertices whose faces face both ways, ~sqrt(V) of
 // them); and a face normal is skipped when the objective's Lipschitz bound
 // (|f(u) - f(u')| <= 2 rho |u - u'|) shows it cannot be among the local searches' starts.
-// Measured (bench/shape_library --large, 2-core VM shared with builds): 10^4 vertices on an
-// ellipsoid 5 : 3.5 : 2 in 0.8-0.9 s (exhaustive 42 s), 10^5 in 4.3 s. A near-sphere skips no
-// normal (its objective is flat): 7 s at 10^4, 45 s at 3*10^4, 5.5 min at 10^5; `progress`
+// The normals are evaluated along a space-filling curve (neighbouring bands: short climbs,
+// warm caches). Measured (bench/shape_library --large, 2-core VM under a load of 4-6 from other
+// builds): 10^4 vertices on an ellipsoid 5 : 3.5 : 2 in 0.9 s (the exhaustive search 26 s),
+// 10^5 in 3.0 s (+ 1.0 s for the hull). A sphere is the worst case (its objective is flat: no
+// normal is skipped): 1.7 s at 10^4 (exhaustive 24 s), 10 s at 3*10^4, 83 s at 10^5; `progress`
 // reports the stages (dem_server prints them for STL hulls of 2000 vertices and more).
 
 #include <cstddef>
