@@ -31,6 +31,7 @@
 #include "bench_report.hpp"
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/dem/insertion.hpp"
+#include "demfem/dem/omp_wait.hpp"
 #include "demfem/io/h5_file.hpp"
 
 using namespace demfem::dem;
@@ -210,6 +211,7 @@ Result measure(const Bed& bed, const std::filesystem::path& state, int threads,
 }  // namespace
 
 int main(int argc, char** argv) {
+  demfem::dem::ensure_omp_wait_policy(argv);  // first: it may re-execute the program
   CLI::App app{"DEM throughput (particle-steps per second) of a settled bed"};
   std::size_t max_particles = 1000000;
   double settle_time = 0.02;

@@ -42,6 +42,7 @@
 #include "bench_report.hpp"
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/dem/insertion.hpp"
+#include "demfem/dem/omp_wait.hpp"
 #include "demfem/dem/shapes/shape_library.hpp"
 #include "demfem/io/h5_file.hpp"
 
@@ -223,6 +224,7 @@ Bed tiled_bed(const Bed& base, const shapes::ShapeLibrary* lib,
 }  // namespace
 
 int main(int argc, char** argv) {
+  demfem::dem::ensure_omp_wait_policy(argv);  // first: it may re-execute the program
   CLI::App app{"Polyhedron throughput (polyhedron-steps per second) of settled ballast beds"};
   std::vector<std::size_t> counts = {1000, 10000, 100000};
   std::vector<int> triangles = {10, 30, 40};

@@ -6,17 +6,26 @@
 // Variants are interleaved over the repeats (a shared, noisy machine); the table gives the
 // best and the median wall time.
 //
+// Large cores (--large, e.g. 1000,10000,100000 vertices on an ellipsoid 5 : 3.5 : 2 and on a
+// sphere, all on the hull: a finely scanned rock, and the worst case of the search): the time
+// of the hull, of the mass properties and of the sieve size, and the sieve size against the
+// exhaustive reference (up to --large-reference vertices: it costs O(V^2 log V)).
+//
 //   build/bench/shape_library [--count 1000] [--repeats 3] [--hulls 200] [--json out.json]
+//                             [--large 10000 --large-only]
 
 #include <omp.h>
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
+#include <climits>
+#include <cmath>
 #include <cstdio>
 #include <ctime>
 #include <functional>
 #include <map>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -55,6 +64,43 @@ Summary summarise(const std::vector<Timing>& t) {
   return {it->wall, n % 2 ? w[n / 2] : 0.5 * (w[n / 2 - 1] + w[n / 2]), it->cpu};
 }
 
+/// Setup cost of cores of many vertices (hull, mass properties, sieve size) and the sieve size
+/// against the every-vertex reference.
+void large_cores(const std::vector<std::size_t>& counts, std::size_t reference_up_to) {
+  std::printf("%10s %10s %10s %10s %10s %12s %12s %22s %22s\n", "shape", "points", "vertices",
+              "hull s", "mass s", "sieve s", "ref sieve s", "sieve size", "reference");
+  for (const bool sphere : {false, true})
+    for (const std::size_t n : counts) {
+      std::mt19937_64 gen(n);
+      std::normal_distribution<double> g;
+      std::vector<Vec3> p(n);
+      for (Vec3& x : p) {
+        const Vec3 y{g(gen), g(gen), g(gen)};
+        const double l = norm(y);
+        x = sphere ? Vec3{0.04 * y[0] / l, 0.04 * y[1] / l, 0.04 * y[2] / l}
+                   : Vec3{0.05 * y[0] / l, 0.035 * y[1] / l, 0.02 * y[2] / l};
+      }
+      std::optional<ConvexPolyhedron> k;
+      const Timing th = seconds([&] { k.emplace(ConvexPolyhedron::hull(p, "ellipsoid points")); });
+      const Timing tm = seconds([&] {
+        if (!(core_mass_properties(*k).volume > 0)) std::abort();
+      });
+      SieveFit fit, ref;
+      const Timing ts = seconds([&] { fit = sieve_size(*k); });
+      Timing tr{NAN, NAN};
+      if (n <= reference_up_to) {
+        SieveSearch every;
+        every.band_from_vertices = INT_MAX;
+        every.skip_hopeless_normals = false;
+        tr = seconds([&] { ref = sieve_size(*k, every); });
+      }
+      std::printf("%10s %10zu %10zu %10.3f %10.3f %12.3f %12.3f %22.17g %22.17g\n",
+                  sphere ? "sphere" : "ellipsoid", n, k->vertices().size(), th.wall, tm.wall,
+                  ts.wall, tr.wall, fit.size, n <= reference_up_to ? ref.size : NAN);
+      std::fflush(stdout);
+    }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -70,7 +116,17 @@ int main(int argc, char** argv) {
   app.add_option("--samples", samples, "scaled particles drawn from a library");
   app.add_option("--hulls", hulls, "random hulls for the sieve-size accuracy study");
   app.add_option("--json", json, "write the results as JSON");
+  std::vector<std::size_t> large;
+  std::size_t large_reference = 20000;
+  bool large_only = false;
+  app.add_option("--large", large, "vertex counts of large cores (ellipsoid points)")
+      ->delimiter(',');
+  app.add_option("--large-reference", large_reference,
+                 "largest core also sized by projecting every vertex");
+  app.add_flag("--large-only", large_only, "only the large cores");
   CLI11_PARSE(app, argc, argv);
+  if (!large.empty()) large_cores(large, large_reference);
+  if (large_only) return 0;
 
   demfem::bench::Report report("shape_library", {"task", "triangles", "threads", "items", "best s",
                                                  "median s", "CPU s of best", "best ms/item"});
@@ -152,7 +208,7 @@ int main(int argc, char** argv) {
       }
       const auto k = ConvexPolyhedron::hull(p, "random hull");
       const double a = sieve_size(k).size;
-      const double b = sieve_size(k, {8192, 64, 8, 1e-11}).size;
+      const double b = sieve_size(k, {8192, 64, 8, 1e-11, 64, true, {}}).size;
       const double rel = (a - b) / b;
       worst = std::max(worst, rel);
       above += rel > 1e-6;

@@ -42,6 +42,7 @@
 #include "demfem/coupling/scene_steps.hpp"
 #include "demfem/coupling/solver_link.hpp"
 #include "demfem/coupling/supervisor.hpp"
+#include "demfem/dem/omp_wait.hpp"
 #include "demfem/fem/fem_backend.hpp"
 #include "demfem/fem/fem_scene.hpp"
 #include "demfem/fem/modal_run.hpp"
@@ -1053,6 +1054,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  demfem::dem::ensure_omp_wait_policy(argv);  // first: it may re-execute the program
   Options opt;
   CLI::App app{
       "Runs a demfem scene: starts dem_server and/or fem_server as the scene needs, couples "

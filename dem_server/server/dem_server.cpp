@@ -16,6 +16,7 @@
 
 #include "demfem/dem/dem_backend.hpp"
 #include "demfem/dem/dem_scene.hpp"
+#include "demfem/dem/omp_wait.hpp"
 #include "demfem/io/folder_lock.hpp"
 #include "demfem/protocol/protocol.hpp"
 #include "demfem/scene/scene_reader.hpp"
@@ -25,6 +26,7 @@ using demfem::scene::kExitBadInput;
 using demfem::scene::kExitFailure;
 
 int main(int argc, char** argv) {
+  demfem::dem::ensure_omp_wait_policy(argv);  // first: it may re-execute the program
   CLI::App app{
       "dem_server: the demfem DEM engine (spheres, Hertz-Mindlin contacts, STL walls).\n"
       "With --segment it serves the coupler that started it (the coupled surface arrives from "

@@ -114,12 +114,18 @@ ConvexPolyhedron ConvexPolyhedron::hull(std::span<const Vec3> points, std::strin
                      format_number(extent) + "): the hull has zero volume");
   }
   detail::RawHull raw = detail::qhull_triangulated(points, source);
-  return from_triangles(std::move(raw.vertices), std::move(raw.triangles), source);
+  return checked(std::move(raw.vertices), std::move(raw.triangles), source, ConvexCheck::climb);
 }
 
 ConvexPolyhedron ConvexPolyhedron::from_triangles(std::vector<Vec3> vertices,
                                                   std::vector<Triangle> triangles,
                                                   std::string_view source) {
+  return checked(std::move(vertices), std::move(triangles), source, ConvexCheck::every_vertex);
+}
+
+ConvexPolyhedron ConvexPolyhedron::checked(std::vector<Vec3> vertices,
+                                           std::vector<Triangle> triangles, std::string_view source,
+                                           ConvexCheck check) {
   const std::string src(source);
   if (vertices.size() < 4 || triangles.size() < 4) {
     throw ShapeError(src + ": a closed polyhedron needs at least 4 vertices and 4 triangles, got " +
@@ -135,7 +141,7 @@ ConvexPolyhedron ConvexPolyhedron::from_triangles(std::vector<Vec3> vertices,
   c.vertices_ = std::move(vertices);
   c.triangles_ = std::move(triangles);
   c.build_topology(source);
-  c.check_convex(source);
+  c.check_convex(source, check);
   return c;
 }
 
@@ -256,7 +262,7 @@ void ConvexPolyhedron::build_topology(std::string_view source) {
   }
 }
 
-void ConvexPolyhedron::check_convex(std::string_view source) const {
+void ConvexPolyhedron::check_convex(std::string_view source, ConvexCheck check) const {
   const std::string src(source);
   const double extent = extent_of(vertices_);
   const double tol = kFlatTolerance * extent;
@@ -274,6 +280,30 @@ void ConvexPolyhedron::check_convex(std::string_view source) const {
         (volume < 0 ? "negative volume " + format_number(volume) + " (its triangles face inwards)"
                     : "zero volume (" + format_number(volume) + " for extent " +
                           format_number(extent) + ")"));
+  }
+  if (check == ConvexCheck::climb) {
+    // Steepest ascent along each normal from the triangle's first vertex (on a convex body
+    // already the highest: one look at its neighbours). No vertex above any plane: done; one
+    // found: the full scan below names the first offending pair as for any input.
+    bool above = false;
+    for (std::size_t t = 0; t < triangles_.size() && !above; ++t) {
+      const Vec3& a = vertices_[std::size_t(triangles_[t][0])];
+      std::int32_t v = triangles_[t][0];
+      double h = 0.0;
+      for (bool moved = true; moved;) {
+        moved = false;
+        for (const std::int32_t w : neighbours(std::size_t(v))) {
+          const double hw = dot(normals_[t], vertices_[std::size_t(w)] - a);
+          if (hw > h) {
+            h = hw;
+            v = w;
+            moved = true;
+          }
+        }
+      }
+      above = h > tol;
+    }
+    if (!above) return;
   }
   for (std::size_t t = 0; t < triangles_.size(); ++t) {
     const Vec3& a = vertices_[std::size_t(triangles_[t][0])];
@@ -339,7 +369,7 @@ ConvexPolyhedron ConvexPolyhedron::transformed(const Mat3& a, const Vec3& t) con
     for (std::size_t r = 0; r < 3; ++r) v[i][r] = dot(a[r], x) + t[r];
   }
   if (is_point()) return point(v[0]);
-  return from_triangles(std::move(v), triangles_, "transformed polyhedron");
+  return checked(std::move(v), triangles_, "transformed polyhedron", ConvexCheck::climb);
 }
 
 ConvexPolyhedron ConvexPolyhedron::scaled(double s) const {

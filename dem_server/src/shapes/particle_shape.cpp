@@ -95,7 +95,8 @@ ParticleShape describe_dilated(const ConvexPolyhedron& core, double dilation_rad
 }
 
 ParticleShape make_particle_shape(const ConvexPolyhedron& core, double size, SizeKind kind,
-                                  double dilation_fraction, std::string_view source) {
+                                  double dilation_fraction, std::string_view source,
+                                  const SieveSearch& sieve) {
   const std::string src(source);
   if (!(size > 0) || !std::isfinite(size)) {
     throw ShapeError(src + ": particle size " + format_number(size) + " m must be > 0");
@@ -118,7 +119,7 @@ ParticleShape make_particle_shape(const ConvexPolyhedron& core, double size, Siz
                      format_number(2 * r) + " m) is at least the size " + format_number(size) +
                      " m, so the core would vanish; the fraction must be < 0.5");
   }
-  const double core_sieve = sieve_size(core).size;
+  const double core_sieve = sieve_size(core, sieve).size;
   double lambda = 0.0;
   if (kind == SizeKind::sieve) {
     lambda = (1.0 - 2.0 * f) * size / core_sieve;

@@ -17,13 +17,13 @@ std::uint64_t derived_seed(std::uint64_t seed, std::uint64_t k) {
 }
 
 ShapeLibrary::ShapeLibrary(std::span<const ConvexPolyhedron> cores, SizeKind kind,
-                           double dilation_fraction)
+                           double dilation_fraction, const SieveSearch& sieve)
     : kind_(kind), fraction_(dilation_fraction) {
   if (cores.empty()) throw ShapeError("shape library: no shapes given");
   shapes_.reserve(cores.size());
   for (std::size_t k = 0; k < cores.size(); ++k) {
     shapes_.push_back(make_particle_shape(cores[k], 1.0, kind, dilation_fraction,
-                                          "shape library entry " + std::to_string(k)));
+                                          "shape library entry " + std::to_string(k), sieve));
   }
 }
 

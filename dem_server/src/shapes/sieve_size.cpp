@@ -3,8 +3,11 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <numbers>
+#include <queue>
 #include <utility>
+#include <vector>
 
 #include "demfem/dem/shapes/mass_properties.hpp"
 #include "demfem/dem/size_distribution.hpp"
@@ -133,18 +136,40 @@ struct Passage {
   Eigen::Matrix3d frame;  // w1, w2, u
 };
 
+/// The best square for a passage direction u (the objective of the search over u).
+///
+/// Only vertices on the silhouette seen along u can be corners of the projection's hull: a
+/// vertex is extreme in a direction w normal to u exactly when w lies in its normal cone, i.e.
+/// when its faces' normals n do not all point to the same side of the plane normal to u (min
+/// n.u <= 0 <= max n.u). Those vertices form a connected band around the body (the normal
+/// cones that meet the great circle normal to u are adjacent to one another), found by a flood
+/// fill from the vertex farthest along a direction normal to u (reached by hill climbing on the
+/// vertex graph, exact on a convex body). A band of |n.u| <= kBandSlack keeps every vertex that
+/// round-off could place on the hull, so the hull is that of the whole projection: the same
+/// points in the same order. Cost: the band's size (~sqrt(V) on a finely tessellated body)
+/// instead of V, which made the V face-normal candidates cost O(V^2 log V) in all.
 class SquareFit {
  public:
-  explicit SquareFit(const ConvexPolyhedron& k) {
+  SquareFit(const ConvexPolyhedron& k, bool band) : k_(band ? &k : nullptr) {
     for (const Vec3& v : k.vertices()) v_.push_back(detail::to_eigen(v));
+    if (band) {
+      for (const Vec3& n : k.normals()) n_.push_back(detail::to_eigen(n));
+      facing_.resize(n_.size());
+      triangle_seen_.assign(n_.size(), 0);
+      vertex_seen_.assign(v_.size(), 0);
+    }
   }
   Passage operator()(const Vector3d& u_in) const {
+    ++evaluations_;
     const Vector3d u = u_in.normalized();
     const Vector3d helper = std::abs(u.x()) < 0.9 ? Vector3d::UnitX() : Vector3d::UnitY();
     const Vector3d a = u.cross(helper).normalized();
     const Vector3d b = u.cross(a);
     points_.clear();
-    for (const Vector3d& v : v_) points_.emplace_back(a.dot(v), b.dot(v));
+    if (!(k_ && collect_band(u, a, b))) {
+      points_.clear();
+      for (const Vector3d& v : v_) points_.emplace_back(a.dot(v), b.dot(v));
+    }
     hull_2d(points_, hull_);
     const Square sq = smallest_square(hull_, breaks_);
     Passage out;
@@ -156,8 +181,70 @@ class SquareFit {
   }
 
  private:
-  std::vector<Vector3d> v_;
+  static constexpr double kBandSlack = 1e-3;  // on n.u, for unit normals
+
+  /// Whether vertex v's faces face both ways along u (within the slack).
+  bool on_band(std::int32_t v, const Vector3d& u) const {
+    double lo = INFINITY, hi = -INFINITY;
+    for (const std::int32_t t : k_->vertex_triangles(std::size_t(v))) {
+      const auto i = std::size_t(t);
+      if (triangle_seen_[i] != stamp_) {
+        triangle_seen_[i] = stamp_;
+        facing_[i] = n_[i].dot(u);
+      }
+      lo = std::min(lo, facing_[i]);
+      hi = std::max(hi, facing_[i]);
+    }
+    return lo <= kBandSlack && hi >= -kBandSlack;
+  }
+
+  /// The projections of the silhouette band's vertices into points_; false (nothing
+  /// trustworthy collected) when round-off leaves the farthest vertex off the band.
+  bool collect_band(const Vector3d& u, const Vector3d& a, const Vector3d& b) const {
+    ++stamp_;
+    std::int32_t v = start_;
+    double h = v_[std::size_t(v)].dot(a);
+    for (bool moved = true; moved;) {
+      moved = false;
+      for (const std::int32_t w : k_->neighbours(std::size_t(v))) {
+        const double hw = v_[std::size_t(w)].dot(a);
+        if (hw > h) {
+          h = hw;
+          v = w;
+          moved = true;
+        }
+      }
+    }
+    start_ = v;  // the next direction is usually near: start climbing there
+    if (!on_band(v, u)) return false;
+    queue_.assign(1, v);
+    vertex_seen_[std::size_t(v)] = stamp_;
+    for (std::size_t q = 0; q < queue_.size(); ++q) {
+      const std::int32_t x = queue_[q];
+      const Vector3d& p = v_[std::size_t(x)];
+      points_.emplace_back(a.dot(p), b.dot(p));
+      for (const std::int32_t w : k_->neighbours(std::size_t(x))) {
+        if (vertex_seen_[std::size_t(w)] == stamp_) continue;
+        vertex_seen_[std::size_t(w)] = stamp_;
+        if (on_band(w, u)) queue_.push_back(w);
+      }
+    }
+    return true;
+  }
+
+ public:
+  std::size_t evaluations() const { return evaluations_; }
+
+ private:
+  const ConvexPolyhedron* k_;  // null: project every vertex
+  std::vector<Vector3d> v_, n_;
   mutable std::vector<Vector2d> points_, hull_, breaks_;  // scratch
+  mutable std::vector<double> facing_;                    // n.u of the triangles seen
+  mutable std::vector<std::uint64_t> triangle_seen_, vertex_seen_;
+  mutable std::vector<std::int32_t> queue_;
+  mutable std::uint64_t stamp_ = 0;
+  mutable std::int32_t start_ = 0;
+  mutable std::size_t evaluations_ = 0;
 };
 
 /// Pattern search over the passage direction on the sphere: 16 tangent directions, polled
@@ -198,40 +285,130 @@ Passage local_search(const SquareFit& f, Passage start, double last_step, std::u
   return cur;
 }
 
+/// The indices of unit vectors sorted along a Morton curve over their octahedral map.
+std::vector<std::size_t> curve_order(const std::vector<Vec3>& normals) {
+  auto spread = [](std::uint64_t v) {  // 16 bits to the even bits of 32
+    v &= 0xffff;
+    v = (v | (v << 8)) & 0x00ff00ff;
+    v = (v | (v << 4)) & 0x0f0f0f0f;
+    v = (v | (v << 2)) & 0x33333333;
+    return (v | (v << 1)) & 0x55555555;
+  };
+  std::vector<std::pair<std::uint64_t, std::size_t>> keyed;
+  for (std::size_t t = 0; t < normals.size(); ++t) {
+    const Vec3& n = normals[t];
+    const double l1 = std::abs(n[0]) + std::abs(n[1]) + std::abs(n[2]);
+    double x = n[0] / l1, y = n[1] / l1;
+    if (n[2] < 0) {
+      const double xf = (1.0 - std::abs(y)) * (x < 0 ? -1.0 : 1.0);
+      y = (1.0 - std::abs(x)) * (y < 0 ? -1.0 : 1.0);
+      x = xf;
+    }
+    const auto q = [](double c) {
+      return std::uint64_t(std::clamp((c + 1.0) * 32767.5, 0.0, 65535.0));
+    };
+    keyed.emplace_back(spread(q(x)) | (spread(q(y)) << 1), t);
+  }
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<std::size_t> order;
+  for (const auto& [key, t] : keyed) order.push_back(t);
+  return order;
+}
+
+/// The candidate passages in their order (the Fibonacci directions, the face normals, the
+/// principal axes), sorted by side (stably): only the first `starts` are used, so a face
+/// normal that cannot be among them is not evaluated (side +inf). The objective is Lipschitz:
+/// turning the frame by the angle between u and u' moves every width by at most
+/// 2 rho |u - u'| (rho: the vertices' largest distance from any fixed point), so
+/// f(u) >= f(r) - 2 rho min(|u - r|, |u + r|) for every evaluated direction r (f(-r) = f(r));
+/// a normal whose bound exceeds the starts-th best side found so far (a margin of 1e-9 rho
+/// covers round-off) cannot enter the first `starts`. Exact: the same first `starts` in the
+/// same order as evaluating every normal; on an elongated rock most normals are skipped.
+std::vector<Passage> candidate_passages(const ConvexPolyhedron& core, const SquareFit& f,
+                                        const SieveSearch& search) {
+  const int nd = std::max(1, search.directions);
+  const std::size_t nf = core.normals().size();
+  std::vector<Passage> out(std::size_t(nd) + nf + 3);
+  std::vector<Vector3d> refs;
+  const double golden = kPi * (3.0 - std::sqrt(5.0));
+  for (int i = 0; i < nd; ++i) {
+    const double z = 1.0 - (i + 0.5) / nd;  // u and -u are the same passage
+    const double rho = std::sqrt(1.0 - z * z);
+    refs.emplace_back(rho * std::cos(golden * i), rho * std::sin(golden * i), z);
+    out[std::size_t(i)] = f(refs.back());
+  }
+  const auto axes = detail::to_eigen(principal_frame(core_mass_properties(core).inertia).axes);
+  for (int k = 0; k < 3; ++k) {
+    refs.push_back(axes.col(k).normalized());
+    out[std::size_t(nd) + nf + std::size_t(k)] = f(axes.col(k));
+  }
+  const auto starts = std::size_t(std::clamp(search.local_starts, 1, int(out.size())));
+  std::priority_queue<double> best;  // the starts smallest sides so far
+  auto keep = [&](double side) {
+    best.push(side);
+    if (best.size() > starts) best.pop();
+  };
+  std::vector<double> ref_side;
+  for (std::size_t i = 0; i < std::size_t(nd); ++i) ref_side.push_back(out[i].side);
+  for (int k = 0; k < 3; ++k) ref_side.push_back(out[std::size_t(nd) + nf + std::size_t(k)].side);
+  for (const double side : ref_side) keep(side);
+  Eigen::AlignedBox3d box;
+  for (const Vec3& v : core.vertices()) box.extend(detail::to_eigen(v));
+  double rho = 0.0;
+  for (const Vec3& v : core.vertices())
+    rho = std::max(rho, (detail::to_eigen(v) - box.center()).norm());
+  const double slope = 2.0 * rho, margin = 1e-9 * rho;
+  // Evaluated in the order of a space-filling curve over the normals (each result goes to its
+  // own slot, so the order changes nothing but the cost): the next direction's silhouette band
+  // is near the last one's, its vertices in cache and the climb to it short.
+  const std::vector<std::size_t> order = curve_order(core.normals());
+  for (std::size_t step = 0; step < nf; ++step) {
+    const std::size_t t = order[step];
+    const Vector3d u = detail::to_eigen(core.normals()[t]);
+    const double bar =
+        best.size() < starts || !search.skip_hopeless_normals ? INFINITY : best.top();
+    bool skip = false;
+    for (std::size_t r = 0; r < refs.size() && !skip; ++r) {
+      const double d = std::min((u - refs[r]).norm(), (u + refs[r]).norm());
+      skip = ref_side[r] - slope * d - margin > bar;
+    }
+    out[std::size_t(nd) + t] = skip ? Passage{INFINITY, Eigen::Matrix3d::Identity()} : f(u);
+    if (!skip) keep(out[std::size_t(nd) + t].side);
+    if (search.progress && (step + 1) % 4096 == 0)
+      search.progress("candidates", step + 1, nf, f.evaluations());
+  }
+  if (search.progress) search.progress("candidates", nf, nf, f.evaluations());
+  std::stable_sort(out.begin(), out.end(),
+                   [](const Passage& x, const Passage& y) { return x.side < y.side; });
+  out.resize(starts);
+  return out;
+}
+
 }  // namespace
 
 SieveFit sieve_size(const ConvexPolyhedron& core, const SieveSearch& search) {
   SieveFit fit;
   fit.frame = detail::mat_from_eigen(Eigen::Matrix3d::Identity());
   if (core.is_point()) return fit;
-  const SquareFit f(core);
-  std::vector<Passage> candidates;
-  const double golden = kPi * (3.0 - std::sqrt(5.0));
-  const int nd = std::max(1, search.directions);
-  for (int i = 0; i < nd; ++i) {
-    const double z = 1.0 - (i + 0.5) / nd;  // u and -u are the same passage
-    const double rho = std::sqrt(1.0 - z * z);
-    candidates.push_back(f(Vector3d(rho * std::cos(golden * i), rho * std::sin(golden * i), z)));
-  }
-  for (const Vec3& n : core.normals()) candidates.push_back(f(detail::to_eigen(n)));
-  const auto axes = detail::to_eigen(principal_frame(core_mass_properties(core).inertia).axes);
-  for (int k = 0; k < 3; ++k) candidates.push_back(f(axes.col(k)));
-  std::stable_sort(candidates.begin(), candidates.end(),
-                   [](const Passage& x, const Passage& y) { return x.side < y.side; });
+  const SquareFit f(core, int(core.vertices().size()) >= search.band_from_vertices);
+  const std::vector<Passage> candidates = candidate_passages(core, f, search);
   // Coarse searches from the best candidates (distinct basins), refinement of the best two.
-  const int starts = std::clamp(search.local_starts, 1, int(candidates.size()));
+  const auto refined = std::size_t(std::clamp(search.refined, 1, int(candidates.size())));
   std::vector<Passage> coarse;
-  for (int s = 0; s < starts; ++s) {
-    coarse.push_back(
-        local_search(f, candidates[std::size_t(s)], kCoarseStep, 0x5eed0000u + std::uint64_t(s)));
+  for (std::size_t s = 0; s < candidates.size(); ++s) {
+    coarse.push_back(local_search(f, candidates[s], kCoarseStep, 0x5eed0000u + std::uint64_t(s)));
+    if (search.progress)
+      search.progress("local searches", s + 1, candidates.size() + refined, f.evaluations());
   }
   std::stable_sort(coarse.begin(), coarse.end(),
                    [](const Passage& x, const Passage& y) { return x.side < y.side; });
   Passage best = coarse.front();
-  const auto refined = std::size_t(std::clamp(search.refined, 1, int(coarse.size())));
   for (std::size_t s = 0; s < refined; ++s) {
     const Passage p = local_search(f, coarse[s], search.final_step, 0x5eed1000u + s);
     if (p.side < best.side) best = p;
+    if (search.progress)
+      search.progress("local searches", candidates.size() + s + 1, candidates.size() + refined,
+                      f.evaluations());
   }
   fit.size = best.side;
   fit.frame = detail::mat_from_eigen(best.frame);

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numeric>
 #include <sstream>
+#include <tuple>
 
 #include "demfem/dem/physics/rigid_body.hpp"
 #include "demfem/io/atomic_file.hpp"
@@ -98,48 +99,78 @@ void ParticleOutput::write(const ParticleState& p, std::span<const std::int64_t>
     f.set_attribute("/", "state_time", std::isnan(state_time) ? time : state_time);
     f.set_attribute("/", "count", static_cast<std::int64_t>(n));
     // the polyhedra as triangle surfaces
-    std::vector<double> pts, pvel;
-    std::vector<std::int64_t> tris, tid, tmat;
-    if (p.shape_id.size() == n && !surfaces_.empty()) {
-      for (std::size_t i = 0; i < n; ++i) {
-        const std::int32_t sid = p.shape_id[i];
-        if (sid < 0 || std::size_t(sid) >= surfaces_.size()) continue;
-        const Surface& sf = surfaces_[std::size_t(sid)];
-        const auto r = phys::rotation(p.qw[i], p.qx[i], p.qy[i], p.qz[i]);
-        const phys::Vec3 x{p.px[i], p.py[i], p.pz[i]}, v{p.vx[i], p.vy[i], p.vz[i]},
-            w{p.wx[i], p.wy[i], p.wz[i]};
-        const auto base = static_cast<std::int64_t>(pts.size() / 3);
-        for (std::size_t k = 0; k < sf.vertices.size(); k += 3) {
-          const phys::Vec3 a =
-              p.scale[i] *
-              phys::to_world(r, phys::Vec3{sf.vertices[k], sf.vertices[k + 1], sf.vertices[k + 2]});
-          const phys::Vec3 q = x + a, u = v + phys::cross(w, a);
-          pts.insert(pts.end(), {q.x, q.y, q.z});
-          pvel.insert(pvel.end(), {u.x, u.y, u.z});
-        }
-        for (std::size_t t = 0; t < sf.triangles.size(); t += 3) {
-          for (int k = 0; k < 3; ++k) tris.push_back(base + sf.triangles[t + std::size_t(k)]);
-          tid.push_back(ids[i]);
-          tmat.push_back(p.material[i]);
-        }
-      }
-    }
-    const std::size_t m = pts.size() / 3, nt = tid.size();
-    if (nt > 0) {
-      f.write("surface_points", std::span<const double>(pts), {m, 3});
-      f.write("surface_velocity", std::span<const double>(pvel), {m, 3});
-      f.write("surface_triangles", std::span<const std::int64_t>(tris), {nt, 3});
-      f.write("surface_id", std::span<const std::int64_t>(tid), {nt});
-      f.write("surface_material", std::span<const std::int64_t>(tmat), {nt});
-      f.set_attribute("/", "surface_points", static_cast<std::int64_t>(m));
-      f.set_attribute("/", "surface_triangles", static_cast<std::int64_t>(nt));
-    }
+    const SurfaceData sd = surfaces(p, ids);
+    const std::size_t m = sd.points.size() / 3, nt = sd.triangles.size() / 3;
+    if (nt > 0) write_surfaces(f, sd);
     f.close();
     entry.points = m, entry.triangles = nt;
   }
   io::commit_partial(final_path);
   entries_.push_back(entry);
   write_index();
+}
+
+ParticleOutput::SurfaceData ParticleOutput::surfaces(const ParticleState& p,
+                                                     std::span<const std::int64_t> ids) const {
+  SurfaceData out;
+  const std::size_t n = p.size();
+  if (p.shape_id.size() != n || surfaces_.empty()) return out;
+  // Each rock's fields on its cells (triangles) and on its points, so that ParaView's default
+  // reader, which merges the spheres' and the rocks' grids into pieces of one data set, finds
+  // every field on every piece with either association (issue 34, item 11).
+  auto per_rock = [&](PerRock& r, std::size_t i, std::size_t count) {
+    for (std::size_t c = 0; c < count; ++c) {
+      r.id.push_back(ids[i]);
+      r.material.push_back(p.material[i]);
+      r.radius.push_back(p.radius[i]);
+      r.mass.push_back(p.mass[i]);
+      r.velocity.insert(r.velocity.end(), {p.vx[i], p.vy[i], p.vz[i]});
+      r.angular_velocity.insert(r.angular_velocity.end(), {p.wx[i], p.wy[i], p.wz[i]});
+    }
+  };
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::int32_t sid = p.shape_id[i];
+    if (sid < 0 || std::size_t(sid) >= surfaces_.size()) continue;
+    const Surface& sf = surfaces_[std::size_t(sid)];
+    const auto r = phys::rotation(p.qw[i], p.qx[i], p.qy[i], p.qz[i]);
+    const phys::Vec3 x{p.px[i], p.py[i], p.pz[i]}, v{p.vx[i], p.vy[i], p.vz[i]},
+        w{p.wx[i], p.wy[i], p.wz[i]};
+    const auto base = static_cast<std::int64_t>(out.points.size() / 3);
+    for (std::size_t k = 0; k < sf.vertices.size(); k += 3) {
+      const phys::Vec3 a =
+          p.scale[i] *
+          phys::to_world(r, phys::Vec3{sf.vertices[k], sf.vertices[k + 1], sf.vertices[k + 2]});
+      const phys::Vec3 q = x + a, u = v + phys::cross(w, a);
+      out.points.insert(out.points.end(), {q.x, q.y, q.z});
+      out.point_velocity.insert(out.point_velocity.end(), {u.x, u.y, u.z});
+    }
+    for (std::size_t t = 0; t < sf.triangles.size(); ++t)
+      out.triangles.push_back(base + sf.triangles[t]);
+    per_rock(out.cell, i, sf.triangles.size() / 3);
+    per_rock(out.point, i, sf.vertices.size() / 3);
+  }
+  return out;
+}
+
+void ParticleOutput::write_surfaces(io::H5File& f, const SurfaceData& sd) {
+  const std::size_t m = sd.points.size() / 3, nt = sd.triangles.size() / 3;
+  f.write("surface_points", std::span<const double>(sd.points), {m, 3});
+  f.write("surface_velocity", std::span<const double>(sd.point_velocity), {m, 3});
+  f.write("surface_triangles", std::span<const std::int64_t>(sd.triangles), {nt, 3});
+  for (const auto& [prefix, r, count] :
+       {std::tuple{"surface_", &sd.cell, nt}, std::tuple{"surface_point_", &sd.point, m}}) {
+    const std::string pre = prefix;
+    f.write(pre + "id", std::span<const std::int64_t>(r->id), {count});
+    f.write(pre + "material", std::span<const std::int64_t>(r->material), {count});
+    f.write(pre + "radius", std::span<const double>(r->radius), {count});
+    f.write(pre + "mass", std::span<const double>(r->mass), {count});
+    if (pre == "surface_") {
+      f.write(pre + "centre_velocity", std::span<const double>(r->velocity), {count, 3});
+    }
+    f.write(pre + "angular_velocity", std::span<const double>(r->angular_velocity), {count, 3});
+  }
+  f.set_attribute("/", "surface_points", static_cast<std::int64_t>(m));
+  f.set_attribute("/", "surface_triangles", static_cast<std::int64_t>(nt));
 }
 
 void ParticleOutput::resume(std::size_t keep) {
@@ -171,16 +202,20 @@ void ParticleOutput::write_sphere_grid(std::ostream& x, std::size_t k,
     << "\" NodesPerElement=\"1\">" << item("vertex", n + " 1", "Int") << "</Topology>\n"
     << indent << "  <Geometry GeometryType=\"XYZ\">" << item("position", n + " 3", "Float")
     << "</Geometry>\n";
-  const char* vectors[] = {"velocity", "angular_velocity"};
-  for (const char* v : vectors) {
-    x << indent << "  <Attribute Name=\"" << v << "\" AttributeType=\"Vector\" Center=\"Node\">"
-      << item(v, n + " 3", "Float") << "</Attribute>\n";
-  }
-  const std::pair<const char*, const char*> scalars[] = {
-      {"radius", "Float"}, {"mass", "Float"}, {"material", "Int"}, {"id", "Int"}};
-  for (const auto& [name, type] : scalars) {
-    x << indent << "  <Attribute Name=\"" << name << "\" AttributeType=\"Scalar\" Center=\"Node\">"
-      << item(name, n, type) << "</Attribute>\n";
+  // Each particle is a point and a cell: its fields with both associations (the same
+  // datasets), as on the rocks' surfaces beside it.
+  for (const char* center : {"Node", "Cell"}) {
+    const char* vectors[] = {"velocity", "angular_velocity"};
+    for (const char* v : vectors) {
+      x << indent << "  <Attribute Name=\"" << v << "\" AttributeType=\"Vector\" Center=\""
+        << center << "\">" << item(v, n + " 3", "Float") << "</Attribute>\n";
+    }
+    const std::pair<const char*, const char*> scalars[] = {
+        {"radius", "Float"}, {"mass", "Float"}, {"material", "Int"}, {"id", "Int"}};
+    for (const auto& [name, type] : scalars) {
+      x << indent << "  <Attribute Name=\"" << name << "\" AttributeType=\"Scalar\" Center=\""
+        << center << "\">" << item(name, n, type) << "</Attribute>\n";
+    }
   }
   x << indent << "</Grid>\n";
 }
@@ -200,12 +235,25 @@ void ParticleOutput::write_polyhedron_grid(std::ostream& x, std::size_t k,
     << indent << "  <Geometry GeometryType=\"XYZ\">" << item("surface_points", m + " 3", "Float")
     << "</Geometry>\n"
     << indent << "  <Attribute Name=\"velocity\" AttributeType=\"Vector\" Center=\"Node\">"
-    << item("surface_velocity", m + " 3", "Float") << "</Attribute>\n"
-    << indent << "  <Attribute Name=\"id\" AttributeType=\"Scalar\" Center=\"Cell\">"
-    << item("surface_id", t, "Int") << "</Attribute>\n"
-    << indent << "  <Attribute Name=\"material\" AttributeType=\"Scalar\" Center=\"Cell\">"
-    << item("surface_material", t, "Int") << "</Attribute>\n"
-    << indent << "</Grid>\n";
+    << item("surface_velocity", m + " 3", "Float") << "</Attribute>\n";
+  // The rock's fields on its triangles (cells) and on its points; the cells' velocity is the
+  // rock centre's (the points': where each point moves).
+  auto attribute = [&](const char* name, const char* kind, const char* center,
+                       const std::string& ds, const std::string& dims, const char* type) {
+    x << indent << "  <Attribute Name=\"" << name << "\" AttributeType=\"" << kind << "\" Center=\""
+      << center << "\">" << item(ds, dims, type) << "</Attribute>\n";
+  };
+  attribute("velocity", "Vector", "Cell", "surface_centre_velocity", t + " 3", "Float");
+  for (const auto& [center, pre, count] :
+       {std::tuple{"Cell", "surface_", t}, std::tuple{"Node", "surface_point_", m}}) {
+    const std::string p = pre;
+    attribute("angular_velocity", "Vector", center, p + "angular_velocity", count + " 3", "Float");
+    attribute("radius", "Scalar", center, p + "radius", count, "Float");
+    attribute("mass", "Scalar", center, p + "mass", count, "Float");
+    attribute("material", "Scalar", center, p + "material", count, "Int");
+    attribute("id", "Scalar", center, p + "id", count, "Int");
+  }
+  x << indent << "</Grid>\n";
 }
 
 void ParticleOutput::write_index() const {

@@ -942,7 +942,13 @@ void DemRun::write_snapshot(double label) {
     for (std::size_t w = 0; w < wall_shapes_.size(); ++w) {
       const auto id = static_cast<std::int32_t>(w);
       now[w] = system_->wall_vertices(id);  // moving walls and rigid bodies move
-      poses[w] = {now[w], system_->wall_force(id)};
+      poses[w] = {now[w], system_->wall_force(id), system_->wall_force(id)};
+      // what the wall's first wall_force sensor with a face reads (a pressure cell's top)
+      for (const auto& s : scene_.sensors)
+        if (s.kind == SensorSpec::Kind::wall_force && s.wall == id && s.face) {
+          poses[w].sensor_force = system_->wall_face_load(id, s.face_direction).force;
+          break;
+        }
     }
     wall_output_->write(poses, label, system_->time());
   }

@@ -2,6 +2,9 @@
 
 #include "scene_shapes.hpp"
 
+#include <algorithm>
+#include <chrono>
+#include <cmath>
 #include <ostream>
 #include <stdexcept>
 
@@ -13,6 +16,44 @@ using scene::Range;
 using scene::SceneError;
 using scene::Table;
 
+namespace {
+
+/// STL hulls of this many vertices and more are reported while they are set up (the sieve
+/// size costs about a second per 10^4 vertices, more for near-spherical hulls).
+constexpr std::size_t kReportHullsFrom = 2000;
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::round(10.0 *
+                    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()) /
+         10.0;
+}
+
+/// The sieve-size search with progress lines (every 5 s at most) when a core is large.
+shapes::SieveSearch sieve_progress(const ShapeSpec& spec,
+                                   const std::vector<shapes::ConvexPolyhedron>& cores,
+                                   std::ostream* log) {
+  shapes::SieveSearch search;
+  std::size_t largest = 0;
+  for (const auto& c : cores) largest = std::max(largest, c.vertices().size());
+  if (!log || largest < kReportHullsFrom) return search;
+  const auto t0 = std::chrono::steady_clock::now();
+  auto last = t0;
+  search.progress = [log, t0, last, name = spec.name, where = spec.where](
+                        std::string_view stage, std::size_t done, std::size_t total,
+                        std::size_t evaluations) mutable {
+    const auto now = std::chrono::steady_clock::now();
+    if (now - last < std::chrono::seconds(5) && done < total) return;
+    last = now;
+    *log << "dem: " << where << ": shape '" << name << "': sieve size: " << stage << " " << done
+         << " of " << total << " (" << evaluations << " projections, " << seconds_since(t0)
+         << " s)\n"
+         << std::flush;
+  };
+  return search;
+}
+
+}  // namespace
+
 ShapeSpec read_shape_spec(const Table& t) {
   ShapeSpec s;
   s.name = t.string("name");
@@ -21,10 +62,10 @@ ShapeSpec read_shape_spec(const Table& t) {
   const std::string kind = t.choice("kind", {"random_rock", "stl", "box", "cube", "tetrahedron",
                                              "octahedron", "prism", "sphere"});
   using K = ShapeSpec::Kind;
-  s.kind = kind == "random_rock" ? K::random_rock
-           : kind == "stl"       ? K::stl
-           : kind == "box"       ? K::box
-           : kind == "cube"      ? K::cube
+  s.kind = kind == "random_rock"   ? K::random_rock
+           : kind == "stl"         ? K::stl
+           : kind == "box"         ? K::box
+           : kind == "cube"        ? K::cube
            : kind == "tetrahedron" ? K::tetrahedron
            : kind == "octahedron"  ? K::octahedron
            : kind == "prism"       ? K::prism
@@ -43,7 +84,8 @@ ShapeSpec read_shape_spec(const Table& t) {
       s.has_seed = true;
     }
   } else if (s.kind == K::stl) {
-    if (!t.has("stl")) t.fail("stl", "is required for kind = \"stl\" (a file or an array of files)");
+    if (!t.has("stl"))
+      t.fail("stl", "is required for kind = \"stl\" (a file or an array of files)");
     // one path or an array of paths
     try {
       const auto names = t.strings("stl");
@@ -68,11 +110,11 @@ ShapeSpec read_shape_spec(const Table& t) {
 }
 
 std::unique_ptr<shapes::ShapeLibrary> build_shape_library(const ShapeSpec& spec,
-                                                          std::uint64_t run_seed,
-                                                          std::size_t entry, std::ostream* log) {
+                                                          std::uint64_t run_seed, std::size_t entry,
+                                                          std::ostream* log) {
   using K = ShapeSpec::Kind;
-  const auto kind = spec.volume_equivalent ? shapes::SizeKind::volume_equivalent
-                                           : shapes::SizeKind::sieve;
+  const auto kind =
+      spec.volume_equivalent ? shapes::SizeKind::volume_equivalent : shapes::SizeKind::sieve;
   try {
     if (spec.kind == K::random_rock) {
       shapes::RockParams p;
@@ -87,13 +129,21 @@ std::unique_ptr<shapes::ShapeLibrary> build_shape_library(const ShapeSpec& spec,
     switch (spec.kind) {
       case K::stl:
         for (const auto& f : spec.stl) {
+          const auto t0 = std::chrono::steady_clock::now();
           shapes::MeshHull h = shapes::hull_of_stl(f);
           if (!h.warning.empty() && log)
             *log << "dem: warning: " << spec.where << ": " << f.string() << ": " << h.warning
                  << "\n";
+          if (log && h.core.vertices().size() >= kReportHullsFrom) {
+            *log << "dem: " << spec.where << ": shape '" << spec.name << "': " << f.string()
+                 << ": convex hull of " << h.core.vertices().size() << " vertices ("
+                 << seconds_since(t0) << " s)\n"
+                 << std::flush;
+          }
           cores.push_back(std::move(h.core));
         }
-        break;
+        return std::make_unique<shapes::ShapeLibrary>(cores, kind, spec.dilation,
+                                                      sieve_progress(spec, cores, log));
       case K::box:
         cores.push_back(shapes::make_box(spec.aspect[0], spec.aspect[1], spec.aspect[2]));
         break;

@@ -1,6 +1,8 @@
 #include "demfem/dem/wall_output.hpp"
 
+#include <cctype>
 #include <cmath>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 
@@ -14,6 +16,23 @@ namespace demfem::dem {
 WallOutput::WallOutput(std::filesystem::path dir, std::vector<Wall> walls, std::string stem)
     : dir_(std::move(dir)), stem_(std::move(stem)), walls_(std::move(walls)) {
   std::filesystem::create_directories(dir_);
+  std::set<std::string> taken;
+  for (std::size_t w = 0; w < walls_.size(); ++w) {
+    std::string safe = walls_[w].name.empty() ? "wall" : walls_[w].name;
+    for (char& c : safe)
+      if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.'))
+        c = '_';
+    std::string file = stem_ + "_" + safe + ".xdmf";
+    if (!taken.insert(file).second) {
+      file = stem_ + "_" + safe + "_" + std::to_string(w) + ".xdmf";
+      taken.insert(file);
+    }
+    file_names_.push_back(file);
+  }
+}
+
+std::filesystem::path WallOutput::wall_index_path(std::size_t w) const {
+  return dir_ / file_names_.at(w);
 }
 
 std::filesystem::path WallOutput::index_path() const {
@@ -46,6 +65,10 @@ void WallOutput::write(std::span<const Pose> poses, double time, double state_ti
       std::vector<double> force(3 * t);
       for (std::size_t k = 0; k < force.size(); ++k) force[k] = poses[w].force[k % 3];
       f.write(g + "/force", std::span<const double>(force), {t, 3});
+      for (std::size_t k = 0; k < force.size(); ++k) force[k] = poses[w].sensor_force[k % 3];
+      f.write(g + "/sensor_force", std::span<const double>(force), {t, 3});
+      const std::vector<std::int64_t> index(t, static_cast<std::int64_t>(w));
+      f.write(g + "/wall", std::span<const std::int64_t>(index), {t});
       entry.points.push_back(n);
     }
     f.set_attribute("/", "time", time);
@@ -62,7 +85,7 @@ void WallOutput::resume(std::size_t keep) {
   entries_.clear();
   for (std::size_t k = 0; k < keep; ++k) {
     io::H5File f(snapshot_path(k), io::H5File::Mode::read);
-    Entry e{f.attribute_double("/", "time"), {}};
+    Entry e{f.attribute_double("/", "time"), {}, walls_.empty() || f.exists("wall_0/wall")};
     for (std::size_t w = 0; w < walls_.size(); ++w) {
       std::vector<std::size_t> dims;
       f.read_doubles("wall_" + std::to_string(w) + "/points", &dims);
@@ -73,34 +96,57 @@ void WallOutput::resume(std::size_t keep) {
   write_index();
 }
 
-void WallOutput::write_index() const {
+std::string WallOutput::wall_grid(std::size_t k, std::size_t w, const std::string& indent) const {
+  if (entries_[k].points[w] == 0 || walls_[w].triangles.empty()) return {};
+  const std::string h5 = snapshot_path(k).filename().string();
+  const std::string time = io::format_time(entries_[k].time);
+  const std::string g = h5 + ":/wall_" + std::to_string(w);
+  const std::string n = std::to_string(entries_[k].points[w]);
+  const std::string t = std::to_string(walls_[w].triangles.size() / 3);
   std::ostringstream x;
-  x << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n  <Domain>\n"
-    << "    <Grid Name=\"" << stem_ << "\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+  x << indent << "<Grid Name=\"" << io::xml_escape(walls_[w].name) << "\" GridType=\"Uniform\">\n"
+    << indent << "  <Time Value=\"" << time << "\"/>\n"
+    << indent << "  <Topology TopologyType=\"Triangle\" NumberOfElements=\"" << t << "\">"
+    << io::xdmf_hdf_item(t + " 3", "Int", g + "/triangles") << "</Topology>\n"
+    << indent << "  <Geometry GeometryType=\"XYZ\">"
+    << io::xdmf_hdf_item(n + " 3", "Float", g + "/points") << "</Geometry>\n"
+    << indent << "  <Attribute Name=\"force\" AttributeType=\"Vector\" Center=\"Cell\">"
+    << io::xdmf_hdf_item(t + " 3", "Float", g + "/force") << "</Attribute>\n";
+  if (entries_[k].wall_field) {
+    x << indent << "  <Attribute Name=\"sensor_force\" AttributeType=\"Vector\" Center=\"Cell\">"
+      << io::xdmf_hdf_item(t + " 3", "Float", g + "/sensor_force") << "</Attribute>\n";
+    x << indent << "  <Attribute Name=\"wall\" AttributeType=\"Scalar\" Center=\"Cell\">"
+      << io::xdmf_hdf_item(t, "Int", g + "/wall") << "</Attribute>\n";
+  }
+  x << indent << "</Grid>\n";
+  return x.str();
+}
+
+void WallOutput::write_index() const {
+  const char* head = "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n  <Domain>\n";
+  const char* tail = "    </Grid>\n  </Domain>\n</Xdmf>\n";
+  std::ostringstream x;
+  x << head << "    <Grid Name=\"" << stem_
+    << "\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
   for (std::size_t k = 0; k < entries_.size(); ++k) {
-    const std::string h5 = snapshot_path(k).filename().string();
-    const std::string time = io::format_time(entries_[k].time);
     x << "      <Grid Name=\"walls_" << k << "\" GridType=\"Collection\" "
       << "CollectionType=\"Spatial\">\n"
-      << "        <Time Value=\"" << time << "\"/>\n";
-    for (std::size_t w = 0; w < walls_.size(); ++w) {
-      const std::string g = h5 + ":/wall_" + std::to_string(w);
-      const std::string n = std::to_string(entries_[k].points[w]);
-      const std::string t = std::to_string(walls_[w].triangles.size() / 3);
-      if (entries_[k].points[w] == 0 || walls_[w].triangles.empty()) continue;
-      x << "        <Grid Name=\"" << io::xml_escape(walls_[w].name) << "\" GridType=\"Uniform\">\n"
-        << "          <Time Value=\"" << time << "\"/>\n"
-        << "          <Topology TopologyType=\"Triangle\" NumberOfElements=\"" << t << "\">"
-        << io::xdmf_hdf_item(t + " 3", "Int", g + "/triangles") << "</Topology>\n"
-        << "          <Geometry GeometryType=\"XYZ\">"
-        << io::xdmf_hdf_item(n + " 3", "Float", g + "/points") << "</Geometry>\n"
-        << "          <Attribute Name=\"force\" AttributeType=\"Vector\" Center=\"Cell\">"
-        << io::xdmf_hdf_item(t + " 3", "Float", g + "/force") << "</Attribute>\n"
-        << "        </Grid>\n";
-    }
+      << "        <Time Value=\"" << io::format_time(entries_[k].time) << "\"/>\n";
+    for (std::size_t w = 0; w < walls_.size(); ++w) x << wall_grid(k, w, "        ");
     x << "      </Grid>\n";
   }
-  x << "    </Grid>\n  </Domain>\n</Xdmf>\n";
+  x << tail;
+  // Each wall's own index first: walls.xdmf, rewritten last, lists only snapshots whose
+  // per-wall indexes exist too.
+  for (std::size_t w = 0; w < walls_.size(); ++w) {
+    if (walls_[w].triangles.empty()) continue;  // nothing to show (an empty grid is not valid)
+    std::ostringstream y;
+    y << head << "    <Grid Name=\"" << io::xml_escape(walls_[w].name)
+      << "\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+    for (std::size_t k = 0; k < entries_.size(); ++k) y << wall_grid(k, w, "      ");
+    y << tail;
+    io::write_file_atomic(wall_index_path(w), y.str());
+  }
   io::write_file_atomic(index_path(), x.str());
 }
 

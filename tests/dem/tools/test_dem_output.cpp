@@ -283,3 +283,44 @@ motion = { kind = "translation", velocity = [0.0, 0.0, -2.0] }
     CHECK_FALSE(std::filesystem::exists(files.index_path()));
   }
 }
+
+TEST_CASE("a wall's snapshot holds its sensor's face reading beside its total force", "[output]") {
+  // Issue 34, item 11: a pressure cell's wall field was its net body force, not the face
+  // reading of its sensor CSV. A closed box under the 6 resting spheres, read by a sensor on
+  // its lid (face [0, 0, 1]: nothing touches it): sensor_force is the lid's 0 while force is
+  // the floor's load; each equals what the system reports for the state written.
+  TempDir dir;
+  const std::string extra = R"([[dem.walls]]
+name = "box"
+material = "steel"
+box = { lo = [0.0, 0.0, 0.0], hi = [0.03, 0.02, 0.05] }
+[[dem.sensors]]
+name = "lid"
+kind = "wall_force"
+interval = 5e-4
+wall = "box"
+face = [0.0, 0.0, 1.0]
+)";
+  const auto doc = demfem::scene::Document::parse(std::string(kFalling) + extra, "box.toml");
+  DemRun run(read_dem_scene(doc.root().required_table("dem")), dir.path, 1, 5e-4, nullptr, true);
+  run.advance(250);
+  run.finish();
+  const WallOutput files(dir.path, {{"box", {}}});  // names only
+  REQUIRE(std::filesystem::exists(files.snapshot_path(1)));
+  const H5File f(files.snapshot_path(1), H5File::Mode::read);
+  std::vector<std::size_t> dims;
+  const auto force = f.read_doubles("wall_0/force", &dims);
+  const auto sensor = f.read_doubles("wall_0/sensor_force", &dims);
+  REQUIRE(dims == std::vector<std::size_t>{12, 3});
+  const auto total = run.system().wall_force(0);
+  const auto lid = run.system().wall_face_load(0, {0.0, 0.0, 1.0}).force;
+  for (std::size_t t = 0; t < 12; ++t)
+    for (std::size_t c = 0; c < 3; ++c) {
+      CHECK(force[3 * t + c] == total[c]);
+      CHECK(sensor[3 * t + c] == lid[c]);
+    }
+  CHECK(total[2] < 0.0);  // the spheres press on the floor
+  CHECK(lid == std::array<double, 3>{0.0, 0.0, 0.0});
+  const std::string x = read_text(files.wall_index_path(0));
+  CHECK(occurrences(x, "<Attribute Name=\"sensor_force\"") == 2);  // snapshots 0 and 1
+}

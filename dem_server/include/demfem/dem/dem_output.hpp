@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "demfem/dem/dem_system.hpp"
+#include "demfem/io/h5_file.hpp"
 
 namespace demfem::dem {
 
@@ -25,9 +26,15 @@ namespace demfem::dem {
 /// state_time (s, the time of the state written; see io::OutputSchedule) and count; index
 /// <dir>/<stem>.xdmf. With polyhedra (set_shapes): also surface_points (m x 3),
 /// surface_velocity (m x 3: the rigid-body velocity at each point), surface_triangles
-/// (t x 3, int64), surface_id and surface_material (t, int64: the particle of each triangle),
-/// attributes surface_points and surface_triangles; the snapshot's index entry is then a
-/// spatial collection of the particles' points and the "polyhedra" surfaces.
+/// (t x 3, int64), the rock's fields on each triangle: surface_id, surface_material (t,
+/// int64), surface_radius, surface_mass (t), surface_centre_velocity and
+/// surface_angular_velocity (t x 3), and on each point: surface_point_id, _material, _radius,
+/// _mass (m) and surface_point_angular_velocity (m x 3); attributes surface_points and
+/// surface_triangles; the snapshot's index entry is then a spatial collection of the
+/// particles' points and the "polyhedra" surfaces. ParaView's default reader (Xdmf3ReaderS)
+/// merges the two into pieces of one data set, so every field is on both with both
+/// associations (the spheres' point fields are their cell fields too): colouring by any of
+/// them colours every piece.
 class ParticleOutput {
  public:
   ParticleOutput(std::filesystem::path dir, std::string stem = "particles");
@@ -68,6 +75,19 @@ class ParticleOutput {
   };
   std::vector<Surface> surfaces_;
   /// The <Grid> of the polyhedron surfaces of snapshot k (triangles).
+  /// A rock's fields, repeated on each of its cells or points.
+  struct PerRock {
+    std::vector<std::int64_t> id, material;
+    std::vector<double> radius, mass, velocity, angular_velocity;
+  };
+  /// The polyhedra as triangle surfaces in world coordinates, with their fields.
+  struct SurfaceData {
+    std::vector<double> points, point_velocity;
+    std::vector<std::int64_t> triangles;
+    PerRock cell, point;
+  };
+  SurfaceData surfaces(const ParticleState& p, std::span<const std::int64_t> ids) const;
+  static void write_surfaces(io::H5File& f, const SurfaceData& sd);
   void write_polyhedron_grid(std::ostream& x, std::size_t k, const std::string& indent) const;
   void write_index() const;
   /// One <Grid> of spheres (vertex cells) of snapshot k: the place where another particle

@@ -23,6 +23,7 @@
 #include <string_view>
 
 #include "demfem/dem/shapes/convex_polyhedron.hpp"
+#include "demfem/dem/shapes/sieve_size.hpp"
 
 namespace demfem::dem::shapes {
 
@@ -59,9 +60,11 @@ ParticleShape describe_dilated(const ConvexPolyhedron& core, double dilation_rad
 
 /// The core scaled so that the dilated particle, with r_d = dilation_fraction * size, has the
 /// requested size. Throws ShapeError naming `source` for size <= 0, dilation_fraction <= 0,
-/// r_d >= size (fraction >= 1), or r_d >= size / 2 (the core would vanish).
+/// r_d >= size (fraction >= 1), or r_d >= size / 2 (the core would vanish). `sieve` sets the
+/// sieve-size search (its progress hook for large cores).
 ParticleShape make_particle_shape(const ConvexPolyhedron& core, double size, SizeKind kind,
-                                  double dilation_fraction, std::string_view source);
+                                  double dilation_fraction, std::string_view source,
+                                  const SieveSearch& sieve = {});
 
 /// The similar shape with every length times `factor` (> 0): exact (volume factor^3,
 /// moments factor^5).

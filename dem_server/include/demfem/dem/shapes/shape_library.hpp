@@ -37,7 +37,9 @@ class ShapeLibrary {
  public:
   /// Unit shapes from given cores (STL hulls, simple solids), each scaled to size 1 m of
   /// `kind` with r_d = dilation_fraction. Throws ShapeError (see make_particle_shape).
-  ShapeLibrary(std::span<const ConvexPolyhedron> cores, SizeKind kind, double dilation_fraction);
+  /// `sieve`: the sieve-size search of every core (its progress hook for large cores).
+  ShapeLibrary(std::span<const ConvexPolyhedron> cores, SizeKind kind, double dilation_fraction,
+               const SieveSearch& sieve = {});
 
   /// `count` random rocks; rock k uses the seed derived from (seed, k) by SplitMix64, so the
   /// first k shapes do not depend on `count`. Built in parallel (OpenMP), deterministic.
