@@ -1,0 +1,160 @@
+// Hostile input to the DEM, issue 34 (hardening, second round; docs/reliability.md): forged
+// state files and checkpoints, [dem.load] chains that load themselves, files that are not
+// what their name says. Whole runs are real demfem_run processes (hostile_run.hpp); the
+// state checks are also exercised on a DemRun alone.
+#include <catch2/catch.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "demfem/coupling/checkpoint.hpp"
+#include "demfem/dem/dem_scene.hpp"
+#include "demfem/io/h5_file.hpp"
+#include "demfem/scene/scene_reader.hpp"
+#include "demfem_test/box_scene.hpp"
+#include "hdf5_patch.hpp"
+#include "hostile_run.hpp"
+
+using namespace hostile;  // NOLINT: the shared helpers of hostile_run.hpp
+
+namespace {
+
+// 48 spheres of 8 mm on the floor of the box, touching each other: after 10 ms their
+// contacts carry tangential springs (friction 1.0), so the state's pair rows are not empty.
+std::string bed_scene(const std::string& extra = "") {
+  demfem::test::BoxScene b;
+  return b.text() +
+         "\n[[dem.lattice]]\nmaterial = \"wheat\"\nlo = [0.0, 0.0, 0.0]\n"
+         "hi = [0.04, 0.04, 0.0161]\ndiameter = 0.008\nspacing = 0.008\n"
+         "\n[dem.output]\nstate = true\n" +
+         extra;
+}
+
+fs::path write(const fs::path& file, const std::string& text) {
+  std::ofstream(file) << text;
+  return file;
+}
+
+// The state a run of bed_scene() leaves in <dir>/out/bed/dem_state.h5.
+fs::path make_bed_state(const fs::path& dir) {
+  const fs::path scene = write(dir / "bed.toml", bed_scene());
+  const Ended r = run(dir, {scene.string(), "--output-dir", (dir / "out/bed").string()});
+  INFO(r.out << r.err);
+  REQUIRE(r.status == 0);
+  const fs::path state = dir / "out/bed/dem_state.h5";
+  REQUIRE(fs::exists(state));
+  return state;
+}
+
+std::size_t dataset_size(const fs::path& file, const std::string& name) {
+  demfem::io::H5File f(file, demfem::io::H5File::Mode::read);
+  return f.read_int64(name).size();
+}
+
+// A DemRun of `scene_text` (a scene of the same walls and particles) restoring `state`.
+void restore_into_run(const fs::path& dir, const std::string& scene_text, const fs::path& state) {
+  const auto doc = demfem::scene::Document::parse(scene_text, (dir / "restore.toml").string());
+  const auto sc = demfem::dem::read_dem_scene(*doc.root().table("dem"));
+  demfem::dem::DemRun run(sc, {}, 1, 0.0, nullptr);
+  demfem::io::H5File h5(state, demfem::io::H5File::Mode::read);
+  run.restore(h5, "dem");
+  run.advance(10);  // a refilter through the restored rows: out of bounds without the checks
+}
+
+}  // namespace
+
+TEST_CASE("a forged contact history in a DEM state is refused naming the dataset") {
+  // Issue 34, item 1: a state's dem/row and dem/nbr index the springs; forged (a checkpoint
+  // with its manifest recomputed, or a [dem.load] state) they were read out of bounds: SIGSEGV.
+  TempDir d;
+  const fs::path state = make_bed_state(d.path);
+  const std::size_t n = dataset_size(state, "dem/row") - 1;
+  const std::size_t pairs = dataset_size(state, "dem/nbr");
+  REQUIRE(pairs > 0);
+  demfem::io::H5File f0(state, demfem::io::H5File::Mode::read);
+  const auto row0 = f0.read_int64("dem/row");
+  f0.close();
+  std::size_t first_row = 0;  // the first particle with a spring
+  while (row0[first_row + 1] == row0[first_row]) ++first_row;
+  {
+    INFO("the state as written restores");
+    CHECK_NOTHROW(restore_into_run(d.path, bed_scene(), state));
+  }
+  struct Forgery {
+    const char* what;
+    const char* dataset;
+    std::size_t index;
+    std::int64_t value;
+    const char* expect;
+  };
+  const std::int64_t nn = static_cast<std::int64_t>(n);
+  const std::vector<Forgery> forged = {
+      {"the last row beyond the pairs", "dem/row", n, 1000000000, "dem/row"},
+      {"a row pointer below the one before", "dem/row", first_row + 1, -5, "dem/row"},
+      {"a partner beyond the particles", "dem/nbr", 0, nn + 100, "dem/nbr"},
+      {"a negative partner", "dem/nbr", 0, -1, "dem/nbr"},
+      {"a partner that is the particle itself", "dem/nbr", 0, std::int64_t(first_row), "dem/nbr"},
+  };
+  for (const auto& x : forged) {
+    INFO(x.what);
+    const fs::path bad = d.path / "forged.h5";
+    fs::remove(bad);
+    fs::copy_file(state, bad);
+    demfem::test::overwrite_int64(bad, x.dataset, x.index, x.value);
+    CHECK_THROWS_WITH(restore_into_run(d.path, bed_scene(), bad),
+                      Catch::Contains(bad.string()) && Catch::Contains(x.expect));
+  }
+  {
+    INFO("more wall contacts than a particle holds");
+    const fs::path bad = d.path / "forged.h5";
+    fs::remove(bad);
+    fs::copy_file(state, bad);
+    demfem::test::overwrite_uint8(bad, "dem/wcount", 0, 200);
+    CHECK_THROWS_WITH(restore_into_run(d.path, bed_scene(), bad),
+                      Catch::Contains("dem/wcount") && Catch::Contains("accepted 0 .. "));
+  }
+  {
+    INFO("[dem.load] of the forged state: exit 2 naming the file and the dataset");
+    const fs::path bad = d.path / "forged_load.h5";
+    fs::copy_file(state, bad);
+    demfem::test::overwrite_int64(bad, "dem/row", n, 1000000000);
+    demfem::test::BoxScene b;
+    const fs::path scene =
+        write(d.path / "load.toml", b.text() + "\n[dem.load]\nfile = \"" + bad.string() + "\"\n");
+    const Ended r = run(d.path, {scene.string(), "--output-dir", (d.path / "out/load").string()});
+    INFO(r.out << r.err);
+    CHECK(r.status == 2);
+    CHECK_THAT(r.err, Catch::Contains(bad.string()) && Catch::Contains("dem/row"));
+    check_nothing_left(r.out);
+  }
+}
+
+TEST_CASE("resume of a checkpoint with a forged contact history: exit 2, no restarts") {
+  // Issue 34, item 1: the forged checkpoint (manifest recomputed) crashed dem_server at each of
+  // the 3 restarts, exit 4. Now dem_server refuses it as bad input before any step.
+  TempDir d;
+  const fs::path scene = variant(
+      d.path, "friction.toml",
+      {{"friction = 0.0             # frictionless", "friction = 0.5             # springs"},
+       {"spacing = 0.025", "spacing = 0.024"}});  // the spheres touch: pairs with springs
+  const fs::path out = d.path / kOut;
+  {
+    const Ended r = run(d.path, {scene.string()});
+    INFO(r.out << r.err);
+    REQUIRE(r.status == 0);
+  }
+  const fs::path cp = out / "checkpoints" / "step-000040";
+  REQUIRE(dataset_size(cp / "dem.h5", "dem/nbr") > 0);
+  const std::size_t n = dataset_size(cp / "dem.h5", "dem/row") - 1;
+  demfem::test::overwrite_int64(cp / "dem.h5", "dem/row", n, 1000000000);
+  demfem::coupling::commit_checkpoint(cp, 40, 0.004, "just_in_time",
+                                      {"dem.h5", "fem.h5", "coupler.h5"});
+  const Ended r = run(d.path, {scene.string(), "--resume", cp.string()});
+  INFO(r.out << r.err);
+  CHECK(r.status == 2);
+  CHECK_THAT(r.err, Catch::Contains((cp / "dem.h5").string()) && Catch::Contains("dem/row"));
+  CHECK_THAT(r.out + r.err, !Catch::Contains("restart 1 of"));
+  check_nothing_left(r.out);
+}
