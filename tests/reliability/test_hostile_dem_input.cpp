@@ -158,3 +158,46 @@ TEST_CASE("resume of a checkpoint with a forged contact history: exit 2, no rest
   CHECK_THAT(r.out + r.err, !Catch::Contains("restart 1 of"));
   check_nothing_left(r.out);
 }
+
+TEST_CASE("[dem.load] scenes that load each other are refused with the chain, not waited for") {
+  // Issue 34, item 4: a scene that loads its own end state, or two that load each other, hung
+  // for ever in flock() (the prepare run waited for the lock its parent held).
+  TempDir d;
+  auto loader = [&](const std::string& name, const std::string& loads) {
+    demfem::test::BoxScene b;
+    b.end_time = "";  // the [run] table below
+    return write(d.path / name, "[run]\nend_time = 0.01\noutput_dir = \"out/" + name +
+                                    "\"\n" + b.text() + "\n[dem.load]\nscene = \"" + loads +
+                                    "\"\nhistory = false\n\n[dem.output]\nstate = true\n");
+  };
+  for (const bool check : {false, true}) {
+    INFO((check ? "--check" : "a run"));
+    std::vector<std::string> extra;
+    if (check) extra.push_back("--check");
+    {
+      INFO("a scene that loads itself");
+      const fs::path self = loader("self.toml", "self.toml");
+      std::vector<std::string> args = {self.string()};
+      args.insert(args.end(), extra.begin(), extra.end());
+      const Ended r = run(d.path, args);
+      INFO(r.out << r.err);
+      CHECK(r.status == 2);
+      CHECK_THAT(r.err, Catch::Contains("load each other") &&
+                            Catch::Contains(fs::canonical(self).string() + " -> " +
+                                            fs::canonical(self).string()));
+      CHECK(started_pids(r.out).empty());
+    }
+    {
+      INFO("two scenes that load each other: refused in the prepare run of the second");
+      const fs::path a = loader("a.toml", "b.toml");
+      const fs::path bb = loader("b.toml", "a.toml");
+      std::vector<std::string> args = {a.string()};
+      args.insert(args.end(), extra.begin(), extra.end());
+      const Ended r = run(d.path, args);
+      INFO(r.out << r.err);
+      CHECK(r.status == 2);
+      const std::string ca = fs::canonical(a).string(), cb = fs::canonical(bb).string();
+      CHECK_THAT(r.err, Catch::Contains(ca + " -> " + cb + " -> " + ca));
+    }
+  }
+}
