@@ -201,3 +201,55 @@ TEST_CASE("[dem.load] scenes that load each other are refused with the chain, no
     }
   }
 }
+
+TEST_CASE("a particle file that is not what it says is refused (exit 2), not aborted") {
+  // Issue 34, item 5: text bytes named .h5, and a state of rocks with a scale <= 0 loaded with
+  // history = false, ended with an uncaught exception (exit 134).
+  TempDir d;
+  demfem::test::BoxScene b;
+  {
+    INFO("non-HDF5 bytes as an .h5 particle file");
+    const fs::path junk = write(d.path / "junk.h5", "x,y,z,r\n0.01,0.01,0.01,0.004\n");
+    for (const std::string format : {"", "format = \"state\"\n", "format = \"snapshot\"\n"}) {
+      INFO(format);
+      const fs::path scene = write(d.path / "junk.toml", b.text() + "\n[dem.load]\nfile = \"" +
+                                                             junk.string() + "\"\n" + format);
+      const Ended r = run(d.path, {scene.string(), "--output-dir", (d.path / "out/j").string()});
+      INFO(r.out << r.err);
+      CHECK(r.status == 2);
+      CHECK_THAT(r.err, Catch::Contains(junk.string()) && Catch::Contains("dem.load"));
+      check_nothing_left(r.out);
+    }
+  }
+  {
+    INFO("a state of rocks with a scale <= 0, loaded with history = false");
+    const std::string head = demfem::test::rock_box("[0.3, 0.3, 0.6]").text();
+    const std::string rocks =
+        "\n[[dem.shapes]]\nname = \"ballast\"\nkind = \"random_rock\"\ncount = 3\n"
+        "triangles = 10\nseed = 5\n\n[[dem.insert]]\nmaterial = \"rock\"\nshape = \"ballast\"\n"
+        "lo = [0.0, 0.0, 0.0]\nhi = [0.3, 0.3, 0.3]\ncount = 10\nseed = 3\n"
+        "distribution = { kind = \"normal\", mean = 0.04, stddev = 0.01, d_min = 0.02, "
+        "d_max = 0.06 }\n\n[dem.output]\nstate = true\n";
+    const fs::path fill = write(d.path / "fill.toml", head + rocks);
+    const Ended made = run(d.path, {fill.string(), "--output-dir", (d.path / "out/f").string()});
+    INFO(made.out << made.err);
+    REQUIRE(made.status == 0);
+    for (const double scale : {0.0, -1.0}) {
+      INFO("scale " << scale);
+      const fs::path bad = d.path / "rocks.h5";
+      fs::remove(bad);
+      fs::copy_file(d.path / "out/f/dem_state.h5", bad);
+      demfem::test::overwrite_doubles(bad, "dem/scale", 3, scale);
+      const fs::path scene =
+          write(d.path / "load.toml", head + rocks.substr(0, rocks.find("[[dem.insert]]")) +
+                                          "[dem.load]\nfile = \"" + bad.string() +
+                                          "\"\nhistory = false\n");
+      const Ended r = run(d.path, {scene.string(), "--output-dir", (d.path / "out/l").string()});
+      INFO(r.out << r.err);
+      CHECK(r.status == 2);
+      CHECK_THAT(r.err, Catch::Contains(bad.string() + ": particle 3") &&
+                            Catch::Contains("dem/scale") && Catch::Contains("accepted"));
+      check_nothing_left(r.out);
+    }
+  }
+}

@@ -248,7 +248,16 @@ Loaded read_state_particles(const ParticleSource& s) {
       p.shape = ParticleShape::polyhedron;
       p.shape_id = static_cast<std::int32_t>(shape_id[i]);  // the file's; remapped when added
       p.scale = scale[i];
+      if (!(p.scale > 0) || !std::isfinite(p.scale))
+        data_error(s, s.file.string() + ": particle " + std::to_string(i),
+                   "dataset " + g + "scale holds " + std::to_string(p.scale) +
+                       " (accepted: a finite scale > 0)");
       p.orientation = {qw[i], qx[i], qy[i], qz[i]};
+      const double q2 = qw[i] * qw[i] + qx[i] * qx[i] + qy[i] * qy[i] + qz[i] * qz[i];
+      if (!(std::abs(q2 - 1.0) <= 1e-6))
+        data_error(s, s.file.string() + ": particle " + std::to_string(i),
+                   "datasets " + g + "qw, qx, qy, qz: the orientation is not a unit quaternion (|q|^2 = " +
+                       std::to_string(q2) + ", accepted 1 +- 1e-6)");
     } else if (shape[i] != static_cast<std::uint8_t>(ParticleShape::sphere)) {
       data_error(s, s.file.string() + ": particle " + std::to_string(i),
                  "has an unknown shape kind " + std::to_string(int(shape[i])));
@@ -508,8 +517,14 @@ ParticleSource read_particle_source(const Table& t, const std::vector<Material>&
     if (ext != ".h5" && ext != ".hdf5")
       t.fail("format", "cannot tell the format of \"" + s.file.string() +
                            "\" from its extension (.csv, .h5, .hdf5); give format");
-    io::H5File f(s.file, io::H5File::Mode::read);
-    format = f.exists("position") ? "snapshot" : "state";
+    try {
+      io::H5File f(s.file, io::H5File::Mode::read);
+      format = f.exists("position") ? "snapshot" : "state";
+    } catch (const io::H5Error& e) {
+      t.fail("file", "\"" + s.file.string() + "\" cannot be read as HDF5 (" + e.what() +
+                         "); a .h5 / .hdf5 file must be a snapshot or a DEM state, a .csv a "
+                         "table x,y,z,r[,vx,vy,vz]");
+    }
   }
   s.format = format == "snapshot" ? ParticleSource::Format::snapshot
              : format == "state"  ? ParticleSource::Format::state
@@ -720,7 +735,11 @@ std::size_t load_particles(const ParticleSource& s, DemSystem& system,
         for (auto& p : l.particles)
           if (p.shape == ParticleShape::polyhedron) p.shape_id = id[std::size_t(p.shape_id)];
       }
-      system.add_particles(l.particles);
+      try {
+        system.add_particles(l.particles);
+      } catch (const std::invalid_argument& e) {  // what the checks above left to the engine
+        data_error(s, s.file.string(), e.what());
+      }
       origin = std::move(l.origin);
     }
   } catch (const io::H5Error& e) {
