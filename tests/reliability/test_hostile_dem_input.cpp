@@ -4,6 +4,8 @@
 // state checks are also exercised on a DemRun alone.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -251,5 +253,68 @@ TEST_CASE("a particle file that is not what it says is refused (exit 2), not abo
                             Catch::Contains("dem/scale") && Catch::Contains("accepted"));
       check_nothing_left(r.out);
     }
+  }
+}
+
+TEST_CASE("fine particles in a large region, and a particle shot out of the domain") {
+  // Issue 34, item 3: the insertion's dense grid of cells of one diameter over the region
+  // (10^11 - 10^12 cells) aborted with bad_alloc, exit 134, --check too; a particle shot away
+  // ended a run mid-way with bad_alloc in the neighbour grid (tests/dem/core/
+  // test_neighbour_grid.cpp). Now the insertion's grid is hashed beyond 2^22 cells, and a
+  // particle that leaves the domain stops the run as a blow-up, naming it.
+  TempDir d;
+  struct Big {
+    const char* what;
+    const char* box_hi;
+    const char* count;
+    const char* d_min;
+    const char* d_max;
+    const char* dt;  // s: below the Rayleigh step of the spheres
+  };
+  for (const Big& x : {Big{"200 spheres of 0.2 mm in a box of 1 m", "[1.0, 1.0, 1.0]", "200",
+                           "0.00019", "0.0002", "2e-7"},
+                       Big{"10 spheres of 10 mm in a box of 100 m", "[100.0, 100.0, 100.0]",
+                           "10", "0.0099", "0.01", "1e-5"}}) {
+    INFO(x.what);
+    demfem::test::BoxScene b;
+    b.box_hi = x.box_hi;
+    b.end_time = "1e-5";
+    const fs::path scene =
+        write(d.path / "big.toml",
+              b.text() + "\n[[dem.insert]]\nmaterial = \"wheat\"\nlo = [0.0, 0.0, 0.0]\nhi = " +
+                  x.box_hi + "\ncount = " + x.count + "\nseed = 3\n" +
+                  "distribution = { kind = \"uniform\", d_min = " + x.d_min +
+                  ", d_max = " + x.d_max + " }\n");
+    for (const bool check : {true, false}) {
+      std::vector<std::string> args = {scene.string(), "--output-dir",
+                                       (d.path / "out/big").string(), "--set",
+                                       std::string("dem.dt=") + x.dt};
+      if (check) args.push_back("--check");
+      const Ended r = run(d.path, args);
+      INFO((check ? "--check" : "run") << "\n" << r.out << r.err);
+      CHECK(r.status == 0);
+      if (!check) CHECK_THAT(r.out + r.err, Catch::Contains(std::string(x.count) + " particles"));
+    }
+  }
+  {
+    INFO("a particle shot out of the box at 5 km/s: exit 3, naming it, its position and the time");
+    std::ofstream(d.path / "shot.csv") << "x,y,z,r,vx,vy,vz\n0.01,0.01,0.005,0.004,0,0,0\n"
+                                          "0.03,0.03,0.005,0.004,0,0,0\n"
+                                          "0.02,0.02,0.03,0.004,3000,3000,3000\n";
+    demfem::test::BoxScene b;
+    b.end_time = "0.2";
+    const fs::path scene = write(d.path / "shot.toml", b.text() +
+                                                           "\n[dem.load]\nfile = \"shot.csv\"\n"
+                                                           "material = \"wheat\"\n");
+    const fs::path out = d.path / "out/shot";
+    const Ended r = run(d.path, {scene.string(), "--output-dir", out.string()});
+    INFO(r.out << r.err);
+    CHECK(r.status == 3);
+    // the box is 0.1 m high: the domain reaches 1 m beyond it; the particle crosses that
+    // within the first 0.4 ms, and is caught at the end of the coupling step it crossed in
+    CHECK_THAT(r.err, Catch::Contains("particle 2 left the domain at t = 0.001 s") &&
+                          Catch::Contains("[-1, 1.04] x [-1, 1.04] x [-1, 1.1] m"));
+    CHECK(record_field(out, "exit_code") == "3");
+    check_nothing_left(r.out);
   }
 }

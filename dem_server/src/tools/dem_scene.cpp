@@ -974,6 +974,8 @@ void DemRun::write_state() const {
 void DemRun::check_stable() const {
   const auto& radius = system_->particles().radius;
   if (radius.empty()) return;
+  if (const std::string away = outside_domain(*system_, ids_); !away.empty())
+    throw Unstable("DEM run stopped: " + away);
   const double ke = system_->kinetic_energy();
   // each contact against the smaller contact radius of its two bodies (a polyhedron's:
   // its dilation, its cores intersect at an overlap of r_i + r_j)
