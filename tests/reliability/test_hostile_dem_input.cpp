@@ -318,3 +318,36 @@ TEST_CASE("fine particles in a large region, and a particle shot out of the doma
     check_nothing_left(r.out);
   }
 }
+
+TEST_CASE("a CSV of more particles than the process holds is refused before it is read") {
+  // Issue 34, item 9: a 2 GB CSV took 6.3 GB of memory before it was refused (a 336 MB one of
+  // 16e6 rows: 5.2 GB after 40 s, still reading). Its rows are now counted first, keeping
+  // nothing, and refused against the particle budget (kBytesPerParticle, the machine's memory
+  // or the process's address-space limit). Here 800,000 rows (17 MB) under ulimit -v 1.5 GB:
+  // 1.6 GB at 2 kB per particle.
+  TempDir d;
+  {
+    std::ofstream csv(d.path / "big.csv");
+    csv << "x,y,z,r\n";
+    for (int i = 0; i < 800000; ++i) csv << "0.02,0.02,0.05,0.001\n";
+  }
+  demfem::test::BoxScene b;
+  const fs::path scene = write(d.path / "csv.toml", b.text() +
+                                                        "\n[dem.load]\nfile = \"big.csv\"\n"
+                                                        "material = \"wheat\"\n");
+  const std::string line = "ulimit -v 1500000 && exec " + (kBin / "demfem_run").string() +
+                           " --bin-dir " + kBin.string() + " --quiet " + scene.string() +
+                           " --output-dir " + (d.path / "out/csv").string();
+  for (const char* extra : {"", " --check"}) {
+    INFO(line + extra);
+    const Ended r =
+        demfem::test::wait_for(demfem::test::launch(d.path, {"/bin/sh", "-c", line + extra}));
+    INFO(r.out << r.err);
+    CHECK(r.status == 2);
+    CHECK_THAT(r.err, Catch::Contains("dem.load.file") &&
+                          Catch::Contains("holds 800000 particle rows") &&
+                          Catch::Contains("kB per particle, more than this process's "
+                                          "address-space limit (ulimit -v)"));
+    CHECK(started_pids(r.out).empty());
+  }
+}
