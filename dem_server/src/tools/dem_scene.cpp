@@ -986,13 +986,20 @@ void DemRun::write_state() const {
 void DemRun::check_stable() const {
   const auto& radius = system_->particles().radius;
   if (radius.empty()) return;
-  if (const std::string away = outside_domain(*system_, ids_); !away.empty())
-    throw Unstable("DEM run stopped: " + away);
   const double ke = system_->kinetic_energy();
   // each contact against the smaller contact radius of its two bodies (a polyhedron's:
   // its dilation, its cores intersect at an overlap of r_i + r_j)
   const double rel = system_->advance_max_relative_overlap();
-  if (std::isfinite(ke) && rel <= kMaxStableOverlap) return;
+  if (std::isfinite(ke) && rel <= kMaxStableOverlap) {
+    // a particle far from every wall (after the overlap check: an exploded contact is
+    // reported as such, with its overlap)
+    const std::string away = outside_domain(*system_, ids_);
+    if (away.empty()) return;
+    std::ostringstream m;
+    m << "DEM run stopped: " << away << " (dt = " << scene_.settings.dt << " s, "
+      << scene_.dt_where << ")";
+    throw Unstable(m.str());
+  }
   std::ostringstream m;
   m << "DEM run unstable in the steps up to t = " << system_->time() << " s: ";
   if (!std::isfinite(ke))
