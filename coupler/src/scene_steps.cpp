@@ -4,11 +4,13 @@
 #include <sys/file.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "demfem/coupling/supervisor.hpp"
@@ -29,6 +31,92 @@ namespace {
 // A prepare scene that (through others) prepares itself would never end.
 constexpr const char* kDepthVariable = "DEMFEM_PREPARE_DEPTH";
 constexpr int kMaxPrepareDepth = 8;
+// The enclosing prepare runs, outermost first, one line each: "pid<TAB>scene<TAB>state", the
+// demfem_run that waits, its scene and the state it waits for (absolute paths). A run refuses
+// a [dem.load] scene already in the chain (a cycle), and a state an enclosing run is making
+// (its lock is held by that run, which waits for this one: a deadlock).
+constexpr const char* kChainVariable = "DEMFEM_PREPARE_CHAIN";
+
+struct ChainLink {
+  long pid = 0;
+  std::string scene, state;
+};
+
+std::vector<ChainLink> read_chain() {
+  std::vector<ChainLink> chain;
+  const char* text = std::getenv(kChainVariable);
+  std::string rest = text ? text : "";
+  while (!rest.empty()) {
+    const auto end = rest.find('\n');
+    const std::string line = rest.substr(0, end);
+    rest = end == std::string::npos ? "" : rest.substr(end + 1);
+    const auto a = line.find('\t'), b = a == std::string::npos ? a : line.find('\t', a + 1);
+    if (b == std::string::npos) continue;
+    chain.push_back({std::atol(line.substr(0, a).c_str()), line.substr(a + 1, b - a - 1),
+                     line.substr(b + 1)});
+  }
+  return chain;
+}
+
+std::string absolute_text(const fs::path& p) {
+  std::error_code ec;
+  const fs::path a = fs::weakly_canonical(fs::absolute(p), ec);
+  return (ec ? fs::absolute(p) : a).string();
+}
+
+// Takes the prepare lock of a state's folder: waits while another run prepares it (the kernel
+// drops a lock when its holder ends in any way), writes this run into the file, and returns
+// the descriptor; -1 with a message when it cannot be taken, when its holder is a run of this
+// chain (which waits for this one: it would never be released), or on a stop signal (then
+// `stopped` is the signal's status, 128 + N).
+int take_prepare_lock(const fs::path& lock, const std::vector<ChainLink>& chain,
+                      const std::string& scene, int& stopped) {
+  const int fd = ::open(lock.c_str(), O_CREAT | O_RDWR | O_CLOEXEC, 0644);
+  if (fd < 0) {
+    std::fprintf(stderr, "demfem run: cannot open the lock %s\n", lock.c_str());
+    return -1;
+  }
+  SignalGuard signals;  // a stop signal ends the wait
+  bool told = false;
+  for (;;) {
+    if (::flock(fd, LOCK_EX | LOCK_NB) == 0) break;
+    if (errno != EWOULDBLOCK && errno != EINTR) {
+      std::fprintf(stderr, "demfem run: cannot lock %s\n", lock.c_str());
+      ::close(fd);
+      return -1;
+    }
+    char buf[512] = {};
+    const ssize_t got = ::pread(fd, buf, sizeof buf - 1, 0);
+    const std::string holder = got > 0 ? std::string(buf, static_cast<std::size_t>(got)) : "";
+    const long pid = std::atol(holder.c_str());
+    for (const auto& l : chain)
+      if (pid > 0 && l.pid == pid) {
+        std::fprintf(stderr,
+                     "demfem run: %s is held by process %ld, a run of this [dem.load] chain "
+                     "(%s) that waits for this one: it would never be released\n",
+                     lock.c_str(), pid, l.scene.c_str());
+        ::close(fd);
+        return -1;
+      }
+    if (!told) {
+      std::printf("demfem run: waiting for %s (held by %s) to be released\n", lock.c_str(),
+                  holder.empty() ? "another run" : holder.c_str());
+      std::fflush(stdout);
+      told = true;
+    }
+    if (SignalGuard::stop_flag().load()) {
+      stopped = 128 + SignalGuard::signal_number();
+      ::close(fd);
+      return -1;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  const std::string me = std::to_string(::getpid()) + " (demfem run " + scene + ")";
+  if (::ftruncate(fd, 0) != 0 || ::pwrite(fd, me.data(), me.size(), 0) < 0) {
+    // the holder line is for the waiting runs' messages only: the lock is held all the same
+  }
+  return fd;
+}
 
 std::string python() {
   const char* p = std::getenv("DEMFEM_PYTHON");
@@ -70,16 +158,21 @@ int run_child(const std::string& label, const fs::path& exe, const std::vector<s
 }
 
 // demfem_run on the prepare scene of `src`, with its overrides and `extra` arguments, one
-// prepare level deeper (kDepthVariable, restored afterwards). 1 when it cannot be started.
+// prepare level deeper (kDepthVariable, restored afterwards) and with `link` (this run's line)
+// added to kChainVariable. 1 when it cannot be started.
 int run_prepare_child(const std::string& label, const dem::ParticleSource& src,
-                      const fs::path& bin_dir, int depth, std::vector<std::string> extra) {
+                      const fs::path& bin_dir, int depth, const std::string& link,
+                      std::vector<std::string> extra) {
   std::vector<std::string> args = {"--bin-dir", bin_dir.string(), src.prepare_scene.string()};
   for (const auto& o : src.prepare_overrides)
     args.insert(args.end(), {"--set", o.key + "=" + o.value});
   args.insert(args.end(), extra.begin(), extra.end());
   const char* before = std::getenv(kDepthVariable);
   const std::string saved = before ? before : "";
+  const char* chain_before = std::getenv(kChainVariable);
+  const std::string chain_saved = chain_before ? chain_before : "";
   ::setenv(kDepthVariable, std::to_string(depth + 1).c_str(), 1);
+  ::setenv(kChainVariable, (chain_saved + link).c_str(), 1);
   int code = 1;
   try {
     code = run_child(label, bin_dir / "demfem_run", args, true);
@@ -90,6 +183,10 @@ int run_prepare_child(const std::string& label, const dem::ParticleSource& src,
     ::setenv(kDepthVariable, saved.c_str(), 1);
   else
     ::unsetenv(kDepthVariable);
+  if (chain_before)
+    ::setenv(kChainVariable, chain_saved.c_str(), 1);
+  else
+    ::unsetenv(kChainVariable);
   return code;
 }
 
@@ -172,6 +269,27 @@ int run_prepare_scenes(const scene::Document& doc, const fs::path& bin_dir, bool
   const dem::ParticleSource& src = *ds.load;
   if (dem::state_is_current(src.file, src.prepare_scene, src.prepare_overrides)) return 0;
 
+  // A cycle: this scene (or one of the runs that wait for it) is the one it loads, or the
+  // state it needs is being made by one of them. Refused before anything waits for anything.
+  const std::vector<ChainLink> chain = read_chain();
+  const std::string self = absolute_text(doc.file()), prepare = absolute_text(src.prepare_scene),
+                    state = absolute_text(src.file);
+  std::string path;
+  bool cycle = prepare == self;
+  for (const auto& l : chain) {
+    path += l.scene + " -> ";
+    cycle = cycle || l.scene == prepare || l.state == state;
+  }
+  if (cycle) {
+    std::fprintf(stderr,
+                 "demfem run: %s: [dem.load] scenes load each other: %s%s -> %s (state %s); a "
+                 "scene cannot start from its own end state, nor from a state that a scene "
+                 "waiting for it makes\n",
+                 src.where.c_str(), path.c_str(), self.c_str(), prepare.c_str(), state.c_str());
+    return 2;
+  }
+  const std::string link =
+      std::to_string(::getpid()) + "\t" + self + "\t" + state + "\n";
   const char* depth_text = std::getenv(kDepthVariable);
   const int depth = depth_text ? std::atoi(depth_text) : 0;
   if (depth >= kMaxPrepareDepth) {
@@ -182,7 +300,7 @@ int run_prepare_scenes(const scene::Document& doc, const fs::path& bin_dir, bool
     return 2;
   }
   if (check_only) {  // its scene is checked as a run of it would check it, nothing is made
-    const int code = run_prepare_child("prepare check", src, bin_dir, depth, {"--check"});
+    const int code = run_prepare_child("prepare check", src, bin_dir, depth, link, {"--check"});
     if (code != 0)
       std::fprintf(stderr, "demfem run: the prepare scene %s does not pass --check (status %d)\n",
                    src.prepare_scene.c_str(), code);
@@ -192,12 +310,9 @@ int run_prepare_scenes(const scene::Document& doc, const fs::path& bin_dir, bool
   // it current.
   fs::create_directories(src.file.parent_path().empty() ? fs::path(".") : src.file.parent_path());
   const fs::path lock = src.file.parent_path() / ".prepare.lock";
-  const int fd = ::open(lock.c_str(), O_CREAT | O_RDWR | O_CLOEXEC, 0644);
-  if (fd < 0 || ::flock(fd, LOCK_EX) != 0) {
-    std::fprintf(stderr, "demfem run: cannot lock %s\n", lock.c_str());
-    if (fd >= 0) ::close(fd);
-    return 1;
-  }
+  int stopped = 0;
+  const int fd = take_prepare_lock(lock, chain, self, stopped);
+  if (fd < 0) return stopped != 0 ? stopped : 1;
   int code = 0;
   if (!dem::state_is_current(src.file, src.prepare_scene, src.prepare_overrides)) {
     std::string with = src.prepare_overrides.empty() ? "" : " with";
@@ -209,7 +324,7 @@ int run_prepare_scenes(const scene::Document& doc, const fs::path& bin_dir, bool
     std::vector<std::string> extra;
     if (quiet) extra.push_back("--quiet");
     if (in_process) extra.push_back("--in-process");
-    code = run_prepare_child("prepare run", src, bin_dir, depth, extra);
+    code = run_prepare_child("prepare run", src, bin_dir, depth, link, extra);
     if (code != 0) {
       std::fprintf(stderr, "demfem run: the prepare scene %s ended with status %d\n",
                    src.prepare_scene.c_str(), code);

@@ -115,22 +115,36 @@ std::vector<PolyhedronShape> read_state_shapes(const io::H5File& f, const std::s
   const auto tri = f.read_int64(g + "shape_triangles");
   const auto par = f.read_doubles(g + "shape_params");
   const std::string names = f.attribute_string(g + "shape_nv", "names");
-  if (ntri.size() != nv.size() || par.size() != 5 * nv.size())
+  auto inconsistent = [&](const std::string& what) {
     throw std::invalid_argument("DemSystem: restore: inconsistent shape table in " +
-                                f.path().string());
+                                f.path().string() + ":/" + g + what);
+  };
+  if (ntri.size() != nv.size() || par.size() != 5 * nv.size())
+    inconsistent("shape_nv, shape_ntri and shape_params have " + std::to_string(nv.size()) +
+                 ", " + std::to_string(ntri.size()) + " and " + std::to_string(par.size()) +
+                 " values (accepted: n, n and 5 n)");
   std::size_t v0 = 0, t0 = 0, name0 = 0;
   for (std::size_t k = 0; k < nv.size(); ++k) {
     PolyhedronShape s;
     const std::size_t e = names.find('\n', name0);
     s.name = names.substr(name0, e == std::string::npos ? std::string::npos : e - name0);
     name0 = e == std::string::npos ? names.size() : e + 1;
+    // counts beyond what the arrays hold (negative ones included) are refused before any
+    // index is formed from them
+    if (nv[k] < 0 || ntri[k] < 0 || static_cast<std::uint64_t>(nv[k]) > (vert.size() - v0) / 3 ||
+        static_cast<std::uint64_t>(ntri[k]) > (tri.size() - t0) / 3)
+      inconsistent("shape_nv[" + std::to_string(k) + "] = " + std::to_string(nv[k]) +
+                   ", shape_ntri[" + std::to_string(k) + "] = " + std::to_string(ntri[k]) +
+                   " exceed shape_vertices and shape_triangles");
     const auto vn = static_cast<std::size_t>(3 * nv[k]), tn = static_cast<std::size_t>(3 * ntri[k]);
-    if (v0 + vn > vert.size() || t0 + tn > tri.size())
-      throw std::invalid_argument("DemSystem: restore: inconsistent shape table in " +
-                                  f.path().string());
     s.vertices.assign(vert.begin() + v0, vert.begin() + v0 + vn);
-    for (std::size_t m = 0; m < tn; ++m)
+    for (std::size_t m = 0; m < tn; ++m) {
+      if (tri[t0 + m] < 0 || tri[t0 + m] >= nv[k])
+        inconsistent("shape_triangles[" + std::to_string(t0 + m) + "] = " +
+                     std::to_string(tri[t0 + m]) + " is not a vertex of shape " +
+                     std::to_string(k) + " (accepted 0 .. " + std::to_string(nv[k] - 1) + ")");
       s.triangles.push_back(static_cast<std::int32_t>(tri[t0 + m]));
+    }
     s.dilation = par[5 * k], s.volume = par[5 * k + 1];
     s.inertia = {par[5 * k + 2], par[5 * k + 3], par[5 * k + 4]};
     v0 += vn, t0 += tn;
@@ -203,6 +217,79 @@ PairsWithSprings pairs_with_springs(const ImplT& I) {
     out.row[i + 1] = static_cast<std::int64_t>(out.nbr.size());
   }
   return out;
+}
+}  // namespace
+
+namespace {
+// The arrays of a saved state that other arrays are indexed by (and the lengths of those
+// indexed per particle), checked before any step or refilter reads through them: a damaged or
+// forged file is refused with the dataset named, never read out of bounds. `at` is
+// "<file>:/<group>/"; `nverts` the system's wall vertex count before the restore.
+template <class ImplT>
+void check_state_indices(const ImplT& I, std::size_t nverts, const std::string& at) {
+  const auto& st = I.st;
+  const std::size_t n = st.px.size();
+  auto refuse = [&](const std::string& dataset, const std::string& what) {
+    bad("restore: " + at + dataset + " " + what);
+  };
+  auto entry = [](std::string dataset, auto k) {  // "nbr[7]"
+    dataset += '[';
+    dataset += std::to_string(k);
+    dataset += ']';
+    return dataset;
+  };
+  auto per_particle = [&](const char* name, std::size_t size, bool may_be_empty = false) {
+    if (size != n && !(may_be_empty && size == 0))
+      refuse(name, "has " + std::to_string(size) + " values, not one per particle (" +
+                       std::to_string(n) + ", the length of px)");
+  };
+  for (const auto* v : {&st.py, &st.pz, &st.vx, &st.vy, &st.vz, &st.wx, &st.wy, &st.wz, &st.qw,
+                        &st.qx, &st.qy, &st.qz, &st.fx, &st.fy, &st.fz, &st.radius, &st.mass,
+                        &st.inertia, &I.tx, &I.ty, &I.tz})
+    if (v->size() != n) per_particle("(a per-particle array)", v->size());
+  per_particle("material", st.material.size());
+  per_particle("shape", st.shape.size());
+  for (const auto* v : {&I.bx, &I.by, &I.bz}) per_particle("bx/by/bz", v->size(), true);
+  if (I.vpos.size() != nverts)
+    refuse("vpos", "has " + std::to_string(I.vpos.size() / 3) + " wall vertices, this system " +
+                       std::to_string(nverts / 3) + " (the state of other walls)");
+  // the pair rows: a prefix sum over the particles, each row's partners j > i ascending (the
+  // order of the list's merge in refilter)
+  const auto& row = I.row;
+  const auto& nbr = I.nbr;
+  if (row.size() != n + 1)
+    refuse("row", "has " + std::to_string(row.size()) + " values, not particles + 1 (" +
+                      std::to_string(n + 1) + ")");
+  if (row[0] != 0) refuse("row", "starts at " + std::to_string(row[0]) + ", not 0");
+  for (std::size_t i = 0; i < n; ++i)
+    if (row[i + 1] < row[i] || row[i + 1] > static_cast<std::int64_t>(nbr.size()))
+      refuse(entry("row", i + 1), "= " + std::to_string(row[i + 1]) + " is not in [" +
+                                      entry("row", i) + " = " + std::to_string(row[i]) + ", " +
+                                      std::to_string(nbr.size()) +
+                                      "] (the pair rows must rise monotonically to the length "
+                                      "of nbr)");
+  if (row[n] != static_cast<std::int64_t>(nbr.size()))
+    refuse("row", "ends at " + std::to_string(row[n]) + ", nbr holds " +
+                      std::to_string(nbr.size()) + " pairs");
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::int64_t k = row[i]; k < row[i + 1]; ++k) {
+      const std::int64_t lo = k > row[i] ? std::int64_t{nbr[k - 1]} : std::int64_t(i);
+      if (nbr[k] <= lo || nbr[k] >= static_cast<std::int64_t>(n))
+        refuse(entry("nbr", k), "= " + std::to_string(nbr[k]) + " (a partner of particle " +
+                                    std::to_string(i) + ") is not in [" +
+                                    std::to_string(lo + 1) + ", " + std::to_string(n) +
+                                    "): partners are particles after i, ascending within a row");
+    }
+  if (I.shear.size() != 3 * nbr.size())
+    refuse("shear", "has " + std::to_string(I.shear.size()) + " values, not 3 per pair of nbr (" +
+                        std::to_string(3 * nbr.size()) + ")");
+  const bool walls = !I.tri_wall.empty();
+  for (std::size_t i = 0; i < I.wcount.size(); ++i)
+    if (I.wcount[i] > (walls ? kMaxWallContacts : 0))
+      refuse(entry("wcount", i), "= " + std::to_string(int(I.wcount[i])) +
+                                     " wall contacts, accepted 0 .. " +
+                           std::to_string(walls ? kMaxWallContacts : 0) +
+                           (walls ? "" : " (this system has no wall triangles)"));
 }
 }  // namespace
 
@@ -314,6 +401,7 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   const std::string g = group + "/";
   if (!f.exists(group)) bad("restore: group '" + group + "' not found in " + f.path().string());
   const std::size_t nwalls = I.walls.size();
+  const std::size_t nverts = I.vpos.size();
   I.t = f.attribute_double(group, "time");
   I.steps = f.attribute_int64(group, "steps");
   I.flex_tau = f.attribute_double(group, "flex_tau");
@@ -347,6 +435,8 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   } catch (const std::invalid_argument& e) {
     bad(std::string("restore: ") + e.what());
   }
+  if (I.row.empty()) I.row.assign(st.px.size() + 1, 0);  // saved before the first step
+  check_state_indices(I, nverts, f.path().string() + ":/" + g);
   // force-limited walls: their drift as saved (a state of another scene's walls, or of one
   // without such walls, leaves them at their start)
   I.reset_drift();
@@ -376,6 +466,13 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
     bad("restore: polyhedron arrays in '" + group + "' of " + f.path().string() +
         " do not match the particle count");
   for (std::size_t i = 0; i < n; ++i)
+    if (st.shape[i] != static_cast<std::uint8_t>(ParticleShape::sphere) &&
+        st.shape[i] != static_cast<std::uint8_t>(ParticleShape::polyhedron))
+      bad("restore: " + f.path().string() + ":/" + g + "shape[" + std::to_string(i) + "] = " +
+          std::to_string(int(st.shape[i])) + " is not a particle shape kind (accepted " +
+          std::to_string(int(ParticleShape::sphere)) + ": sphere, " +
+          std::to_string(int(ParticleShape::polyhedron)) + ": polyhedron)");
+  for (std::size_t i = 0; i < n; ++i)
     if (st.shape_id[i] >= static_cast<std::int32_t>(I.shapes.size()) ||
         (st.shape_id[i] >= 0) !=
             (st.shape[i] == static_cast<std::uint8_t>(ParticleShape::polyhedron)))
@@ -398,7 +495,6 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   // The neighbour list is rebuilt from the restored positions; the restored rows carry the
   // springs. Forces of the pairs do not depend on which non-touching pairs the list holds,
   // so the continuation is bitwise identical to an uninterrupted run.
-  if (I.row.empty()) I.row.assign(n + 1, 0);  // saved before the first step: no pairs yet
   if (!I.rolling) {
     I.rhist.clear(), I.wroll.clear();
   } else {

@@ -53,14 +53,23 @@ void DemSystem::Impl::rebuild() {
   if (np == 0)
     for (int d = 0; d < 3; ++d) lo[d] = hi[d] = 0.0;
   double h = std::max(2.0 * rmax + skin, 1e-12);
+  // At most 4 np + 4096 cells: a sparse cloud (a particle far from the rest) gets coarser
+  // cells instead of a grid over its whole extent. The count is formed in double: in integers
+  // the product of three axes of 10^6 or more cells (a particle 450 m from a bed of 0.2 mm
+  // cells) wrapped around, passed the bound, and the grid's allocation failed (bad_alloc).
   std::int64_t dim[3];
   for (;;) {
-    std::int64_t tot = 1;
+    double tot = 1.0;
     for (int d = 0; d < 3; ++d) {
-      dim[d] = std::max<std::int64_t>(1, static_cast<std::int64_t>((hi[d] - lo[d]) / h) + 1);
-      tot *= dim[d];
+      // an infinite extent (a particle gone to inf, which the blow-up guard reports after
+      // the advance) counts as none: its cell coordinate is clamped into the grid
+      const double ext = std::isfinite(hi[d] - lo[d]) ? hi[d] - lo[d] : 0.0;
+      const double cells = std::floor(ext / h) + 1.0;
+      dim[d] = cells <= 4.0 * static_cast<double>(np) + 4096.0 ? static_cast<std::int64_t>(cells)
+                                                              : std::int64_t{1} << 62;
+      tot *= cells;
     }
-    if (tot <= static_cast<std::int64_t>(4 * np + 4096)) break;
+    if (tot <= static_cast<double>(4 * np + 4096)) break;
     h *= 1.26;  // a sparse cloud: coarser cells keep the grid small
   }
   const std::int64_t ncell = dim[0] * dim[1] * dim[2];

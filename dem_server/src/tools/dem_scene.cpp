@@ -10,6 +10,7 @@
 #include <ostream>
 #include <sstream>
 
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include "demfem/dem/dem_output.hpp"
@@ -197,12 +198,8 @@ void check_particle_budget(const DemScene& s, const std::vector<std::string>& ke
     total += counts[i];
     if (counts[i] > counts[largest]) largest = i;
   }
-  const double bytes = total * kBytesPerParticle;
-  const double pages = static_cast<double>(sysconf(_SC_PHYS_PAGES));
-  const double memory = pages * static_cast<double>(sysconf(_SC_PAGE_SIZE));
-  const bool too_many = total > kMaxParticles;
-  const bool too_big = memory > 0 && bytes > memory;
-  if (!too_many && !too_big) return;
+  const std::string excess = particle_budget_excess(total);
+  if (excess.empty()) return;
   std::ostringstream m;
   m.precision(3);
   if (!std::isfinite(total)) {
@@ -212,19 +209,34 @@ void check_particle_budget(const DemScene& s, const std::vector<std::string>& ke
     throw SceneError(m.str());
   }
   m << keys[largest] << ": the scene asks for about " << total << " particles (" << counts[largest]
-    << " from this entry), ";
-  if (too_many) {
-    m << "more than the " << std::int64_t(kMaxParticles)
-      << " a DEM system can index (32-bit particle indices)";
-  } else {
-    m << "about " << format_bytes(bytes) << " of memory at " << kBytesPerParticle / 1024
-      << " kB per particle, more than this machine's " << format_bytes(memory);
-  }
-  m << "; use larger particles, a smaller region, or fewer of them";
+    << " from this entry), " << excess << "; use larger particles, a smaller region, or fewer "
+    << "of them";
   throw SceneError(m.str());
 }
 
 }  // namespace
+
+std::string particle_budget_excess(double count) {
+  const double bytes = count * kBytesPerParticle;
+  const double pages = static_cast<double>(sysconf(_SC_PHYS_PAGES));
+  double memory = pages * static_cast<double>(sysconf(_SC_PAGE_SIZE));
+  // a limit on this process's address space (ulimit -v, a batch job's) counts too
+  rlimit as{};
+  const bool limited = getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY &&
+                       !(memory > 0 && static_cast<double>(as.rlim_cur) >= memory);
+  if (limited) memory = static_cast<double>(as.rlim_cur);
+  std::ostringstream m;
+  m.precision(3);
+  if (count > kMaxParticles)
+    m << "more than the " << std::int64_t(kMaxParticles)
+      << " a DEM system can index (32-bit particle indices)";
+  else if (memory > 0 && bytes > memory)
+    m << "about " << format_bytes(bytes) << " of memory at " << kBytesPerParticle / 1024
+      << " kB per particle, more than "
+      << (limited ? "this process's address-space limit (ulimit -v) of " : "this machine's ")
+      << format_bytes(memory);
+  return m.str();
+}
 
 double estimated_particle_count(const DemScene& s) {
   double total = 0.0;
@@ -984,7 +996,16 @@ void DemRun::check_stable() const {
   // each contact against the smaller contact radius of its two bodies (a polyhedron's:
   // its dilation, its cores intersect at an overlap of r_i + r_j)
   const double rel = system_->advance_max_relative_overlap();
-  if (std::isfinite(ke) && rel <= kMaxStableOverlap) return;
+  if (std::isfinite(ke) && rel <= kMaxStableOverlap) {
+    // a particle far from every wall (after the overlap check: an exploded contact is
+    // reported as such, with its overlap)
+    const std::string away = outside_domain(*system_, ids_);
+    if (away.empty()) return;
+    std::ostringstream m;
+    m << "DEM run stopped: " << away << " (dt = " << scene_.settings.dt << " s, "
+      << scene_.dt_where << ")";
+    throw Unstable(m.str());
+  }
   std::ostringstream m;
   m << "DEM run unstable in the steps up to t = " << system_->time() << " s: ";
   if (!std::isfinite(ke))

@@ -1,10 +1,13 @@
 #include "demfem/dem/insertion.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
 #include <sstream>
 #include <stdexcept>
+#include <unordered_map>
+#include <vector>
 
 #include "demfem/dem/shapes/shape_library.hpp"
 
@@ -55,14 +58,28 @@ std::array<double, 4> random_orientation(Rng& rng) {
 
 namespace {
 
-/// Dense uniform grid of sphere indices over the region (padded by the largest radius).
+/// Uniform grid of sphere indices over the region (padded by the largest radius): dense while
+/// it has at most kMaxDenseCells cells, else hashed (only the cells that hold spheres exist).
+/// The dense grid of 200 spheres of 0.2 mm in a 1 m box, or of 10 mm spheres in a 100 m box,
+/// had 10^11 to 10^12 cells (bad_alloc, exit 134); the hashed one holds as many cells as
+/// spheres. Both answer overlaps() alike, so the insertion does not depend on the choice.
 class SphereGrid {
  public:
+  static constexpr double kMaxDenseCells = 1 << 22;  // 100 MB of empty cell lists at most
+
   SphereGrid(const Box& box, double cell) : lo_(box.lo), cell_(cell) {
+    double total = 1.0;
     for (int k = 0; k < 3; ++k) {
-      n_[k] = std::max<std::int64_t>(1, std::int64_t(std::ceil((box.hi[k] - box.lo[k]) / cell)));
+      const double cells = std::max(1.0, std::ceil((box.hi[k] - box.lo[k]) / cell));
+      if (!(cells < 1e15))  // beyond what a cell coordinate holds (a region of 1e300 m)
+        throw InsertionError("the region of " + std::to_string(box.hi[k] - box.lo[k]) +
+                             " m is too large for particles of " + std::to_string(cell) +
+                             " m (more than 10^15 of them along one axis)");
+      n_[k] = static_cast<std::int64_t>(cells);
+      total *= cells;
     }
-    cells_.resize(std::size_t(n_[0] * n_[1] * n_[2]));
+    dense_ = total <= kMaxDenseCells;
+    if (dense_) cells_.resize(std::size_t(n_[0] * n_[1] * n_[2]));
   }
   void add(double x, double y, double z, double r) {
     const auto id = static_cast<std::int32_t>(r_.size());
@@ -70,7 +87,11 @@ class SphereGrid {
     y_.push_back(y);
     z_.push_back(z);
     r_.push_back(r);
-    cells_[index(coord(x, 0), coord(y, 1), coord(z, 2))].push_back(id);
+    const std::array<std::int64_t, 3> c{coord(x, 0), coord(y, 1), coord(z, 2)};
+    if (dense_)
+      cells_[index(c[0], c[1], c[2])].push_back(id);
+    else
+      hashed_[c].push_back(id);
   }
   /// True when a sphere (x, y, z, r) overlaps a stored one; stored radii are <= cell / 2 and
   /// r <= cell / 2, so the 27 neighbouring cells hold every candidate.
@@ -80,15 +101,30 @@ class SphereGrid {
       for (std::int64_t j = std::max<std::int64_t>(0, cy - 1); j <= std::min(n_[1] - 1, cy + 1);
            ++j)
         for (std::int64_t k = std::max<std::int64_t>(0, cz - 1); k <= std::min(n_[2] - 1, cz + 1);
-             ++k)
-          for (std::int32_t s : cells_[index(i, j, k)]) {
+             ++k) {
+          const std::vector<std::int32_t>* in = nullptr;
+          if (dense_) {
+            in = &cells_[index(i, j, k)];
+          } else if (const auto it = hashed_.find({i, j, k}); it != hashed_.end()) {
+            in = &it->second;
+          }
+          if (in == nullptr) continue;
+          for (std::int32_t s : *in) {
             const double dx = x - x_[s], dy = y - y_[s], dz = z - z_[s], rr = r + r_[s];
             if (dx * dx + dy * dy + dz * dz < rr * rr) return true;
           }
+        }
     return false;
   }
 
  private:
+  struct CellHash {
+    std::size_t operator()(const std::array<std::int64_t, 3>& c) const {
+      std::uint64_t h = 1469598103934665603ull;  // FNV-1a over the three coordinates
+      for (const std::int64_t v : c) h = (h ^ static_cast<std::uint64_t>(v)) * 1099511628211ull;
+      return static_cast<std::size_t>(h);
+    }
+  };
   std::int64_t coord(double v, int k) const {
     return std::clamp<std::int64_t>(std::int64_t(std::floor((v - lo_[k]) / cell_)), 0, n_[k] - 1);
   }
@@ -98,7 +134,9 @@ class SphereGrid {
   std::array<double, 3> lo_;
   double cell_;
   std::array<std::int64_t, 3> n_{};
+  bool dense_ = true;
   std::vector<std::vector<std::int32_t>> cells_;
+  std::unordered_map<std::array<std::int64_t, 3>, std::vector<std::int32_t>, CellHash> hashed_;
   std::vector<double> x_, y_, z_, r_;
 };
 

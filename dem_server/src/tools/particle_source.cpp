@@ -4,13 +4,16 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <numbers>
 #include <ostream>
 #include <sstream>
 #include <unordered_map>
 
+#include "demfem/dem/dem_scene.hpp"
 #include "demfem/dem/physics/geometry.hpp"
 #include "demfem/io/file_hash.hpp"
 #include "demfem/io/h5_file.hpp"
@@ -44,8 +47,15 @@ std::int32_t material_by_name(const Table& t, std::string_view key, const std::s
 struct Loaded {
   std::vector<ParticleInit> particles;
   std::vector<std::int64_t> file_material;  // empty: the file has none (CSV)
-  std::vector<std::string> origin;          // "file:line" (CSV) or "file: particle i"
+  std::string file;                         // for messages
+  std::vector<std::int64_t> line;           // CSV: each particle's line; else empty
   std::vector<PolyhedronShape> shapes;      // a state's shape table (shape_id indexes it)
+  /// "file:line" (CSV) or "file: particle i": kept as numbers, a string per row of a large
+  /// CSV took more memory than its particles
+  std::string origin(std::size_t i) const {
+    return line.empty() ? file + ": particle " + std::to_string(i)
+                        : file + ":" + std::to_string(line[i]);
+  }
 };
 
 [[noreturn]] void data_error(const ParticleSource& s, const std::string& at,
@@ -71,10 +81,47 @@ std::vector<std::string> split(const std::string& line) {
   }
 }
 
-Loaded read_csv(const ParticleSource& s) {
+// Files above this size say how far the reading is, every tenth of the file.
+constexpr std::uintmax_t kCsvProgressBytes = std::uintmax_t{100} << 20;
+
+// A CSV's data rows (not empty, not a comment), counted in one pass that keeps nothing: a
+// file of more particles than this machine holds (particle_budget_excess) is refused before
+// any is read. (A 2 GB file took 6.3 GB of memory before it was refused; the rows it holds
+// are counted in seconds.) The header is counted too, one row more than the file holds.
+void check_csv_size(const ParticleSource& s, std::ostream* log) {
+  std::ifstream in(s.file);
+  std::string line;
+  std::uint64_t rows = 0;
+  const auto bytes = std::filesystem::file_size(s.file);
+  if (log && bytes > kCsvProgressBytes)
+    *log << "dem: counting the rows of " << s.file.string() << " (" << (bytes >> 20)
+         << " MB)\n";
+  while (std::getline(in, line)) {
+    const auto first = line.find_first_not_of(" \t\r");
+    if (first != std::string::npos && line[first] != '#') ++rows;
+  }
+  const std::string excess = particle_budget_excess(static_cast<double>(rows));
+  if (!excess.empty())
+    data_error(s, s.file.string(),
+               "holds " + std::to_string(rows > 0 ? rows - 1 : 0) + " particle rows, " + excess +
+                   "; load a smaller file (the limit is the particles' memory in the DEM, not "
+                   "the file's)");
+}
+
+Loaded read_csv(const ParticleSource& s, std::ostream* log) {
+  check_csv_size(s, log);
   std::ifstream in(s.file);
   if (!in) data_error(s, s.file.string(), "cannot be opened");
   const std::string name = s.file.string();
+  const auto bytes = std::filesystem::file_size(s.file);
+  int tenths = 0;
+  std::function<void(std::streamoff)> progress;
+  if (log && bytes > kCsvProgressBytes)
+    progress = [&](std::streamoff at) {
+      if (at < 0 || 10 * static_cast<std::uintmax_t>(at) < (tenths + 1) * bytes) return;
+      tenths = static_cast<int>(10 * static_cast<std::uintmax_t>(at) / bytes);
+      *log << "dem: reading " << name << ": " << 10 * tenths << " %\n" << std::flush;
+    };
   std::string line;
   std::size_t lineno = 0;
   std::vector<std::string> header;
@@ -108,6 +155,7 @@ Loaded read_csv(const ParticleSource& s) {
   if (nv != 0 && nv != 3)
     data_error(s, name + ":" + std::to_string(lineno), "give all of vx, vy, vz or none");
   Loaded out;
+  out.file = name;
   while (std::getline(in, line)) {
     ++lineno;
     const std::string t = trim(line);
@@ -135,7 +183,8 @@ Loaded read_csv(const ParticleSource& s) {
     p.radius = v[3];
     if (nv == 3) p.velocity = {v[4], v[5], v[6]};
     out.particles.push_back(p);
-    out.origin.push_back(at);
+    out.line.push_back(static_cast<std::int64_t>(lineno));
+    if (progress) progress(in.tellg());
   }
   return out;
 }
@@ -167,6 +216,7 @@ Loaded read_snapshot(const ParticleSource& s) {
   const auto vel = optional_doubles(f, "velocity", n, 3, s);
   const auto ang = optional_doubles(f, "angular_velocity", n, 3, s);
   Loaded out;
+  out.file = s.file.string();
   if (f.exists("material")) {
     out.file_material = f.read_int64("material");
     if (out.file_material.size() != n)
@@ -179,7 +229,6 @@ Loaded read_snapshot(const ParticleSource& s) {
     p.angular_velocity = {ang[3 * i], ang[3 * i + 1], ang[3 * i + 2]};
     p.radius = radius[i];
     out.particles.push_back(p);
-    out.origin.push_back(s.file.string() + ": particle " + std::to_string(i));
   }
   return out;
 }
@@ -215,6 +264,7 @@ Loaded read_state_particles(const ParticleSource& s) {
   for (const auto* a : {&py, &pz, &vx, &vy, &vz, &wx, &wy, &wz, &radius})
     if (a->size() != n) data_error(s, s.file.string(), "state arrays of different lengths");
   Loaded out;
+  out.file = s.file.string();
   out.file_material = f.read_int64(g + "material");
   if (out.file_material.size() != n || shape.size() != n)
     data_error(s, s.file.string(), "state arrays of different lengths");
@@ -248,7 +298,16 @@ Loaded read_state_particles(const ParticleSource& s) {
       p.shape = ParticleShape::polyhedron;
       p.shape_id = static_cast<std::int32_t>(shape_id[i]);  // the file's; remapped when added
       p.scale = scale[i];
+      if (!(p.scale > 0) || !std::isfinite(p.scale))
+        data_error(s, s.file.string() + ": particle " + std::to_string(i),
+                   "dataset " + g + "scale holds " + std::to_string(p.scale) +
+                       " (accepted: a finite scale > 0)");
       p.orientation = {qw[i], qx[i], qy[i], qz[i]};
+      const double q2 = qw[i] * qw[i] + qx[i] * qx[i] + qy[i] * qy[i] + qz[i] * qz[i];
+      if (!(std::abs(q2 - 1.0) <= 1e-6))
+        data_error(s, s.file.string() + ": particle " + std::to_string(i),
+                   "datasets " + g + "qw, qx, qy, qz: the orientation is not a unit quaternion (|q|^2 = " +
+                       std::to_string(q2) + ", accepted 1 +- 1e-6)");
     } else if (shape[i] != static_cast<std::uint8_t>(ParticleShape::sphere)) {
       data_error(s, s.file.string() + ": particle " + std::to_string(i),
                  "has an unknown shape kind " + std::to_string(int(shape[i])));
@@ -258,7 +317,6 @@ Loaded read_state_particles(const ParticleSource& s) {
     p.angular_velocity = {wx[i], wy[i], wz[i]};
     p.radius = radius[i];
     out.particles.push_back(p);
-    out.origin.push_back(s.file.string() + ": particle " + std::to_string(i));
   }
   return out;
 }
@@ -270,11 +328,11 @@ void assign_materials(const ParticleSource& s, Loaded& l, const DemSettings& set
     std::int64_t m = s.material;
     if (m < 0) {
       if (l.file_material.empty())
-        data_error(s, l.origin[i], "the file gives no material: set dem.load.material");
+        data_error(s, l.origin(i), "the file gives no material: set dem.load.material");
       const std::int64_t fm = l.file_material[i];
       if (!s.material_map.empty()) {
         if (fm < 0 || fm >= static_cast<std::int64_t>(s.material_map.size()))
-          data_error(s, l.origin[i],
+          data_error(s, l.origin(i),
                      "material index " + std::to_string(fm) +
                          " has no entry in "
                          "dem.load.material_map (" +
@@ -285,7 +343,7 @@ void assign_materials(const ParticleSource& s, Loaded& l, const DemSettings& set
       }
     }
     if (m < 0 || static_cast<std::size_t>(m) >= nmat || !(settings.materials[m].density > 0))
-      data_error(s, l.origin[i],
+      data_error(s, l.origin(i),
                  "material index " + std::to_string(m) +
                      " is not a particle material of this scene (give dem.load.material or "
                      "dem.load.material_map)");
@@ -300,9 +358,9 @@ void check_finite(const ParticleSource& s, const Loaded& l) {
     for (int d = 0; d < 3; ++d)
       ok = ok && std::isfinite(p.position[d]) && std::isfinite(p.velocity[d]) &&
            std::isfinite(p.angular_velocity[d]);
-    if (!ok) data_error(s, l.origin[i], "a position, velocity or radius is not finite");
+    if (!ok) data_error(s, l.origin(i), "a position, velocity or radius is not finite");
     if (!(p.radius > 0))
-      data_error(s, l.origin[i], "radius " + std::to_string(p.radius) + " m must be > 0");
+      data_error(s, l.origin(i), "radius " + std::to_string(p.radius) + " m must be > 0");
   }
 }
 
@@ -508,8 +566,14 @@ ParticleSource read_particle_source(const Table& t, const std::vector<Material>&
     if (ext != ".h5" && ext != ".hdf5")
       t.fail("format", "cannot tell the format of \"" + s.file.string() +
                            "\" from its extension (.csv, .h5, .hdf5); give format");
-    io::H5File f(s.file, io::H5File::Mode::read);
-    format = f.exists("position") ? "snapshot" : "state";
+    try {
+      io::H5File f(s.file, io::H5File::Mode::read);
+      format = f.exists("position") ? "snapshot" : "state";
+    } catch (const io::H5Error& e) {
+      t.fail("file", "\"" + s.file.string() + "\" cannot be read as HDF5 (" + e.what() +
+                         "); a .h5 / .hdf5 file must be a snapshot or a DEM state, a .csv a "
+                         "table x,y,z,r[,vx,vy,vz]");
+    }
   }
   s.format = format == "snapshot" ? ParticleSource::Format::snapshot
              : format == "state"  ? ParticleSource::Format::state
@@ -691,12 +755,12 @@ std::size_t load_particles(const ParticleSource& s, DemSystem& system,
                      s.prepare_scene.string() +
                      " (its scene_hash differs); run that scene "
                      "again (`demfem run` does so itself)");
-  std::vector<std::string> origin;
+  std::vector<std::int64_t> origin_line;  // a CSV's: its lines
   try {
     if (s.history) {
       restore_state(s, system, walls);
     } else {
-      Loaded l = s.format == ParticleSource::Format::csv        ? read_csv(s)
+      Loaded l = s.format == ParticleSource::Format::csv        ? read_csv(s, log)
                  : s.format == ParticleSource::Format::snapshot ? read_snapshot(s)
                                                                 : read_state_particles(s);
       check_finite(s, l);
@@ -720,8 +784,12 @@ std::size_t load_particles(const ParticleSource& s, DemSystem& system,
         for (auto& p : l.particles)
           if (p.shape == ParticleShape::polyhedron) p.shape_id = id[std::size_t(p.shape_id)];
       }
-      system.add_particles(l.particles);
-      origin = std::move(l.origin);
+      try {
+        system.add_particles(l.particles);
+      } catch (const std::invalid_argument& e) {  // what the checks above left to the engine
+        data_error(s, s.file.string(), e.what());
+      }
+      origin_line = std::move(l.line);
     }
   } catch (const io::H5Error& e) {
     throw SceneError(s.where + ": " + e.what());
@@ -742,8 +810,9 @@ std::size_t load_particles(const ParticleSource& s, DemSystem& system,
     }
   }
   auto name_of = [&](std::int64_t i) {
-    return i < std::int64_t(origin.size()) ? origin[std::size_t(i)]
-                                           : s.file.string() + ": particle " + std::to_string(i);
+    return i < std::int64_t(origin_line.size())
+               ? s.file.string() + ":" + std::to_string(origin_line[std::size_t(i)])
+               : s.file.string() + ": particle " + std::to_string(i);
   };
   const auto& p = system.particles();
 

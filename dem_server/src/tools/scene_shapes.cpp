@@ -12,6 +12,11 @@
 
 namespace demfem::dem {
 
+namespace {
+constexpr double kMinDilation = 0.01;  // of the size (the thesis and the cases use 0.1)
+constexpr double kMaxAspect = 1000.0;  // largest to smallest side of a box, prism height
+}  // namespace
+
 using scene::Range;
 using scene::SceneError;
 using scene::Table;
@@ -99,12 +104,26 @@ ShapeSpec read_shape_spec(const Table& t) {
     }
   } else if (s.kind == K::box) {
     s.aspect = t.vec3("aspect", Range::positive());
+    // the box is scaled to its size: only the ratios count, and beyond kMaxAspect the hull
+    // of a needle or a sheet is within rounding of a line or a plane ([1e300, 1, 1] was
+    // refused as "collinear (nan, nan, nan)")
+    const double lo = std::min({s.aspect[0], s.aspect[1], s.aspect[2]}),
+                 hi = std::max({s.aspect[0], s.aspect[1], s.aspect[2]});
+    if (!(hi <= kMaxAspect * lo))
+      t.fail("aspect", "has a largest to smallest side of " + std::to_string(hi / lo) +
+                           " (accepted: at most " + std::to_string(int(kMaxAspect)) +
+                           "; only the ratios count, the box is scaled to its size)");
   } else if (s.kind == K::prism) {
-    s.aspect = {1.0, t.number("height", 1.0, Range::positive()), 1.0};
+    s.aspect = {1.0,
+                t.number("height", 1.0, Range::closed(1.0 / kMaxAspect, kMaxAspect)), 1.0};
   }
   const std::string size = t.choice("size", "sieve", {"sieve", "volume_equivalent"});
   s.volume_equivalent = size == "volume_equivalent";
-  s.dilation = t.number("dilation", 0.1, Range{0.0, 0.5, true, true});
+  // r_d is the rocks' contact radius: the stability guard stops a run at an overlap of half
+  // of it, while the time step is checked against the particle's size, not r_d; a thinner
+  // dilation than kMinDilation of the size gives contacts that the guard stops at ordinary
+  // impacts (1e-300 was accepted and blew up at the first contact)
+  s.dilation = t.number("dilation", 0.1, Range{kMinDilation, 0.5, false, true});
   t.finish();
   return s;
 }

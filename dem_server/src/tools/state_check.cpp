@@ -1,5 +1,6 @@
 #include "demfem/dem/state_check.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -62,6 +63,39 @@ void check_particle_state(const ParticleState& st, const std::string& where) {
       bad(i, "|orientation|^2", q2, "must be 1 within 1e-6: a unit quaternion");
     }
   }
+}
+
+std::string outside_domain(const DemSystem& system, const std::vector<std::int64_t>& ids) {
+  if (system.wall_count() == 0) return {};
+  double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
+  for (std::size_t w = 0; w < system.wall_count(); ++w) {
+    const auto v = system.wall_vertices(static_cast<std::int32_t>(w));
+    for (std::size_t k = 0; k + 2 < v.size(); k += 3)
+      for (int d = 0; d < 3; ++d) lo[d] = std::min(lo[d], v[k + d]), hi[d] = std::max(hi[d], v[k + d]);
+  }
+  if (!(lo[0] <= hi[0])) return {};
+  const double margin =
+      std::max({kDomainMarginMin, hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+  for (int d = 0; d < 3; ++d) lo[d] -= margin, hi[d] += margin;
+  const auto& p = system.particles();
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    const double x[3] = {p.px[i], p.py[i], p.pz[i]};
+    if (x[0] >= lo[0] && x[0] <= hi[0] && x[1] >= lo[1] && x[1] <= hi[1] && x[2] >= lo[2] &&
+        x[2] <= hi[2])
+      continue;
+    std::ostringstream m;
+    m.precision(9);
+    m << "particle " << (i < ids.size() ? ids[i] : static_cast<std::int64_t>(i))
+      << " left the domain at t = " << system.time() << " s: its centre (" << x[0] << ", " << x[1]
+      << ", " << x[2] << ") m lies outside [" << lo[0] << ", " << hi[0] << "] x [" << lo[1]
+      << ", " << hi[1] << "] x [" << lo[2] << ", " << hi[2]
+      << "] m, the walls' bounding box grown by " << margin
+      << " m (the larger of 1 m and the box's largest side); the particle was shot away (the DEM "
+         "blew up: reduce dt or the speeds of the scene) or falls past every wall (close the "
+         "walls under it)";
+    return m.str();
+  }
+  return {};
 }
 
 }  // namespace demfem::dem

@@ -184,7 +184,22 @@ seed = 5)",
   CHECK_THAT(
       error_of(replace(kRocks, "dilation = 0.1", "dilation = 0.5")),
       Catch::Contains("rocks.toml:" + std::to_string(line_of(kRocks, "dilation = 0.1")) + ":") &&
-          Catch::Contains("dem.shapes[0].dilation") && Catch::Contains("(0, 0.5)"));
+          Catch::Contains("dem.shapes[0].dilation") && Catch::Contains("[0.01, 0.5)"));
+  // issue 34: a dilation that thin was accepted and blew up at the first contact
+  CHECK_THAT(error_of(replace(kRocks, "dilation = 0.1", "dilation = 1e-300")),
+             Catch::Contains("dem.shapes[0].dilation") && Catch::Contains("[0.01, 0.5)"));
+  // and a box of [1e300, 1, 1] was refused as "collinear (nan, nan, nan)"
+  const std::string box_shape = replace(
+      kRocks,
+      "kind = \"random_rock\"\ncount = 6\ntriangles = 10\nelongation = 0.8\nflatness = 0.7\n"
+      "seed = 5",
+      "kind = \"box\"\naspect = [1e300, 1.0, 1.0]");
+  CHECK_THAT(error_of(box_shape), Catch::Contains("dem.shapes[0].aspect") &&
+                                      Catch::Contains("at most 1000"));
+  CHECK_THAT(error_of(replace(box_shape, "aspect = [1e300, 1.0, 1.0]", "aspect = [1.0, 1e-5, 2.0]")),
+             Catch::Contains("dem.shapes[0].aspect"));
+  CHECK_THAT(error_of(replace(box_shape, "aspect = [1e300, 1.0, 1.0]", "aspect = [1.0, 0.5, 2.0]")),
+             !Catch::Contains("aspect"));
   CHECK_THAT(error_of(replace(kRocks, "triangles = 10", "triangles = 11")),
              Catch::Contains("dem.shapes[0].triangles") && Catch::Contains("even"));
   CHECK_THAT(error_of(replace(kRocks, "elongation = 0.8", "elongation = 0.0")),

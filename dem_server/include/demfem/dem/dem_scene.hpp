@@ -140,6 +140,10 @@ struct DemScene {
 /// asks for the most, before anything is allocated.
 DemScene read_dem_scene(const scene::Table& dem);
 
+/// @brief Why `count` particles cannot be held (more than kMaxParticles, or more than this
+/// machine's memory at kBytesPerParticle each), as the end of a sentence; empty when they can.
+std::string particle_budget_excess(double count);
+
 /// @brief The particle count a [dem] section asks for up front (lattices, insertions with
 /// their repetitions; an insertion by mass counts its mass over the mean particle mass).
 double estimated_particle_count(const DemScene& scene);
