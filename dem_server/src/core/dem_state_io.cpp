@@ -249,7 +249,12 @@ void check_state_indices(const ImplT& I, std::size_t nverts, const std::string& 
     if (v->size() != n) per_particle("(a per-particle array)", v->size());
   per_particle("material", st.material.size());
   per_particle("shape", st.shape.size());
+  // the list's build positions: all three or none (a state saved before the first build)
   for (const auto* v : {&I.bx, &I.by, &I.bz}) per_particle("bx/by/bz", v->size(), true);
+  if (I.bx.size() != I.by.size() || I.bx.size() != I.bz.size())
+    refuse("bx/by/bz", "have " + std::to_string(I.bx.size()) + ", " + std::to_string(I.by.size()) +
+                           " and " + std::to_string(I.bz.size()) +
+                           " values: all three one per particle, or all three empty");
   if (I.vpos.size() != nverts)
     refuse("vpos", "has " + std::to_string(I.vpos.size() / 3) + " wall vertices, this system " +
                        std::to_string(nverts / 3) + " (the state of other walls)");
