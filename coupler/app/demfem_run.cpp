@@ -77,6 +77,7 @@ struct Options {
   double hello_timeout = 300.0;   // s: a started solver that has not said Hello is killed
   bool hello_timeout_given = false;
   std::string fem_backend;        // --fem-backend: overrides fem.backend ("" = the scene's)
+  std::string dem_backend;        // --dem-backend: overrides dem.backend ("" = the scene's)
 };
 
 // --debug-kill dem:17, fem:5:always, coupler:30, job:12:usr2 (docs/reliability.md). Testing
@@ -205,7 +206,21 @@ std::optional<int> prepare_resume(const fs::path& checkpoint, const CouplingSett
     }
     if (coupler.has_attribute("/", "output_dir"))
       origin = coupler.attribute_string("/", "output_dir");
+    // dem.h5 of an external DEM is in the program's own format: neither dem_server nor
+    // another program can continue it, nor can an external DEM continue dem_server's.
     if (settings.has_dem) {
+      const std::string wrote = coupler.has_attribute("/", "dem_backend")
+                                    ? coupler.attribute_string("/", "dem_backend")
+                                    : std::string("cpu");
+      if ((wrote == "external") != settings.dem_external())
+        return refuse("checkpoint " + checkpoint.string() + " was taken with the DEM backend \"" +
+                      wrote + "\"; this run's is \"" + settings.dem_backend +
+                      "\" (dem.backend or --dem-backend), which cannot continue it: an external "
+                      "program's checkpoint part is in its own format, which dem_server cannot "
+                      "read, and dem_server's state is one an external program cannot take "
+                      "over. Resume with --dem-backend " + wrote + ", or start afresh");
+    }
+    if (settings.has_dem && !settings.dem_external()) {
       const io::H5File dem(checkpoint / "dem.h5", io::H5File::Mode::read);
       if (dem.has_attribute("dem_tools", "setup_particles")) {
         const auto then = dem.attribute_int64("dem_tools", "setup_particles");
@@ -315,13 +330,16 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   try {
     std::vector<scene::Override> overrides;
     for (const auto& s : opt.sets) overrides.push_back(scene::Override::parse(s));
-    if (!opt.fem_backend.empty()) {
-      if (!scene::Document::load(opt.scene, overrides).root().table("fem")) {
-        std::fprintf(stderr, "demfem run: --fem-backend %s: %s has no [fem] section\n",
-                     opt.fem_backend.c_str(), opt.scene.c_str());
+    for (const auto& [section, kind] :
+         {std::pair{"fem", &opt.fem_backend}, std::pair{"dem", &opt.dem_backend}}) {
+      if (kind->empty()) continue;
+      if (!scene::Document::load(opt.scene, overrides).root().table(section)) {
+        std::fprintf(stderr, "demfem run: --%s-backend %s: %s has no [%s] section\n", section,
+                     kind->c_str(), opt.scene.c_str(), section);
         return kExitUsage;
       }
-      overrides.push_back(scene::Override::parse("fem.backend=\"" + opt.fem_backend + "\""));
+      overrides.push_back(scene::Override::parse(std::string(section) + ".backend=\"" + *kind +
+                                                 "\""));
     }
     doc = scene::Document::load(opt.scene, overrides);
     settings = read_coupling_settings(*doc);
@@ -337,20 +355,34 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     std::fprintf(stderr, "demfem run: scene error: %s\n", e.what());
     return kExitUsage;
   }
-  std::optional<ExternalCommand> external;
-  if (settings.has_fem && settings.fem_backend == "external") {
+  // External backends (fem.command, dem.command): resolved before anything starts.
+  std::optional<ExternalCommand> external, external_dem;
+  for (const auto& [role, ext] : {std::pair{protocol::Role::fem, &external},
+                                  std::pair{protocol::Role::dem, &external_dem}}) {
+    const bool dem = role == protocol::Role::dem;
+    if (!(dem ? settings.dem_external() : settings.fem_external())) continue;
     if (opt.in_process) {
       std::fprintf(stderr,
-                   "demfem run: --in-process runs demfem's own FEM backends only; fem.backend = "
-                   "\"external\" starts the program of fem.command in its own process\n");
+                   "demfem run: --in-process runs demfem's own %s backends only; %s.backend = "
+                   "\"external\" starts the program of %s.command in its own process\n",
+                   dem ? "DEM" : "FEM", dem ? "dem" : "fem", dem ? "dem" : "fem");
       return kExitUsage;
     }
     try {
-      external = resolve_external_command(settings);
+      *ext = resolve_external_command(settings, role);
     } catch (const scene::SceneError& e) {
       std::fprintf(stderr, "demfem run: scene error: %s\n", e.what());
       return kExitUsage;
     }
+  }
+  if (!sections.dem_unapplied_keys.empty()) {
+    std::string keys;
+    for (const auto& k : sections.dem_unapplied_keys) keys += (keys.empty() ? "" : ", ") + k;
+    std::fprintf(stderr,
+                 "demfem run: note: dem.backend = \"external\": demfem reads only dem.backend, "
+                 "command, dt and settle_time; [dem] %s are the external program's to read or "
+                 "ignore (dem_server's particles, output and sensors do not run)\n",
+                 keys.c_str());
   }
   if (opt.check) {
     std::printf("demfem run: %s: the scene is valid\n", opt.scene.c_str());
@@ -385,7 +417,8 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   // is reported now, not after the other solver has started and set up.
   if (remote) {
     for (const auto& [needed, name] :
-         {std::pair{settings.has_fem, "fem_server"}, std::pair{settings.has_dem, "dem_server"}}) {
+         {std::pair{settings.has_fem && !external, "fem_server"},
+          std::pair{settings.has_dem && !external_dem, "dem_server"}}) {
       const fs::path exe = bin / name;
       std::error_code ec;
       if (needed && (!fs::is_regular_file(exe, ec) || ::access(exe.c_str(), X_OK) != 0)) {
@@ -471,6 +504,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   }
   record.pid = ::getpid();
   record.dem_backend = sections.dem_backend;
+  if (settings.dem_external()) record.dem_command = settings.dem_command;
   if (settings.has_fem) {
     record.fem_backend = settings.fem_backend;
     record.fem_command = settings.fem_command;
@@ -485,6 +519,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   // --resume: the checkpoint to start from, verified before any process starts.
   RunControl control;
   control.fem_backend = settings.has_fem ? settings.fem_backend : std::string();
+  control.dem_backend = settings.has_dem ? settings.dem_backend : std::string();
   std::optional<std::int64_t> resume_nodes;  // the checkpoint's interface size
   control.report = [](const std::string& m) {
     std::fprintf(stderr, "demfem run: %s\n", m.c_str());
@@ -647,6 +682,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   std::unique_ptr<SolverProcess> dem_proc, fem_proc;
   std::unique_ptr<SolverLink> link;
   std::string fem_program = "fem_server";  // how messages name the FEM process
+  std::string dem_program = "dem_server";  // and the DEM process
   int code = 0;
   bool folder_lost = false;  // OutputFolderLost: nothing more is written into the folder
   std::string reason;
@@ -698,34 +734,28 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
       if (opt.resume) fem_args.push_back("--resume");
       std::optional<pid_t> dem_pid, fem_pid;
       std::printf("demfem run: segment %s\n", session->segment_name().c_str());
-      if (!opt.fem_backend.empty()) {
-        // Every process reads the same scene: the override of --fem-backend goes to all.
+      // Every process reads the same scene: the overrides of --fem-backend and --dem-backend
+      // go to all.
+      for (const auto& [section, kind] :
+           {std::pair{"fem", &opt.fem_backend}, std::pair{"dem", &opt.dem_backend}}) {
+        if (kind->empty()) continue;
         for (auto* a : {&args, &fem_args})
-          a->insert(a->end(), {"--set", "fem.backend=\"" + opt.fem_backend + "\""});
+          a->insert(a->end(), {"--set", std::string(section) + ".backend=\"" + *kind + "\""});
       }
+      // An outside program: the arguments of demfem's own solver of its role (as the FEM's:
+      // --resume when resumed), absolute paths (it runs in the scene's folder), the same
+      // supervision and restarts (external_backend.hpp).
+      auto start_external = [&](const ExternalCommand& ext, std::unique_ptr<SolverProcess>& proc,
+                                std::string& program) {
+        proc = make_external_process(ext, fem_args, out_dir, bin);
+        program = ext.label();
+        const pid_t pid = proc->start();
+        std::printf("demfem run: started the %s (pid %d)\n", program.c_str(),
+                    static_cast<int>(pid));
+        return pid;
+      };
       if (settings.has_fem && external) {
-        // An outside program: the same arguments as fem_server (absolute paths: it runs in the
-        // scene's folder), the same supervision and restarts. The output folder always: the
-        // default (run.output_dir) is relative to this process's folder, not to the scene's.
-        std::vector<std::string> ext_args = external->arguments;
-        for (std::size_t k = 0; k < fem_args.size(); ++k) {
-          const bool path =
-              k > 0 && (fem_args[k - 1] == "--scene" || fem_args[k - 1] == "--output-dir");
-          ext_args.push_back(path ? fs::absolute(fem_args[k]).string() : fem_args[k]);
-        }
-        if (opt.output_dir.empty())
-          ext_args.insert(ext_args.end(), {"--output-dir", fs::absolute(out_dir).string()});
-        if (const auto py = python_module_dir(bin)) {
-          const char* old = std::getenv("PYTHONPATH");
-          const std::string value = py->string() + (old && *old ? ":" + std::string(old) : "");
-          ::setenv("PYTHONPATH", value.c_str(), 1);
-        }
-        fem_proc = std::make_unique<SolverProcess>("FEM solver", external->program, ext_args);
-        fem_proc->set_working_directory(external->working_directory);
-        fem_program = "external FEM backend '" + external->text + "'";
-        fem_pid = fem_proc->start();
-        std::printf("demfem run: started the external FEM backend %s (pid %d)\n",
-                    external->text.c_str(), static_cast<int>(*fem_pid));
+        fem_pid = start_external(*external, fem_proc, fem_program);
       } else if (settings.has_fem) {
         fem_proc = std::make_unique<SolverProcess>("FEM solver", bin / "fem_server", fem_args);
         fem_proc->set_own_session(opt.solver_sessions);
@@ -733,7 +763,9 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
         std::printf("demfem run: started fem_server (pid %d) with the %s backend\n",
                     static_cast<int>(*fem_pid), settings.fem_backend.c_str());
       }
-      if (settings.has_dem) {
+      if (settings.has_dem && external_dem) {
+        dem_pid = start_external(*external_dem, dem_proc, dem_program);
+      } else if (settings.has_dem) {
         dem_proc = std::make_unique<SolverProcess>("DEM solver", bin / "dem_server", args);
         dem_proc->set_own_session(opt.solver_sessions);
         dem_pid = dem_proc->start();
@@ -741,6 +773,10 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
       }
       std::fflush(stdout);
       auto remote_link = std::make_unique<RemoteLink>(*session, dem_pid, fem_pid);
+      if (dem_pid && external_dem) {
+        remote_link->describe(protocol::Role::dem,
+                              "the " + dem_program + " (pid " + std::to_string(*dem_pid) + ")");
+      }
       if (fem_pid) {
         remote_link->describe(protocol::Role::fem, (external ? "the " : "") + fem_program +
                                                        " (pid " + std::to_string(*fem_pid) + ")");
@@ -769,10 +805,11 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
                      p->label().c_str(), static_cast<int>(p->pid()), c,
                      c > 128 ? (" (signal " + std::to_string(c - 128) + ")").c_str() : "");
         session->reset_peer(role);
-        if (role == protocol::Role::fem) p->add_argument("--resume");
+        // The FEM and an external DEM continue their output series (the SDK's --resume).
+        if (role == protocol::Role::fem || external_dem) p->add_argument("--resume");
         const pid_t pid = p->start();
         std::printf("demfem run: started %s (pid %d)\n",
-                    role == protocol::Role::dem ? "dem_server" : fem_program.c_str(),
+                    role == protocol::Role::dem ? dem_program.c_str() : fem_program.c_str(),
                     static_cast<int>(pid));
         std::fflush(stdout);
         session->wait_hello(role, pid);
@@ -784,8 +821,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
           // A restarted process that is not the structure that was running (another interface
           // size): named, and not restarted again.
           throw HandshakeFailed(
-              role, "the restarted " +
-                        (role == protocol::Role::dem ? std::string("dem_server") : fem_program) +
+              role, "the restarted " + (role == protocol::Role::dem ? dem_program : fem_program) +
                         " (pid " + std::to_string(pid) + ") was refused: " + e.what());
         }
       };
@@ -892,7 +928,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     // Only the start (Hello, mesh exchange) lets it through unwrapped: a solver that ended
     // before it attached, or never attached.
     SolverProcess* p = e.role() == protocol::Role::dem ? dem_proc.get() : fem_proc.get();
-    const std::string name = e.role() == protocol::Role::dem ? "dem_server" : fem_program;
+    const std::string name = e.role() == protocol::Role::dem ? dem_program : fem_program;
     if (SignalGuard::stop_flag().load()) {
       failed(128 + SignalGuard::signal_number(), "stopped by signal " +
                                                      std::to_string(SignalGuard::signal_number()) +
@@ -1098,6 +1134,11 @@ int main(int argc, char** argv) {
                  "external (fem.command); with --resume it continues a checkpoint of another "
                  "backend where the state maps (docs/backends.md)")
       ->check(CLI::IsMember({"fem", "modal", "rigid", "external"}));
+  app.add_option("--dem-backend", opt.dem_backend,
+                 "the DEM backend of this run, overriding dem.backend: cpu or cuda (dem_server) "
+                 "or external (the program of dem.command, on the SDK's DEM side; "
+                 "docs/backends.md)")
+      ->check(CLI::IsMember({"cpu", "cuda", "external"}));
   app.add_option("--hello-timeout", opt.hello_timeout,
                  "seconds a started solver may take to attach (its Hello) before it is killed "
                  "and the run stops with status 1 (default 300; raise it for models whose "

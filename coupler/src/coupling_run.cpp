@@ -240,6 +240,10 @@ RunSummary CouplingRun::run() {
                          control_.fem_backend.empty() ? std::string("fem") : control_.fem_backend);
         h5.set_attribute("/", "fem_backend_name", link_.name(Role::fem));
       }
+      if (link_.has(Role::dem) && !control_.dem_backend.empty()) {
+        h5.set_attribute("/", "dem_backend", control_.dem_backend);
+        h5.set_attribute("/", "dem_backend_name", link_.name(Role::dem));
+      }
       h5.set_attribute("/", "output_dir", std::filesystem::absolute(output_dir_).string());
       const auto last = row_of(sum.last);
       h5.write("last_diagnostics", std::span<const double>(last), {last.size()});
