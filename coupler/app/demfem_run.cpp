@@ -38,6 +38,7 @@
 #include "demfem/coupling/local_solvers.hpp"
 #include "demfem/coupling/output_folder.hpp"
 #include "demfem/coupling/progress.hpp"
+#include "demfem/coupling/resume_check.hpp"
 #include "demfem/coupling/run_record.hpp"
 #include "demfem/coupling/scene_steps.hpp"
 #include "demfem/coupling/solver_link.hpp"
@@ -78,6 +79,7 @@ struct Options {
   double hello_timeout = 300.0;   // s: a started solver that has not said Hello is killed
   bool hello_timeout_given = false;
   std::string fem_backend;        // --fem-backend: overrides fem.backend ("" = the scene's)
+  std::string dem_backend;        // --dem-backend: overrides dem.backend ("" = the scene's)
 };
 
 // --debug-kill dem:17, fem:5:always, coupler:30, job:12:usr2 (docs/reliability.md). Testing
@@ -128,184 +130,6 @@ fs::path self_dir() {
   return ec ? fs::current_path() : exe.parent_path();
 }
 
-// Shares are of the same wall time: this session's parts of this session's total, and for a
-// resumed run the whole run's parts (earlier sessions from the checkpoint, plus this one) of
-// the whole run's total.
-void print_timing(const RunSummary& s, bool remote) {
-  auto line = [](const char* what, const WallTimes& w, const char* tail) {
-    const double total = w.total > 0 ? w.total : 1.0;
-    std::printf(
-        "%s: total %.3f s; DEM %.3f s (%.1f %%), FEM %.3f s (%.1f %%), coupling %.4f s "
-        "(%.2f %%)%s\n",
-        what, w.total, w.dem, 100 * w.dem / total, w.fem, 100 * w.fem / total, w.coupling,
-        100 * w.coupling / total, tail);
-  };
-  const WallTimes session{s.wall_total, s.wall_dem, s.wall_fem, s.wall_coupling};
-  const char* ipc = remote ? "; DEM/FEM times include the IPC round trip" : "";
-  if (s.earlier.total <= 0.0) {
-    line("wall time", session, ipc);
-    return;
-  }
-  line("wall time of this session", session, ipc);
-  const WallTimes whole{s.earlier.total + s.wall_total, s.earlier.dem + s.wall_dem,
-                        s.earlier.fem + s.wall_fem, s.earlier.coupling + s.wall_coupling};
-  line("wall time of the whole run (earlier sessions up to the checkpoint, and this one)", whole,
-       "");
-}
-
-void write_timing(const fs::path& dir, const RunSummary& s) {
-  char text[512];
-  std::snprintf(text, sizeof(text),
-                "steps,time,wall_total,wall_dem,wall_fem,wall_coupling,coupling_share\n"
-                "%lld,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n",
-                static_cast<long long>(s.steps), s.time, s.wall_total, s.wall_dem, s.wall_fem,
-                s.wall_coupling, s.wall_total > 0 ? s.wall_coupling / s.wall_total : 0.0);
-  io::write_file_atomic(dir / "timing.csv", text);
-}
-
-// The checkpoint directory of the run when it is a folder of its own (not inside the output
-// folder, whose lock covers it).
-bool inside(const fs::path& path, const fs::path& folder) {
-  const auto p = fs::weakly_canonical(fs::absolute(path));
-  const auto f = fs::weakly_canonical(fs::absolute(folder));
-  auto pi = p.begin();
-  for (auto fi = f.begin(); fi != f.end(); ++fi, ++pi) {
-    if (fi->empty()) continue;  // a trailing separator
-    if (pi == p.end() || *pi != *fi) return false;
-  }
-  return true;
-}
-
-bool same_folder(const fs::path& a, const fs::path& b) {
-  return fs::weakly_canonical(fs::absolute(a)) == fs::weakly_canonical(fs::absolute(b));
-}
-
-// Checks of the checkpoint of --resume against this scene that need no process (exit status
-// 2 on refusal), and takes over the series of the checkpoint's run when resuming into another
-// output folder (docs/reliability.md, "Resume"). Returns an exit status, or nullopt to go on.
-std::optional<int> prepare_resume(const fs::path& checkpoint, const CouplingSettings& settings,
-                                  const SolverSections& sections, const fs::path& out_dir,
-                                  RunRecord& record) {
-  auto refuse = [](const std::string& m) {
-    std::fprintf(stderr, "demfem run: --resume: %s\n", m.c_str());
-    return kExitUsage;
-  };
-  std::string origin;
-  try {
-    const io::H5File coupler(checkpoint / "coupler.h5", io::H5File::Mode::read);
-    if (coupler.has_attribute("/", "scene_hash")) {
-      const std::string then = coupler.attribute_string("/", "scene_hash");
-      if (then != record.scene_hash) {
-        std::fprintf(stderr,
-                     "demfem run: note: the scene differs from the one checkpoint %s was taken "
-                     "with (scene hash %s then, %s now); the run continues with this scene. "
-                     "Changed end times and output settings continue the same run; other "
-                     "changes give results that belong to neither scene\n",
-                     checkpoint.c_str(), then.c_str(), record.scene_hash.c_str());
-      }
-    }
-    if (coupler.has_attribute("/", "output_dir"))
-      origin = coupler.attribute_string("/", "output_dir");
-    if (settings.has_dem) {
-      const io::H5File dem(checkpoint / "dem.h5", io::H5File::Mode::read);
-      if (dem.has_attribute("dem_tools", "setup_particles")) {
-        const auto then = dem.attribute_int64("dem_tools", "setup_particles");
-        if (then != static_cast<std::int64_t>(sections.dem_setup_particles)) {
-          return refuse((checkpoint / "dem.h5").string() + ": the checkpoint's scene made " +
-                        std::to_string(then) + " particles at set-up, " +
-                        settings.scene_file.string() + " makes " +
-                        std::to_string(sections.dem_setup_particles) +
-                        " ([[dem.lattice]], [[dem.insert]] or run.seed changed); its state "
-                        "cannot be continued with this scene: resume with the scene it was "
-                        "taken with, or start afresh");
-        }
-      }
-    }
-    // The FEM backend that wrote fem.h5 (recorded by the coupler; older checkpoints: the full
-    // FEM). Another backend continues it only where the state maps (docs/backends.md).
-    std::string wrote = "fem";
-    if (settings.has_fem && coupler.has_attribute("/", "fem_backend"))
-      wrote = coupler.attribute_string("/", "fem_backend");
-    if (settings.has_fem && wrote != settings.fem_backend) {
-      const std::string why = fem::checkpoint_swap_refusal(wrote, settings.fem_backend);
-      if (!why.empty())
-        return refuse("checkpoint " + checkpoint.string() + " was taken with the FEM backend \"" +
-                      wrote + "\"; this run's is \"" + settings.fem_backend +
-                      "\" (fem.backend or --fem-backend), which cannot continue it: " + why +
-                      ". Resume with --fem-backend " + wrote + ", or start afresh");
-      std::fprintf(stderr,
-                   "demfem run: note: checkpoint %s was taken with the FEM backend \"%s\"; the run "
-                   "continues with \"%s\", which maps its state (the FEM's note below says how "
-                   "closely)\n",
-                   checkpoint.c_str(), wrote.c_str(), settings.fem_backend.c_str());
-    }
-    if (settings.has_fem && wrote != "external") {
-      const io::H5File fem(checkpoint / "fem.h5", io::H5File::Mode::read);
-      if (fem.has_attribute("fem", "mesh_nodes")) {
-        const auto nodes = fem.attribute_int64("fem", "mesh_nodes");
-        const auto elements = fem.attribute_int64("fem", "mesh_elements");
-        if (nodes != static_cast<std::int64_t>(sections.fem_nodes) ||
-            elements != static_cast<std::int64_t>(sections.fem_elements)) {
-          return refuse((checkpoint / "fem.h5").string() + ": the checkpoint's FEM mesh has " +
-                        std::to_string(nodes) + " nodes and " + std::to_string(elements) +
-                        " elements, the mesh of " + settings.scene_file.string() + " has " +
-                        std::to_string(sections.fem_nodes) + " and " +
-                        std::to_string(sections.fem_elements) +
-                        " ([fem.mesh] changed); its state cannot be continued on another mesh: "
-                        "resume with the scene it was taken with, or start afresh");
-        }
-      }
-    }
-  } catch (const std::exception& e) {
-    return refuse(std::string("checkpoint ") + checkpoint.string() +
-                  " cannot be read: " + e.what());
-  }
-  // Resuming into another folder than the one the checkpoint's run wrote: its series
-  // (coupling.csv, the FEM's and the DEM's files) are copied here first, and the run
-  // continues them as it would in the original folder.
-  // A folder moved or copied with its checkpoints (mv out/a out/b; an archive unpacked
-  // elsewhere) holds the series of the checkpoint it holds: they are continued in place.
-  if (!origin.empty() && !same_folder(origin, out_dir) && inside(checkpoint, out_dir) &&
-      fs::exists(out_dir / "coupling.csv")) {
-    std::fprintf(stderr,
-                 "demfem run: note: checkpoint %s was taken by a run writing to %s; %s holds it "
-                 "and that run's series (a moved or copied output folder): they are continued "
-                 "here\n",
-                 checkpoint.c_str(), origin.c_str(), out_dir.c_str());
-    origin.clear();
-  }
-  if (!origin.empty() && !same_folder(origin, out_dir)) {
-    if (!fs::exists(fs::path(origin) / "coupling.csv")) {
-      return refuse("checkpoint " + checkpoint.string() + " was taken by a run writing to " +
-                    origin +
-                    ", whose series (coupling.csv) are not there any more; resume into "
-                    "that folder with its output, or copy the output back there");
-    }
-    try {
-      // Not while the run that wrote them is still going (a read-only archive cannot be
-      // locked, and needs no lock: nothing writes there).
-      io::FolderLock origin_lock;
-      try {
-        origin_lock = io::FolderLock(origin, "copying the series for a resume");
-      } catch (const io::FolderBusy&) {
-        throw;
-      } catch (const std::exception&) {
-      }
-      const auto copied = copy_owned_outputs(origin, out_dir);
-      record.copied_from = origin;
-      std::fprintf(stderr,
-                   "demfem run: resuming into %s: took over the series of %s (%zu files) to "
-                   "continue them\n",
-                   out_dir.c_str(), origin.c_str(), copied.size());
-    } catch (const io::FolderBusy& e) {
-      return refuse(std::string("the run that wrote the checkpoint is still going: ") + e.what());
-    } catch (const std::exception& e) {
-      return refuse(std::string("cannot take over the series of ") + origin + ": " + e.what());
-    }
-  }
-  return std::nullopt;
-}
-
 int run(const Options& opt, const std::vector<std::string>& command_line) {
   // ---- the scene: everything is checked before any process starts -----------------------
   std::optional<scene::Document> doc;
@@ -316,13 +140,16 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   try {
     std::vector<scene::Override> overrides;
     for (const auto& s : opt.sets) overrides.push_back(scene::Override::parse(s));
-    if (!opt.fem_backend.empty()) {
-      if (!scene::Document::load(opt.scene, overrides).root().table("fem")) {
-        std::fprintf(stderr, "demfem run: --fem-backend %s: %s has no [fem] section\n",
-                     opt.fem_backend.c_str(), opt.scene.c_str());
+    for (const auto& [section, kind] :
+         {std::pair{"fem", &opt.fem_backend}, std::pair{"dem", &opt.dem_backend}}) {
+      if (kind->empty()) continue;
+      if (!scene::Document::load(opt.scene, overrides).root().table(section)) {
+        std::fprintf(stderr, "demfem run: --%s-backend %s: %s has no [%s] section\n", section,
+                     kind->c_str(), opt.scene.c_str(), section);
         return kExitUsage;
       }
-      overrides.push_back(scene::Override::parse("fem.backend=\"" + opt.fem_backend + "\""));
+      overrides.push_back(scene::Override::parse(std::string(section) + ".backend=\"" + *kind +
+                                                 "\""));
     }
     doc = scene::Document::load(opt.scene, overrides);
     settings = read_coupling_settings(*doc);
@@ -338,20 +165,34 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     std::fprintf(stderr, "demfem run: scene error: %s\n", e.what());
     return kExitUsage;
   }
-  std::optional<ExternalCommand> external;
-  if (settings.has_fem && settings.fem_backend == "external") {
+  // External backends (fem.command, dem.command): resolved before anything starts.
+  std::optional<ExternalCommand> external, external_dem;
+  for (const auto& [role, ext] : {std::pair{protocol::Role::fem, &external},
+                                  std::pair{protocol::Role::dem, &external_dem}}) {
+    const bool dem = role == protocol::Role::dem;
+    if (!(dem ? settings.dem_external() : settings.fem_external())) continue;
     if (opt.in_process) {
       std::fprintf(stderr,
-                   "demfem run: --in-process runs demfem's own FEM backends only; fem.backend = "
-                   "\"external\" starts the program of fem.command in its own process\n");
+                   "demfem run: --in-process runs demfem's own %s backends only; %s.backend = "
+                   "\"external\" starts the program of %s.command in its own process\n",
+                   dem ? "DEM" : "FEM", dem ? "dem" : "fem", dem ? "dem" : "fem");
       return kExitUsage;
     }
     try {
-      external = resolve_external_command(settings);
+      *ext = resolve_external_command(settings, role);
     } catch (const scene::SceneError& e) {
       std::fprintf(stderr, "demfem run: scene error: %s\n", e.what());
       return kExitUsage;
     }
+  }
+  if (!sections.dem_unapplied_keys.empty()) {
+    std::string keys;
+    for (const auto& k : sections.dem_unapplied_keys) keys += (keys.empty() ? "" : ", ") + k;
+    std::fprintf(stderr,
+                 "demfem run: note: dem.backend = \"external\": demfem reads only dem.backend, "
+                 "command, dt and settle_time; [dem] %s are the external program's to read or "
+                 "ignore (dem_server's particles, output and sensors do not run)\n",
+                 keys.c_str());
   }
   if (opt.check) {
     std::printf("demfem run: %s: the scene is valid\n", opt.scene.c_str());
@@ -386,7 +227,8 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   // is reported now, not after the other solver has started and set up.
   if (remote) {
     for (const auto& [needed, name] :
-         {std::pair{settings.has_fem, "fem_server"}, std::pair{settings.has_dem, "dem_server"}}) {
+         {std::pair{settings.has_fem && !external, "fem_server"},
+          std::pair{settings.has_dem && !external_dem, "dem_server"}}) {
       const fs::path exe = bin / name;
       std::error_code ec;
       if (needed && (!fs::is_regular_file(exe, ec) || ::access(exe.c_str(), X_OK) != 0)) {
@@ -472,6 +314,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   }
   record.pid = ::getpid();
   record.dem_backend = sections.dem_backend;
+  if (settings.dem_external()) record.dem_command = settings.dem_command;
   if (settings.has_fem) {
     record.fem_backend = settings.fem_backend;
     record.fem_command = settings.fem_command;
@@ -486,6 +329,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   // --resume: the checkpoint to start from, verified before any process starts.
   RunControl control;
   control.fem_backend = settings.has_fem ? settings.fem_backend : std::string();
+  control.dem_backend = settings.has_dem ? settings.dem_backend : std::string();
   std::optional<std::int64_t> resume_nodes;  // the checkpoint's interface size
   control.report = [](const std::string& m) {
     std::fprintf(stderr, "demfem run: %s\n", m.c_str());
@@ -648,6 +492,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   std::unique_ptr<SolverProcess> dem_proc, fem_proc;
   std::unique_ptr<SolverLink> link;
   std::string fem_program = "fem_server";  // how messages name the FEM process
+  std::string dem_program = "dem_server";  // and the DEM process
   int code = 0;
   bool folder_lost = false;  // OutputFolderLost: nothing more is written into the folder
   std::string reason;
@@ -699,34 +544,28 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
       if (opt.resume) fem_args.push_back("--resume");
       std::optional<pid_t> dem_pid, fem_pid;
       std::printf("demfem run: segment %s\n", session->segment_name().c_str());
-      if (!opt.fem_backend.empty()) {
-        // Every process reads the same scene: the override of --fem-backend goes to all.
+      // Every process reads the same scene: the overrides of --fem-backend and --dem-backend
+      // go to all.
+      for (const auto& [section, kind] :
+           {std::pair{"fem", &opt.fem_backend}, std::pair{"dem", &opt.dem_backend}}) {
+        if (kind->empty()) continue;
         for (auto* a : {&args, &fem_args})
-          a->insert(a->end(), {"--set", "fem.backend=\"" + opt.fem_backend + "\""});
+          a->insert(a->end(), {"--set", std::string(section) + ".backend=\"" + *kind + "\""});
       }
+      // An outside program: the arguments of demfem's own solver of its role (as the FEM's:
+      // --resume when resumed), absolute paths (it runs in the scene's folder), the same
+      // supervision and restarts (external_backend.hpp).
+      auto start_external = [&](const ExternalCommand& ext, std::unique_ptr<SolverProcess>& proc,
+                                std::string& program) {
+        proc = make_external_process(ext, fem_args, out_dir, bin);
+        program = ext.label();
+        const pid_t pid = proc->start();
+        std::printf("demfem run: started the %s (pid %d)\n", program.c_str(),
+                    static_cast<int>(pid));
+        return pid;
+      };
       if (settings.has_fem && external) {
-        // An outside program: the same arguments as fem_server (absolute paths: it runs in the
-        // scene's folder), the same supervision and restarts. The output folder always: the
-        // default (run.output_dir) is relative to this process's folder, not to the scene's.
-        std::vector<std::string> ext_args = external->arguments;
-        for (std::size_t k = 0; k < fem_args.size(); ++k) {
-          const bool path =
-              k > 0 && (fem_args[k - 1] == "--scene" || fem_args[k - 1] == "--output-dir");
-          ext_args.push_back(path ? fs::absolute(fem_args[k]).string() : fem_args[k]);
-        }
-        if (opt.output_dir.empty())
-          ext_args.insert(ext_args.end(), {"--output-dir", fs::absolute(out_dir).string()});
-        if (const auto py = python_module_dir(bin)) {
-          const char* old = std::getenv("PYTHONPATH");
-          const std::string value = py->string() + (old && *old ? ":" + std::string(old) : "");
-          ::setenv("PYTHONPATH", value.c_str(), 1);
-        }
-        fem_proc = std::make_unique<SolverProcess>("FEM solver", external->program, ext_args);
-        fem_proc->set_working_directory(external->working_directory);
-        fem_program = "external FEM backend '" + external->text + "'";
-        fem_pid = fem_proc->start();
-        std::printf("demfem run: started the external FEM backend %s (pid %d)\n",
-                    external->text.c_str(), static_cast<int>(*fem_pid));
+        fem_pid = start_external(*external, fem_proc, fem_program);
       } else if (settings.has_fem) {
         fem_proc = std::make_unique<SolverProcess>("FEM solver", bin / "fem_server", fem_args);
         fem_proc->set_own_session(opt.solver_sessions);
@@ -734,7 +573,9 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
         std::printf("demfem run: started fem_server (pid %d) with the %s backend\n",
                     static_cast<int>(*fem_pid), settings.fem_backend.c_str());
       }
-      if (settings.has_dem) {
+      if (settings.has_dem && external_dem) {
+        dem_pid = start_external(*external_dem, dem_proc, dem_program);
+      } else if (settings.has_dem) {
         dem_proc = std::make_unique<SolverProcess>("DEM solver", bin / "dem_server", args);
         dem_proc->set_own_session(opt.solver_sessions);
         dem_pid = dem_proc->start();
@@ -742,6 +583,10 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
       }
       std::fflush(stdout);
       auto remote_link = std::make_unique<RemoteLink>(*session, dem_pid, fem_pid);
+      if (dem_pid && external_dem) {
+        remote_link->describe(protocol::Role::dem,
+                              "the " + dem_program + " (pid " + std::to_string(*dem_pid) + ")");
+      }
       if (fem_pid) {
         remote_link->describe(protocol::Role::fem, (external ? "the " : "") + fem_program +
                                                        " (pid " + std::to_string(*fem_pid) + ")");
@@ -770,10 +615,11 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
                      p->label().c_str(), static_cast<int>(p->pid()), c,
                      c > 128 ? (" (signal " + std::to_string(c - 128) + ")").c_str() : "");
         session->reset_peer(role);
-        if (role == protocol::Role::fem) p->add_argument("--resume");
+        // The FEM and an external DEM continue their output series (the SDK's --resume).
+        if (role == protocol::Role::fem || external_dem) p->add_argument("--resume");
         const pid_t pid = p->start();
         std::printf("demfem run: started %s (pid %d)\n",
-                    role == protocol::Role::dem ? "dem_server" : fem_program.c_str(),
+                    role == protocol::Role::dem ? dem_program.c_str() : fem_program.c_str(),
                     static_cast<int>(pid));
         std::fflush(stdout);
         session->wait_hello(role, pid);
@@ -785,8 +631,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
           // A restarted process that is not the structure that was running (another interface
           // size): named, and not restarted again.
           throw HandshakeFailed(
-              role, "the restarted " +
-                        (role == protocol::Role::dem ? std::string("dem_server") : fem_program) +
+              role, "the restarted " + (role == protocol::Role::dem ? dem_program : fem_program) +
                         " (pid " + std::to_string(pid) + ") was refused: " + e.what());
         }
       };
@@ -893,7 +738,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     // Only the start (Hello, mesh exchange) lets it through unwrapped: a solver that ended
     // before it attached, or never attached.
     SolverProcess* p = e.role() == protocol::Role::dem ? dem_proc.get() : fem_proc.get();
-    const std::string name = e.role() == protocol::Role::dem ? "dem_server" : fem_program;
+    const std::string name = e.role() == protocol::Role::dem ? dem_program : fem_program;
     if (SignalGuard::stop_flag().load()) {
       failed(128 + SignalGuard::signal_number(), "stopped by signal " +
                                                      std::to_string(SignalGuard::signal_number()) +
@@ -1100,6 +945,11 @@ int main(int argc, char** argv) {
                  "external (fem.command); with --resume it continues a checkpoint of another "
                  "backend where the state maps (docs/backends.md)")
       ->check(CLI::IsMember({"fem", "modal", "rigid", "external"}));
+  app.add_option("--dem-backend", opt.dem_backend,
+                 "the DEM backend of this run, overriding dem.backend: cpu or cuda (dem_server) "
+                 "or external (the program of dem.command, on the SDK's DEM side; "
+                 "docs/backends.md)")
+      ->check(CLI::IsMember({"cpu", "cuda", "external"}));
   app.add_option("--hello-timeout", opt.hello_timeout,
                  "seconds a started solver may take to attach (its Hello) before it is killed "
                  "and the run stops with status 1 (default 300; raise it for models whose "

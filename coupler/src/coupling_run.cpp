@@ -17,6 +17,7 @@
 #include "demfem/io/checkpoint_file.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem/io/output_schedule.hpp"
+#include "interface_checks.hpp"
 #include "interface_output.hpp"
 
 namespace demfem::coupling {
@@ -52,35 +53,6 @@ double max_node_distance(std::span<const double> a, std::span<const double> b) {
     m = std::max(m, std::sqrt(dx * dx + dy * dy + dz * dz));
   }
   return m;
-}
-
-// First non-finite entry, or -1.
-std::ptrdiff_t first_non_finite(std::span<const double> v) {
-  for (std::size_t i = 0; i < v.size(); ++i) {
-    if (!std::isfinite(v[i])) return static_cast<std::ptrdiff_t>(i);
-  }
-  return -1;
-}
-
-// What the FEM wrote into buffer b that is not finite (the first position, velocity or
-// acceleration, with its node), or "" when everything is. Checked after every FEM step:
-// another process would otherwise be blamed for it (the DEM, moving its mesh with them).
-std::string non_finite_fem_kinematics(protocol::InterfaceBuffers& buf, std::uint32_t b) {
-  const std::tuple<const char*, const char*, std::span<const double>> arrays[] = {
-      {"position", "m", buf.positions(b)},
-      {"velocity", "m/s", buf.velocities(b)},
-      {"acceleration", "m/s^2", buf.accelerations(b)}};
-  for (const auto& [what, unit, v] : arrays) {
-    const std::ptrdiff_t k = first_non_finite(v);
-    if (k < 0) continue;
-    const double* node = &v[static_cast<std::size_t>(k - k % 3)];
-    std::ostringstream m;
-    m.precision(6);
-    m << "the " << what << " it wrote for interface node " << k / 3 << " is not finite: ("
-      << node[0] << ", " << node[1] << ", " << node[2] << ") " << unit;
-    return m.str();
-  }
-  return {};
 }
 
 // The FEM's published mesh: a node that is not finite would be found by the DEM in its first
@@ -267,6 +239,10 @@ RunSummary CouplingRun::run() {
         h5.set_attribute("/", "fem_backend",
                          control_.fem_backend.empty() ? std::string("fem") : control_.fem_backend);
         h5.set_attribute("/", "fem_backend_name", link_.name(Role::fem));
+      }
+      if (link_.has(Role::dem) && !control_.dem_backend.empty()) {
+        h5.set_attribute("/", "dem_backend", control_.dem_backend);
+        h5.set_attribute("/", "dem_backend_name", link_.name(Role::dem));
       }
       h5.set_attribute("/", "output_dir", std::filesystem::absolute(output_dir_).string());
       const auto last = row_of(sum.last);
@@ -466,9 +442,13 @@ RunSummary CouplingRun::run() {
   // A solver that fails or dies inside a step: name it, the step and the time.
   auto solver_failure = [&](Role role, const StepCommand& cmd, const std::exception& e,
                             std::optional<protocol::ErrorKind> kind = std::nullopt) {
+    // Named with the backend's own name (its Hello): an outside program is blamed by name.
+    const std::string what = e.what();
     std::ostringstream m;
     m << "the " << role_label(role) << " solver failed in coupling step " << cmd.step
-      << " (t = " << fmt(cmd.time) << " s): " << e.what();
+      << " (t = " << fmt(cmd.time) << " s): "
+      << (what.rfind("its backend \"", 0) == 0 ? "" : "its backend \"" + link_.name(role) + "\": ")
+      << what;
     return SolverFailure(role, cmd.step, cmd.time, m.str(),
                          dynamic_cast<const protocol::PeerDied*>(&e) != nullptr,
                          kind.value_or(error_kind_of(e)));
@@ -488,8 +468,10 @@ RunSummary CouplingRun::run() {
     } catch (const std::exception& e) {
       throw solver_failure(role, cmd, e);
     }
-    if (role == Role::fem && n3 > 0) {
-      if (const std::string bad = non_finite_fem_kinematics(buf, cmd.buffer); !bad.empty()) {
+    if (n3 > 0) {
+      if (const std::string bad = role == Role::fem ? non_finite_fem_kinematics(buf, cmd.buffer)
+                                                    : non_finite_dem_output(buf, cmd.buffer);
+          !bad.empty()) {
         // The solver's own blow-up (exit status 3), as if it had refused the state itself.
         throw solver_failure(role, cmd,
                              std::runtime_error("its backend \"" + link_.name(role) + "\": " + bad),

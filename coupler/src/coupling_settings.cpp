@@ -170,6 +170,13 @@ CouplingSettings read_coupling_settings(const scene::Document& doc) {
   // Read-only peeks: the owners check these keys (and the rest of their sections) themselves.
   if (s.has_dem) s.dem_dt = dem->number("dt", Range::positive());
   if (s.has_dem) s.dem_settle_time = dem->number("settle_time", 0.0, Range::non_negative());
+  if (s.has_dem) {
+    s.dem_backend = dem->choice("backend", "cpu", {"cpu", "cuda", "external"});
+    if (s.dem_backend == "external") {
+      s.dem_command = dem->strings("command");
+      s.dem_command_where = dem->where("command");
+    }
+  }
   if (s.has_fem) {
     if (fem->has("analysis")) {
       const std::string analysis = fem->string("analysis");

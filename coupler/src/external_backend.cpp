@@ -13,12 +13,21 @@ namespace demfem::coupling {
 #define DEMFEM_PYTHON "/usr/bin/python3"
 #endif
 
-ExternalCommand resolve_external_command(const CouplingSettings& s) {
-  if (s.fem_command.empty() || s.fem_command.front().empty())
-    throw scene::SceneError(s.fem_command_where + ": names no program");
+std::string ExternalCommand::label() const {
+  return std::string("external ") + (role == protocol::Role::dem ? "DEM" : "FEM") +
+         " backend '" + text + "'";
+}
+
+ExternalCommand resolve_external_command(const CouplingSettings& s, protocol::Role role) {
+  const bool dem = role == protocol::Role::dem;
+  const std::vector<std::string>& command = dem ? s.dem_command : s.fem_command;
+  const std::string& where = dem ? s.dem_command_where : s.fem_command_where;
+  if (command.empty() || command.front().empty())
+    throw scene::SceneError(where + ": names no program");
   ExternalCommand c;
+  c.role = role;
   c.working_directory = fs::absolute(s.scene_file).parent_path();
-  const std::string& first = s.fem_command.front();
+  const std::string& first = command.front();
   if (first == "{python}") {
     c.program = DEMFEM_PYTHON;
   } else if (first.find('/') != std::string::npos) {
@@ -35,15 +44,15 @@ ExternalCommand resolve_external_command(const CouplingSettings& s) {
       }
     }
     if (c.program.empty())
-      throw scene::SceneError(s.fem_command_where + ": program '" + first +
+      throw scene::SceneError(where + ": program '" + first +
                               "' is not on PATH; give a path (relative to the scene's folder) or "
                               "\"{python}\" for demfem's Python 3");
   }
   if (::access(c.program.c_str(), X_OK) != 0 || fs::is_directory(c.program))
-    throw scene::SceneError(s.fem_command_where + ": program " + c.program.string() +
+    throw scene::SceneError(where + ": program " + c.program.string() +
                             " is missing or not executable");
-  c.arguments.assign(s.fem_command.begin() + 1, s.fem_command.end());
-  for (const auto& a : s.fem_command) c.text += (c.text.empty() ? "" : " ") + a;
+  c.arguments.assign(command.begin() + 1, command.end());
+  for (const auto& a : command) c.text += (c.text.empty() ? "" : " ") + a;
   return c;
 }
 
@@ -54,6 +63,32 @@ std::optional<fs::path> python_module_dir(const fs::path& bin_dir) {
     if (fs::is_directory(candidate / "demfem", ec)) return fs::weakly_canonical(candidate, ec);
   }
   return std::nullopt;
+}
+
+std::unique_ptr<SolverProcess> make_external_process(const ExternalCommand& command,
+                                                     const std::vector<std::string>& solver_args,
+                                                     const fs::path& out_dir,
+                                                     const fs::path& bin_dir) {
+  std::vector<std::string> args = command.arguments;
+  bool output_dir = false;
+  for (std::size_t k = 0; k < solver_args.size(); ++k) {
+    const bool path =
+        k > 0 && (solver_args[k - 1] == "--scene" || solver_args[k - 1] == "--output-dir");
+    output_dir = output_dir || solver_args[k] == "--output-dir";
+    args.push_back(path ? fs::absolute(solver_args[k]).string() : solver_args[k]);
+  }
+  if (!output_dir) args.insert(args.end(), {"--output-dir", fs::absolute(out_dir).string()});
+  const bool dem = command.role == protocol::Role::dem;
+  auto p = std::make_unique<SolverProcess>(dem ? "DEM solver" : "FEM solver", command.program,
+                                           args);
+  p->set_working_directory(command.working_directory);
+  if (const auto py = python_module_dir(bin_dir)) {
+    const char* old = std::getenv("PYTHONPATH");
+    p->set_environment("PYTHONPATH",
+                       py->string() + (old && *old ? ":" + std::string(old) : ""));
+  }
+  p->set_environment("DEMFEM_ROLE", protocol::role_name(command.role));
+  return p;
 }
 
 }  // namespace demfem::coupling

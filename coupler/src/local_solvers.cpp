@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <type_traits>
 
+#include <toml++/toml.h>
+
 #include "demfem/coupling/solver_link.hpp"
 
 #include "demfem/dem/dem_backend.hpp"
@@ -149,7 +151,24 @@ SolverSections check_solver_sections(const scene::Document& scene, std::uint64_t
     if (fs.backend != fem::FemBackendKind::external)
       out.fem_interface_nodes = fem::build_interface(fs.problem).mesh.node_count();
   }
-  if (auto dem = root.table("dem")) {
+  // With dem.backend = "external", [dem] belongs to the outside program as [fem] does to an
+  // external FEM: demfem reads only backend, command, dt and settle_time (coupling_settings);
+  // dem_server's keys (particles, materials, output, sensors) are neither checked nor applied.
+  const auto dem_table = root.table("dem");
+  if (dem_table && dem_table->has("backend") && dem_table->string("backend") == "external") {
+    out.dem_backend = "external";
+    // The scene with its overrides, as TOML: the keys [dem] holds (the reader lists none).
+    const toml::table tree = toml::parse(scene.canonical_text());
+    if (const toml::table* dem = tree["dem"].as_table()) {
+      for (const auto& [key, value] : *dem) {
+        const std::string k(key.str());
+        if (k != "backend" && k != "command" && k != "dt" && k != "settle_time" && k != "external")
+          out.dem_unapplied_keys.push_back(k);
+      }
+    }
+    return out;
+  }
+  if (auto dem = dem_table) {
     const dem::DemScene ds = dem::read_dem_scene(*dem);
     // The DEM adapter needs it only when the mesh arrives; say so before anything starts.
     if (fem && ds.interface_material < 0) {

@@ -2,6 +2,9 @@
 
 #include <cmath>
 
+#include "demfem/coupling/coupling_run.hpp"
+#include "demfem/io/atomic_file.hpp"
+
 namespace demfem::coupling {
 
 Progress::Progress(std::FILE* out, bool terminal, bool quiet)
@@ -47,6 +50,41 @@ void Progress::finish() {
     std::fflush(out_);
     line_open_ = false;
   }
+}
+
+// Shares are of the same wall time: this session's parts of this session's total, and for a
+// resumed run the whole run's parts (earlier sessions from the checkpoint, plus this one) of
+// the whole run's total.
+void print_timing(const RunSummary& s, bool remote) {
+  auto line = [](const char* what, const WallTimes& w, const char* tail) {
+    const double total = w.total > 0 ? w.total : 1.0;
+    std::printf(
+        "%s: total %.3f s; DEM %.3f s (%.1f %%), FEM %.3f s (%.1f %%), coupling %.4f s "
+        "(%.2f %%)%s\n",
+        what, w.total, w.dem, 100 * w.dem / total, w.fem, 100 * w.fem / total, w.coupling,
+        100 * w.coupling / total, tail);
+  };
+  const WallTimes session{s.wall_total, s.wall_dem, s.wall_fem, s.wall_coupling};
+  const char* ipc = remote ? "; DEM/FEM times include the IPC round trip" : "";
+  if (s.earlier.total <= 0.0) {
+    line("wall time", session, ipc);
+    return;
+  }
+  line("wall time of this session", session, ipc);
+  const WallTimes whole{s.earlier.total + s.wall_total, s.earlier.dem + s.wall_dem,
+                        s.earlier.fem + s.wall_fem, s.earlier.coupling + s.wall_coupling};
+  line("wall time of the whole run (earlier sessions up to the checkpoint, and this one)", whole,
+       "");
+}
+
+void write_timing(const std::filesystem::path& dir, const RunSummary& s) {
+  char text[512];
+  std::snprintf(text, sizeof(text),
+                "steps,time,wall_total,wall_dem,wall_fem,wall_coupling,coupling_share\n"
+                "%lld,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n",
+                static_cast<long long>(s.steps), s.time, s.wall_total, s.wall_dem, s.wall_fem,
+                s.wall_coupling, s.wall_total > 0 ? s.wall_coupling / s.wall_total : 0.0);
+  io::write_file_atomic(dir / "timing.csv", text);
 }
 
 }  // namespace demfem::coupling

@@ -103,10 +103,13 @@ std::string to_json(const RunRecord& r) {
     << "  \"host\": " << quoted(r.host) << ",\n"
     << "  \"pid\": " << r.pid << ",\n"
     << "  \"dem_backend\": " << opt_text(r.dem_backend) << ",\n"
-    << "  \"dem_threads\": " << (r.dem_backend.empty() ? "null" : std::to_string(r.dem_threads))
+    << "  \"dem_threads\": " << (r.dem_backend.empty() || r.dem_backend == "external"
+                                    ? "null"
+                                    : std::to_string(r.dem_threads))
     << ",\n"
     << "  \"fem_backend\": " << opt_text(r.fem_backend) << ",\n"
     << "  \"fem_command\": " << (r.fem_command.empty() ? "null" : strings(r.fem_command)) << ",\n"
+    << "  \"dem_command\": " << (r.dem_command.empty() ? "null" : strings(r.dem_command)) << ",\n"
     << "  \"omp_num_threads\": " << opt_text(r.omp_num_threads) << ",\n"
     << "  \"hardware_threads\": " << r.hardware_threads << ",\n"
     << "  \"start_time\": " << quoted(r.start_time) << ",\n"

@@ -263,7 +263,8 @@ int run_post_steps(const std::vector<PostStep>& steps, const fs::path& output_di
 int run_prepare_scenes(const scene::Document& doc, const fs::path& bin_dir, bool quiet,
                        bool in_process, bool check_only) {
   const auto dem = doc.root().table("dem");
-  if (!dem) return 0;
+  // An external DEM's [dem] is the program's own (a [dem.load] there is not dem_server's).
+  if (!dem || (dem->has("backend") && dem->string("backend") == "external")) return 0;
   const dem::DemScene ds = dem::read_dem_scene(*dem);
   if (!ds.load || ds.load->prepare_scene.empty()) return 0;
   const dem::ParticleSource& src = *ds.load;

@@ -70,6 +70,16 @@ SolverProcess::~SolverProcess() {
   if (slot_ >= 0) g_children[slot_].store(0);
 }
 
+void SolverProcess::set_environment(const std::string& name, const std::string& value) {
+  for (auto& [n, v] : environment_) {
+    if (n == name) {
+      v = value;
+      return;
+    }
+  }
+  environment_.emplace_back(name, value);
+}
+
 void SolverProcess::add_argument(const std::string& argument) {
   if (std::find(arguments_.begin(), arguments_.end(), argument) == arguments_.end()) {
     arguments_.push_back(argument);
@@ -95,7 +105,20 @@ pid_t SolverProcess::start() {
   ::posix_spawn_file_actions_init(&actions);
   if (!working_directory_.empty())
     ::posix_spawn_file_actions_addchdir_np(&actions, working_directory_.c_str());
-  const int rc = ::posix_spawn(&pid, executable_.c_str(), &actions, &attr, argv.data(), environ);
+  // The environment: this process's, with the variables set_environment() gave replaced.
+  std::vector<std::string> env_store;
+  for (char** e = environ; e && *e; ++e) {
+    const std::string entry = *e;
+    const std::string name = entry.substr(0, entry.find('='));
+    bool replaced = false;
+    for (const auto& [n, v] : environment_) replaced = replaced || n == name;
+    if (!replaced) env_store.push_back(entry);
+  }
+  for (const auto& [n, v] : environment_) env_store.push_back(n + "=" + v);
+  std::vector<char*> envp;
+  for (auto& e : env_store) envp.push_back(e.data());
+  envp.push_back(nullptr);
+  const int rc = ::posix_spawn(&pid, executable_.c_str(), &actions, &attr, argv.data(), envp.data());
   ::posix_spawn_file_actions_destroy(&actions);
   ::posix_spawnattr_destroy(&attr);
   if (rc != 0) {

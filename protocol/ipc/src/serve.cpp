@@ -5,6 +5,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <iostream>
 #include <mutex>
@@ -342,7 +343,25 @@ class Server {
     }
   }
 
+  // The launcher names the role it started the process for (DEMFEM_ROLE, dem or fem): a
+  // program that serves the other side (an FEM backend given as dem.command) would take the
+  // other solver's slot of the segment; it is refused before it attaches (issue 36).
+  void check_started_role() const {
+    const char* env = std::getenv("DEMFEM_ROLE");
+    if (env == nullptr || *env == '\0') return;
+    const std::string started = env;
+    if (started == role_name(options_.role)) return;
+    throw ProtocolError("demfem started this program as its " + started +
+                        " solver (DEMFEM_ROLE=" + started + "), but it serves the " +
+                        role_name(options_.role) +
+                        " side of the protocol: it was refused before attaching to segment " +
+                        options_.segment + " (a " + role_name(options_.role) +
+                        " backend belongs in " + role_name(options_.role) + ".command, or call "
+                        "serve() with the role " + started + ")");
+  }
+
   int serve_loop() {
+    check_started_role();
     try {
       attach();
     } catch (const VersionMismatchExit& v) {

@@ -1,4 +1,5 @@
-"""demfem's Python SDK: attach a structural code written in Python to a demfem run.
+"""demfem's Python SDK: attach a structural code (the FEM side) or a particle code (the DEM
+side) written in Python to a demfem run.
 
 A backend subclasses SolverBackend and implements
 
@@ -17,7 +18,15 @@ self.cancelled. An exception becomes the error demfem reports, naming the backen
 real: complex numbers returned, or cast to real while a method runs (numpy's ComplexWarning,
 e.g. written into an interface view), are errors.
 
-The launcher starts the backend as  fem.command + --scene FILE --segment NAME [--set K=V]...
+A DEM backend (dem.backend = "external", demfem.run(backend, args, Role.dem)) is the other
+way round: on_mesh(mesh) receives the interface mesh (mesh.positions (n, 3), mesh.triangles
+(m, 3)); step() reads positions / velocities / accelerations(cmd.buffer) (the structure's
+node kinematics at the step's start when cmd.flags has STEP_SET_KINEMATICS), advances
+cmd.substeps steps of cmd.dt / cmd.substeps, and writes forces(cmd.buffer) (the particles'
+forces on the nodes, N) and dem_positions(cmd.buffer) (where its mesh nodes are at the step's
+end, m); it returns [largest overlap with the mesh (m), kinetic energy (J), largest overlap].
+
+The launcher starts the backend as  fem.command (or dem.command) + --scene FILE --segment NAME [--set K=V]...
 --output-dir DIR [--resume]  in the scene's folder, every path absolute (the checkpoint paths
 of write_checkpoint() and restore_checkpoint() too): parse_args() reads these, load_scene()
 reads the scene with the --set overrides, serve() runs the backend. docs/protocol.md.
@@ -47,7 +56,7 @@ def parse_args(argv=None, parser=None):
     """The arguments demfem passes to a backend: --scene, --segment, --set (repeated),
     --output-dir, --resume, --quiet. Arguments the backend declares on its own `parser` (an
     argparse.ArgumentParser, e.g. from fem.command) are parsed too."""
-    p = parser or argparse.ArgumentParser(description="a demfem FEM backend")
+    p = parser or argparse.ArgumentParser(description="a demfem backend")
     p.add_argument("--scene", required=True, help="the scene file (TOML)")
     p.add_argument("--segment", required=True, help="the coupler's shared-memory segment")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -97,9 +106,11 @@ def write_atomically(path, write):
     os.replace(part, path)
 
 
-def run(backend, args):
+def run(backend, args, role=Role.fem):
     """serve() with the arguments of parse_args(); returns the exit status for sys.exit().
-    The coupler counts as hung after the scene's run.peer_timeout (s, default 10), as for
-    demfem's own solvers."""
+    `role`: Role.fem for a structure (fem.command), Role.dem for a particle code
+    (dem.command); a program started for the other role is refused before it attaches
+    (exit 4). The coupler counts as hung after the scene's run.peer_timeout (s, default 10),
+    as for demfem's own solvers."""
     timeout = load_scene(args.scene, args.set).get("run", {}).get("peer_timeout", 10.0)
-    return serve(backend, args.segment, Role.fem, peer_timeout=float(timeout))
+    return serve(backend, args.segment, role, peer_timeout=float(timeout))

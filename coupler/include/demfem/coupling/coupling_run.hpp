@@ -194,6 +194,9 @@ struct RunControl {
   /// checkpoint (coupler.h5 attribute fem_backend, with the name the FEM announced in
   /// fem_backend_name), so that a resume with another backend knows what wrote fem.h5.
   std::string fem_backend;
+  /// The DEM backend ("cpu", "cuda", "external"), recorded likewise (coupler.h5 attributes
+  /// dem_backend and dem_backend_name): an external DEM's dem.h5 is its own format.
+  std::string dem_backend;
 };
 
 /// @brief Counts of the reliability machinery in one run.

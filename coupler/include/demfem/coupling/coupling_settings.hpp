@@ -107,6 +107,14 @@ struct CouplingSettings {
   /// where (for messages).
   std::vector<std::string> fem_command;
   std::string fem_command_where;
+  /// [dem].backend: "cpu", "cuda" (dem_server) or "external" (the program of dem.command, on
+  /// the SDK's DEM side); `demfem run --dem-backend` overrides it (docs/backends.md).
+  std::string dem_backend = "cpu";
+  /// [dem].command of an external DEM: program and arguments, and where (for messages).
+  std::vector<std::string> dem_command;
+  std::string dem_command_where;
+  bool dem_external() const { return has_dem && dem_backend == "external"; }
+  bool fem_external() const { return has_fem && fem_backend == "external"; }
 
   double dem_dt = 0.0;            ///< [dem].dt, s
   double dem_settle_time = 0.0;   ///< [dem].settle_time, s: run before the DEM attaches

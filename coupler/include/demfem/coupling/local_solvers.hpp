@@ -5,6 +5,8 @@
 
 #include <filesystem>
 #include <memory>
+#include <string>
+#include <vector>
 
 #include "demfem/coupling/coupling_settings.hpp"
 #include "demfem/protocol/protocol.hpp"
@@ -22,6 +24,9 @@ struct SolverSections {
   /// Interface nodes of demfem's own FEM backends (fem, modal, rigid: one interface
   /// definition); 0 when not known (an external program's interface is its own).
   std::size_t fem_interface_nodes = 0;
+  /// dem.backend = "external": the keys of [dem] that demfem does not read (those of
+  /// dem_server: particles, materials, output, sensors), left to the external program.
+  std::vector<std::string> dem_unapplied_keys;
 };
 
 /// @brief Reads [dem] and [fem] with the solvers' own readers and makes the checks the solvers

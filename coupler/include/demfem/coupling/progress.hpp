@@ -5,9 +5,19 @@
 #include <chrono>
 #include <cstdint>
 #include <cstdio>
+#include <filesystem>
 #include <string>
 
 namespace demfem::coupling {
+
+struct RunSummary;
+
+/// @brief The run's wall times on stdout: this session's shares, and for a resumed run the
+/// whole run's (earlier sessions from the checkpoint, plus this one). `remote`: solver
+/// processes (their times include the IPC round trip).
+void print_timing(const RunSummary& summary, bool remote);
+/// @brief timing.csv in `dir` (steps, time, wall times, coupling share), written atomically.
+void write_timing(const std::filesystem::path& dir, const RunSummary& summary);
 
 /// @brief Prints progress of a run to a stream.
 class Progress {

@@ -39,6 +39,7 @@ struct RunRecord {
   /// external one, its command line.
   std::string fem_backend;
   std::vector<std::string> fem_command;
+  std::vector<std::string> dem_command;  ///< dem.command of dem.backend = "external"
   int dem_threads = 0;          ///< threads of the DEM's CPU backend (dem.threads or OpenMP's)
   std::string omp_num_threads;  ///< the OMP_NUM_THREADS environment variable ("" = unset)
   unsigned hardware_threads = 0;

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <sys/types.h>
@@ -40,6 +41,9 @@ class SolverProcess {
   /// or a signal to the launcher's process group: the launcher forwards SIGTERM, and a
   /// solver whose launcher is gone leaves by itself (docs/reliability.md).
   void set_own_session(bool own) { own_session_ = own; }
+  /// Sets an environment variable of the process (on top of the launcher's own environment),
+  /// for this and every later start().
+  void set_environment(const std::string& name, const std::string& value);
   /// The folder the process starts in (empty, the default: the launcher's own).
   void set_working_directory(std::filesystem::path dir) { working_directory_ = std::move(dir); }
   const std::filesystem::path& executable() const { return executable_; }
@@ -64,6 +68,7 @@ class SolverProcess {
   std::filesystem::path executable_;
   std::vector<std::string> arguments_;
   std::filesystem::path working_directory_;
+  std::vector<std::pair<std::string, std::string>> environment_;
   pid_t pid_ = -1;
   int slot_ = -1;
   bool own_session_ = false;
