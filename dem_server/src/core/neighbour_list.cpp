@@ -4,6 +4,7 @@
 // how often the list must be updated (dem_system_impl.hpp).
 
 #include "dem_system_impl.hpp"
+#include "demfem/dem/physics/grid_cell.hpp"
 
 #include <omp.h>
 
@@ -76,7 +77,8 @@ void DemSystem::Impl::rebuild() {
   const double inv_h = 1.0 / h;
   std::vector<std::int32_t> cell(np);
   auto cell_coord = [&](double x, int d) {
-    return std::clamp<std::int64_t>(static_cast<std::int64_t>((x - lo[d]) * inv_h), 0, dim[d] - 1);
+    // floor, not truncation: the same cell after the clamp (below 0 both give 0)
+    return std::clamp<std::int64_t>(phys::saturated_cell((x - lo[d]) * inv_h), 0, dim[d] - 1);
   };
   for (std::size_t i = 0; i < np; ++i)
     cell[i] = static_cast<std::int32_t>((cell_coord(P[2][i], 2) * dim[1] + cell_coord(P[1][i], 1)) *

@@ -15,6 +15,7 @@
 
 #include "demfem/dem/dem_scene.hpp"
 #include "demfem/dem/physics/geometry.hpp"
+#include "demfem/dem/physics/grid_cell.hpp"
 #include "demfem/io/file_hash.hpp"
 #include "demfem/io/h5_file.hpp"
 
@@ -658,7 +659,7 @@ OverlapReport largest_overlap(const ParticleState& p, std::span<const WallMesh> 
   const double rmax = *std::max_element(p.radius.begin(), p.radius.end());
   const double cell = 2.0 * rmax;
   auto key = [&](double x, double y, double z) {
-    const auto c = [&](double v) { return static_cast<std::int64_t>(std::floor(v / cell)); };
+    const auto c = [&](double v) { return phys::saturated_cell(v / cell); };
     // 21 bits per axis is enough for any scene of sensible extent.
     return ((c(x) & 0x1fffff) << 42) | ((c(y) & 0x1fffff) << 21) | (c(z) & 0x1fffff);
   };
