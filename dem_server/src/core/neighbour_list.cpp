@@ -67,7 +67,7 @@ void DemSystem::Impl::rebuild() {
       const double ext = std::isfinite(hi[d] - lo[d]) ? hi[d] - lo[d] : 0.0;
       const double cells = std::floor(ext / h) + 1.0;
       dim[d] = cells <= 4.0 * static_cast<double>(np) + 4096.0 ? static_cast<std::int64_t>(cells)
-                                                              : std::int64_t{1} << 62;
+                                                               : std::int64_t{1} << 62;
       tot *= cells;
     }
     if (tot <= static_cast<double>(4 * np + 4096)) break;

@@ -16,6 +16,7 @@
 #include "demfem/dem/dem_scene.hpp"
 #include "demfem/dem/physics/geometry.hpp"
 #include "demfem/dem/physics/grid_cell.hpp"
+#include "demfem/dem/state_check.hpp"
 #include "demfem/io/file_hash.hpp"
 #include "demfem/io/h5_file.hpp"
 
@@ -95,8 +96,7 @@ void check_csv_size(const ParticleSource& s, std::ostream* log) {
   std::uint64_t rows = 0;
   const auto bytes = std::filesystem::file_size(s.file);
   if (log && bytes > kCsvProgressBytes)
-    *log << "dem: counting the rows of " << s.file.string() << " (" << (bytes >> 20)
-         << " MB)\n";
+    *log << "dem: counting the rows of " << s.file.string() << " (" << (bytes >> 20) << " MB)\n";
   while (std::getline(in, line)) {
     const auto first = line.find_first_not_of(" \t\r");
     if (first != std::string::npos && line[first] != '#') ++rows;
@@ -307,7 +307,8 @@ Loaded read_state_particles(const ParticleSource& s) {
       const double q2 = qw[i] * qw[i] + qx[i] * qx[i] + qy[i] * qy[i] + qz[i] * qz[i];
       if (!(std::abs(q2 - 1.0) <= 1e-6))
         data_error(s, s.file.string() + ": particle " + std::to_string(i),
-                   "datasets " + g + "qw, qx, qy, qz: the orientation is not a unit quaternion (|q|^2 = " +
+                   "datasets " + g +
+                       "qw, qx, qy, qz: the orientation is not a unit quaternion (|q|^2 = " +
                        std::to_string(q2) + ", accepted 1 +- 1e-6)");
     } else if (shape[i] != static_cast<std::uint8_t>(ParticleShape::sphere)) {
       data_error(s, s.file.string() + ": particle " + std::to_string(i),
@@ -455,6 +456,10 @@ void restore_state(const ParticleSource& s, DemSystem& system, std::span<const W
   }
   try {
     system.restore(f, s.group);
+    // as a checkpoint's (DemRun::restore): a non-finite force or velocity would blow the
+    // bed up in its first step, blamed on the run instead of the file
+    check_particle_state(system.particles(), s.file.string() + ":/" + s.group,
+                         "the state cannot start a run (saved as a run blew up, or edited)");
   } catch (const std::exception& e) {
     data_error(s, s.file.string(), e.what());
   }

@@ -7,7 +7,8 @@
 
 namespace demfem::dem {
 
-void check_particle_state(const ParticleState& st, const std::string& where) {
+void check_particle_state(const ParticleState& st, const std::string& where,
+                          const std::string& remedy) {
   const std::size_t n = st.size();
   // Every per-particle number, and what a scene would give it: finite, or finite and > 0.
   struct Quantity {
@@ -46,8 +47,8 @@ void check_particle_state(const ParticleState& st, const std::string& where) {
   }
   auto bad = [&](std::size_t i, const std::string& what, double value, const char* rule) {
     std::ostringstream m;
-    m << where << ": particle " << i << ": " << what << " is " << value << " (" << rule
-      << "); the state cannot be continued: resume from an earlier checkpoint";
+    m << where << ": particle " << i << ": " << what << " is " << value << " (" << rule << "); "
+      << remedy;
     throw std::runtime_error(m.str());
   };
   for (std::size_t i = 0; i < n; ++i) {
@@ -71,11 +72,11 @@ std::string outside_domain(const DemSystem& system, const std::vector<std::int64
   for (std::size_t w = 0; w < system.wall_count(); ++w) {
     const auto v = system.wall_vertices(static_cast<std::int32_t>(w));
     for (std::size_t k = 0; k + 2 < v.size(); k += 3)
-      for (int d = 0; d < 3; ++d) lo[d] = std::min(lo[d], v[k + d]), hi[d] = std::max(hi[d], v[k + d]);
+      for (int d = 0; d < 3; ++d)
+        lo[d] = std::min(lo[d], v[k + d]), hi[d] = std::max(hi[d], v[k + d]);
   }
   if (!(lo[0] <= hi[0])) return {};
-  const double margin =
-      std::max({kDomainMarginMin, hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
+  const double margin = std::max({kDomainMarginMin, hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]});
   for (int d = 0; d < 3; ++d) lo[d] -= margin, hi[d] += margin;
   const auto& p = system.particles();
   for (std::size_t i = 0; i < p.size(); ++i) {
@@ -87,9 +88,9 @@ std::string outside_domain(const DemSystem& system, const std::vector<std::int64
     m.precision(9);
     m << "particle " << (i < ids.size() ? ids[i] : static_cast<std::int64_t>(i))
       << " left the domain at t = " << system.time() << " s: its centre (" << x[0] << ", " << x[1]
-      << ", " << x[2] << ") m lies outside [" << lo[0] << ", " << hi[0] << "] x [" << lo[1]
-      << ", " << hi[1] << "] x [" << lo[2] << ", " << hi[2]
-      << "] m, the walls' bounding box grown by " << margin
+      << ", " << x[2] << ") m lies outside [" << lo[0] << ", " << hi[0] << "] x [" << lo[1] << ", "
+      << hi[1] << "] x [" << lo[2] << ", " << hi[2] << "] m, the walls' bounding box grown by "
+      << margin
       << " m (the larger of 1 m and the box's largest side); the particle was shot away (the DEM "
          "blew up: reduce dt or the speeds of the scene) or falls past every wall (close the "
          "walls under it)";
