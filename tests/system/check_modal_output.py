@@ -14,23 +14,19 @@ import csv
 import json
 import math
 import os
-import shutil
 import subprocess
 import sys
 import tempfile
 
+from pv_checks import SKIP, Checks, pvpython_or_none
+
 
 def main():
     demfem_run, source = sys.argv[1], sys.argv[2]
-    pvpython = os.environ.get("DEMFEM_PVPYTHON") or shutil.which("pvpython") or "/usr/bin/pvpython"
-    if not (os.path.isfile(pvpython) and os.access(pvpython, os.X_OK)):
-        print(f"pvpython not found ({pvpython}; Debian: python3-paraview): skipped")
-        return 77
-    failures = []
-
-    def check(ok, what):
-        if not ok:
-            failures.append(what)
+    pvpython = pvpython_or_none()
+    if pvpython is None:
+        return SKIP
+    check = Checks()
 
     with tempfile.TemporaryDirectory() as d:
         out = os.path.join(d, "out")
@@ -83,9 +79,7 @@ def main():
         err = max(abs(a - b * scale) for s, u in zip(shape, unit) for a, b in zip(s, u))
         check(err < 1e-12 * scale, f"mode {k}: mode_shape_unit is not mode_shape scaled ({err})")
     print(json.dumps({"frequencies_hz": freqs, "times": m["times"]}))
-    for f in failures:
-        print("FAILED:", f)
-    return 1 if failures else 0
+    return check.report()
 
 
 if __name__ == "__main__":

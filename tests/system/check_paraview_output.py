@@ -16,18 +16,13 @@ is not installed (or DEMFEM_PVPYTHON names none).
 import json
 import math
 import os
-import shutil
 import subprocess
 import sys
 import tempfile
 
-failures = []
+from pv_checks import SKIP, Checks, pvpython_or_none
 
-
-def check(ok, what):
-    if not ok:
-        failures.append(what)
-    return ok
+check = Checks()
 
 
 def close(a, b, rel):
@@ -36,12 +31,9 @@ def close(a, b, rel):
 
 def main():
     demfem_run, source = sys.argv[1], sys.argv[2]
-    # DEMFEM_PVPYTHON names another ParaView's pvpython (e.g. a Kitware binary in /opt).
-    pvpython = os.environ.get("DEMFEM_PVPYTHON") or shutil.which("pvpython") or "/usr/bin/pvpython"
-    if not (os.path.isfile(pvpython) and os.access(pvpython, os.X_OK)):
-        print(f"pvpython not found ({pvpython}; Debian: python3-paraview, or set "
-              "DEMFEM_PVPYTHON): skipped")
-        return 77
+    pvpython = pvpython_or_none()
+    if pvpython is None:
+        return SKIP
     scene = os.path.join(source, "tests", "system", "paraview_output.toml")
     tool = os.path.join(source, "tools", "inspect_output.py")
     with tempfile.TemporaryDirectory() as d:
@@ -198,13 +190,7 @@ def main():
             check(last["min"] < 0.0, f"coupling t=0.002: no downward force on the interface "
                   f"(force min {last['min']})")
 
-    if failures:
-        print(f"{len(failures)} checks failed:")
-        for m in failures:
-            print("  " + m)
-        return 1
-    print("ok")
-    return 0
+    return check.report()
 
 
 if __name__ == "__main__":

@@ -19,18 +19,13 @@ Usage: check_paraview_rocks.py DEMFEM_RUN SOURCE_DIR. Exit 77 (ctest: skipped) w
 
 import json
 import os
-import shutil
 import subprocess
 import sys
 import tempfile
 
-failures = []
+from pv_checks import SKIP, Checks, pvpython_or_none
 
-
-def check(ok, what):
-    if not ok:
-        failures.append(what)
-    return ok
+check = Checks()
 
 
 FIELDS = {"id": 1, "material": 1, "radius": 1, "mass": 1, "velocity": 3, "angular_velocity": 3}
@@ -38,10 +33,9 @@ FIELDS = {"id": 1, "material": 1, "radius": 1, "mass": 1, "velocity": 3, "angula
 
 def main():
     demfem_run, source = sys.argv[1], sys.argv[2]
-    pvpython = os.environ.get("DEMFEM_PVPYTHON") or shutil.which("pvpython") or "/usr/bin/pvpython"
-    if not (os.path.isfile(pvpython) and os.access(pvpython, os.X_OK)):
-        print(f"pvpython not found ({pvpython}): skipped")
-        return 77
+    pvpython = pvpython_or_none()
+    if pvpython is None:
+        return SKIP
     scene = os.path.join(source, "tests", "system", "paraview_rocks.toml")
     probe = os.path.join(source, "tests", "system", "paraview_rocks_probe.py")
     with tempfile.TemporaryDirectory() as d:
@@ -136,13 +130,7 @@ def main():
           ["walls.xdmf", "walls_box.xdmf", "walls_lid_plate.xdmf"],
           f"wall indexes found: {sorted(k for k in seen if k.startswith('walls'))}")
 
-    if failures:
-        print(f"{len(failures)} checks failed:")
-        for m in failures:
-            print("  " + m)
-        return 1
-    print("ok")
-    return 0
+    return check.report()
 
 
 if __name__ == "__main__":

@@ -24,10 +24,11 @@ import json
 import math
 import os
 import re
-import shutil
 import subprocess
 import sys
 import tempfile
+
+from pv_checks import SKIP, Checks, pvpython_or_none
 
 
 def close(a, b, rel):
@@ -36,16 +37,10 @@ def close(a, b, rel):
 
 def main():
     demfem_run, source = sys.argv[1], sys.argv[2]
-    pvpython = os.environ.get("DEMFEM_PVPYTHON") or shutil.which("pvpython") or "/usr/bin/pvpython"
-    if not (os.path.isfile(pvpython) and os.access(pvpython, os.X_OK)):
-        print(f"pvpython not found ({pvpython}; Debian: python3-paraview): skipped")
-        return 77
-    failures = []
-
-    def check(ok, what):
-        if not ok:
-            failures.append(what)
-        return ok
+    pvpython = pvpython_or_none()
+    if pvpython is None:
+        return SKIP
+    check = Checks()
 
     with tempfile.TemporaryDirectory() as d:
         out = os.path.join(d, "out")
@@ -156,13 +151,7 @@ def main():
             check(close(disp[k][2], deflection, 1e-8),
                   f"coupling: displacement {disp[k][2]} at the probe, printed {deflection}")
 
-    if failures:
-        print(f"{len(failures)} checks failed:")
-        for msg in failures:
-            print("  " + msg)
-        return 1
-    print("ok")
-    return 0
+    return check.report()
 
 
 if __name__ == "__main__":

@@ -1,0 +1,39 @@
+"""What the tests/system checks that open demfem's output with ParaView's own reader share:
+finding ParaView's interpreter (or skipping, ctest's SKIP_RETURN_CODE 77, where it is not
+installed) and collecting the failed checks into one report and exit status."""
+import os
+import shutil
+
+SKIP = 77  # ctest: skipped
+
+
+def pvpython_or_none():
+    """ParaView's pvpython (DEMFEM_PVPYTHON names another one, e.g. a Kitware binary in /opt;
+    else pvpython on PATH or /usr/bin/pvpython), or None with the reason printed."""
+    p = os.environ.get("DEMFEM_PVPYTHON") or shutil.which("pvpython") or "/usr/bin/pvpython"
+    if os.path.isfile(p) and os.access(p, os.X_OK):
+        return p
+    print(f"pvpython not found ({p}; Debian: python3-paraview, or set DEMFEM_PVPYTHON): skipped")
+    return None
+
+
+class Checks:
+    """check(ok, what) records `what` when ok is false and returns ok; report() prints the
+    failures and returns the exit status (0: every check held)."""
+
+    def __init__(self):
+        self.failures = []
+
+    def __call__(self, ok, what):
+        if not ok:
+            self.failures.append(what)
+        return ok
+
+    def report(self):
+        if self.failures:
+            print(f"{len(self.failures)} checks failed:")
+            for m in self.failures:
+                print("  " + m)
+            return 1
+        print("ok")
+        return 0
