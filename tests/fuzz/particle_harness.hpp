@@ -237,15 +237,15 @@ inline const fs::path& mutated(const fs::path& seed, Bytes& in) {
         std::memcpy(&x, bytes.data() + at * 8, 8);
         x = x * (1.0 + 0.5 * delta);
         std::memcpy(bytes.data() + at * 8, &x, 8);
-      } else if (width == 8) {
-        std::int64_t x;
+      } else if (width == 8) {  // unsigned: wraps at the ends instead of overflowing
+        std::uint64_t x;
         std::memcpy(&x, bytes.data() + at * 8, 8);
-        x += delta;
+        x += static_cast<std::uint64_t>(static_cast<std::int64_t>(delta));
         std::memcpy(bytes.data() + at * 8, &x, 8);
       } else if (width == 4) {
-        std::int32_t x;
+        std::uint32_t x;
         std::memcpy(&x, bytes.data() + at * 4, 4);
-        x += delta;
+        x += static_cast<std::uint32_t>(delta);
         std::memcpy(bytes.data() + at * 4, &x, 4);
       } else {
         bytes[at * width] = static_cast<std::uint8_t>(bytes[at * width] + delta);
