@@ -63,6 +63,7 @@ sys.path.insert(0, HERE)
 from sheet_report import column, read_csv  # noqa: E402
 from sleeper_report import load_scene  # noqa: E402
 from sweep import scene_keys  # noqa: E402
+from sweep.exit_status import EXIT_BLOW_UP  # noqa: E402
 
 CASES = os.path.join(ROOT, "cases")
 BED1 = os.path.join(CASES, "sleeper_bed1_mini.toml")
@@ -76,7 +77,6 @@ HEIGHT = 0.18        # m: the sleeper's height (table 6.1)
 Y0 = 0.4             # m: its lower y edge in the 0.3 m slice
 INSERT_TRIES = 12    # seed pairs tried per bed (insertion that does not fit, blow-up)
 INSERT_SEED_STEP = 100
-EXIT_BLOW_UP = 3
 HOLD = 0.04          # s: held at the peak after the pattern
 SEAT_KEYS = ("fem.pressures[1].amplitude", "fem.pressures[2].amplitude")
 BASE_TIME_SCALE = 10.0  # thesis 6.4.1: the studies ran at time scale 10

@@ -47,6 +47,7 @@
 #include "demfem/fem/fem_backend.hpp"
 #include "demfem/fem/fem_scene.hpp"
 #include "demfem/fem/modal_run.hpp"
+#include "demfem/interface/exit_status.hpp"
 #include "demfem/io/atomic_file.hpp"
 #include "demfem/io/folder_lock.hpp"
 #include "demfem/io/h5_file.hpp"
@@ -56,11 +57,6 @@ using namespace demfem;
 using namespace demfem::coupling;
 
 namespace {
-
-constexpr int kExitFailed = 1;
-constexpr int kExitUsage = 2;
-constexpr int kExitBlowUp = 3;
-constexpr int kExitRecoveryExhausted = 4;
 
 struct Options {
   std::string scene;
@@ -146,7 +142,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
       if (!scene::Document::load(opt.scene, overrides).root().table(section)) {
         std::fprintf(stderr, "demfem run: --%s-backend %s: %s has no [%s] section\n", section,
                      kind->c_str(), opt.scene.c_str(), section);
-        return kExitUsage;
+        return kExitBadInput;
       }
       overrides.push_back(scene::Override::parse(std::string(section) + ".backend=\"" + *kind +
                                                  "\""));
@@ -163,7 +159,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     sections = check_solver_sections(*doc, settings.run.seed);
   } catch (const scene::SceneError& e) {
     std::fprintf(stderr, "demfem run: scene error: %s\n", e.what());
-    return kExitUsage;
+    return kExitBadInput;
   }
   // External backends (fem.command, dem.command): resolved before anything starts.
   std::optional<ExternalCommand> external, external_dem;
@@ -176,13 +172,13 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
                    "demfem run: --in-process runs demfem's own %s backends only; %s.backend = "
                    "\"external\" starts the program of %s.command in its own process\n",
                    dem ? "DEM" : "FEM", dem ? "dem" : "fem", dem ? "dem" : "fem");
-      return kExitUsage;
+      return kExitBadInput;
     }
     try {
       *ext = resolve_external_command(settings, role);
     } catch (const scene::SceneError& e) {
       std::fprintf(stderr, "demfem run: scene error: %s\n", e.what());
-      return kExitUsage;
+      return kExitBadInput;
     }
   }
   if (!sections.dem_unapplied_keys.empty()) {
@@ -202,7 +198,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     std::fprintf(stderr,
                  "demfem run: --resume: fem.analysis = \"modal\" takes no time steps and no "
                  "checkpoints; run it afresh\n");
-    return kExitUsage;
+    return kExitBadInput;
   }
   const fs::path out_dir =
       opt.output_dir.empty() ? settings.run.output_dir : fs::path(opt.output_dir);
@@ -215,13 +211,13 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
                  "demfem run: --debug-kill '%s': expected ROLE:STEP[:always|:stop] with ROLE dem, "
                  "fem or coupler, or job:STEP:usr1|usr2, and STEP >= 0\n",
                  opt.debug_kill.c_str());
-    return kExitUsage;
+    return kExitBadInput;
   }
   if (!remote && debug_kill && debug_kill->role != "coupler" && debug_kill->role != "job") {
     std::fprintf(stderr,
                  "demfem run: --debug-kill %s needs solver processes (not with --in-process)\n",
                  opt.debug_kill.c_str());
-    return kExitUsage;
+    return kExitBadInput;
   }
   // The solver executables, before the output folder is touched: one that cannot be started
   // is reported now, not after the other solver has started and set up.
@@ -237,7 +233,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
                      "(build it, or give the folder that holds it with --bin-dir; --in-process "
                      "needs no solver executables)\n",
                      exe.c_str());
-        return kExitUsage;
+        return kExitBadInput;
       }
     }
   }
@@ -248,7 +244,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
                  "checkpoints to resume from; add one (docs/scenes.md, [checkpoint]) and run "
                  "afresh, or name a checkpoint folder: --resume DIR\n",
                  opt.scene.c_str());
-    return kExitUsage;
+    return kExitBadInput;
   }
 
   // ---- the output folder: this run's alone --------------------------------------------
@@ -273,13 +269,13 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
                  "for it to end, or give this run another folder (--output-dir, run.output_dir, "
                  "checkpoint.directory)\n",
                  e.what());
-    return kExitUsage;
+    return kExitBadInput;
   } catch (const std::exception& e) {
     std::fprintf(stderr,
                  "demfem run: %s; choose a writable folder (--output-dir, run.output_dir, "
                  "checkpoint.directory)\n",
                  e.what());
-    return kExitUsage;
+    return kExitBadInput;
   }
   if (const auto prev = read_run_status(out_dir); prev && recorded_run_alive(*prev)) {
     // Its lock file was removed (the folder deleted and made again, a clean-up of dot files):
@@ -291,7 +287,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
                  "stop it), or give this run another folder (--output-dir, run.output_dir)\n",
                  out_dir.c_str(), static_cast<int>(prev->pid), prev->start_time.c_str(),
                  (out_dir / io::FolderLock::kFileName).c_str());
-    return kExitUsage;
+    return kExitBadInput;
   } else if (prev && prev->status == "running") {
     std::fprintf(stderr,
                  "demfem run: note: the previous run in %s (pid %d, started %s) ended without "
@@ -374,21 +370,21 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
                      "demfem run: --resume %s: no such folder; give a checkpoint folder "
                      "(<checkpoint directory>/step-NNNNNN), or --resume alone for the latest\n",
                      from.c_str());
-        return kExitUsage;
+        return kExitBadInput;
       }
       if (!fs::is_directory(from, ec)) {
         std::fprintf(stderr,
                      "demfem run: --resume %s: is a file, not a checkpoint folder "
                      "(<checkpoint directory>/step-NNNNNN with manifest.json)\n",
                      from.c_str());
-        return kExitUsage;
+        return kExitBadInput;
       }
       try {
         (void)verify_checkpoint(from, parts);
       } catch (const std::exception& e) {
         std::fprintf(stderr, "demfem run: --resume %s: not a valid checkpoint: %s\n", from.c_str(),
                      e.what());
-        return kExitUsage;
+        return kExitBadInput;
       }
       control.resume_from = from;
     } else {
@@ -397,12 +393,12 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
                      "demfem run: --resume: the checkpoint folder %s does not exist (no run of "
                      "this scene has written to %s yet?)\n",
                      cp_dir.c_str(), out_dir.c_str());
-        return kExitUsage;
+        return kExitBadInput;
       }
       control.resume_from = latest_valid_checkpoint(cp_dir, parts, control.report);
       if (!control.resume_from) {
         std::fprintf(stderr, "demfem run: --resume: no valid checkpoint in %s\n", cp_dir.c_str());
-        return kExitUsage;
+        return kExitBadInput;
       }
     }
     if (const auto code =
@@ -426,7 +422,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
                    "scene\n",
                    control.resume_from->c_str(), static_cast<long long>(*resume_nodes),
                    sections.fem_interface_nodes);
-      return kExitUsage;
+      return kExitBadInput;
     }
     record.resumed_from = fs::absolute(*control.resume_from).string();
     const std::string folder = control.resume_from->filename().string();
@@ -438,7 +434,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
       record.cleared = clear_owned_outputs(out_dir);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "demfem run: %s\n", e.what());
-      return kExitUsage;
+      return kExitBadInput;
     }
     if (!record.cleared.empty()) {
       std::fprintf(stderr, "demfem run: removed %zu files of an earlier run in %s\n",
@@ -451,7 +447,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     write_run_record(out_dir, record);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "demfem run: %s; choose a writable output folder\n", e.what());
-    return kExitUsage;
+    return kExitBadInput;
   }
   if (settings.fem_modal) {
     // Natural frequencies: no solver process and no time steps; the launcher computes them.
@@ -465,7 +461,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
       std::fprintf(stderr, "demfem run: modal analysis: %s\n", e.what());
       code = dynamic_cast<const fem::FemModelError*>(&e) ||
                      dynamic_cast<const std::invalid_argument*>(&e)
-                 ? kExitUsage
+                 ? kExitBadInput
                  : kExitFailed;
       record.status = "failed";
       record.reason = e.what();
@@ -710,7 +706,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
                                                      std::to_string(SignalGuard::signal_number()) +
                                                      " (" + e.what() + ")");
     } else if (e.kind() == protocol::ErrorKind::bad_input) {
-      failed(kExitUsage,
+      failed(kExitBadInput,
              "bad model: " + std::string(e.what()) +
                  "\n  (found by the solver after the run started; output so far is in " +
                  out_dir.string() + ")");
@@ -727,13 +723,13 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   } catch (const Interrupted& e) {
     failed(128 + SignalGuard::signal_number(), e.what());
   } catch (const ResumeRefused& e) {
-    failed(kExitUsage, e.what());
+    failed(kExitBadInput, e.what());
   } catch (const InterfaceMismatch& e) {
-    failed(kExitUsage, e.what());
+    failed(kExitBadInput, e.what());
   } catch (const HandshakeFailed& e) {
     failed(kExitFailed, e.what());
   } catch (const scene::SceneError& e) {
-    failed(kExitUsage, std::string("scene error: ") + e.what());
+    failed(kExitBadInput, std::string("scene error: ") + e.what());
   } catch (const protocol::PeerDied& e) {
     // Only the start (Hello, mesh exchange) lets it through unwrapped: a solver that ended
     // before it attached, or never attached.
@@ -756,7 +752,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
                               "). " + e.what());
     } else if (p) {
       const int c = p->exit_code().value_or(-1);
-      failed(c == kExitUsage ? kExitUsage : kExitFailed,
+      failed(c == kExitBadInput ? kExitBadInput : kExitFailed,
              "the " + p->label() + " (" + name + ", pid " + std::to_string(p->pid()) +
                  ") ended with status " + std::to_string(c) +
                  " before it attached; its message is above (" + e.what() + ")");
@@ -766,7 +762,7 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
   } catch (const protocol::BackendError& e) {
     // In process, a solver's set-up found it (the FEM's model check before the first step).
     if (e.kind() == protocol::ErrorKind::bad_input) {
-      failed(kExitUsage, std::string("bad model: ") + e.what());
+      failed(kExitBadInput, std::string("bad model: ") + e.what());
     } else {
       failed(e.kind() == protocol::ErrorKind::blow_up ? kExitBlowUp : kExitFailed, e.what());
     }
@@ -968,7 +964,7 @@ int main(int argc, char** argv) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
     app.exit(e);
-    return kExitUsage;
+    return kExitBadInput;
   }
   return run(opt, std::vector<std::string>(argv, argv + argc));
 }

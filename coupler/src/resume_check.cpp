@@ -5,16 +5,13 @@
 
 #include "demfem/coupling/output_folder.hpp"
 #include "demfem/fem/fem_backend.hpp"
+#include "demfem/interface/exit_status.hpp"
 #include "demfem/io/folder_lock.hpp"
 #include "demfem/io/h5_file.hpp"
 
 namespace fs = std::filesystem;
 
 namespace demfem::coupling {
-
-namespace {
-constexpr int kExitUsage = 2;
-}  // namespace
 
 // The checkpoint directory of the run when it is a folder of its own (not inside the output
 // folder, whose lock covers it).
@@ -41,7 +38,7 @@ std::optional<int> prepare_resume(const fs::path& checkpoint, const CouplingSett
                                   RunRecord& record) {
   auto refuse = [](const std::string& m) {
     std::fprintf(stderr, "demfem run: --resume: %s\n", m.c_str());
-    return kExitUsage;
+    return demfem::kExitBadInput;
   };
   std::string origin;
   try {

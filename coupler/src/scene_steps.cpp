@@ -16,6 +16,7 @@
 #include "demfem/coupling/supervisor.hpp"
 #include "demfem/dem/dem_scene.hpp"
 #include "demfem/dem/particle_source.hpp"
+#include "demfem/interface/exit_status.hpp"
 
 namespace demfem::coupling {
 
@@ -247,14 +248,14 @@ int run_post_steps(const std::vector<PostStep>& steps, const fs::path& output_di
     } catch (const std::exception& e) {
       std::fprintf(stderr, "demfem run: post step %s (%s): %s\n", s.tool.c_str(), s.where.c_str(),
                    e.what());
-      return 1;
+      return kExitFailed;
     }
     if (code != 0) {
       std::fprintf(stderr,
                    "demfem run: post step %s (%s) failed with status %d; the run's own output "
                    "in %s is complete\n",
                    s.tool.c_str(), s.where.c_str(), code, output_dir.c_str());
-      return 1;
+      return kExitFailed;
     }
   }
   return 0;
@@ -287,7 +288,7 @@ int run_prepare_scenes(const scene::Document& doc, const fs::path& bin_dir, bool
                  "scene cannot start from its own end state, nor from a state that a scene "
                  "waiting for it makes\n",
                  src.where.c_str(), path.c_str(), self.c_str(), prepare.c_str(), state.c_str());
-    return 2;
+    return kExitBadInput;
   }
   const std::string link =
       std::to_string(::getpid()) + "\t" + self + "\t" + state + "\n";
@@ -298,14 +299,14 @@ int run_prepare_scenes(const scene::Document& doc, const fs::path& bin_dir, bool
                  "demfem run: %s: prepare scenes nest more than %d deep (a scene that prepares "
                  "itself?)\n",
                  src.where.c_str(), kMaxPrepareDepth);
-    return 2;
+    return kExitBadInput;
   }
   if (check_only) {  // its scene is checked as a run of it would check it, nothing is made
     const int code = run_prepare_child("prepare check", src, bin_dir, depth, link, {"--check"});
     if (code != 0)
       std::fprintf(stderr, "demfem run: the prepare scene %s does not pass --check (status %d)\n",
                    src.prepare_scene.c_str(), code);
-    return code == 0 ? 0 : (code == 2 ? 2 : 1);
+    return code == 0 ? 0 : (code == kExitBadInput ? kExitBadInput : kExitFailed);
   }
   // One run prepares; another one that needs the same state waits for it and then finds
   // it current.
@@ -313,7 +314,7 @@ int run_prepare_scenes(const scene::Document& doc, const fs::path& bin_dir, bool
   const fs::path lock = src.file.parent_path() / ".prepare.lock";
   int stopped = 0;
   const int fd = take_prepare_lock(lock, chain, self, stopped);
-  if (fd < 0) return stopped != 0 ? stopped : 1;
+  if (fd < 0) return stopped != 0 ? stopped : kExitFailed;
   int code = 0;
   if (!dem::state_is_current(src.file, src.prepare_scene, src.prepare_overrides)) {
     std::string with = src.prepare_overrides.empty() ? "" : " with";
@@ -332,14 +333,15 @@ int run_prepare_scenes(const scene::Document& doc, const fs::path& bin_dir, bool
     } else if (!dem::state_is_current(src.file, src.prepare_scene, src.prepare_overrides)) {
       std::fprintf(stderr, "demfem run: the prepare scene %s ended without writing %s\n",
                    src.prepare_scene.c_str(), src.file.c_str());
-      code = 1;
+      code = kExitFailed;
     }
   }
   ::flock(fd, LOCK_UN);
   ::close(fd);
   // bad input and a blow-up keep their status (a sweep does not retry them: the same steps
-  // blow up again), and so does a stop signal (128 + N); any other failure is 1
-  return code == 2 || code == 3 || code > 128 ? code : (code != 0 ? 1 : 0);
+  // blow up again), and so does a stop signal (128 + N); any other failure is kExitFailed
+  const bool kept = code == kExitBadInput || code == kExitBlowUp || code > 128;
+  return kept ? code : (code != 0 ? kExitFailed : 0);
 }
 
 }  // namespace demfem::coupling

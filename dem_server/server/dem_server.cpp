@@ -22,8 +22,8 @@
 #include "demfem/scene/scene_reader.hpp"
 #include "demfem/scene/solver_command_line.hpp"
 
-using demfem::scene::kExitBadInput;
-using demfem::scene::kExitFailure;
+using demfem::kExitBadInput;
+using demfem::kExitFailed;
 
 int main(int argc, char** argv) {
   demfem::dem::ensure_omp_wait_policy(argv);  // first: it may re-execute the program
@@ -101,6 +101,6 @@ int main(int argc, char** argv) {
     return kExitBadInput;
   } catch (const std::exception& e) {
     std::cerr << "dem_server: " << e.what() << "\n";
-    return kExitFailure;
+    return kExitFailed;
   }
 }

@@ -26,8 +26,8 @@
 #include "demfem/scene/scene_reader.hpp"
 #include "demfem/scene/solver_command_line.hpp"
 
-using demfem::scene::kExitBadInput;
-using demfem::scene::kExitFailure;
+using demfem::kExitBadInput;
+using demfem::kExitFailed;
 
 int main(int argc, char** argv) {
   CLI::App app{
@@ -143,6 +143,6 @@ int main(int argc, char** argv) {
     return kExitBadInput;
   } catch (const std::exception& e) {
     std::cerr << "fem_server: " << e.what() << "\n";
-    return kExitFailure;
+    return kExitFailed;
   }
 }

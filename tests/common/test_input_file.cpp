@@ -12,6 +12,7 @@
 #include <string>
 
 #include "demfem/io/input_file.hpp"
+#include "demfem_test/error_of.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 using Catch::Contains;
@@ -21,12 +22,8 @@ using demfem::io::read_regular_file;
 namespace {
 
 std::string error_of(const std::filesystem::path& p, std::uint64_t limit = 1 << 20) {
-  try {
-    read_regular_file(p, limit, "a test file");
-  } catch (const InputFileError& e) {
-    return e.what();
-  }
-  return "no error";
+  return demfem::test::error_of<InputFileError>([&] { read_regular_file(p, limit, "a test file"); },
+                                                "no error");
 }
 
 }  // namespace

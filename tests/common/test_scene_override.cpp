@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "demfem/scene/scene_reader.hpp"
+#include "demfem_test/error_of.hpp"
 
 using Catch::Matchers::Contains;
 using demfem::scene::Document;
@@ -106,12 +107,7 @@ TEST_CASE("scene override (--set) refuses malformed overrides and keys the scene
   CHECK_THROWS_WITH(Override::parse("=3"), Contains("--set =3: expected KEY=VALUE"));
   CHECK_THROWS_WITH(Override::parse("run.seed="), Contains("expected KEY=VALUE"));
   auto refused = [](const std::string& set) {
-    try {
-      (void)with({set});
-    } catch (const SceneError& e) {
-      return std::string(e.what());
-    }
-    return std::string("accepted");
+    return demfem::test::error_of<SceneError>([&] { (void)with({set}); }, "accepted");
   };
   // VALUE must be exactly one TOML value; bare words are not strings.
   CHECK_THAT(refused("dem.backend=cuda"),

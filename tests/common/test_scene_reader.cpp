@@ -1,6 +1,7 @@
 #include <catch2/catch.hpp>
 
 #include "demfem/scene/scene_reader.hpp"
+#include "demfem_test/error_of.hpp"
 
 using Catch::Matchers::Contains;
 using demfem::scene::Document;
@@ -91,13 +92,12 @@ TEST_CASE("run.name is one folder name: path separators, '..' and odd characters
           "[scene]") {
   // run.name = "../../x" used to write outside out/ (issue 19, defect 13).
   auto name_error = [](const std::string& name) {
-    try {
-      demfem::scene::read_run_settings(
-          Document::parse("[run]\nend_time = 1\nname = \"" + name + "\"\n", "n.toml"));
-    } catch (const demfem::scene::SceneError& e) {
-      return std::string(e.what());
-    }
-    return std::string();
+    return demfem::test::error_of<demfem::scene::SceneError>(
+        [&] {
+          demfem::scene::read_run_settings(
+              Document::parse("[run]\nend_time = 1\nname = \"" + name + "\"\n", "n.toml"));
+        },
+        "");
   };
   CHECK_THAT(name_error("../../x"), Contains("n.toml:3:8: key 'run.name'") &&
                                         Contains("starts with '.'") && Contains("run.output_dir"));

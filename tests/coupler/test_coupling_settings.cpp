@@ -2,6 +2,7 @@
 #include <catch2/catch.hpp>
 
 #include "demfem/coupling/coupling_settings.hpp"
+#include "demfem_test/error_of.hpp"
 
 using namespace demfem;
 using coupling::read_coupling_settings;
@@ -13,12 +14,7 @@ coupling::CouplingSettings read(const std::string& text) {
 }
 
 std::string error_of(const std::string& text) {
-  try {
-    read(text);
-  } catch (const scene::SceneError& e) {
-    return e.what();
-  }
-  return "";
+  return demfem::test::error_of<scene::SceneError>([&] { read(text); }, "");
 }
 
 const char* kRun = "[run]\nend_time = 0.01\n";

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "demfem/coupling/checkpoint.hpp"
+#include "demfem_test/error_of.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 namespace fs = std::filesystem;
@@ -36,12 +37,11 @@ fs::path make_checkpoint(const fs::path& dir, std::int64_t step) {
 }
 
 std::string error_of(const fs::path& folder) {
-  try {
-    (void)verify_checkpoint(folder, {"dem.h5", "fem.h5", "coupler.h5"});
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "";
+  return demfem::test::error_of<std::exception>(
+      [&] {
+        (void)verify_checkpoint(folder, {"dem.h5", "fem.h5", "coupler.h5"});
+      },
+      "");
 }
 
 }  // namespace

@@ -17,7 +17,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tools"))
 
-from sweep import scene_keys, slurm, stats  # noqa: E402
+from sweep import exit_status, scene_keys, slurm, stats  # noqa: E402
 from sweep.collect import extract, interpolate  # noqa: E402
 from sweep.member import Handle, classify, describe_exit  # noqa: E402
 from sweep.plan import build_plan  # noqa: E402
@@ -477,6 +477,46 @@ class Retries(unittest.TestCase):
         self.assertEqual(classify(3, True), "give_up")    # a blow-up repeats
         self.assertEqual(classify(127, False), "give_up")  # no demfem_run to start
         self.assertEqual(describe_exit(137), "exit 137 (SIGKILL)")
+
+
+class ExitStatus(unittest.TestCase):
+    """The sweep's exit statuses are the C++ header's (exit_status.hpp), read, not copied."""
+
+    def test_every_code_of_the_header_is_read(self):
+        text = exit_status.HEADER.read_text(encoding="utf-8")
+        defined = re.findall(r"\bkExit\w+\s*=\s*\d+", text)
+        read = sum(len(table) for table in exit_status.CODES.values())
+        self.assertGreater(read, 0)
+        self.assertEqual(read, len(defined))
+        self.assertEqual(set(exit_status.CODES), {"demfem", "demfem::protocol"})
+
+    def test_the_python_names_are_the_headers(self):
+        # A code added to the header needs its EXIT_ name here (and a decision in classify);
+        # one added here only is not in the header.
+        exported = {k: v for k, v in vars(exit_status).items() if k.startswith("EXIT_")}
+        self.assertEqual(exported, {k: v[0] for k, v in exit_status.RUN_CODES.items()})
+        tools = exit_status.HEADER.parents[5] / "tools"
+        for source in tools.rglob("*.py"):
+            copies = re.findall(r"^\s*EXIT_\w+\s*=\s*\d", source.read_text(encoding="utf-8"),
+                                re.MULTILINE)
+            self.assertEqual(copies, [], f"{source}: an exit status copied, not read")
+
+    def test_the_descriptions_are_unchanged(self):
+        self.assertEqual(describe_exit(1), "exit 1 (failed)")
+        self.assertEqual(describe_exit(2), "exit 2 (bad input)")
+        self.assertEqual(describe_exit(3), "exit 3 (blow-up)")
+        self.assertEqual(describe_exit(4), "exit 4 (a solver kept dying)")
+        self.assertEqual(describe_exit(127), "exit 127 (demfem_run could not be started)")
+        self.assertEqual(describe_exit(5), "exit 5")
+        self.assertEqual(exit_status.CODES["demfem::protocol"]["EXIT_COUPLER_DIED"][0], 2)
+
+    def test_a_code_in_another_form_is_refused(self):
+        good = "namespace demfem {\ninline constexpr int kExitFailed = 1;  ///< failed: x\n"
+        self.assertEqual(exit_status.read_header(good, "h.hpp"),
+                         {"demfem": {"EXIT_FAILED": (1, "failed")}})
+        for bad in ("constexpr int kExitOdd = 9;", "inline constexpr int kExitOdd = 9;"):
+            with self.assertRaisesRegex(exit_status.HeaderError, r"h\.hpp:3: .*kExitOdd"):
+                exit_status.read_header(good + bad + "\n", "h.hpp")
 
 
 class Slurm(unittest.TestCase):

@@ -11,14 +11,14 @@ from pathlib import Path
 
 from sweep import records, slurm, status
 from sweep.collect import collect
+from sweep.exit_status import EXIT_BAD_INPUT, EXIT_FAILED
 from sweep.member import Handle, describe_exit, run_member
 from sweep.plan import build_plan, check_identity, load_plan, save_plan
 from sweep.pool import LocalPool, machine_cpus, machine_gpus
 from sweep.progress import Reporter, eta_seconds, line
 from sweep.safe_text import control_character
-from sweep.sweep_file import EXIT_BAD_INPUT, SlurmOptions, SweepError, read_sweep_file
+from sweep.sweep_file import SlurmOptions, SweepError, read_sweep_file
 
-EXIT_FAILED = 1
 ROOT = Path(__file__).resolve().parents[2]
 
 

@@ -10,11 +10,9 @@ import time
 from pathlib import Path
 
 from sweep import records
+from sweep.exit_status import EXIT_BAD_INPUT, EXIT_BLOW_UP, EXIT_NOT_STARTED, NAMES
 from sweep.plan import check_identity, write_identity
 
-EXIT_BAD_INPUT = 2
-EXIT_BLOW_UP = 3
-EXIT_NOT_STARTED = 127  # demfem_run could not be started (as a shell reports it)
 STOP_GRACE_S = 20.0  # after SIGINT/SIGTERM, how long a member may take to stop cleanly
 
 
@@ -37,7 +35,7 @@ def classify(code, resumed):
         return "fresh" if resumed else "give_up"
     if code in (EXIT_BLOW_UP, EXIT_NOT_STARTED):
         return "give_up"  # deterministic: the same steps blow up again; no program to run
-    return "retry"        # 1 (failure), 4 (a solver kept dying), signals, timeouts
+    return "retry"        # EXIT_FAILED, EXIT_RECOVERY_EXHAUSTED, signals, timeouts
 
 
 def describe_exit(code):
@@ -45,10 +43,8 @@ def describe_exit(code):
         return "no exit status"
     if code == "timeout":
         return "timeout"
-    names = {1: "failed", 2: "bad input", 3: "blow-up", 4: "a solver kept dying",
-             127: "demfem_run could not be started"}
-    if code in names:
-        return f"exit {code} ({names[code]})"
+    if code in NAMES:  # demfem's own (protocol/interface/include/demfem/interface/exit_status.hpp)
+        return f"exit {code} ({NAMES[code]})"
     if isinstance(code, int) and code >= 128:
         try:
             return f"exit {code} ({signal.Signals(code - 128).name})"

@@ -15,7 +15,6 @@ from sweep import scene_keys
 from sweep.safe_text import control_character, sbatch_option_problem, slurm_value_problem
 from sweep.toml_lines import key_lines
 
-EXIT_BAD_INPUT = 2
 REQUIRED = object()
 _NAME = re.compile(r"[A-Za-z0-9_.-]+")
 _PARAMETER_NAME = re.compile(r"[A-Za-z0-9_.\[\]-]+")  # a scene key is a good default

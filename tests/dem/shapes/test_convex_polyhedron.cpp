@@ -5,26 +5,18 @@
 
 #include <algorithm>
 #include <cmath>
-#include <functional>
 #include <limits>
 #include <map>
 #include <numbers>
 #include <random>
 
 #include "demfem/dem/shapes/convex_polyhedron.hpp"
+#include "demfem_test/error_of.hpp"
 
 using namespace demfem::dem::shapes;
+using demfem::test::error_of;
 
 namespace {
-
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const ShapeError& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
 
 /// Invariants every valid core must have: outward unit normals consistent with the vertex
 /// order, each edge in two triangles, Euler 2, every vertex on or below every face plane.
@@ -164,38 +156,38 @@ TEST_CASE("transforms keep the triangulation and refuse reflections", "[shapes]"
   check_invariants(moved);
   CHECK(box.scaled(2.0).width({0, 0, 1}) == Approx(6.0).epsilon(1e-15));
   const Mat3 mirror{Vec3{-1, 0, 0}, Vec3{0, 1, 0}, Vec3{0, 0, 1}};
-  CHECK_THAT(error_of([&] {
+  CHECK_THAT(error_of<ShapeError>([&] {
                (void)box.transformed(mirror, {0, 0, 0});
              }),
              Catch::Contains("determinant -1"));
-  CHECK_THAT(error_of([&] { (void)box.scaled(0.0); }), Catch::Contains("must be > 0"));
+  CHECK_THAT(error_of<ShapeError>([&] { (void)box.scaled(0.0); }), Catch::Contains("must be > 0"));
 }
 
 TEST_CASE("degenerate point sets are refused naming the input", "[shapes]") {
   const std::vector<Vec3> flat{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}, {0.5, 0.2, 0}};
   CHECK_THAT(
-      error_of([&] { (void)ConvexPolyhedron::hull(flat, "rock.stl"); }),
+      error_of<ShapeError>([&] { (void)ConvexPolyhedron::hull(flat, "rock.stl"); }),
       Catch::Contains("rock.stl") && Catch::Contains("coplanar") && Catch::Contains("zero volume"));
   // Coplanar up to round-off: a tilted plane.
   std::vector<Vec3> tilted;
   for (int i = 0; i < 4; ++i)
     for (int j = 0; j < 4; ++j) tilted.push_back({0.1 * i, 0.1 * j, 0.3 * 0.1 * i + 0.7 * 0.1 * j});
-  CHECK_THAT(error_of([&] { (void)ConvexPolyhedron::hull(tilted, "tilted"); }),
+  CHECK_THAT(error_of<ShapeError>([&] { (void)ConvexPolyhedron::hull(tilted, "tilted"); }),
              Catch::Contains("coplanar"));
   const std::vector<Vec3> line{{0, 0, 0}, {1, 1, 1}, {2, 2, 2}, {3, 3, 3}};
-  CHECK_THAT(error_of([&] { (void)ConvexPolyhedron::hull(line, "line"); }),
+  CHECK_THAT(error_of<ShapeError>([&] { (void)ConvexPolyhedron::hull(line, "line"); }),
              Catch::Contains("line: all 4 points are collinear"));
   const std::vector<Vec3> same(5, Vec3{1, 1, 1});
-  CHECK_THAT(error_of([&] { (void)ConvexPolyhedron::hull(same, "same"); }),
+  CHECK_THAT(error_of<ShapeError>([&] { (void)ConvexPolyhedron::hull(same, "same"); }),
              Catch::Contains("coincide"));
   const std::vector<Vec3> three{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
-  CHECK_THAT(error_of([&] { (void)ConvexPolyhedron::hull(three, "three"); }),
+  CHECK_THAT(error_of<ShapeError>([&] { (void)ConvexPolyhedron::hull(three, "three"); }),
              Catch::Contains("at least 4 points, got 3"));
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const std::vector<Vec3> bad{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, nan}};
-  CHECK_THAT(error_of([&] { (void)ConvexPolyhedron::hull(bad, "bad"); }),
+  CHECK_THAT(error_of<ShapeError>([&] { (void)ConvexPolyhedron::hull(bad, "bad"); }),
              Catch::Contains("point 3 has a non-finite coordinate"));
-  CHECK_THAT(error_of([] { (void)make_box(1.0, 0.0, 1.0); }), Catch::Contains("box"));
+  CHECK_THAT(error_of<ShapeError>([] { (void)make_box(1.0, 0.0, 1.0); }), Catch::Contains("box"));
 }
 
 TEST_CASE("given triangulations are checked: closed, oriented, convex", "[shapes]") {
@@ -206,33 +198,38 @@ TEST_CASE("given triangulations are checked: closed, oriented, convex", "[shapes
 
   auto open = t;
   open.pop_back();
-  CHECK_THAT(error_of([&] { (void)ConvexPolyhedron::from_triangles(v, open, "open"); }),
+  CHECK_THAT(error_of<ShapeError>([&] { (void)ConvexPolyhedron::from_triangles(v, open, "open"); }),
              Catch::Contains("open: the edge between vertex") && Catch::Contains("not closed"));
 
   auto flipped = t;
   std::swap(flipped[3][1], flipped[3][2]);
-  CHECK_THAT(error_of([&] { (void)ConvexPolyhedron::from_triangles(v, flipped, "flipped"); }),
-             Catch::Contains("inconsistently oriented"));
+  CHECK_THAT(
+      error_of<ShapeError>([&] { (void)ConvexPolyhedron::from_triangles(v, flipped, "flipped"); }),
+      Catch::Contains("inconsistently oriented"));
 
   auto inside_out = t;
   for (Triangle& tri : inside_out) std::swap(tri[1], tri[2]);
-  CHECK_THAT(error_of([&] { (void)ConvexPolyhedron::from_triangles(v, inside_out, "inv"); }),
-             Catch::Contains("negative volume"));
+  CHECK_THAT(
+      error_of<ShapeError>([&] { (void)ConvexPolyhedron::from_triangles(v, inside_out, "inv"); }),
+      Catch::Contains("negative volume"));
 
   auto dented = v;
   dented[0] = 0.8 * dented[0];  // a corner pushed towards the centre
-  CHECK_THAT(error_of([&] { (void)ConvexPolyhedron::from_triangles(dented, t, "dented"); }),
-             Catch::Contains("not convex"));
+  CHECK_THAT(
+      error_of<ShapeError>([&] { (void)ConvexPolyhedron::from_triangles(dented, t, "dented"); }),
+      Catch::Contains("not convex"));
 
   auto extra = v;
   extra.push_back({0, 0, 0});
-  CHECK_THAT(error_of([&] { (void)ConvexPolyhedron::from_triangles(extra, t, "extra"); }),
-             Catch::Contains("vertex 8 (0, 0, 0) is in no triangle"));
+  CHECK_THAT(
+      error_of<ShapeError>([&] { (void)ConvexPolyhedron::from_triangles(extra, t, "extra"); }),
+      Catch::Contains("vertex 8 (0, 0, 0) is in no triangle"));
 
   auto sliver = v;
   sliver[std::size_t(t[0][2])] = sliver[std::size_t(t[0][0])];
-  CHECK_THAT(error_of([&] { (void)ConvexPolyhedron::from_triangles(sliver, t, "sliver"); }),
-             Catch::Contains("zero area"));
+  CHECK_THAT(
+      error_of<ShapeError>([&] { (void)ConvexPolyhedron::from_triangles(sliver, t, "sliver"); }),
+      Catch::Contains("zero area"));
 
   // Two tetrahedra sharing nothing: closed, oriented, but V - E + F = 4.
   const auto tet = make_regular_tetrahedron(1.0);
@@ -240,6 +237,6 @@ TEST_CASE("given triangulations are checked: closed, oriented, convex", "[shapes
   for (const Vec3& p : tet.vertices()) two.push_back(p + Vec3{5, 0, 0});
   std::vector<Triangle> tt = tet.triangles();
   for (Triangle tri : tet.triangles()) tt.push_back({tri[0] + 4, tri[1] + 4, tri[2] + 4});
-  CHECK_THAT(error_of([&] { (void)ConvexPolyhedron::from_triangles(two, tt, "two"); }),
+  CHECK_THAT(error_of<ShapeError>([&] { (void)ConvexPolyhedron::from_triangles(two, tt, "two"); }),
              Catch::Contains("V - E + F = 8 - 12 + 8 = 4"));
 }

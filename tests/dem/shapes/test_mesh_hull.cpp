@@ -7,22 +7,15 @@
 
 #include "demfem/dem/shapes/shapes.hpp"
 #include "demfem/dem/stl_reader.hpp"
+#include "demfem_test/error_of.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 using namespace demfem::dem;
 using namespace demfem::dem::shapes;
+using demfem::test::error_of;
 using demfem::test::TempDir;
 
 namespace {
-
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const ShapeError& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
 
 /// The cube [0, a]^3 with its top face split into four triangles around a centre vertex
 /// pushed down by h (a dent): closed, outward, not convex; volume a^3 - a^2 h / 3.
@@ -69,7 +62,7 @@ TEST_CASE("a concave STL gives its hull and a warning with the volume ratio", "[
 TEST_CASE("an open STL is refused naming the file and an open edge", "[shapes][stl]") {
   TempDir dir;
   write_stl_ascii(dir / "open.stl", make_box_mesh({0, 0, 0}, {1, 1, 1}, true));
-  CHECK_THAT(error_of([&] { (void)hull_of_stl(dir / "open.stl"); }),
+  CHECK_THAT(error_of<ShapeError>([&] { (void)hull_of_stl(dir / "open.stl"); }),
              Catch::Contains((dir / "open.stl").string()) && Catch::Contains("not closed") &&
                  Catch::Contains("belongs to 1 triangle(s)"));
 }
@@ -89,7 +82,7 @@ TEST_CASE("non-manifold and inconsistently oriented meshes", "[shapes][stl]") {
     return std::int32_t(v.size() / 3 - 1);
   };
   for (std::int32_t x : b.triangles) t.push_back(id_of(std::size_t(x)));
-  CHECK_THAT(error_of([&] { (void)hull_of_closed_mesh(v, t, "two boxes"); }),
+  CHECK_THAT(error_of<ShapeError>([&] { (void)hull_of_closed_mesh(v, t, "two boxes"); }),
              Catch::Contains("two boxes: the mesh is not closed") &&
                  Catch::Contains("belongs to 4 triangle(s)"));
 
@@ -106,6 +99,6 @@ TEST_CASE("a flat closed mesh is a degenerate shape", "[shapes][stl]") {
   // A flat square pillow: top split along 0-3, bottom along 1-2; closed, zero volume.
   const std::vector<double> v{0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0};
   const std::vector<std::int32_t> t{0, 1, 3, 0, 3, 2, 0, 2, 1, 1, 2, 3};
-  CHECK_THAT(error_of([&] { (void)hull_of_closed_mesh(v, t, "flat.stl"); }),
+  CHECK_THAT(error_of<ShapeError>([&] { (void)hull_of_closed_mesh(v, t, "flat.stl"); }),
              Catch::Contains("flat.stl") && Catch::Contains("coplanar"));
 }

@@ -9,20 +9,13 @@
 #include <random>
 
 #include "demfem/dem/shapes/shapes.hpp"
+#include "demfem_test/error_of.hpp"
 
 using namespace demfem::dem::shapes;
+using demfem::test::error_of;
 using std::numbers::pi;
 
 namespace {
-
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const ShapeError& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
 
 ConvexPolyhedron random_hull(std::uint64_t seed, int n) {
   std::mt19937_64 gen(seed);
@@ -137,24 +130,27 @@ TEST_CASE("scaling a particle shape is an exact similarity", "[shapes][particle]
 TEST_CASE("a dilation radius too large for the size is refused with its value",
           "[shapes][particle]") {
   const auto cube = make_cube(1.0);
-  CHECK_THAT(
-      error_of([&] { (void)make_particle_shape(cube, 0.04, SizeKind::sieve, 1.2, "ballast"); }),
-      Catch::Contains("ballast: dilation radius r_d = 1.2 x size = 0.048 m is not smaller "
-                      "than the size 0.04 m"));
-  CHECK_THAT(error_of([&] { (void)make_particle_shape(cube, 0.04, SizeKind::sieve, 1.0, "b"); }),
+  CHECK_THAT(error_of<ShapeError>(
+                 [&] { (void)make_particle_shape(cube, 0.04, SizeKind::sieve, 1.2, "ballast"); }),
+             Catch::Contains("ballast: dilation radius r_d = 1.2 x size = 0.048 m is not smaller "
+                             "than the size 0.04 m"));
+  CHECK_THAT(error_of<ShapeError>(
+                 [&] { (void)make_particle_shape(cube, 0.04, SizeKind::sieve, 1.0, "b"); }),
              Catch::Contains("not smaller than the size"));
-  CHECK_THAT(error_of([&] {
+  CHECK_THAT(error_of<ShapeError>([&] {
                (void)make_particle_shape(cube, 0.04, SizeKind::volume_equivalent, 0.5, "b");
              }),
              Catch::Contains("r_d = 0.5 x size = 0.02 m") &&
                  Catch::Contains("the core would vanish") && Catch::Contains("must be < 0.5"));
-  CHECK_THAT(error_of([&] { (void)make_particle_shape(cube, 0.04, SizeKind::sieve, 0.0, "b"); }),
+  CHECK_THAT(error_of<ShapeError>(
+                 [&] { (void)make_particle_shape(cube, 0.04, SizeKind::sieve, 0.0, "b"); }),
              Catch::Contains("fraction 0 must be > 0"));
-  CHECK_THAT(error_of([&] { (void)make_particle_shape(cube, -1.0, SizeKind::sieve, 0.1, "b"); }),
+  CHECK_THAT(error_of<ShapeError>(
+                 [&] { (void)make_particle_shape(cube, -1.0, SizeKind::sieve, 0.1, "b"); }),
              Catch::Contains("size -1 m must be > 0"));
-  CHECK_THAT(error_of([&] { (void)describe_dilated(ConvexPolyhedron::point(), 0.0); }),
+  CHECK_THAT(error_of<ShapeError>([&] { (void)describe_dilated(ConvexPolyhedron::point(), 0.0); }),
              Catch::Contains("point core needs a dilation radius > 0"));
-  CHECK_THAT(error_of([&] { (void)describe_dilated(cube, -0.1); }),
+  CHECK_THAT(error_of<ShapeError>([&] { (void)describe_dilated(cube, -0.1); }),
              Catch::Contains("must be finite and >= 0"));
   // Just below one half: a tiny core, still valid.
   const auto s = make_particle_shape(cube, 0.04, SizeKind::sieve, 0.49, "b");

@@ -6,19 +6,10 @@
 #include <cmath>
 
 #include "demfem/dem/shapes/shapes.hpp"
+#include "demfem_test/error_of.hpp"
 
 using namespace demfem::dem::shapes;
-
-namespace {
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const ShapeError& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
-}  // namespace
+using demfem::test::error_of;
 
 TEST_CASE("random rocks have exactly the requested triangles and ratios", "[shapes][rock]") {
   for (int triangles : {4, 10, 30, 40, 100}) {
@@ -54,20 +45,20 @@ TEST_CASE("random rocks are deterministic per seed", "[shapes][rock]") {
 }
 
 TEST_CASE("impossible rock parameters are refused naming them", "[shapes][rock]") {
-  CHECK_THAT(error_of([] {
+  CHECK_THAT(error_of<ShapeError>([] {
                (void)random_rock({31, 1, 1}, 1);
              }),
              Catch::Contains("rock triangles = 31") && Catch::Contains("2V - 4") &&
                  Catch::Contains("even and >= 4"));
-  CHECK_THAT(error_of([] {
+  CHECK_THAT(error_of<ShapeError>([] {
                (void)random_rock({2, 1, 1}, 1);
              }),
              Catch::Contains("rock triangles = 2"));
-  CHECK_THAT(error_of([] {
+  CHECK_THAT(error_of<ShapeError>([] {
                (void)random_rock({30, 1.5, 1}, 1);
              }),
              Catch::Contains("rock elongation = 1.5: must be in (0, 1]"));
-  CHECK_THAT(error_of([] {
+  CHECK_THAT(error_of<ShapeError>([] {
                (void)random_rock({30, 1, 0}, 1);
              }),
              Catch::Contains("rock flatness = 0: must be in (0, 1]"));

@@ -9,6 +9,7 @@
 
 #include "demfem/dem/dem_scene.hpp"
 #include "demfem/dem/stl_reader.hpp"
+#include "demfem_test/error_of.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 using namespace demfem::dem;
@@ -87,12 +88,7 @@ DemScene parse(const std::string& text, const std::string& name = "scene.toml") 
 }
 
 std::string error_of(const std::string& text) {
-  try {
-    parse(text);
-  } catch (const SceneError& e) {
-    return e.what();
-  }
-  return "(no error)";
+  return demfem::test::error_of<SceneError>([&] { parse(text); }, "(no error)");
 }
 
 std::string replace(std::string s, const std::string& from, const std::string& to) {

@@ -15,6 +15,7 @@
 #include "demfem/io/h5_file.hpp"
 #include "demfem_test/box_scene.hpp"
 #include "demfem_test/cube_shape.hpp"
+#include "demfem_test/error_of.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 using namespace demfem::dem;
@@ -66,13 +67,12 @@ DemScene parse(const std::string& text) {
 
 // The message of building the scene (reading, then DemRun), or "(no error)".
 std::string error_of(const std::string& text) {
-  try {
-    const DemScene s = parse(text);
-    DemRun run(s, "", 1, 0.0, nullptr);
-  } catch (const SceneError& e) {
-    return e.what();
-  }
-  return "(no error)";
+  return demfem::test::error_of<SceneError>(
+      [&] {
+        const DemScene s = parse(text);
+        DemRun run(s, "", 1, 0.0, nullptr);
+      },
+      "(no error)");
 }
 
 }  // namespace
@@ -167,14 +167,11 @@ seed = 5)",
   }
   auto load_error = [&](const std::string& t) {
     std::ofstream(dir / "scene.toml") << t;
-    try {
+    return demfem::test::error_of<SceneError>([&] {
       Document d = Document::load(dir / "scene.toml");
       const DemScene s = read_dem_scene(d.root().required_table("dem"));
       DemRun run(s, "", 1, 0.0, nullptr);
-    } catch (const SceneError& e) {
-      return std::string(e.what());
-    }
-    return std::string("(no error)");
+    });
   };
   const std::string e1 = load_error(replace(text, "rock.stl", "open.stl"));
   CHECK_THAT(
@@ -397,12 +394,8 @@ TEST_CASE("a bed that blows up while it settles stops there, naming the time", "
   const std::string t =
       replace(replace(kRocks, "threads = 1\n", "threads = 1\nsettle_time = 0.5\n"), "count = 60\n",
               "count = 60\nvelocity = [0.0, 0.0, -40.0]\n");
-  std::string message;
-  try {
-    DemRun run(parse(t), "", 1, 0.0, nullptr);
-  } catch (const Unstable& e) {
-    message = e.what();
-  }
+  const std::string message =
+      demfem::test::error_of<Unstable>([&] { DemRun run(parse(t), "", 1, 0.0, nullptr); }, "");
   CHECK_THAT(message, Catch::Contains("unstable in the steps up to t = 0.0"));
   CHECK_THAT(message, Catch::Contains("of the smaller contact radius"));
 }

@@ -12,6 +12,7 @@
 #include "demfem/dem/particle_source.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem_test/box_scene.hpp"
+#include "demfem_test/error_of.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 using namespace demfem::dem;
@@ -54,13 +55,12 @@ DemScene read(const TempDir& dir, const std::string& text) {
 }
 
 std::string error_of(const TempDir& dir, const std::string& text, bool build = true) {
-  try {
-    auto s = read(dir, text);
-    if (build) DemRun run(s, {}, 1, 0.0, nullptr);
-  } catch (const SceneError& e) {
-    return e.what();
-  }
-  return "(no error)";
+  return demfem::test::error_of<SceneError>(
+      [&] {
+        auto s = read(dir, text);
+        if (build) DemRun run(s, {}, 1, 0.0, nullptr);
+      },
+      "(no error)");
 }
 
 // Every array of the particle state, bitwise.

@@ -10,6 +10,7 @@
 #include <map>
 
 #include "demfem/dem/stl_reader.hpp"
+#include "demfem_test/error_of.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 using namespace demfem::dem;
@@ -28,12 +29,7 @@ std::string read_bytes(const std::filesystem::path& p) {
 }
 
 std::string message_of(const std::filesystem::path& p) {
-  try {
-    read_stl(p);
-  } catch (const StlError& e) {
-    return e.what();
-  }
-  return "(no error)";
+  return demfem::test::error_of<StlError>([&] { read_stl(p); });
 }
 
 /// A box has 8 corners and 12 triangles; an edge is shared by exactly two triangles.

@@ -8,6 +8,7 @@
 #include <cstdio>
 
 #include "demfem/fem/fem_solver.hpp"
+#include "demfem_test/error_of.hpp"
 #include "fem_test_util.hpp"
 
 using namespace demfem::fem;
@@ -24,12 +25,8 @@ SparseMatrix dense_to_sparse(const Eigen::MatrixXd& d) {
 std::string factorize_error(const SparseMatrix& a, SolverBackend b) {
   if (b == SolverBackend::cholmod && !cholmod_available()) return "skipped";
   SparseSpdSolver s(b);
-  try {
-    s.factorize(a, "test matrix");
-  } catch (const SingularMatrixError& e) {
-    return e.what();
-  }
-  return "no error";
+  return demfem::test::error_of<SingularMatrixError>([&] { s.factorize(a, "test matrix"); },
+                                                     "no error");
 }
 
 /// Two 1 m cubes of 2 x 2 x 2 hex8 sharing only the edge x = 1, z = 1 (along y): the second

@@ -13,6 +13,7 @@
 #include "demfem/fem/fem_scene.hpp"
 #include "demfem/fem/fem_solver.hpp"
 #include "demfem/io/h5_file.hpp"
+#include "demfem_test/error_of.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 using namespace demfem;
@@ -145,20 +146,10 @@ TEST_CASE("fem.monitor: a rollback to a checkpoint rewrites the same series and 
 
 TEST_CASE("fem.monitor: bad keys name file, line and key", "[fem][monitor]") {
   auto error_of_text = [](const std::string& text) {
-    try {
-      strip(text);
-    } catch (const scene::SceneError& e) {
-      return std::string(e.what());
-    }
-    return std::string("(no error)");
+    return test::error_of<scene::SceneError>([&] { strip(text); });
   };
-  auto error_of = [](const std::string& extra) {
-    try {
-      strip(std::string(kStrip) + extra);
-    } catch (const scene::SceneError& e) {
-      return std::string(e.what());
-    }
-    return std::string("(no error)");
+  auto error_of = [&](const std::string& extra) {
+    return error_of_text(std::string(kStrip) + extra);
   };
   CHECK_THAT(error_of("[[fem.monitor.probes]]\nname = \"tip\"\npoint = [0, 0, 0]\n"),
              Catch::Contains("fem.monitor.probes[2].name") && Catch::Contains("used twice"));

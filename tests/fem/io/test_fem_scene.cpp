@@ -6,6 +6,7 @@
 #include <string>
 
 #include "demfem/fem/fem_scene.hpp"
+#include "demfem_test/error_of.hpp"
 
 using namespace demfem;
 using namespace demfem::fem;
@@ -22,12 +23,7 @@ FemScene read(const std::string& text) {
 }
 
 std::string error_of(const std::string& text) {
-  try {
-    read(text);
-  } catch (const scene::SceneError& e) {
-    return e.what();
-  }
-  return "no error";
+  return demfem::test::error_of<scene::SceneError>([&] { read(text); }, "no error");
 }
 
 const std::string kBox = R"([fem]

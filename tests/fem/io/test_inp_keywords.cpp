@@ -14,6 +14,7 @@
 #include "demfem/fem/fem_scene.hpp"
 #include "demfem/fem/fem_solver.hpp"
 #include "demfem/fem/inp_reader.hpp"
+#include "demfem_test/error_of.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 using namespace demfem;
@@ -28,12 +29,7 @@ void write(const std::filesystem::path& p, const std::string& text) {
 }
 
 std::string error_of(const std::string& text, const InpOptions& o = {}) {
-  try {
-    parse_inp(text, "deck.inp", o);
-  } catch (const InpError& e) {
-    return e.what();
-  }
-  return "no error";
+  return demfem::test::error_of<InpError>([&] { parse_inp(text, "deck.inp", o); }, "no error");
 }
 
 bool has_note(const std::vector<std::string>& notes, const std::string& part) {
@@ -85,12 +81,8 @@ FemScene scene_with_deck(const test::TempDir& dir, const std::string& deck,
 
 std::string scene_error(const test::TempDir& dir, const std::string& deck,
                         const std::string& extra = "", const std::string& mesh_keys = "") {
-  try {
-    scene_with_deck(dir, deck, extra, mesh_keys);
-  } catch (const scene::SceneError& e) {
-    return e.what();
-  }
-  return "no error";
+  return test::error_of<scene::SceneError>([&] { scene_with_deck(dir, deck, extra, mesh_keys); },
+                                           "no error");
 }
 
 std::vector<double> static_solution(const FemScene& s) {

@@ -14,6 +14,7 @@
 
 #include "demfem/fem/inp_reader.hpp"
 #include "demfem/fem/node_selector.hpp"
+#include "demfem_test/error_of.hpp"
 
 using namespace demfem::fem;
 
@@ -44,12 +45,7 @@ std::array<double, 3> face_normal(const Mesh& m, const Face& f) {
 }
 
 std::string error_of(const std::string& text) {
-  try {
-    parse_inp(text, "beam.inp");
-  } catch (const InpError& e) {
-    return e.what();
-  }
-  return "no error";
+  return demfem::test::error_of<InpError>([&] { parse_inp(text, "beam.inp"); }, "no error");
 }
 
 const std::string kNodes =

@@ -27,6 +27,7 @@
 
 #include <sys/types.h>
 
+#include "demfem/interface/exit_status.hpp"
 #include "demfem/interface/interface_mesh.hpp"
 
 namespace demfem::protocol {
@@ -265,12 +266,8 @@ struct ServeOptions {
 /// Error message first).
 int serve(SolverBackend& backend, const ServeOptions& options);
 
-/// @brief Exit codes of serve().
-inline constexpr int kExitOk = 0;
-inline constexpr int kExitBackendError = 1;
-inline constexpr int kExitCouplerDied = 2;
-inline constexpr int kExitVersionMismatch = 3;
-inline constexpr int kExitProtocolError = 4;  ///< cannot attach, bad message, role taken
+// serve()'s exit codes (kExitOk, kExitBackendError, kExitCouplerDied, kExitVersionMismatch,
+// kExitProtocolError) are in demfem/interface/exit_status.hpp with the run's.
 
 /// @brief Base of every protocol failure.
 class ProtocolError : public std::runtime_error {

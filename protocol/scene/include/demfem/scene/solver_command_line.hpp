@@ -2,7 +2,8 @@
 // The command line and scene loading that every solver process shares (dem_server,
 // fem_server, and any other engine that attaches through the protocol):
 //   <solver> --scene FILE [--set KEY=VALUE]... [--segment NAME] [--output-dir DIR] [--quiet]
-// with the exit codes 0 ok, 1 failure while running, 2 bad command line or scene.
+// with the exit codes 0 ok, 1 failure while running, 2 bad command line or scene
+// (demfem/interface/exit_status.hpp).
 // Header-only; the program links CLI11 and demfem::scene.
 
 #include <CLI/CLI.hpp>
@@ -14,12 +15,10 @@
 #include <string>
 #include <vector>
 
+#include "demfem/interface/exit_status.hpp"
 #include "demfem/scene/scene_reader.hpp"
 
 namespace demfem::scene {
-
-inline constexpr int kExitFailure = 1;   ///< a failure while running (engine, I/O)
-inline constexpr int kExitBadInput = 2;  ///< a bad command line or scene
 
 /// @brief The options every solver process takes.
 struct SolverCommandLine {
