@@ -83,9 +83,10 @@ std::unique_ptr<SolverProcess> make_external_process(const ExternalCommand& comm
                                            args);
   p->set_working_directory(command.working_directory);
   if (const auto py = python_module_dir(bin_dir)) {
-    const char* old = std::getenv("PYTHONPATH");
-    p->set_environment("PYTHONPATH",
-                       py->string() + (old && *old ? ":" + std::string(old) : ""));
+    // appended, not `":" + std::string(old)`: GCC 12 warns falsely (-Wrestrict) on that form
+    std::string path = py->string();
+    if (const char* old = std::getenv("PYTHONPATH"); old && *old) path.append(":").append(old);
+    p->set_environment("PYTHONPATH", path);
   }
   p->set_environment("DEMFEM_ROLE", protocol::role_name(command.role));
   return p;
