@@ -29,9 +29,9 @@ namespace {
 #define DEMFEM_TOOLS_DIR "tools"
 #endif
 
-// A prepare scene that (through others) prepares itself would never end.
-constexpr const char* kDepthVariable = "DEMFEM_PREPARE_DEPTH";
-constexpr int kMaxPrepareDepth = 8;
+// Prepare scenes nest at most this deep (the chain's length, below): a longer chain of
+// distinct scenes is more likely a mistake than a bed.
+constexpr std::size_t kMaxPrepareDepth = 8;
 // The enclosing prepare runs, outermost first, one line each: "pid<TAB>scene<TAB>state", the
 // demfem_run that waits, its scene and the state it waits for (absolute paths). A run refuses
 // a [dem.load] scene already in the chain (a cycle), and a state an enclosing run is making
@@ -53,8 +53,8 @@ std::vector<ChainLink> read_chain() {
     rest = end == std::string::npos ? "" : rest.substr(end + 1);
     const auto a = line.find('\t'), b = a == std::string::npos ? a : line.find('\t', a + 1);
     if (b == std::string::npos) continue;
-    chain.push_back({std::atol(line.substr(0, a).c_str()), line.substr(a + 1, b - a - 1),
-                     line.substr(b + 1)});
+    chain.push_back(
+        {std::atol(line.substr(0, a).c_str()), line.substr(a + 1, b - a - 1), line.substr(b + 1)});
   }
   return chain;
 }
@@ -159,20 +159,17 @@ int run_child(const std::string& label, const fs::path& exe, const std::vector<s
 }
 
 // demfem_run on the prepare scene of `src`, with its overrides and `extra` arguments, one
-// prepare level deeper (kDepthVariable, restored afterwards) and with `link` (this run's line)
-// added to kChainVariable. 1 when it cannot be started.
+// prepare level deeper: `link` (this run's line) added to kChainVariable, restored afterwards.
+// 1 when it cannot be started.
 int run_prepare_child(const std::string& label, const dem::ParticleSource& src,
-                      const fs::path& bin_dir, int depth, const std::string& link,
+                      const fs::path& bin_dir, const std::string& link,
                       std::vector<std::string> extra) {
   std::vector<std::string> args = {"--bin-dir", bin_dir.string(), src.prepare_scene.string()};
   for (const auto& o : src.prepare_overrides)
     args.insert(args.end(), {"--set", o.key + "=" + o.value});
   args.insert(args.end(), extra.begin(), extra.end());
-  const char* before = std::getenv(kDepthVariable);
-  const std::string saved = before ? before : "";
   const char* chain_before = std::getenv(kChainVariable);
   const std::string chain_saved = chain_before ? chain_before : "";
-  ::setenv(kDepthVariable, std::to_string(depth + 1).c_str(), 1);
   ::setenv(kChainVariable, (chain_saved + link).c_str(), 1);
   int code = 1;
   try {
@@ -180,10 +177,6 @@ int run_prepare_child(const std::string& label, const dem::ParticleSource& src,
   } catch (const std::exception& e) {
     std::fprintf(stderr, "demfem run: %s\n", e.what());
   }
-  if (before)
-    ::setenv(kDepthVariable, saved.c_str(), 1);
-  else
-    ::unsetenv(kDepthVariable);
   if (chain_before)
     ::setenv(kChainVariable, chain_saved.c_str(), 1);
   else
@@ -290,19 +283,16 @@ int run_prepare_scenes(const scene::Document& doc, const fs::path& bin_dir, bool
                  src.where.c_str(), path.c_str(), self.c_str(), prepare.c_str(), state.c_str());
     return kExitBadInput;
   }
-  const std::string link =
-      std::to_string(::getpid()) + "\t" + self + "\t" + state + "\n";
-  const char* depth_text = std::getenv(kDepthVariable);
-  const int depth = depth_text ? std::atoi(depth_text) : 0;
-  if (depth >= kMaxPrepareDepth) {
+  const std::string link = std::to_string(::getpid()) + "\t" + self + "\t" + state + "\n";
+  if (chain.size() >= kMaxPrepareDepth) {
     std::fprintf(stderr,
                  "demfem run: %s: prepare scenes nest more than %d deep (a scene that prepares "
                  "itself?)\n",
-                 src.where.c_str(), kMaxPrepareDepth);
+                 src.where.c_str(), static_cast<int>(kMaxPrepareDepth));
     return kExitBadInput;
   }
   if (check_only) {  // its scene is checked as a run of it would check it, nothing is made
-    const int code = run_prepare_child("prepare check", src, bin_dir, depth, link, {"--check"});
+    const int code = run_prepare_child("prepare check", src, bin_dir, link, {"--check"});
     if (code != 0)
       std::fprintf(stderr, "demfem run: the prepare scene %s does not pass --check (status %d)\n",
                    src.prepare_scene.c_str(), code);
@@ -326,7 +316,7 @@ int run_prepare_scenes(const scene::Document& doc, const fs::path& bin_dir, bool
     std::vector<std::string> extra;
     if (quiet) extra.push_back("--quiet");
     if (in_process) extra.push_back("--in-process");
-    code = run_prepare_child("prepare run", src, bin_dir, depth, link, extra);
+    code = run_prepare_child("prepare run", src, bin_dir, link, extra);
     if (code != 0) {
       std::fprintf(stderr, "demfem run: the prepare scene %s ended with status %d\n",
                    src.prepare_scene.c_str(), code);
