@@ -154,6 +154,10 @@ std::int64_t steps_to_reach(double end_time, double dt) {
   return static_cast<std::int64_t>(std::ceil(r));
 }
 
+bool names_external_backend(const std::optional<scene::Table>& solver) {
+  return solver && solver->has("backend") && solver->string("backend") == "external";
+}
+
 CouplingSettings read_coupling_settings(const scene::Document& doc) {
   CouplingSettings s;
   s.run = scene::read_run_settings(doc);

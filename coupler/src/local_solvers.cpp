@@ -8,6 +8,7 @@
 
 #include <toml++/toml.h>
 
+#include "demfem/coupling/coupling_settings.hpp"
 #include "demfem/coupling/solver_link.hpp"
 
 #include "demfem/dem/dem_backend.hpp"
@@ -142,8 +143,7 @@ SolverSections check_solver_sections(const scene::Document& scene, std::uint64_t
   // With fem.backend = "external" and no fem.mesh, [fem] belongs to the outside program
   // (demfem reads only backend, command, dt and analysis: coupling_settings.cpp); with a mesh
   // it is also a demfem structure (for the beam check, or to resume with another backend).
-  const bool external_only =
-      fem && fem->has("backend") && fem->string("backend") == "external" && !fem->has("mesh");
+  const bool external_only = names_external_backend(fem) && !fem->has("mesh");
   if (fem && !external_only) {
     const fem::FemScene fs = fem::read_fem_scene(*fem);
     out.fem_nodes = fs.problem.mesh.nodes.size();
@@ -155,7 +155,7 @@ SolverSections check_solver_sections(const scene::Document& scene, std::uint64_t
   // external FEM: demfem reads only backend, command, dt and settle_time (coupling_settings);
   // dem_server's keys (particles, materials, output, sensors) are neither checked nor applied.
   const auto dem_table = root.table("dem");
-  if (dem_table && dem_table->has("backend") && dem_table->string("backend") == "external") {
+  if (names_external_backend(dem_table)) {
     out.dem_backend = "external";
     // The scene with its overrides, as TOML: the keys [dem] holds (the reader lists none).
     const toml::table tree = toml::parse(scene.canonical_text());

@@ -13,6 +13,7 @@
 #include <thread>
 #include <vector>
 
+#include "demfem/coupling/coupling_settings.hpp"
 #include "demfem/coupling/supervisor.hpp"
 #include "demfem/dem/dem_scene.hpp"
 #include "demfem/dem/particle_source.hpp"
@@ -258,7 +259,7 @@ int run_prepare_scenes(const scene::Document& doc, const fs::path& bin_dir, bool
                        bool in_process, bool check_only) {
   const auto dem = doc.root().table("dem");
   // An external DEM's [dem] is the program's own (a [dem.load] there is not dem_server's).
-  if (!dem || (dem->has("backend") && dem->string("backend") == "external")) return 0;
+  if (!dem || names_external_backend(dem)) return 0;
   const dem::DemScene ds = dem::read_dem_scene(*dem);
   if (!ds.load || ds.load->prepare_scene.empty()) return 0;
   const dem::ParticleSource& src = *ds.load;

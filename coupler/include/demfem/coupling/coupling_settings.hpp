@@ -165,6 +165,10 @@ std::int64_t dem_substeps(double fem_dt, double dem_dt, const std::string& fem_w
 /// counts above kMaxCouplingSteps).
 std::int64_t steps_to_reach(double end_time, double dt);
 
+/// True when a solver's table ([dem] or [fem]) names backend = "external": the table then
+/// belongs to the outside program (docs/backends.md), and demfem's own readers keep out of it.
+bool names_external_backend(const std::optional<scene::Table>& solver);
+
 /// @brief Reads [run] and [coupling] (strictly) and the step sizes. Throws scene::SceneError
 /// naming file, line and key.
 CouplingSettings read_coupling_settings(const scene::Document& scene);
