@@ -9,6 +9,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "demfem/dem/physics/grid_cell.hpp"
 #include "demfem/dem/shapes/shape_library.hpp"
 
 namespace demfem::dem {
@@ -126,7 +127,7 @@ class SphereGrid {
     }
   };
   std::int64_t coord(double v, int k) const {
-    return std::clamp<std::int64_t>(std::int64_t(std::floor((v - lo_[k]) / cell_)), 0, n_[k] - 1);
+    return std::clamp<std::int64_t>(phys::saturated_cell((v - lo_[k]) / cell_), 0, n_[k] - 1);
   }
   std::size_t index(std::int64_t i, std::int64_t j, std::int64_t k) const {
     return std::size_t((i * n_[1] + j) * n_[2] + k);

@@ -45,6 +45,14 @@ std::int32_t material_by_name(const Table& t, std::string_view key, const std::s
   t.fail(key, "names material \"" + name + "\", which [[dem.materials]] does not define");
 }
 
+// Where particle i of a file came from: "file:line" for a CSV (`lines` holds each particle's
+// line), else "file: particle i".
+std::string particle_origin(const std::string& file, const std::vector<std::int64_t>& lines,
+                            std::size_t i) {
+  return i < lines.size() ? file + ":" + std::to_string(lines[i])
+                          : file + ": particle " + std::to_string(i);
+}
+
 // What a file's particles carry, before the material mapping.
 struct Loaded {
   std::vector<ParticleInit> particles;
@@ -54,10 +62,7 @@ struct Loaded {
   std::vector<PolyhedronShape> shapes;      // a state's shape table (shape_id indexes it)
   /// "file:line" (CSV) or "file: particle i": kept as numbers, a string per row of a large
   /// CSV took more memory than its particles
-  std::string origin(std::size_t i) const {
-    return line.empty() ? file + ": particle " + std::to_string(i)
-                        : file + ":" + std::to_string(line[i]);
-  }
+  std::string origin(std::size_t i) const { return particle_origin(file, line, i); }
 };
 
 [[noreturn]] void data_error(const ParticleSource& s, const std::string& at,
@@ -816,9 +821,7 @@ std::size_t load_particles(const ParticleSource& s, DemSystem& system,
     }
   }
   auto name_of = [&](std::int64_t i) {
-    return i < std::int64_t(origin_line.size())
-               ? s.file.string() + ":" + std::to_string(origin_line[std::size_t(i)])
-               : s.file.string() + ": particle " + std::to_string(i);
+    return particle_origin(s.file.string(), origin_line, static_cast<std::size_t>(i));
   };
   const auto& p = system.particles();
 
