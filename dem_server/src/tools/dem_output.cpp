@@ -124,7 +124,6 @@ ParticleOutput::SurfaceData ParticleOutput::surfaces(const ParticleState& p,
       r.material.push_back(p.material[i]);
       r.radius.push_back(p.radius[i]);
       r.mass.push_back(p.mass[i]);
-      r.velocity.insert(r.velocity.end(), {p.vx[i], p.vy[i], p.vz[i]});
       r.angular_velocity.insert(r.angular_velocity.end(), {p.wx[i], p.wy[i], p.wz[i]});
     }
   };
@@ -146,6 +145,8 @@ ParticleOutput::SurfaceData ParticleOutput::surfaces(const ParticleState& p,
     }
     for (std::size_t t = 0; t < sf.triangles.size(); ++t)
       out.triangles.push_back(base + sf.triangles[t]);
+    for (std::size_t t = 0; t < sf.triangles.size() / 3; ++t)
+      out.centre_velocity.insert(out.centre_velocity.end(), {v.x, v.y, v.z});
     per_rock(out.cell, i, sf.triangles.size() / 3);
     per_rock(out.point, i, sf.vertices.size() / 3);
   }
@@ -157,6 +158,7 @@ void ParticleOutput::write_surfaces(io::H5File& f, const SurfaceData& sd) {
   f.write("surface_points", std::span<const double>(sd.points), {m, 3});
   f.write("surface_velocity", std::span<const double>(sd.point_velocity), {m, 3});
   f.write("surface_triangles", std::span<const std::int64_t>(sd.triangles), {nt, 3});
+  f.write("surface_centre_velocity", std::span<const double>(sd.centre_velocity), {nt, 3});
   for (const auto& [prefix, r, count] :
        {std::tuple{"surface_", &sd.cell, nt}, std::tuple{"surface_point_", &sd.point, m}}) {
     const std::string pre = prefix;
@@ -164,9 +166,6 @@ void ParticleOutput::write_surfaces(io::H5File& f, const SurfaceData& sd) {
     f.write(pre + "material", std::span<const std::int64_t>(r->material), {count});
     f.write(pre + "radius", std::span<const double>(r->radius), {count});
     f.write(pre + "mass", std::span<const double>(r->mass), {count});
-    if (pre == "surface_") {
-      f.write(pre + "centre_velocity", std::span<const double>(r->velocity), {count, 3});
-    }
     f.write(pre + "angular_velocity", std::span<const double>(r->angular_velocity), {count, 3});
   }
   f.set_attribute("/", "surface_points", static_cast<std::int64_t>(m));

@@ -78,11 +78,12 @@ class ParticleOutput {
   /// A rock's fields, repeated on each of its cells or points.
   struct PerRock {
     std::vector<std::int64_t> id, material;
-    std::vector<double> radius, mass, velocity, angular_velocity;
+    std::vector<double> radius, mass, angular_velocity;
   };
-  /// The polyhedra as triangle surfaces in world coordinates, with their fields.
+  /// The polyhedra as triangle surfaces in world coordinates, with their fields: each
+  /// point's own velocity, each triangle's its rock centre's.
   struct SurfaceData {
-    std::vector<double> points, point_velocity;
+    std::vector<double> points, point_velocity, centre_velocity;
     std::vector<std::int64_t> triangles;
     PerRock cell, point;
   };
