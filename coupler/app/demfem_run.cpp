@@ -441,8 +441,9 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
                    record.cleared.size(), out_dir.c_str());
     }
   }
-  // From here on a signal ends the run through its handler (and is written into run.json).
-  SignalGuard signals;
+  // From here on a signal ends the run through its handler (and is written into run.json);
+  // after the run record, one only sets the flag: the process exits as the record says.
+  SignalGuard signals(SignalGuard::Scope::process);
   try {
     write_run_record(out_dir, record);
   } catch (const std::exception& e) {
@@ -801,11 +802,22 @@ int run(const Options& opt, const std::vector<std::string>& command_line) {
     std::fprintf(stderr, "demfem run: the %s (pid %d) is not answering: killed\n",
                  p->label().c_str(), static_cast<int>(p->pid()));
   }
-  if (link && !stopping) link->shutdown();
+  if (link && !stopping) {
+    SignalGuard::solvers_ending();  // a Ctrl-C now must not cut their end state short
+    link->shutdown();
+  }
   for (auto* p : {dem_proc.get(), fem_proc.get()}) {
     if (!p) continue;
     const int c = p->stop(std::chrono::milliseconds(stopping ? 1000 : 3000));
-    if (c != 0 && code == 0) {
+    if (c != 0 && code == 0 && SignalGuard::stop_flag().load()) {
+      // A stop signal after the last step (a terminal's Ctrl-C reaches the solvers too): the
+      // steps are done, the end state is not written; --resume writes it from the last
+      // checkpoint. Interrupted, as a stop earlier would be, not failed.
+      failed(128 + SignalGuard::signal_number(),
+             "stopped by signal " + std::to_string(SignalGuard::signal_number()) +
+                 " as the run ended: the " + p->label() + " ended with status " +
+                 std::to_string(c) + " before its end state was written");
+    } else if (c != 0 && code == 0) {
       failed(kExitFailed, "the " + p->label() + " exited with status " + std::to_string(c));
     }
   }

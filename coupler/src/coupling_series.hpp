@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "demfem/coupling/coupling_run.hpp"
-#include "demfem/io/atomic_file.hpp"
+#include "demfem/io/csv_writer.hpp"
 
 namespace demfem::coupling {
 
@@ -37,29 +37,13 @@ class SeriesFile {
   /// Continues an existing series: keeps the header and the first `keep_rows` rows (those
   /// of a checkpoint being resumed), drops the rest.
   SeriesFile(const std::filesystem::path& path, std::size_t keep_rows) : path_(path) {
-    std::string kept;
-    {
-      std::ifstream in(path, std::ios::binary);
-      if (!in) {
-        throw std::runtime_error(path.string() +
-                                 ": cannot read the series to continue (the output folder does "
-                                 "not hold the output of the run that took the checkpoint: resume "
-                                 "into that run's output folder)");
-      }
-      std::string line;
-      std::size_t lines = 0;
-      while (lines < keep_rows + 1 && std::getline(in, line)) {
-        kept += line;
-        kept += '\n';
-        ++lines;
-      }
-      if (lines < keep_rows + 1) {
-        throw std::runtime_error(path.string() + ": has " +
-                                 std::to_string(lines == 0 ? 0 : lines - 1) +
-                                 " rows, the checkpoint counts " + std::to_string(keep_rows));
-      }
+    if (!std::filesystem::exists(path)) {
+      throw std::runtime_error(path.string() +
+                               ": cannot read the series to continue (the output folder does "
+                               "not hold the output of the run that took the checkpoint: resume "
+                               "into that run's output folder)");
     }
-    io::write_file_atomic(path, kept);
+    io::keep_csv_rows(path, keep_rows);
     out_.open(path, std::ios::app);
     if (!out_) throw std::runtime_error("cannot write " + path.string());
   }

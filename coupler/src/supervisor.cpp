@@ -24,11 +24,13 @@ std::array<std::atomic<pid_t>, kMaxChildren> g_children{};
 std::atomic<bool> g_stop{false};
 std::atomic<int> g_signal{0};
 std::atomic<int> g_checkpoint_request{0};
+std::atomic<bool> g_forward{true};  // false once the solvers were told Shutdown
 static_assert(std::atomic<pid_t>::is_always_lock_free);
 
 void on_signal(int sig) {
   g_signal.store(sig);
   g_stop.store(true);
+  if (!g_forward.load()) return;
   for (auto& c : g_children) {
     const pid_t p = c.load();
     if (p > 0) ::kill(p, SIGTERM);
@@ -190,9 +192,10 @@ int SolverProcess::stop(std::chrono::milliseconds grace) {
   return exit_code_.value_or(128 + SIGKILL);
 }
 
-SignalGuard::SignalGuard() {
+SignalGuard::SignalGuard(Scope scope) : scope_(scope) {
   g_stop.store(false);
   g_signal.store(0);
+  g_forward.store(true);
   // No SA_RESTART for a stop: blocking calls return early with EINTR. A checkpoint request
   // interrupts nothing.
   for (int i = 0; i < kSignalCount; ++i) install(kSignals[i], on_signal, 0, &g_old[i]);
@@ -202,6 +205,7 @@ SignalGuard::SignalGuard() {
 }
 
 SignalGuard::~SignalGuard() {
+  if (scope_ == Scope::process) return;  // a late signal only sets the flag
   for (int i = 0; i < kSignalCount; ++i) ::sigaction(kSignals[i], &g_old[i], nullptr);
   for (std::size_t i = 0; i < std::size(kCheckpointSignals); ++i)
     ::sigaction(kCheckpointSignals[i], &g_old_checkpoint[i], nullptr);
@@ -218,6 +222,9 @@ int SignalGuard::take_checkpoint_request() {
 }
 void SignalGuard::request_stop(int sig) {
   on_signal(sig);
+}
+void SignalGuard::solvers_ending() {
+  g_forward.store(false);
 }
 
 }  // namespace demfem::coupling

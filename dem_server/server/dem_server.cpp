@@ -67,6 +67,9 @@ int main(int argc, char** argv) {
       options.role = demfem::protocol::Role::dem;
       options.peer_timeout = std::chrono::milliseconds(
           static_cast<std::int64_t>(std::ceil(1000.0 * run.peer_timeout)));
+      // Held from before serve(): its own handlers rule while it runs and hand back to
+      // these, so that a stop signal after Shutdown finds no gap to kill the end state.
+      const demfem::protocol::HeldStopSignals held;
       const int code = demfem::protocol::serve(backend, options);
       if (code == demfem::protocol::kExitOk) dem_run.finish();  // the end state
       return code;

@@ -2,6 +2,7 @@
 
 #include <cstdio>
 #include <algorithm>
+#include <cstdint>
 #include <sstream>
 #include <stdexcept>
 
@@ -16,26 +17,56 @@ CsvWriter::CsvWriter(const std::filesystem::path& path, const std::vector<std::s
   out_ << '\n';
 }
 
-CsvWriter CsvWriter::resume(const std::filesystem::path& path, std::size_t keep_rows) {
-  std::ifstream in(path);
+namespace {
+
+// Byte offsets just past each complete line ('\n'-terminated) of the file.
+std::vector<std::uintmax_t> line_ends(const std::filesystem::path& path, std::string* text) {
+  std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error(path.string() + ": cannot open CSV series to resume");
-  std::string header;
-  std::getline(in, header);
-  std::vector<std::string> lines;
-  std::string line;
-  while (lines.size() < keep_rows && std::getline(in, line)) lines.push_back(line);
-  if (lines.size() < keep_rows) {
-    throw std::runtime_error(path.string() + ": has " + std::to_string(lines.size()) +
-                             " rows, the checkpoint expects at least " +
-                             std::to_string(keep_rows));
+  std::ostringstream all;
+  all << in.rdbuf();
+  *text = all.str();
+  std::vector<std::uintmax_t> ends;
+  for (std::size_t i = 0; i < text->size(); ++i)
+    if ((*text)[i] == '\n') ends.push_back(i + 1);
+  return ends;
+}
+
+}  // namespace
+
+void keep_csv_rows(const std::filesystem::path& path, std::size_t keep_rows,
+                   const std::string& expected) {
+  std::string text;
+  const auto ends = line_ends(path, &text);
+  const std::size_t rows = ends.empty() ? 0 : ends.size() - 1;  // the first line is the header
+  if (ends.empty() || rows < keep_rows) {
+    throw std::runtime_error(path.string() + ": has " + std::to_string(rows) + " rows, " +
+                             expected + " expects at least " + std::to_string(keep_rows));
   }
-  in.close();
+  if (ends[keep_rows] != text.size()) std::filesystem::resize_file(path, ends[keep_rows]);
+}
+
+std::vector<std::string> read_csv_rows(const std::filesystem::path& path) {
+  std::string text;
+  const auto ends = line_ends(path, &text);
+  std::vector<std::string> rows;
+  for (std::size_t k = 1; k < ends.size(); ++k)
+    rows.emplace_back(text.substr(ends[k - 1], ends[k] - ends[k - 1] - 1));
+  return rows;
+}
+
+CsvWriter CsvWriter::resume(const std::filesystem::path& path, std::size_t keep_rows) {
+  keep_csv_rows(path, keep_rows);
+  std::string header;
+  {
+    std::ifstream in(path);
+    std::getline(in, header);
+  }
   CsvWriter w;
   w.path_ = path;
   w.columns_ = static_cast<std::size_t>(std::count(header.begin(), header.end(), ',')) + 1;
-  w.out_.open(path, std::ios::trunc);
-  w.out_ << header << '\n';
-  for (const auto& l : lines) w.out_ << l << '\n';
+  w.out_.open(path, std::ios::app);
+  if (!w.out_) throw std::runtime_error(path.string() + ": cannot append to the CSV series");
   w.rows_ = keep_rows;
   return w;
 }

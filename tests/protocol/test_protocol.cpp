@@ -771,3 +771,45 @@ TEST_CASE("IterationGate: the rules without processes") {
   CHECK(b.calls == std::vector<std::string>{"save", "step 0", "restore", "step 0", "accept", "save",
                                             "step 1"});
 }
+
+TEST_CASE("HeldStopSignals: SIGTERM waits while the end state is written, then the old action is back",
+          "[protocol][process]") {
+  // A solver writes its end state after serve() returned; a stop signal then used to kill it
+  // half-way (fem_server's step file without its series row). Forked children stand in for
+  // the solver: one holds the signals and "writes" for 0.3 s; one has let them go again.
+  for (const bool holding : {true, false}) {
+    int ready[2];
+    REQUIRE(::pipe(ready) == 0);
+    const pid_t child = ::fork();
+    REQUIRE(child >= 0);
+    if (child == 0) {
+      ::close(ready[0]);
+      int code = 0;
+      if (holding) {
+        const proto::HeldStopSignals held;
+        (void)!::write(ready[1], "r", 1);
+        ::usleep(300000);  // the end state
+        code = held.signal() == SIGTERM ? 0 : 5;
+      } else {
+        { const proto::HeldStopSignals held; }
+        (void)!::write(ready[1], "r", 1);
+        ::usleep(3000000);
+        code = 6;  // not reached: SIGTERM's default action ends it
+      }
+      ::_exit(code);
+    }
+    ::close(ready[1]);
+    char c = 0;
+    REQUIRE(::read(ready[0], &c, 1) == 1);
+    ::close(ready[0]);
+    REQUIRE(::kill(child, SIGTERM) == 0);
+    int status = 0;
+    REQUIRE(::waitpid(child, &status, 0) == child);
+    INFO("holding " << holding);
+    if (holding) {
+      CHECK((WIFEXITED(status) && WEXITSTATUS(status) == 0));
+    } else {
+      CHECK((WIFSIGNALED(status) && WTERMSIG(status) == SIGTERM));
+    }
+  }
+}

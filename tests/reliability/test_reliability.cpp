@@ -695,3 +695,41 @@ TEST_CASE(
   CHECK(n.err.find("the scene has no [checkpoint]: none written") != std::string::npos);
   check_same_results(reference(), e.path / kOut);
 }
+
+TEST_CASE("Ctrl-C as the run ends: a finished run stays finished, any other resumes to the same bits") {
+  // CI, 2026-12-05 (the sweep's resume test, 1 in ~30 under load): a Ctrl-C that reached the
+  // coupler after its last step went on to the solvers as SIGTERM while they wrote their end
+  // state. fem_server died between its last step file and that step's row of
+  // fem_series.csv; the run that had finished exited 1, and every --resume after it was
+  // refused ("has 1 rows, the checkpoint expects at least 2"): the member was lost for good.
+  // Now the coupler passes no stop on once it said Shutdown, a solver holds stop signals
+  // while it writes its end state, and the FEM writes a row before its step file's commit.
+  // The signal goes to the whole process group, as a terminal's Ctrl-C does, at moments
+  // around the final checkpoint's commit (which comes just before Shutdown).
+  const fs::path last_manifest = fs::path("checkpoints") / "step-000050" / "manifest.json";
+  for (const int delay_us : {0, 200, 500, 1000, 2000, 3000, 5000, 8000}) {
+    TempDir d;
+    const fs::path out = d.path / kOut;
+    const auto l = demfem::test::launch(
+        d.path, {(kBin / "demfem_run").string(), kScene.string(), "--quiet"}, /*group=*/true);
+    const bool seen = demfem::test::eventually(
+        [&] { return fs::exists(out / last_manifest) || demfem::test::gone(l.pid); },
+        std::chrono::seconds(120));
+    std::this_thread::sleep_for(std::chrono::microseconds(delay_us));
+    ::kill(-l.pid, SIGINT);
+    const Result r = demfem::test::wait_for(l);
+    INFO("SIGINT " << delay_us << " us after the last checkpoint\n" << r.out << r.err);
+    REQUIRE(seen);
+    // Done (0), or stopped cleanly (130) with a run.json that says so; never failed.
+    REQUIRE((r.status == 0 || r.status == 128 + SIGINT));
+    const std::string record = read_text(out / "run.json");
+    CHECK(record.find(r.status == 0 ? "\"completed\"" : "\"interrupted\"") != std::string::npos);
+    check_nothing_left({r.out});
+    if (r.status != 0) {
+      const Result again = run(d.path, {"--resume"});
+      INFO(again.out << again.err);
+      REQUIRE(again.status == 0);
+    }
+    check_same_results(reference(), out);
+  }
+}

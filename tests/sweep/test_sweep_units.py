@@ -5,12 +5,15 @@ file reader (messages with file, line, key), the plan, the extraction of quantit
 hand-computed values, the retry classification and the sbatch script."""
 
 import math
+import os
 import re
 import signal
 import subprocess
 import sys
 import tempfile
 import textwrap
+import threading
+import time
 import tomllib
 import unittest
 from pathlib import Path
@@ -102,6 +105,12 @@ def write(tmp, name, text):
     return p
 
 
+def wait_file(path, guard=60.0):
+    deadline = time.monotonic() + guard
+    while not Path(path).exists() and time.monotonic() < deadline:
+        time.sleep(0.01)
+
+
 SWEEP = """\
 [sweep]
 scene = "scene.toml"
@@ -162,6 +171,32 @@ class SweepFile(SweepFileCase):
         self.assertEqual(m.overrides, ["dem.insert[0].mass=20.0", "dem.pairs[0].friction=0.1",
                                        "run.seed=6", "dem.threads=1"])
         self.assertEqual((m.threads, m.gpu, m.checkpoints), (1, False, "checkpoints"))
+
+    def test_stop_after_the_run_finished_counts_as_done(self):
+        # A stop that reaches demfem_run after it wrote run.json "completed" (the signal then
+        # ends the process on its way out, exit 130): the run is whole, the member is done,
+        # not "interrupted" (CI saw the record and the next sweep's count disagree).
+        from sweep import member as member_mod
+        stand_in = write(self.tmp.name, "demfem_run",
+                         "#!/bin/sh\nprintf '{\"status\": \"completed\", \"exit_code\": 0}' "
+                         "> run.json\nexec sleep 60\n")
+        os.chmod(stand_in, 0o755)
+        plan = build_plan(self.read(SWEEP), Path(self.tmp.name) / "out", str(stand_in))
+        m = plan.members[0]
+        h = Handle()
+        threading.Thread(target=lambda: (wait_file(Path(m.folder) / "run.json"),
+                                         h.interrupt()), daemon=True).start()
+        rec = member_mod.run_member(plan, m, handle=h, log=lambda *a: None)
+        self.assertEqual((rec["state"], rec["attempts"][-1]["exit"]), ("done", 130))
+        self.assertEqual(len(rec["attempts"]), 1)
+        # Without the finished run record the same stop leaves it interrupted.
+        m = plan.members[1]
+        write(self.tmp.name, "demfem_run", "#!/bin/sh\nexec sleep 60\n")
+        h = Handle()
+        threading.Thread(target=lambda: (wait_file(Path(m.folder) / "attempt-1.log"),
+                                         time.sleep(0.2), h.interrupt()), daemon=True).start()
+        rec = member_mod.run_member(plan, m, handle=h, log=lambda *a: None)
+        self.assertEqual(rec["state"], "interrupted")
 
     def test_zipped_keys(self):
         spec = self.read(SWEEP.replace('"dem.insert[0].mass" = [10.0, 20.0]',

@@ -187,7 +187,10 @@ def run_member(plan, member, handle=None, env=None, log=print, where=None, settl
             rec["attempts"].append({"number": number, "resume": resume, "exit": code,
                                     "start": start, "wall": wall, "log": log_path.name,
                                     "host": records.hostname(), **(where or {})})
-            if handle.stop.is_set() and code != 0:
+            # A stop that came after the run had finished (run.json written "completed", the
+            # process then ended by the signal on its way out) leaves a whole run: done.
+            finished_anyway = code != 0 and records.run_record_finished(folder)
+            if handle.stop.is_set() and code != 0 and not finished_anyway:
                 settled()
                 rec.update(state="interrupted", updated=records.now())
                 records.write_json_atomic(status_path, rec)
@@ -195,7 +198,7 @@ def run_member(plan, member, handle=None, env=None, log=print, where=None, settl
                     "sweep is run again" + (" (from its last checkpoint)" if has_checkpoint(member)
                                             else ""))
                 return rec
-            what = classify(code, resume)
+            what = "done" if finished_anyway and handle.stop.is_set() else classify(code, resume)
             if what == "done":
                 settled()
                 rec.update(state=records.DONE, exit=0, run_time=wall, updated=records.now())

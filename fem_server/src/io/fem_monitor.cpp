@@ -29,14 +29,10 @@ std::vector<std::string> columns(const FemMonitorSettings& s) {
 
 // Times (first column) of an existing series, to cut it back to a restored time.
 std::vector<double> read_times(const std::filesystem::path& csv) {
+  // Complete rows only: a row cut by a kill is dropped by the resume as well.
   std::vector<double> t;
-  std::ifstream in(csv);
-  std::string line;
-  std::getline(in, line);
-  while (std::getline(in, line)) {
-    if (line.empty()) continue;
-    t.push_back(std::strtod(line.c_str(), nullptr));
-  }
+  for (const auto& line : io::read_csv_rows(csv))
+    if (!line.empty()) t.push_back(std::strtod(line.c_str(), nullptr));
   return t;
 }
 

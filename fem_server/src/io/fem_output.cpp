@@ -254,6 +254,15 @@ void FemOutput::write(const FemFields& f) {
   const std::size_t step = times_.size();
   const auto path = step_path(step);
   const double state_time = std::isnan(f.state_time) ? f.time : f.state_time;
+  // The series row first, the step file's commit (its rename) last: a process killed in
+  // between leaves one row too many, which a resume cuts back to the step files; the other
+  // order left a step file without its row, and every later resume refused the folder.
+  if (csv_) {
+    const FemScalars s = summarize(f);
+    csv_->row({s.time, s.max_displacement, s.max_von_mises, s.max_principal_strain, s.reaction[0],
+               s.reaction[1], s.reaction[2]});
+    csv_->flush();
+  }
   {
     io::H5File h5(io::partial_path(path), io::H5File::Mode::create);
     h5.set_attribute("/", "time", f.time);
@@ -298,12 +307,6 @@ void FemOutput::write(const FemFields& f) {
   state_times_.push_back(state_time);
   written_.push_back(present_fields(f));
   write_xdmf();
-  if (csv_) {
-    const FemScalars s = summarize(f);
-    csv_->row({s.time, s.max_displacement, s.max_von_mises, s.max_principal_strain, s.reaction[0],
-               s.reaction[1], s.reaction[2]});
-    csv_->flush();
-  }
 }
 
 std::vector<std::string> FemOutput::present_fields(const FemFields& f) const {

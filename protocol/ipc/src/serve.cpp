@@ -493,4 +493,26 @@ int serve(SolverBackend& backend, const ServeOptions& options) {
   return server.run();
 }
 
+namespace {
+std::atomic<int> g_held_signal{0};
+void on_held_signal(int sig) { g_held_signal.store(sig); }
+}  // namespace
+
+HeldStopSignals::HeldStopSignals() {
+  g_held_signal.store(0);
+  struct sigaction sa {};
+  sa.sa_handler = on_held_signal;
+  sigemptyset(&sa.sa_mask);
+  sa.sa_flags = SA_RESTART;  // the writes go on
+  ::sigaction(SIGTERM, &sa, &old_term_);
+  ::sigaction(SIGINT, &sa, &old_int_);
+}
+
+HeldStopSignals::~HeldStopSignals() {
+  ::sigaction(SIGTERM, &old_term_, nullptr);
+  ::sigaction(SIGINT, &old_int_, nullptr);
+}
+
+int HeldStopSignals::signal() const { return g_held_signal.load(); }
+
 }  // namespace demfem::protocol

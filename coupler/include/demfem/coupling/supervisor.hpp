@@ -78,8 +78,13 @@ class SolverProcess {
 /// @brief Process-wide stop request from SIGINT/SIGTERM/SIGHUP/SIGPIPE.
 class SignalGuard {
  public:
-  /// Installs the handlers (restored by the destructor).
-  SignalGuard();
+  /// How long the handlers stay: until the destructor restores the previous ones, or, for
+  /// the launcher's run, until the process exits. A stop signal after the run record said
+  /// "completed" then changes nothing; restored handlers let it kill the finished process
+  /// on its way out (exit 130 after "completed": a sweep counted the run as stopped).
+  enum class Scope { guard, process };
+  /// Installs the handlers.
+  explicit SignalGuard(Scope scope = Scope::guard);
   ~SignalGuard();
   SignalGuard(const SignalGuard&) = delete;
   SignalGuard& operator=(const SignalGuard&) = delete;
@@ -95,6 +100,14 @@ class SignalGuard {
   static int take_checkpoint_request();
   /// Stops the run as the stop signal `sig` would: sets the flag, SIGTERM to the children.
   static void request_stop(int sig);
+  /// The solvers were told Shutdown and write their end state: a stop signal from now on
+  /// sets the flag but sends them no SIGTERM (they exit on their own; the coupler's bounded
+  /// wait ends a hung one). A Ctrl-C as a run ends cut the end state short and turned the
+  /// finished run into a failed one (and left a series a resume refused).
+  static void solvers_ending();
+
+ private:
+  Scope scope_;
 };
 
 }  // namespace demfem::coupling

@@ -10,6 +10,18 @@
 
 namespace demfem::io {
 
+/// @brief Cuts a CSV series back to its header and first `keep_rows` data rows, in place: one
+/// truncate, so that a process killed meanwhile leaves either the old file or the cut one,
+/// never fewer rows (rewriting the kept rows could be stopped half-way, and the checkpoint
+/// that needs them would be lost for good). A last line without its newline (a writer killed
+/// inside a row) is no row. Throws, naming the file, when it holds fewer rows than
+/// `keep_rows` or cannot be read; `expected` says who expects them ("the checkpoint").
+void keep_csv_rows(const std::filesystem::path& path, std::size_t keep_rows,
+                   const std::string& expected = "the checkpoint");
+
+/// The complete data rows of a CSV series (header and a last line without newline left out).
+std::vector<std::string> read_csv_rows(const std::filesystem::path& path);
+
 /// @brief Appends rows of numbers under a fixed header.
 class CsvWriter {
  public:

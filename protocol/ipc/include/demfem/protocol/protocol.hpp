@@ -25,6 +25,7 @@
 #include <stdexcept>
 #include <string>
 
+#include <signal.h>
 #include <sys/types.h>
 
 #include "demfem/interface/exit_status.hpp"
@@ -265,6 +266,27 @@ struct ServeOptions {
 /// cannot be opened, a signal arrived, or the backend threw (its exception text is sent as an
 /// Error message first).
 int serve(SolverBackend& backend, const ServeOptions& options);
+
+/// @brief Holds SIGTERM and SIGINT back while it lives: for the end state a solver writes after
+/// serve() returned kExitOk (the last step is done, the coupler said Shutdown). A stop signal
+/// then (the user's Ctrl-C reaching the coupler as it ends, which passes SIGTERM on) used to
+/// kill the solver half-way through its last output: the run that had finished counted as
+/// failed, and its series lost the row a resume needs. The signal is recorded, not acted on:
+/// the work is done, the solver writes and exits 0. A handler, not a blocked mask, so that
+/// threads started earlier (OpenMP) cannot take the signal by the default action.
+class HeldStopSignals {
+ public:
+  HeldStopSignals();
+  ~HeldStopSignals();
+  HeldStopSignals(const HeldStopSignals&) = delete;
+  HeldStopSignals& operator=(const HeldStopSignals&) = delete;
+  /// The stop signal that came meanwhile, 0 if none.
+  int signal() const;
+
+ private:
+  struct sigaction old_term_ {};
+  struct sigaction old_int_ {};
+};
 
 // serve()'s exit codes (kExitOk, kExitBackendError, kExitCouplerDied, kExitVersionMismatch,
 // kExitProtocolError) are in demfem/interface/exit_status.hpp with the run's.
