@@ -1,0 +1,129 @@
+"""MkDocs hooks of the demfem manual (mkdocs.yml, `hooks:`). Not a page: removed from the site.
+
+* Links from a page to a file of the repository outside docs/ (`../tests/fuzz/README.md`)
+  are checked (the file must exist) and written as the file's path in the source tree, since
+  the site has no copy of it. A missing one is a warning, so `mkdocs build --strict` fails.
+* A line `--8<-- "PATH"` (PATH relative to the top of the repository) is replaced by that
+  file's text, so that a page shows a scene file exactly as it is in the tree (a missing file
+  is a warning).
+* After the build every internal link of every page is checked, anchors included (MkDocs 1.4
+  checks only that a linked page exists): a link to a missing page or to a heading that is
+  not there is a warning, so the strict build fails.
+"""
+
+import html.parser
+import logging
+import os
+import posixpath
+import re
+from urllib.parse import unquote, urlsplit
+
+log = logging.getLogger("mkdocs.hooks.demfem")
+
+_FENCE = re.compile(r"^(```|~~~)")
+_INCLUDE = re.compile(r'^--8<-- "([^"]+)"\s*$')
+_LINK = re.compile(r"\[([^\]\n]*)\]\((\.\./[^)\s#]+)(#[^)\s]*)?\)")
+
+
+def on_files(files, config):
+    """Leaves docs/_site (this hook) out of the site."""
+    for f in list(files):
+        if f.src_path.replace(os.sep, "/").startswith("_site/"):
+            files.remove(f)
+    return files
+
+
+def _rewrite_outside_links(line, page, config):
+    docs_dir = config["docs_dir"]
+    page_dir = os.path.dirname(os.path.join(docs_dir, page.file.src_path))
+    repo = os.path.dirname(os.path.abspath(docs_dir))
+
+    def repl(m):
+        target = os.path.normpath(os.path.join(page_dir, unquote(m.group(2))))
+        inside_docs = os.path.commonpath([target, os.path.abspath(docs_dir)]) == os.path.abspath(docs_dir)
+        if inside_docs:
+            return m.group(0)  # MkDocs checks those itself
+        rel = os.path.relpath(target, repo).replace(os.sep, "/")
+        if rel.startswith("..") or not os.path.exists(target):
+            log.warning(f"{page.file.src_path}: link to '{m.group(2)}', which is not in the repository")
+            return m.group(0)
+        return f"{m.group(1)} (source file `{rel}`)"
+
+    return _LINK.sub(repl, line)
+
+
+def on_page_markdown(markdown, page, config, files):
+    repo = os.path.dirname(os.path.abspath(config["docs_dir"]))
+    out, fenced = [], False
+    for line in markdown.split("\n"):
+        m = _INCLUDE.match(line)
+        if m:
+            path = os.path.join(repo, m.group(1))
+            if not os.path.isfile(path):
+                log.warning(f"{page.file.src_path}: '{m.group(1)}' to include is not in the repository")
+                out.append(line)
+            else:
+                with open(path, encoding="utf-8") as f:
+                    out.append(f.read().rstrip("\n"))
+            continue
+        if _FENCE.match(line.lstrip()):
+            fenced = not fenced
+        out.append(line if fenced else _rewrite_outside_links(line, page, config))
+    return "\n".join(out)
+
+
+class _Anchors(html.parser.HTMLParser):
+    def __init__(self):
+        super().__init__()
+        self.ids, self.hrefs = set(), []
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        if a.get("id"):
+            self.ids.add(a["id"])
+        if tag == "a" and a.get("name"):
+            self.ids.add(a["name"])
+        if tag == "a" and a.get("href") is not None:
+            self.hrefs.append(a["href"])
+
+
+def _parse(path, cache):
+    if path not in cache:
+        p = _Anchors()
+        with open(path, encoding="utf-8") as f:
+            p.feed(f.read())
+        cache[path] = p
+    return cache[path]
+
+
+def on_post_build(config):
+    site = config["site_dir"]
+    cache, checked, broken = {}, 0, 0
+    for dirpath, dirnames, filenames in os.walk(site):
+        dirnames[:] = [d for d in dirnames if d not in ("assets", "search")]
+        for name in filenames:
+            if not name.endswith(".html") or name == "404.html":
+                continue
+            page = os.path.join(dirpath, name)
+            for href in _parse(page, cache).hrefs:
+                parts = urlsplit(href)
+                if parts.scheme or parts.netloc or href.startswith(("/", "mailto:")):
+                    continue
+                path = unquote(parts.path)
+                if path == "":
+                    target = page
+                else:
+                    target = os.path.normpath(os.path.join(dirpath, path))
+                    if os.path.isdir(target) or path.endswith("/"):
+                        target = os.path.join(target, "index.html")
+                checked += 1
+                where = os.path.relpath(page, site)
+                if not os.path.exists(target):
+                    log.warning(f"{where}: link '{href}' leads nowhere (no {os.path.relpath(target, site)})")
+                    broken += 1
+                elif parts.fragment and target.endswith(".html"):
+                    if unquote(parts.fragment) not in _parse(target, cache).ids:
+                        log.warning(f"{where}: link '{href}': no heading or anchor "
+                                    f"'#{parts.fragment}' in {os.path.relpath(target, site)}")
+                        broken += 1
+    log.info(f"demfem hooks: checked {checked} internal links, {broken} broken")
