@@ -1,5 +1,6 @@
 #pragma once
-// The coupling schemes and the run loop, written once over SolverLink (solver_link.hpp).
+// The coupling run: the loop over coupling steps, written once over SolverLink (solver_link.hpp);
+// the schemes themselves are classes in coupler/src/schemes/ (docs/architecture.md).
 // Each coupling step sends Step commands in the scheme's order, moves forces and kinematics
 // through the interface buffers, and records the diagnostics of docs/coupling.md: drift
 // between the DEM and FEM copies of the interface, the interface work seen by each side, the
