@@ -1,0 +1,86 @@
+#pragma once
+// LiggghtsDomain: one MPI rank's share of a LIGGGHTS simulation coupled to demfem's interface.
+//
+// Every rank holds one; all of them call the same methods in the same order (LIGGGHTS's
+// commands are collective). The interface mesh goes to LIGGGHTS as an STL file that the
+// user's deck reads with `fix ID all mesh/surface file ${demfem_mesh} type T` and lists in a
+// `fix wall/gran ... store_force_contact_stress yes`; after a step each rank distributes the
+// contact forces of its particles onto the interface nodes (barycentric weights of each
+// contact point, as dem_server does) and rank 0 receives their sum (MPI_Reduce).
+
+#include <mpi.h>
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "demfem/interface/interface_mesh.hpp"
+
+namespace LAMMPS_NS {
+class LAMMPS;
+class TriMesh;
+class FixContactPropertyAtomWall;
+}  // namespace LAMMPS_NS
+
+namespace demfem::liggghts {
+
+/// What a coupling step reports (meaningful on rank 0 after advance()).
+struct StepReport {
+  std::vector<double> node_forces;  ///< 3 n, N: the particles' forces on the interface nodes
+  double kinetic_energy = 0.0;      ///< J, translation and rotation of every particle
+  double max_overlap = 0.0;         ///< m, largest overlap of a particle with the interface
+};
+
+class LiggghtsDomain {
+ public:
+  /// `deck`: the user's LIGGGHTS input; `mesh_fix`: the ID of its fix mesh/surface on
+  /// the coupling mesh; `dem_timestep`: dem.dt, s (it replaces the deck's); `output_dir`:
+  /// where the interface STL and LIGGGHTS's log go.
+  LiggghtsDomain(MPI_Comm world, std::filesystem::path deck, std::string mesh_fix,
+                 double dem_timestep, std::filesystem::path output_dir);
+  ~LiggghtsDomain();
+  LiggghtsDomain(const LiggghtsDomain&) = delete;
+  LiggghtsDomain& operator=(const LiggghtsDomain&) = delete;
+
+  /// Writes the interface as STL (rank 0), opens LIGGGHTS, runs the deck, sets the time step
+  /// and checks that it holds the coupling mesh. Returns an empty string when it does, else why not (the same
+  /// text on every rank; LIGGGHTS's own errors end the process as LIGGGHTS does).
+  std::string attach(const InterfaceMesh& mesh);
+
+  /// Advances `substeps` LIGGGHTS steps of dt / substeps; with `average` the node forces are
+  /// the mean over the substeps, else those of the last one.
+  StepReport advance(double dt, std::int64_t substeps, bool average);
+
+  /// Largest distance of LIGGGHTS's mesh nodes from `positions` (3 n, m): the adapter does
+  /// not deform the mesh, so a step with other kinematics is refused by the caller.
+  double mesh_offset(const double* positions) const;
+
+  const InterfaceMesh& mesh() const { return mesh_; }
+
+ private:
+  void command(const std::string& line);
+  void add_contact_forces(std::vector<double>& node_forces) const;
+  double local_kinetic_energy() const;
+  double local_max_overlap() const;
+  std::string check_coupling_mesh();
+  void set_timestep(double timestep);
+
+  MPI_Comm world_;
+  int rank_ = 0;
+  std::filesystem::path deck_, output_dir_;
+  std::string mesh_fix_;
+  InterfaceMesh mesh_;
+  LAMMPS_NS::LAMMPS* lammps_ = nullptr;
+  LAMMPS_NS::TriMesh* tri_mesh_ = nullptr;
+  LAMMPS_NS::FixContactPropertyAtomWall* contacts_ = nullptr;
+  bool set_up_ = false;  ///< LIGGGHTS has set up a run with the current time step
+  double dem_timestep_ = 0.0;
+  double timestep_ = 0.0;  ///< LIGGGHTS's time step now, s
+};
+
+/// Writes `mesh` as an ASCII STL (one facet per triangle, in the mesh's order, so that
+/// LIGGGHTS's element ID i is demfem's triangle i), whole or not at all.
+void write_interface_stl(const InterfaceMesh& mesh, const std::filesystem::path& file);
+
+}  // namespace demfem::liggghts
