@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
-#include <cmath>
 #include <cstdio>
 #include <string>
 #include <thread>
@@ -12,9 +11,10 @@ namespace demfem::liggghts {
 
 namespace {
 
-// An order travels as four doubles: the order, then its arguments (a step: dt, substeps,
-// 1 for force averaging; attach: the node and triangle counts, followed by the mesh).
-using OrderMessage = std::array<double, 4>;
+// An order travels as five doubles: the order, then its arguments (a step: dt, substeps,
+// 1 for force averaging, 1 when the node positions and velocities follow; attach: the node
+// and triangle counts, followed by the mesh).
+using OrderMessage = std::array<double, 5>;
 
 OrderMessage broadcast_order(MPI_Comm world, OrderMessage message) {
   MPI_Request request;
@@ -26,6 +26,10 @@ OrderMessage broadcast_order(MPI_Comm world, OrderMessage message) {
     if (done) return message;
     std::this_thread::sleep_for(std::chrono::microseconds(50));
   }
+}
+
+void broadcast_values(MPI_Comm world, std::vector<double>& values) {
+  MPI_Bcast(values.data(), static_cast<int>(values.size()), MPI_DOUBLE, 0, world);
 }
 
 void broadcast_mesh(MPI_Comm world, InterfaceMesh& mesh) {
@@ -51,7 +55,7 @@ void LiggghtsBackend::on_mesh(const InterfaceMesh& mesh) {
   InterfaceMesh copy = mesh;
   broadcast_order(world_, {static_cast<double>(RankOrder::attach),
                            static_cast<double>(mesh.node_count()),
-                           static_cast<double>(mesh.triangle_count()), 0.0});
+                           static_cast<double>(mesh.triangle_count()), 0.0, 0.0});
   broadcast_mesh(world_, copy);
   const std::string refusal = domain_.attach(copy);
   if (!refusal.empty()) throw protocol::BackendError(protocol::ErrorKind::bad_input, refusal);
@@ -59,34 +63,25 @@ void LiggghtsBackend::on_mesh(const InterfaceMesh& mesh) {
 
 protocol::StepResult LiggghtsBackend::step(const protocol::StepCommand& cmd,
                                            protocol::InterfaceBuffers& buffers) {
-  const std::size_t values = 3 * domain_.mesh().node_count();
-  if (cmd.flags & protocol::kStepSetKinematics) {
-    // LIGGGHTS holds the interface as demfem published it; a structure that moves it is
-    // refused rather than coupled to a mesh that stays behind.
-    const double offset = domain_.mesh_offset(buffers.positions(cmd.buffer).data());
-    const auto v = buffers.velocities(cmd.buffer);
-    const double speed = std::abs(*std::max_element(
-        v.begin(), v.end(), [](double a, double b) { return std::abs(a) < std::abs(b); }));
-    if (offset > 0.0 || speed > 0.0) {
-      char text[400];
-      std::snprintf(text, sizeof text,
-                    "coupling step %lld: the structure moved the interface (a node %.3g m from "
-                    "its reference position, %.3g m/s), and liggghts_dem keeps LIGGGHTS's "
-                    "coupling mesh where demfem published it: use coupling.scheme = "
-                    "\"one_way_static\" with it, or dem_server for a two-way coupling",
-                    static_cast<long long>(cmd.step), offset, speed);
-      throw protocol::BackendError(protocol::ErrorKind::bad_input, text);
-    }
-  }
   const bool average = cmd.force_mode == ForceMode::average;
+  const bool kinematics = (cmd.flags & protocol::kStepSetKinematics) != 0;
   broadcast_order(world_, {static_cast<double>(RankOrder::step), cmd.dt,
-                           static_cast<double>(cmd.substeps), average ? 1.0 : 0.0});
+                           static_cast<double>(cmd.substeps), average ? 1.0 : 0.0,
+                           kinematics ? 1.0 : 0.0});
+  if (kinematics) {
+    // The mesh stays at the step's start within the step (dem_server moves it on as
+    // x + v t + a t^2 / 2), with the node velocities for the contact law.
+    const auto x = buffers.positions(cmd.buffer), v = buffers.velocities(cmd.buffer);
+    std::vector<double> positions(x.begin(), x.end()), velocities(v.begin(), v.end());
+    broadcast_values(world_, positions);
+    broadcast_values(world_, velocities);
+    domain_.move_mesh(positions, velocities);
+  }
   const StepReport report = domain_.advance(cmd.dt, cmd.substeps, average);
   std::copy(report.node_forces.begin(), report.node_forces.end(),
             buffers.forces(cmd.buffer).begin());
-  const auto& x = domain_.mesh().reference_positions;
-  std::copy(x.begin(), x.begin() + static_cast<std::ptrdiff_t>(values),
-            buffers.dem_positions(cmd.buffer).begin());
+  const auto& held = domain_.mesh_positions();
+  std::copy(held.begin(), held.end(), buffers.dem_positions(cmd.buffer).begin());
   protocol::StepResult result;
   result.values[0] = report.max_overlap;
   result.values[1] = report.kinetic_energy;
@@ -110,7 +105,7 @@ void LiggghtsBackend::restore_checkpoint(const std::filesystem::path& file, std:
 }
 
 void LiggghtsBackend::release_other_ranks() {
-  broadcast_order(world_, {static_cast<double>(RankOrder::quit), 0.0, 0.0, 0.0});
+  broadcast_order(world_, {static_cast<double>(RankOrder::quit), 0.0, 0.0, 0.0, 0.0});
 }
 
 void serve_other_rank(MPI_Comm world, LiggghtsDomain& domain) {
@@ -126,6 +121,12 @@ void serve_other_rank(MPI_Comm world, LiggghtsDomain& domain) {
         break;
       }
       case RankOrder::step:
+        if (order[4] != 0.0) {
+          std::vector<double> positions(3 * domain.mesh().node_count()), velocities(positions);
+          broadcast_values(world, positions);
+          broadcast_values(world, velocities);
+          domain.move_mesh(positions, velocities);
+        }
         domain.advance(order[1], static_cast<std::int64_t>(order[2]), order[3] != 0.0);
         break;
       case RankOrder::quit:

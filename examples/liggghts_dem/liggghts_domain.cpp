@@ -5,6 +5,7 @@
 #include <fix_contact_property_atom_wall.h>
 #include <fix_mesh_surface.h>
 #include <lammps.h>
+#include <mesh_mover.h>
 #include <library.h>
 #include <modify.h>
 #include <tri_mesh.h>
@@ -21,6 +22,17 @@ namespace demfem::liggghts {
 
 namespace fs = std::filesystem;
 namespace phys = demfem::dem::phys;
+
+/// LIGGGHTS lets only its mesh movers write a mesh's nodes and node velocities: the adapter
+/// moves the coupling mesh through one that does nothing on its own.
+class MeshNodeAccess : public LAMMPS_NS::MeshMover {
+ public:
+  MeshNodeAccess(LAMMPS_NS::LAMMPS* lammps, LAMMPS_NS::TriMesh* mesh)
+      : LAMMPS_NS::MeshMover(lammps, mesh, nullptr) {}
+  void post_create() override {}
+  void pre_delete() override {}
+  void initial_integrate(double, double, double) override {}
+};
 
 void write_interface_stl(const InterfaceMesh& mesh, const fs::path& file) {
   const fs::path partial = file.string() + ".partial";
@@ -130,6 +142,13 @@ std::string LiggghtsDomain::check_coupling_mesh() {
   set_timestep(dem_timestep_);
   command("run 0 post no");
   set_up_ = true;
+  positions_ = mesh_.reference_positions;
+  node_access_ = std::make_unique<MeshNodeAccess>(lammps_, tri_mesh_);
+  // The nodes' velocities, which the wall contact reads when the mesh has them (a conveyor
+  // belt's surface_vel or a fix move/mesh of the deck would have made them already).
+  if (!tri_mesh_->prop().getElementProperty<LAMMPS_NS::MultiVectorContainer<double, 3, 3>>("v"))
+    tri_mesh_->prop().addElementProperty<LAMMPS_NS::MultiVectorContainer<double, 3, 3>>(
+        "v", "comm_exchange_borders", "frame_invariant", "restart_no");
   const auto elements = static_cast<std::size_t>(tri_mesh_->sizeGlobal());
   if (elements != mesh_.triangle_count())
     return "fix '" + mesh_fix_ + "' of the LIGGGHTS deck " + deck + " has " +
@@ -137,6 +156,10 @@ std::string LiggghtsDomain::check_coupling_mesh() {
            std::to_string(mesh_.triangle_count()) +
            ": it must read the interface demfem writes, file ${demfem_mesh}, unscaled and "
            "unmoved";
+  if (tri_mesh_->isMoving())
+    return "fix '" + mesh_fix_ + "' of the LIGGGHTS deck " + deck +
+           " is moved by the deck (fix move/mesh): the structure moves the coupling mesh; "
+           "remove the deck's motion of it";
   return {};
 }
 
@@ -179,7 +202,7 @@ void LiggghtsDomain::add_contact_forces(std::vector<double>& node_forces) const 
   // A contact on an edge shared by two triangles gets the same weights from either, so the
   // result does not depend on which triangle LIGGGHTS gave it (nor on the rank count).
   const auto* atom = lammps_->atom;
-  const auto& x = mesh_.reference_positions;
+  const auto& x = positions_;
   for (int i = 0; i < atom->nlocal; ++i) {
     for (int c = 0; c < contacts_->n_partner(i); ++c) {
       const int triangle = contacts_->partner(i, c);
@@ -214,7 +237,7 @@ double LiggghtsDomain::local_max_overlap() const {
   // Every owned particle against every interface triangle whose box it reaches: O(particles x
   // triangles) per coupling step, which is what bench/ measures against the step's cost.
   const auto* atom = lammps_->atom;
-  const auto& x = mesh_.reference_positions;
+  const auto& x = positions_;
   double largest = 0.0;
   for (int i = 0; i < atom->nlocal; ++i) {
     const phys::Vec3 p{atom->x[i][0], atom->x[i][1], atom->x[i][2]};
@@ -238,11 +261,24 @@ double LiggghtsDomain::local_max_overlap() const {
   return largest;
 }
 
-double LiggghtsDomain::mesh_offset(const double* positions) const {
-  double largest = 0.0;
-  for (std::size_t i = 0; i < mesh_.reference_positions.size(); ++i)
-    largest = std::max(largest, std::abs(positions[i] - mesh_.reference_positions[i]));
-  return largest;
+void LiggghtsDomain::move_mesh(const std::vector<double>& positions,
+                               const std::vector<double>& velocities) {
+  positions_ = positions;
+  double*** nodes = node_access_->get_nodes();
+  double*** node_velocities = node_access_->get_v();
+  const int elements = tri_mesh_->sizeLocal() + tri_mesh_->sizeGhost();
+  for (int e = 0; e < elements; ++e) {
+    const std::int32_t* t = &mesh_.triangles[3 * static_cast<std::size_t>(tri_mesh_->id(e))];
+    for (int k = 0; k < 3; ++k)
+      for (int d = 0; d < 3; ++d) {
+        nodes[e][k][d] = positions[3 * t[k] + d];
+        node_velocities[e][k][d] = velocities[3 * t[k] + d];
+      }
+  }
+  // The elements' centres and bounding radii (contact search) now; their edges and normals
+  // when the next run sets up (LIGGGHTS recomputes them from the nodes then).
+  tri_mesh_->updateCenterRbound(0, elements);
+  set_up_ = false;
 }
 
 }  // namespace demfem::liggghts

@@ -12,6 +12,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -24,6 +25,8 @@ class FixContactPropertyAtomWall;
 }  // namespace LAMMPS_NS
 
 namespace demfem::liggghts {
+
+class MeshNodeAccess;
 
 /// What a coupling step reports (meaningful on rank 0 after advance()).
 struct StepReport {
@@ -52,11 +55,14 @@ class LiggghtsDomain {
   /// the mean over the substeps, else those of the last one.
   StepReport advance(double dt, std::int64_t substeps, bool average);
 
-  /// Largest distance of LIGGGHTS's mesh nodes from `positions` (3 n, m): the adapter does
-  /// not deform the mesh, so a step with other kinematics is refused by the caller.
-  double mesh_offset(const double* positions) const;
+  /// Moves LIGGGHTS's coupling mesh to the structure's node `positions` (3 n, m) with the
+  /// node `velocities` (3 n, m/s; the contact law's wall velocity at each contact, interpolated
+  /// over the triangle), on every rank, for the steps that follow.
+  void move_mesh(const std::vector<double>& positions, const std::vector<double>& velocities);
 
   const InterfaceMesh& mesh() const { return mesh_; }
+  /// Where LIGGGHTS's mesh nodes are (3 n, m).
+  const std::vector<double>& mesh_positions() const { return positions_; }
 
  private:
   void command(const std::string& line);
@@ -74,6 +80,8 @@ class LiggghtsDomain {
   LAMMPS_NS::LAMMPS* lammps_ = nullptr;
   LAMMPS_NS::TriMesh* tri_mesh_ = nullptr;
   LAMMPS_NS::FixContactPropertyAtomWall* contacts_ = nullptr;
+  std::unique_ptr<MeshNodeAccess> node_access_;
+  std::vector<double> positions_;  ///< 3 n: the mesh nodes as LIGGGHTS holds them, m
   bool set_up_ = false;  ///< LIGGGHTS has set up a run with the current time step
   double dem_timestep_ = 0.0;
   double timestep_ = 0.0;  ///< LIGGGHTS's time step now, s
