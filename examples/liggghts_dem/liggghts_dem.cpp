@@ -6,8 +6,8 @@
 // yes`. Each coupling step runs cmd.substeps LIGGGHTS steps and returns the particles' forces on
 // the interface nodes (each contact's force with the barycentric weights of its contact point,
 // as dem_server distributes them), gathered from every rank onto rank 0, which speaks the
-// protocol. The interface stays where the structure published it: one-way static
-// coupling (docs/liggghts.md).
+// protocol. A step with the structure's kinematics first moves LIGGGHTS's mesh to the node
+// positions of the step's start, with the node velocities (docs/liggghts.md).
 //
 // In the scene:
 //   [dem]
@@ -18,7 +18,8 @@
 //   deck = "beam_fixed_ci.liggghts"   # relative to the scene's folder
 //   mesh_fix = "demfem_surface"       # the deck's fix mesh/surface on ${demfem_mesh}
 //
-// Run: ./demfem run examples/liggghts_dem/beam_fixed_ci.toml --set ... (docs/liggghts.md).
+// Run: ./demfem run examples/liggghts_dem/beam_fixed_ci.toml (one-way static) or
+//      ./demfem run examples/liggghts_dem/beam_spheres_ci.toml (two-way, just in time).
 // demfem starts it with --scene FILE --segment NAME [--set K=V]... --output-dir DIR [--resume].
 #include <mpi.h>
 

@@ -103,7 +103,7 @@ std::string LiggghtsDomain::attach(const InterfaceMesh& mesh) {
 
 std::string LiggghtsDomain::check_coupling_mesh() {
   const std::string deck = deck_.string();
-  const std::string add_line = "add `fix " + mesh_fix_ +
+  const std::string add_line = "Add `fix " + mesh_fix_ +
                                " all mesh/surface file ${demfem_mesh} type T` (T: the wall's "
                                "material type) and list it in a fix wall/gran with "
                                "`store_force_contact_stress yes`";
@@ -123,7 +123,7 @@ std::string LiggghtsDomain::check_coupling_mesh() {
   const std::string style = fix->style;
   if (style.rfind("mesh/surface", 0) != 0)
     return "fix '" + mesh_fix_ + "' of the LIGGGHTS deck " + deck + " is a " + style +
-           ", not a mesh/surface: " + add_line;
+           ", not a mesh/surface. " + add_line;
   auto* surface = static_cast<LAMMPS_NS::FixMeshSurface*>(fix);
   contacts_ = surface->meshforceContactStress();
   if (!contacts_)
