@@ -32,6 +32,11 @@ void broadcast_values(MPI_Comm world, std::vector<double>& values) {
   MPI_Bcast(values.data(), static_cast<int>(values.size()), MPI_DOUBLE, 0, world);
 }
 
+std::filesystem::path broadcast_path(MPI_Comm world, std::string text) {
+  MPI_Bcast(text.data(), static_cast<int>(text.size()), MPI_CHAR, 0, world);
+  return text;
+}
+
 void broadcast_mesh(MPI_Comm world, InterfaceMesh& mesh) {
   MPI_Bcast(mesh.reference_positions.data(), static_cast<int>(mesh.reference_positions.size()),
             MPI_DOUBLE, 0, world);
@@ -41,8 +46,10 @@ void broadcast_mesh(MPI_Comm world, InterfaceMesh& mesh) {
 
 }  // namespace
 
-LiggghtsBackend::LiggghtsBackend(MPI_Comm world, LiggghtsDomain& domain)
-    : world_(world), domain_(domain) {
+LiggghtsBackend::LiggghtsBackend(MPI_Comm world, LiggghtsDomain& domain,
+                                 std::int64_t steps_per_coupling_step, bool resume)
+    : world_(world), domain_(domain), steps_per_coupling_step_(steps_per_coupling_step),
+      resume_(resume) {
   MPI_Comm_size(world_, &ranks_);
 }
 
@@ -52,17 +59,25 @@ std::string LiggghtsBackend::name() const {
 }
 
 void LiggghtsBackend::on_mesh(const InterfaceMesh& mesh) {
-  InterfaceMesh copy = mesh;
+  mesh_ = mesh;
+  // A restarted process (--resume) is sent its checkpoint next: LIGGGHTS then starts from
+  // that checkpoint's restart file, once, instead of running the deck afresh and clearing it.
+  if (!resume_) attach_everywhere({});
+}
+
+void LiggghtsBackend::attach_everywhere(const std::string& restart) {
   broadcast_order(world_, {static_cast<double>(RankOrder::attach),
-                           static_cast<double>(mesh.node_count()),
-                           static_cast<double>(mesh.triangle_count()), 0.0, 0.0});
-  broadcast_mesh(world_, copy);
-  const std::string refusal = domain_.attach(copy);
+                           static_cast<double>(mesh_.node_count()),
+                           static_cast<double>(mesh_.triangle_count()),
+                           static_cast<double>(restart.size()), 0.0});
+  broadcast_mesh(world_, mesh_);
+  const std::string refusal = domain_.attach(mesh_, broadcast_path(world_, restart));
   if (!refusal.empty()) throw protocol::BackendError(protocol::ErrorKind::bad_input, refusal);
 }
 
 protocol::StepResult LiggghtsBackend::step(const protocol::StepCommand& cmd,
                                            protocol::InterfaceBuffers& buffers) {
+  if (!domain_.attached()) attach_everywhere({});  // resumed, but sent no checkpoint
   const bool average = cmd.force_mode == ForceMode::average;
   const bool kinematics = (cmd.flags & protocol::kStepSetKinematics) != 0;
   broadcast_order(world_, {static_cast<double>(RankOrder::step), cmd.dt,
@@ -90,18 +105,26 @@ protocol::StepResult LiggghtsBackend::step(const protocol::StepCommand& cmd,
 }
 
 void LiggghtsBackend::write_checkpoint(const std::filesystem::path& file, std::int64_t step) {
-  (void)file;
-  throw protocol::BackendError(
-      protocol::ErrorKind::bad_input,
-      "checkpoint of coupling step " + std::to_string(step) +
-          ": liggghts_dem does not write checkpoints (LIGGGHTS's restart files cannot yet be "
-          "read back into a user's deck); run the scene without [checkpoint]");
+  (void)step;
+  if (!domain_.attached()) attach_everywhere({});
+  const std::string path = file.string();
+  broadcast_order(world_, {static_cast<double>(RankOrder::checkpoint),
+                           static_cast<double>(path.size()), 0.0, 0.0, 0.0});
+  domain_.write_restart(broadcast_path(world_, path));
 }
 
 void LiggghtsBackend::restore_checkpoint(const std::filesystem::path& file, std::int64_t step) {
-  throw protocol::BackendError(protocol::ErrorKind::bad_input,
-                               "liggghts_dem cannot restore " + file.string() + " (step " +
-                                   std::to_string(step) + "): it writes no checkpoints");
+  const std::string path = file.string();
+  attach_everywhere(path);
+  const std::int64_t expected = step * steps_per_coupling_step_;
+  if (domain_.dem_steps() != expected)
+    throw protocol::BackendError(
+        protocol::ErrorKind::bad_input,
+        "checkpoint " + path + " holds LIGGGHTS step " + std::to_string(domain_.dem_steps()) +
+            ", not that of coupling step " + std::to_string(step) + " (" +
+            std::to_string(expected) + " = " + std::to_string(step) + " x n_D " +
+            std::to_string(steps_per_coupling_step_) + "): a deck that does not read_restart "
+            "${demfem_restart} when ${demfem_resume} is 1 starts afresh instead (docs/liggghts.md)");
 }
 
 void LiggghtsBackend::release_other_ranks() {
@@ -117,7 +140,8 @@ void serve_other_rank(MPI_Comm world, LiggghtsDomain& domain) {
         mesh.reference_positions.resize(3 * static_cast<std::size_t>(order[1]));
         mesh.triangles.resize(3 * static_cast<std::size_t>(order[2]));
         broadcast_mesh(world, mesh);
-        domain.attach(mesh);  // rank 0 reports a refusal; this rank waits for quit
+        // rank 0 reports a refusal; this rank waits for quit
+        domain.attach(mesh, broadcast_path(world, std::string(static_cast<std::size_t>(order[3]), ' ')));
         break;
       }
       case RankOrder::step:
@@ -128,6 +152,10 @@ void serve_other_rank(MPI_Comm world, LiggghtsDomain& domain) {
           domain.move_mesh(positions, velocities);
         }
         domain.advance(order[1], static_cast<std::int64_t>(order[2]), order[3] != 0.0);
+        break;
+      case RankOrder::checkpoint:
+        domain.write_restart(
+            broadcast_path(world, std::string(static_cast<std::size_t>(order[1]), ' ')));
         break;
       case RankOrder::quit:
         return;

@@ -25,6 +25,9 @@
 
 #include <CLI/CLI.hpp>
 
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <iostream>
 
 #include "demfem/interface/exit_status.hpp"
@@ -39,12 +42,13 @@ struct AdapterSettings {
   std::filesystem::path deck;
   std::string mesh_fix;
   double dem_timestep = 0.0;  ///< dem.dt, s
+  std::int64_t steps_per_coupling_step = 1;  ///< n_D = fem.dt / dem.dt
 };
 
 /// Reads [dem.external]; refuses what dem_server would do instead of LIGGGHTS.
 std::optional<int> read_settings(const demfem::scene::SolverCommandLine& cl,
                                  demfem::scene::RunSettings& run, AdapterSettings& settings) {
-  return demfem::scene::load_solver_scene(
+  const auto early = demfem::scene::load_solver_scene(
       cl, "dem", "liggghts_dem", run, [&](const demfem::scene::Table& dem) {
         if (dem.has("shapes"))
           throw demfem::scene::SceneError(
@@ -60,6 +64,21 @@ std::optional<int> read_settings(const demfem::scene::SolverCommandLine& cl,
           throw demfem::scene::SceneError(external.where("deck") + ": the LIGGGHTS deck " +
                                           settings.deck.string() + " does not exist");
       });
+  if (early) return early;
+  // The coupling step, to check a restored LIGGGHTS step counter (the launcher has checked
+  // that fem.dt is a whole multiple of dem.dt).
+  std::vector<demfem::scene::Override> overrides;
+  for (const auto& o : cl.overrides) overrides.push_back(demfem::scene::Override::parse(o));
+  try {
+    const auto doc = demfem::scene::Document::load(cl.scene_file, overrides);
+    const auto fem = doc.root().table("fem");
+    if (fem && fem->has("dt"))
+      settings.steps_per_coupling_step = std::llround(fem->number("dt") / settings.dem_timestep);
+  } catch (const demfem::scene::SceneError& e) {
+    std::cerr << e.what() << "\n";
+    return demfem::kExitBadInput;
+  }
+  return std::nullopt;
 }
 
 }  // namespace
@@ -95,11 +114,13 @@ int main(int argc, char** argv) {
   }
 
   int code = 0;
+  bool restored = false;
   {
     demfem::liggghts::LiggghtsDomain domain(MPI_COMM_WORLD, settings.deck, settings.mesh_fix,
                                             settings.dem_timestep, cl.output_folder(run));
     if (rank == 0) {
-      demfem::liggghts::LiggghtsBackend backend(MPI_COMM_WORLD, domain);
+      demfem::liggghts::LiggghtsBackend backend(MPI_COMM_WORLD, domain,
+                                                settings.steps_per_coupling_step, resume);
       code = demfem::protocol::serve(backend, {.segment = cl.segment,
                                                .role = demfem::protocol::Role::dem,
                                                .remove_orphaned_segments = true});
@@ -107,6 +128,15 @@ int main(int argc, char** argv) {
     } else {
       demfem::liggghts::serve_other_rank(MPI_COMM_WORLD, domain);
     }
+    restored = domain.restored();
+  }
+  if (restored) {
+    // After a read_restart LIGGGHTS 3.8 leaves the heap damaged: MPI_Finalize and the static
+    // destructors then abort. The work is done and written: end here. (Under mpirun, whose
+    // ranks must finalize, that makes mpirun's own status 1: docs/liggghts.md.)
+    MPI_Barrier(MPI_COMM_WORLD);
+    std::fflush(nullptr);
+    std::_Exit(code);
   }
   MPI_Finalize();
   return code;

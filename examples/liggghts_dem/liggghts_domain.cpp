@@ -9,6 +9,7 @@
 #include <library.h>
 #include <modify.h>
 #include <tri_mesh.h>
+#include <update.h>
 
 #include <algorithm>
 #include <cmath>
@@ -63,7 +64,12 @@ LiggghtsDomain::LiggghtsDomain(MPI_Comm world, fs::path deck, std::string mesh_f
 }
 
 LiggghtsDomain::~LiggghtsDomain() {
-  if (lammps_) lammps_close(lammps_);
+  // After a read_restart LIGGGHTS 3.8 crashes in its own destructor (in deleting its Error
+  // object): the instance is then left to the process's end, its files flushed.
+  if (restored_)
+    std::fflush(nullptr);
+  else if (lammps_)
+    lammps_close(lammps_);
 }
 
 void LiggghtsDomain::command(const std::string& line) {
@@ -79,25 +85,47 @@ void LiggghtsDomain::set_timestep(double timestep) {
   set_up_ = false;
 }
 
-std::string LiggghtsDomain::attach(const InterfaceMesh& mesh) {
+std::string LiggghtsDomain::attach(const InterfaceMesh& mesh, const fs::path& restart) {
   mesh_ = mesh;
   const fs::path stl = output_dir_ / "demfem_interface.stl";
   const fs::path log = output_dir_ / "liggghts.log";
-  if (rank_ == 0) {
-    fs::create_directories(output_dir_);
-    write_interface_stl(mesh_, stl);
+  const std::string restart_file = restart.empty() ? "none" : restart.string();
+  const std::string resume = restart.empty() ? "0" : "1";
+  if (lammps_) {
+    // A restore: LIGGGHTS reads a restart file only into an empty simulation. `clear` empties
+    // this one (a second LIGGGHTS instance in the same process crashes in 3.8: its style
+    // tables are global); the variables stay and are set anew.
+    node_access_.reset();
+    tri_mesh_ = nullptr;
+    contacts_ = nullptr;
+    set_up_ = false;
+    timestep_ = 0.0;
+    command("clear");
+    command("variable demfem_restart delete");
+    command("variable demfem_resume delete");
+    command("variable demfem_restart index " + restart_file);
+    command("variable demfem_resume index " + resume);
+  } else {
+    if (rank_ == 0) {
+      fs::create_directories(output_dir_);
+      write_interface_stl(mesh_, stl);
+    }
+    MPI_Barrier(world_);
+    // The deck reads the mesh as ${demfem_mesh}; LIGGGHTS's screen output goes to stdout (the
+    // run's log), its own log file beside the run's output.
+    std::vector<std::string> args = {"liggghts",      "-log",         log.string(),
+                                     "-echo",         "none",         "-var",
+                                     "demfem_mesh",   stl.string(),   "-var",
+                                     "demfem_restart", restart_file,  "-var",
+                                     "demfem_resume", resume};
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    void* handle = nullptr;
+    lammps_open(static_cast<int>(argv.size()), argv.data(), world_, &handle);
+    lammps_ = static_cast<LAMMPS_NS::LAMMPS*>(handle);
   }
-  MPI_Barrier(world_);
-  // The deck reads the mesh as ${demfem_mesh}; LIGGGHTS's screen output goes to stdout (the
-  // run's log), its own log file beside the run's output.
-  std::vector<std::string> args = {"liggghts", "-log", log.string(), "-echo", "none",
-                                   "-var", "demfem_mesh", stl.string()};
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  void* handle = nullptr;
-  lammps_open(static_cast<int>(argv.size()), argv.data(), world_, &handle);
-  lammps_ = static_cast<LAMMPS_NS::LAMMPS*>(handle);
   lammps_file(lammps_, const_cast<char*>(deck_.c_str()));
+  restored_ = restored_ || !restart.empty();
   return check_coupling_mesh();
 }
 
@@ -259,6 +287,18 @@ double LiggghtsDomain::local_max_overlap() const {
     }
   }
   return largest;
+}
+
+void LiggghtsDomain::write_restart(const fs::path& file) {
+  const fs::path partial = file.string() + ".partial";
+  command("write_restart " + partial.string());
+  MPI_Barrier(world_);
+  if (rank_ == 0) fs::rename(partial, file);
+  MPI_Barrier(world_);
+}
+
+std::int64_t LiggghtsDomain::dem_steps() const {
+  return static_cast<std::int64_t>(lammps_->update->ntimestep);
 }
 
 void LiggghtsDomain::move_mesh(const std::vector<double>& positions,

@@ -46,10 +46,20 @@ class LiggghtsDomain {
   LiggghtsDomain(const LiggghtsDomain&) = delete;
   LiggghtsDomain& operator=(const LiggghtsDomain&) = delete;
 
-  /// Writes the interface as STL (rank 0), opens LIGGGHTS, runs the deck, sets the time step
-  /// and checks that it holds the coupling mesh. Returns an empty string when it does, else why not (the same
-  /// text on every rank; LIGGGHTS's own errors end the process as LIGGGHTS does).
-  std::string attach(const InterfaceMesh& mesh);
+  /// Writes the interface as STL (rank 0), opens LIGGGHTS (again, if it was open), runs the
+  /// deck with ${demfem_restart} = `restart` (a checkpoint's LIGGGHTS restart file, or "none"
+  /// for a fresh start) and ${demfem_resume} = 1 or 0 (LIGGGHTS 3.8's `if` compares numbers
+  /// only), sets the time step and checks that it holds the coupling mesh.
+  /// Returns an empty string when it does, else why not (the same text on every rank;
+  /// LIGGGHTS's own errors end the process as LIGGGHTS does).
+  std::string attach(const InterfaceMesh& mesh, const std::filesystem::path& restart = {});
+
+  /// Writes LIGGGHTS's restart file (particles, contact histories, fix states) to `file`,
+  /// whole or not at all.
+  void write_restart(const std::filesystem::path& file);
+
+  /// LIGGGHTS's step counter: n_D per coupling step since the start.
+  std::int64_t dem_steps() const;
 
   /// Advances `substeps` LIGGGHTS steps of dt / substeps; with `average` the node forces are
   /// the mean over the substeps, else those of the last one.
@@ -61,6 +71,10 @@ class LiggghtsDomain {
   void move_mesh(const std::vector<double>& positions, const std::vector<double>& velocities);
 
   const InterfaceMesh& mesh() const { return mesh_; }
+  bool attached() const { return lammps_ != nullptr; }
+  /// LIGGGHTS has read a restart file: the process must then end without running static
+  /// destructors (LIGGGHTS 3.8 crashes in them afterwards).
+  bool restored() const { return restored_; }
   /// Where LIGGGHTS's mesh nodes are (3 n, m).
   const std::vector<double>& mesh_positions() const { return positions_; }
 
@@ -82,6 +96,7 @@ class LiggghtsDomain {
   LAMMPS_NS::FixContactPropertyAtomWall* contacts_ = nullptr;
   std::unique_ptr<MeshNodeAccess> node_access_;
   std::vector<double> positions_;  ///< 3 n: the mesh nodes as LIGGGHTS holds them, m
+  bool restored_ = false;  ///< LIGGGHTS has read a restart file (see the destructor)
   bool set_up_ = false;  ///< LIGGGHTS has set up a run with the current time step
   double dem_timestep_ = 0.0;
   double timestep_ = 0.0;  ///< LIGGGHTS's time step now, s

@@ -13,6 +13,11 @@
             with the moved surface is Hertz's static overlap under it within 1e-4 (against the
             unmoved surface it would be 27 % less), and 1 and 2 ranks give the same run
             (every coupling step's force and deflection within 1e-12)
+  restart   the same scene to 15 ms, liggghts_dem (one rank, started without mpirun) killed in
+            coupling step 145 (the spheres back on the beam after their first bounce):
+            restarted from the step-140 checkpoint
+            (a LIGGGHTS restart file that the deck reads), and coupling.csv equals the
+            uninterrupted run's in every value column, bitwise
   badinput  a deck without the coupling mesh, a dem.external.mesh_fix that names no fix, a deck
             whose wall keeps no contacts, polyhedra (dem.shapes), a LIGGGHTS error mid-run
             (atoms lost): each a clear message, a non-zero exit status
@@ -136,6 +141,31 @@ def case_moving(demfem_run, source, program, tmp):
     print(f"1 vs 2 ranks: largest relative difference {worst:.3e} over {len(series[1])} steps")
 
 
+def case_restart(demfem_run, source, program, tmp):
+    scene = os.path.join(source, "examples/liggghts_dem/beam_spheres_ci.toml")
+    common = ["--set", "run.end_time=0.015", "--set", f'dem.command=["{program}"]']
+    ra = run(demfem_run, scene, f"{tmp}/straight", *common)
+    rb = run(demfem_run, scene, f"{tmp}/killed", *common, "--debug-kill", "dem:145")
+    if not (check(ra.returncode == 0, f"uninterrupted run: exit {ra.returncode}\n"
+                  f"{ra.stdout[-2000:]}\n{ra.stderr[-2000:]}") and
+            check(rb.returncode == 0, f"killed run: exit {rb.returncode}\n"
+                  f"{rb.stdout[-2000:]}\n{rb.stderr[-2000:]}")):
+        return
+    text = rb.stdout + rb.stderr
+    check("recovered: every process is back at step 140" in text,
+          f"no recovery from step 140 reported: {text[-1500:]}")
+    keys = ["step", "time", "drift", "work_dem", "work_fem", "max_overlap", "kinetic_energy",
+            "fem_max_displacement", "force_sum_z", "energy_error"]
+    xa, xb = rows(f"{tmp}/straight"), rows(f"{tmp}/killed")
+    check(len(xa) == len(xb) == 150, f"rows {len(xa)} and {len(xb)}, expected 150")
+    check(len(xa) > 145 and float(xa[145]["force_sum_z"]) < -50.0,
+          "the spheres were not on the beam when it was killed")
+    differing = [(a["step"], k) for a, b in zip(xa, xb) for k in keys if a[k] != b[k]]
+    check(not differing, f"the recovered run differs from the uninterrupted one: {differing[:5]}")
+    print(f"restart: killed in step 145, recovered from step 140, final force "
+          f"{xb[-1]['force_sum_z']} N, {len(differing)} values differ")
+
+
 def expect_refusal(demfem_run, scene, out, what, pattern, *extra):
     r = run(demfem_run, scene, out, *extra)
     text = r.stdout + r.stderr
@@ -201,7 +231,8 @@ def main():
         return 77
     tmp = tempfile.mkdtemp(prefix="demfem_liggghts_")
     try:
-        {"beam": case_beam, "moving": case_moving, "badinput": case_badinput}[case](demfem_run, source, program, tmp)
+        {"beam": case_beam, "moving": case_moving, "restart": case_restart,
+         "badinput": case_badinput}[case](demfem_run, source, program, tmp)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     for f in failures:
