@@ -115,6 +115,14 @@ void LiggghtsBackend::write_checkpoint(const std::filesystem::path& file, std::i
 
 void LiggghtsBackend::restore_checkpoint(const std::filesystem::path& file, std::int64_t step) {
   const std::string path = file.string();
+  if (ranks_ > 1)
+    throw protocol::BackendError(
+        protocol::ErrorKind::bad_input,
+        "cannot restore " + path + " on " + std::to_string(ranks_) +
+            " MPI ranks: LIGGGHTS 3.8's read_restart corrupts its memory on more than one rank "
+            "(it aborts in AtomVecSphere::unpack_restart); resume on one rank (--resume with "
+            "dem.command = [\".../liggghts_dem\"]: the restart file does not depend on the rank "
+            "count), then continue on more from its next checkpoint");
   attach_everywhere(path);
   const std::int64_t expected = step * steps_per_coupling_step_;
   if (domain_.dem_steps() != expected)
