@@ -1,0 +1,143 @@
+// liggghts_dem: LIGGGHTS as demfem's DEM (dem.backend = "external"), on one or more MPI ranks.
+//
+// The user's own LIGGGHTS input deck makes the particles, walls and contact models; demfem's
+// interface mesh reaches it as an STL file, ${demfem_mesh}, which the deck loads as a
+// `fix mesh/surface` and lists among the meshes of a `fix wall/gran ... store_force_contact_stress
+// yes`. Each coupling step runs cmd.substeps LIGGGHTS steps and returns the particles' forces on
+// the interface nodes (each contact's force with the barycentric weights of its contact point,
+// as dem_server distributes them), gathered from every rank onto rank 0, which speaks the
+// protocol. A step with the structure's kinematics first moves LIGGGHTS's mesh to the node
+// positions of the step's start, with the node velocities (docs/liggghts.md).
+//
+// In the scene:
+//   [dem]
+//   backend = "external"
+//   command = ["mpirun", "-np", "2", "<build>/bin/liggghts_dem"]   # or the program alone
+//   dt = 2e-6
+//   [dem.external]
+//   deck = "beam_fixed_ci.liggghts"   # relative to the scene's folder
+//   mesh_fix = "demfem_surface"       # the deck's fix mesh/surface on ${demfem_mesh}
+//
+// Run: ./demfem run examples/liggghts_dem/beam_fixed_ci.toml (one-way static) or
+//      ./demfem run examples/liggghts_dem/beam_spheres_ci.toml (two-way, just in time).
+// demfem starts it with --scene FILE --segment NAME [--set K=V]... --output-dir DIR [--resume].
+#include <mpi.h>
+
+#include <CLI/CLI.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <iostream>
+
+#include "demfem/interface/exit_status.hpp"
+#include "demfem/protocol/protocol.hpp"
+#include "demfem/scene/solver_command_line.hpp"
+#include "liggghts_backend.hpp"
+#include "liggghts_domain.hpp"
+
+namespace {
+
+struct AdapterSettings {
+  std::filesystem::path deck;
+  std::string mesh_fix;
+  double dem_timestep = 0.0;  ///< dem.dt, s
+  std::int64_t steps_per_coupling_step = 1;  ///< n_D = fem.dt / dem.dt
+};
+
+/// Reads [dem.external]; refuses what dem_server would do instead of LIGGGHTS.
+std::optional<int> read_settings(const demfem::scene::SolverCommandLine& cl,
+                                 demfem::scene::RunSettings& run, AdapterSettings& settings) {
+  const auto early = demfem::scene::load_solver_scene(
+      cl, "dem", "liggghts_dem", run, [&](const demfem::scene::Table& dem) {
+        if (dem.has("shapes"))
+          throw demfem::scene::SceneError(
+              dem.where("shapes") +
+              ": dilated polyhedra are dem_server's (dem.backend = \"cpu\" or \"cuda\"); "
+              "liggghts_dem couples LIGGGHTS's spheres only");
+        settings.dem_timestep = dem.number("dt", demfem::scene::Range::positive());
+        const auto external = dem.required_table("external");
+        settings.deck = external.path("deck");
+        settings.mesh_fix = external.string("mesh_fix");
+        external.finish();
+        if (!std::filesystem::is_regular_file(settings.deck))
+          throw demfem::scene::SceneError(external.where("deck") + ": the LIGGGHTS deck " +
+                                          settings.deck.string() + " does not exist");
+      });
+  if (early) return early;
+  // The coupling step, to check a restored LIGGGHTS step counter (the launcher has checked
+  // that fem.dt is a whole multiple of dem.dt).
+  std::vector<demfem::scene::Override> overrides;
+  for (const auto& o : cl.overrides) overrides.push_back(demfem::scene::Override::parse(o));
+  try {
+    const auto doc = demfem::scene::Document::load(cl.scene_file, overrides);
+    const auto fem = doc.root().table("fem");
+    if (fem && fem->has("dt"))
+      settings.steps_per_coupling_step = std::llround(fem->number("dt") / settings.dem_timestep);
+  } catch (const demfem::scene::SceneError& e) {
+    std::cerr << e.what() << "\n";
+    return demfem::kExitBadInput;
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  MPI_Init(&argc, &argv);
+  int rank = 0;
+  MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+
+  CLI::App app{"liggghts_dem: LIGGGHTS as demfem's DEM over the SDK's DEM side"};
+  demfem::scene::SolverCommandLine cl;
+  cl.add_to(app, "dem", "LIGGGHTS");
+  bool resume = false;
+  app.add_flag("--resume", resume, "Continue from the checkpoint demfem restores");
+  demfem::scene::RunSettings run;
+  AdapterSettings settings;
+  std::optional<int> early;
+  // Every rank parses and reads the scene (the same files: the same verdict); only rank 0
+  // prints the reason.
+  {
+    std::streambuf* quiet = rank == 0 ? nullptr : std::cerr.rdbuf(nullptr);
+    early = demfem::scene::parse_solver_command_line(app, argc, argv);
+    if (!early) early = read_settings(cl, run, settings);
+    if (!early && cl.segment.empty()) {
+      std::cerr << "liggghts_dem: --segment is required: it runs only under demfem run\n";
+      early = demfem::kExitBadInput;
+    }
+    if (quiet) std::cerr.rdbuf(quiet);
+  }
+  if (early) {
+    MPI_Finalize();
+    return *early;
+  }
+
+  int code = 0;
+  bool restored = false;
+  {
+    demfem::liggghts::LiggghtsDomain domain(MPI_COMM_WORLD, settings.deck, settings.mesh_fix,
+                                            settings.dem_timestep, cl.output_folder(run));
+    if (rank == 0) {
+      demfem::liggghts::LiggghtsBackend backend(MPI_COMM_WORLD, domain,
+                                                settings.steps_per_coupling_step, resume);
+      code = demfem::protocol::serve(backend, {.segment = cl.segment,
+                                               .role = demfem::protocol::Role::dem,
+                                               .remove_orphaned_segments = true});
+      backend.release_other_ranks();
+    } else {
+      demfem::liggghts::serve_other_rank(MPI_COMM_WORLD, domain);
+    }
+    restored = domain.restored();
+  }
+  if (restored) {
+    // After a read_restart LIGGGHTS 3.8 leaves the heap damaged: MPI_Finalize and the static
+    // destructors then abort. The work is done and written: end here. (Under mpirun, whose
+    // ranks must finalize, that makes mpirun's own status 1: docs/liggghts.md.)
+    MPI_Barrier(MPI_COMM_WORLD);
+    std::fflush(nullptr);
+    std::_Exit(code);
+  }
+  MPI_Finalize();
+  return code;
+}
