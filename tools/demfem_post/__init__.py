@@ -1,0 +1,25 @@
+"""demfem_post: the post-processing API of demfem's run folders (docs/postprocessing.md).
+
+    import demfem_post
+    run = demfem_post.open("out/beam_fixed_ci")
+    run.info["status"]                    # run.json
+    run.beam_check["coupled_deflection"]  # numpy arrays, one per CSV column
+    run.monitor.frame()                   # a pandas DataFrame (when pandas is installed)
+    run.report("sheet")                   # the key figures tools/sheet_report.py wrote
+    run.plot("coupling", "force_sum_z", out="force.png")
+
+With tools/ on PYTHONPATH (the scripts in tools/ have it already). The CSV reader, the scene
+reader (with --set overrides) and the exit-status names are the ones the tools use."""
+
+from .needs import MissingModule, need
+from .run_folder import Run
+from .scene import load_scene, run_overrides
+from .table import Table, read_csv
+
+__all__ = ["open", "Run", "Table", "read_csv", "load_scene", "run_overrides", "need",
+           "MissingModule"]
+
+
+def open(path):  # noqa: A001 -- the API's entry point, demfem_post.open(folder)
+    """The run in output folder `path` (FileNotFoundError when it is not a folder)."""
+    return Run(path)
