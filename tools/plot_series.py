@@ -12,28 +12,11 @@ is needed. Exit status 2 on a missing file, an unknown column or a CSV without d
 """
 
 import argparse
-import csv
 import math
 import os
 import sys
 
-
-def read_csv(path):
-    with open(path, newline="") as f:
-        rows = list(csv.reader(f))
-    if len(rows) < 2:
-        raise ValueError(f"{path}: no data rows (only a header or empty)")
-    header = [h.strip() for h in rows[0]]
-    cols = {h: [] for h in header}
-    for lineno, row in enumerate(rows[1:], start=2):
-        if len(row) != len(header):
-            raise ValueError(f"{path}:{lineno}: {len(row)} fields, header has {len(header)}")
-        for h, v in zip(header, row):
-            try:
-                cols[h].append(float(v))
-            except ValueError:
-                cols[h].append(math.nan)
-    return header, cols
+from demfem_post import read_csv
 
 
 def plot(path, x_name, columns, out):
@@ -42,7 +25,8 @@ def plot(path, x_name, columns, out):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    header, cols = read_csv(path)
+    table = read_csv(path, incomplete_rows="error", text_as_nan=True)
+    header, cols = table.header, table.lists()
     if x_name is None:
         x_name = "time" if "time" in cols else header[0]
     if x_name not in cols:

@@ -23,8 +23,8 @@ import json
 import os
 import sys
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from sheet_report import column, moving_average, read_csv, stats, window  # noqa: E402
+from demfem_post import read_csv
+from demfem_post.windows import moving_average, stats, window
 
 
 def pair(text):
@@ -35,8 +35,7 @@ def pair(text):
 def series(out_dir, name):
     path = os.path.join(out_dir, f"sensor_{name}.csv")
     cols = read_csv(path)
-    return (column(cols, "time", path), column(cols, "mass_flow", path),
-            column(cols, "mass_crossed", path))
+    return cols.column("time"), cols.column("mass_flow"), cols.column("mass_crossed")
 
 
 def mass_at(t, mass, when):
