@@ -18,7 +18,8 @@ import os
 import subprocess
 import sys
 
-from demfem_post import read_csv
+from demfem_post import MissingModule, read_csv
+from demfem_post.plots import pyplot
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENES = {"rocks": "cases/heap_repose_rocks.toml", "spheres": "cases/heap_repose_rocks_ref.toml"}
@@ -86,10 +87,9 @@ def main():
     with open(os.path.join(a.out, f"heap_study_seed{a.seed}.json"), "w") as f:
         json.dump(results, f, indent=1)
     try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
+        plt = pyplot()
+    except MissingModule as e:
+        print(f"heap_study.py: no figure: {e}", file=sys.stderr)
         return
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4))
     for r in results.values():

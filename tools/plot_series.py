@@ -17,13 +17,11 @@ import os
 import sys
 
 from demfem_post import read_csv
+from demfem_post.plots import pyplot
 
 
 def plot(path, x_name, columns, out):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     table = read_csv(path, incomplete_rows="error", text_as_nan=True)
     header, cols = table.header, table.lists()
@@ -77,9 +75,8 @@ def main(argv):
             if os.path.dirname(out):
                 os.makedirs(os.path.dirname(out), exist_ok=True)
             print(plot(path, a.x, columns, out))
-    except ImportError:
-        print("plot_series.py: matplotlib is missing (Debian: apt-get install python3-matplotlib)",
-              file=sys.stderr)
+    except ImportError as e:  # demfem_post's MissingModule: names the interpreter to use
+        print(f"plot_series.py: {e}", file=sys.stderr)
         return 2
     except (OSError, KeyError, ValueError) as e:
         print(f"plot_series.py: {e.args[0] if e.args else e}", file=sys.stderr)

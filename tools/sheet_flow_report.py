@@ -24,6 +24,7 @@ import os
 import sys
 
 from demfem_post import read_csv
+from demfem_post.plots import pyplot_or_exit
 from demfem_post.windows import moving_average, stats, window
 
 
@@ -146,10 +147,7 @@ def main(argv):
                         row += ["", "", ""]
                 f.write(",".join(row) + "\n")
     if a.figure:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        plt = pyplot_or_exit("sheet_flow_report.py")
 
         fig, ax = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True)
         for n, (t, rate, mass) in runs.items():

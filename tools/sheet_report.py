@@ -30,6 +30,7 @@ import os
 import sys
 
 from demfem_post import read_csv
+from demfem_post.plots import pyplot
 from demfem_post.windows import moving_average, stats, window
 
 
@@ -121,10 +122,7 @@ def report_text(out_dir, flow, defl, force, probe):
 
 
 def plots(out_dir, ft, rate, mass, flow, mt, series, probe, smooth, fz, defl):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, ax = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True)
     ax[0].step(ft, rate, where="pre", lw=1.2, color="tab:red")
@@ -209,9 +207,8 @@ def main(argv):
             f.write(text)
         print(text, end="")
         plots(d, ft, rate, mass, flow, mt, series, a.probe, smooth, fz, defl)
-    except ImportError:
-        print("sheet_report.py: matplotlib is missing (Debian: python3-matplotlib)",
-              file=sys.stderr)
+    except ImportError as e:  # demfem_post's MissingModule: names the interpreter to use
+        print(f"sheet_report.py: {e}", file=sys.stderr)
         return 2
     except (OSError, KeyError, ValueError) as e:
         print(f"sheet_report.py: {e.args[0] if e.args else e}", file=sys.stderr)

@@ -44,6 +44,7 @@ import sys
 import tomllib
 
 from demfem_post import load_scene, read_csv, run_overrides
+from demfem_post.plots import pyplot_or_exit
 
 G = 9.81
 
@@ -340,9 +341,7 @@ def main(argv):
         f.write("\n".join(lines) + "\n")
     print("\n".join(lines))
 
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot_or_exit("sleeper_report.py")
     f1, ax = plt.subplots(1, 2, figsize=(11, 4))
     ax[0].plot(t, settle, label="mean")
     ax[0].plot(t, [1e3 * v for v in uz[0]], lw=0.7, label=probes[0])

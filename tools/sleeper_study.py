@@ -58,6 +58,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 
 from demfem_post import load_scene, read_csv
+from demfem_post.plots import pyplot_or_exit
 from sweep import scene_keys
 from sweep.exit_status import EXIT_BLOW_UP
 
@@ -403,9 +404,7 @@ def member_series(rec):
 
 
 def cmd_collect(a):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot_or_exit("sleeper_study.py")
     for study in a.studies:
         label, unit, values, _, _ = STUDIES[study]
         folder = os.path.join(os.path.abspath(a.out), study)

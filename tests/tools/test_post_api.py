@@ -69,7 +69,8 @@ def write(path, text):
 # --- units --------------------------------------------------------------------------------
 def units_csv(d):
     # the last row cut short, as a run killed while writing it leaves it
-    p = write(d / "sensor_outflow.csv", " time, mass_flow ,mass_crossed\n0.1,1.5,0\n0.2,2.5,0.2\n0.3,")
+    p = write(d / "sensor_outflow.csv",
+              " time, mass_flow ,mass_crossed\n0.1,1.5,0\n0.2,2.5,0.2\n0.3,")
     t = demfem_post.read_csv(p)
     check(t.header == ["time", "mass_flow", "mass_crossed"], "header names are stripped")
     check(t.rows == 2 and t.column("mass_flow") == [1.5, 2.5], "an incomplete last row is skipped")
@@ -96,6 +97,21 @@ def units_csv(d):
     except ImportError:
         check(raises(MissingModule, t.frame, "python3-pandas", sys.executable),
               "frame() without pandas names the package and the interpreter")
+
+
+def units_needs():
+    try:
+        demfem_post.need("no_such_module_of_demfem", "python3-nothing")
+        check(False, "a missing module is refused")
+    except MissingModule as e:
+        check(all(w in str(e) for w in ("no_such_module_of_demfem", sys.executable,
+                                         "python3-nothing", "/usr/bin/python3")),
+              "a missing module names itself, this interpreter, the package and the one to use")
+    script = ("from demfem_post.needs import need_or_exit\n"
+              "need_or_exit('tool.py', 'no_such_module_of_demfem', 'python3-x', 'pvpython')")
+    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    check(r.returncode == 2 and r.stderr.startswith("tool.py: no_such_module_of_demfem is missing")
+          and "pvpython" in r.stderr, "a script without a module it needs says so and exits 2")
 
 
 def units_run(d):
@@ -277,6 +293,7 @@ def main(argv):
     with tempfile.TemporaryDirectory(prefix="post_api_") as d:
         if mode == "units":
             units_csv(Path(d))
+            units_needs()
             units_run(Path(d))
         elif mode in ("beam", "sheet", "sleeper") and len(argv) == 2:
             globals()[mode](os.path.abspath(argv[1]), d)

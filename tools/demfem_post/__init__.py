@@ -11,10 +11,16 @@
 With tools/ on PYTHONPATH (the scripts in tools/ have it already). The CSV reader, the scene
 reader (with --set overrides) and the exit-status names are the ones the tools use."""
 
-from .needs import MissingModule, need
-from .run_folder import Run
-from .scene import load_scene, run_overrides
-from .table import Table, read_csv
+import sys
+
+if sys.version_info < (3, 11):  # tomllib, for the scenes
+    raise ImportError(f"demfem_post needs Python 3.11 or newer (tomllib); {sys.executable} is "
+                      f"Python {sys.version.split()[0]}: run with /usr/bin/python3 (Debian 12)")
+
+from .needs import MissingModule, need  # noqa: E402
+from .run_folder import Run  # noqa: E402
+from .scene import load_scene, run_overrides  # noqa: E402
+from .table import Table, read_csv  # noqa: E402
 
 __all__ = ["open", "Run", "Table", "read_csv", "load_scene", "run_overrides", "need",
            "MissingModule"]

@@ -1,14 +1,18 @@
 """One-line plots of a run's series with matplotlib (Agg: no display needed)."""
 
-from .needs import need
+from .needs import need, need_or_exit
 
 
 def pyplot():
     """matplotlib.pyplot on the Agg backend (MissingModule naming python3-matplotlib)."""
-    matplotlib = need("matplotlib", "python3-matplotlib")
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
+    need("matplotlib", "python3-matplotlib").use("Agg")
+    return need("matplotlib.pyplot", "python3-matplotlib")
+
+
+def pyplot_or_exit(tool):
+    """pyplot() for a script: without matplotlib, the reason as `tool: ...` and exit 2."""
+    need_or_exit(tool, "matplotlib", "python3-matplotlib").use("Agg")
+    return need_or_exit(tool, "matplotlib.pyplot", "python3-matplotlib")
 
 
 def plot_columns(table, y=None, x=None, out=None, ax=None):
