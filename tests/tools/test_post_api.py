@@ -3,13 +3,14 @@
 usage: test_post_api.py units
        test_post_api.py beam|sheet|sleeper DEMFEM_RUN
 
-units: the CSV reader, the run folder, the scene with overrides, exit names and plots on
-made-up files. beam, sheet, sleeper: run cases/beam_fixed_ci.toml, cases/sheet_ci.toml or
-cases/sleeper_ci.toml (with their prepare and post steps) in a temporary folder and get the
-numbers of the reports those runs write (the beam check table demfem_run prints,
-sheet_report.json, sleeper_report.json) out of the output folder through the API: the raw
-series as numpy arrays, the statistics with numpy, so that a wrong reader or a wrong column
-cannot agree with the report by construction. Exit 77 (skipped) where numpy is missing, or
+units: the CSV reader, the XDMF reader, missing modules, the run folder, the scene with
+overrides, exit names and plots on made-up files. beam, sheet, sleeper: run
+cases/beam_fixed_ci.toml, cases/sheet_ci.toml or cases/sleeper_ci.toml (with their prepare
+and post steps) in a temporary folder and get the numbers of the reports those runs write
+(the beam check table demfem_run prints, sheet_report.json, sleeper_report.json) out of the
+output folder through the API: the raw series as numpy arrays, the statistics with numpy, so
+that a wrong reader or a wrong column cannot agree with the report by construction; and the
+fields (XDMF + HDF5) against the series. Exit 77 (skipped) where numpy is missing, or
 matplotlib for the cases whose post steps plot. With tools/ on PYTHONPATH."""
 
 import json
@@ -114,6 +115,34 @@ def units_needs():
           and "pvpython" in r.stderr, "a script without a module it needs says so and exits 2")
 
 
+def units_fields(d):
+    from demfem_post.fields import FieldSeries
+    bad = write(d / "bad.xdmf", "<Xdmf><Domain>")
+    check(raises(ValueError, lambda: FieldSeries(bad), bad, "not XDMF"), "broken XML is named")
+    flat = write(d / "flat.xdmf", '<Xdmf><Domain><Grid Name="g"/></Domain></Xdmf>')
+    check(raises(ValueError, lambda: FieldSeries(flat), flat, "no temporal collection"),
+          "an XDMF file without snapshots is named")
+    item = '<DataItem Dimensions="2 3" Format="HDF">{}:/{}</DataItem>'
+    grid = ('<Grid Name="step_{k}" GridType="Uniform"><Time Value="{t}"/>'
+            '<Topology TopologyType="Polyvertex">' + item.format("p_{k}.h5", "vertex") +
+            '</Topology><Geometry GeometryType="XYZ">' + item.format("p_{k}.h5", "position") +
+            '</Geometry><Attribute Name="radius" Center="Node">' +
+            item.format("p_{k}.h5", "radius") + '</Attribute></Grid>')
+    snapshots = "".join(grid.format(k=k, t=0.05 * k) for k in range(3))
+    path = write(d / "particles.xdmf", '<Xdmf><Domain><Grid Name="particles" GridType='
+                 f'"Collection" CollectionType="Temporal">{snapshots}</Grid></Domain></Xdmf>')
+    fields = FieldSeries(path)
+    check(fields.times == [0.0, 0.05, 0.1] and len(fields) == 3, "the snapshots' times")
+    f = fields.at(0.06)
+    check(f.name == "step_1" and f.time == 0.05 and f.cell_type == "Polyvertex" and
+          list(f.point_data) == ["radius"] and list(f.cell_data) == [],
+          "the snapshot nearest to a time, its topology and data names")
+    check(raises(KeyError, lambda: f["mass"], "no data 'mass'", "radius"),
+          "an unknown datum names the ones there are")
+    check(raises(FileNotFoundError, lambda: f.points, str(d / "p_1.h5")),
+          "a missing HDF5 file is named")
+
+
 def units_run(d):
     out = d / "out"
     out.mkdir()
@@ -193,6 +222,18 @@ def beam(demfem_run, work):
     # the load reached the beam: the last coupling step's interface force is the load
     check(f"{-run.coupling['force_sum_z'][-1]:.9g}" == f"{bc['coupled_load'][0]:.9g}",
           "coupling.csv's last force_sum_z is the beam check's load")
+    # the FEM field (fem.xdmf + HDF5) at the end: the largest nodal displacement is
+    # fem_series.csv's, the node at the probe point moved by the coupled deflection
+    fem = run.fem(run.coupling["time"][-1])
+    u = fem["displacement"]
+    check(fem.cell_type == "Hexahedron" and fem.cells.shape == (80, 8) and
+          fem.points.shape == (189, 3), "the 20 x 2 x 2 hex8 mesh: 80 elements, 189 nodes")
+    check(np.linalg.norm(u, axis=1).max() == run.fem_series["max_displacement"][-1],
+          "largest displacement of the field = fem_series.csv's")
+    probe = np.argmin(np.linalg.norm(fem.points - b["probe"], axis=1))
+    # the beam check takes position - reference position (0.1 m): round-off of 1e-17 m
+    check(close(u[probe, 2], coupled, rel=1e-9),
+          "the probe node's uz in the field = the beam check's")
 
 
 def window_mask(t, lo, hi):
@@ -227,6 +268,20 @@ def check_sheet(run):
     check(rep["force_z"]["min"] == fz.min(), "most downward force on the sheet")
     check(close(rep["force_z"]["steady_mean"], fz[window_mask(mt, d["from"], d["to"])].mean()),
           "mean force over the steady window")
+    # the fields at the end: the grains below the sensor's plane are the mass that crossed
+    # it, the FEM node at the probe moved as the monitor says, the walls are the scene's
+    sc = run.scene()
+    plane = next(x for x in sc["dem"]["sensors"] if x["name"] == "outflow")["point"][2]
+    grains = run.particles(t[-1])
+    check(grains.shapes is None and close(grains["mass"][grains.points[:, 2] < plane].sum(),
+                                          mass[-1]), "mass of the grains below the plane")
+    fem = run.fem(mt[-1])
+    point = next(x for x in sc["fem"]["monitor"]["probes"] if x["name"] == rep["probe"])
+    node = np.argmin(np.linalg.norm(fem.points - point["point"], axis=1))
+    check(fem.time == round(mt[-1], 9) and fem["displacement"][node, 2] == uz[-1],
+          "the probe node's uz in the FEM field = the monitor's")
+    check(list(run.walls(mt[-1])) == [w["name"] for w in sc["dem"]["walls"]],
+          "the walls, by name, in the scene's order")
     txt = Path(run.file("sheet_report.txt")).read_text()
     check(f"peak {rate[i]:.3f} kg/s at t = {t[i]:.3f} s" in txt and
           f"peak {1e3 * uz[j]:.2f} mm at t = {mt[j]:.3f} s" in txt, "the text report's peaks")
@@ -286,6 +341,19 @@ def check_sleeper(run):
     phi = packing["solid_fraction"][window_mask(packing["time"], h0 - 1e-9, h1 + 1e-9)].mean()
     check(close(hold["rocks_weight_N"], phi * np.prod(np.subtract(box["hi"], box["lo"])) * rho
                 * 9.81), "the rocks' weight in the hold")
+    # the fields at the end: each rock's surface around its centre, the walls' forces as
+    # their sensors read them
+    rocks = run.particles(t[-1])
+    shapes = rocks.shapes
+    ids = shapes.point_data["id"]
+    check(shapes.cell_type == "Triangle" and set(ids) == set(rocks["id"]),
+          "every rock has its triangle surface")
+    centre = {k: (x, r) for k, x, r in zip(rocks["id"], rocks.points, rocks["radius"])}
+    check(all(np.linalg.norm(shapes.points[ids == k].mean(axis=0) - x) < r
+              for k, (x, r) in centre.items()), "each surface lies around its rock's centre")
+    walls = run.walls(t[-1])
+    check(walls["box"].cell_data["force"][0].tolist() ==
+          [base[c][-1] for c in ("fx", "fy", "fz")], "the box's force in the field = sensor_base")
 
 
 def main(argv):
@@ -294,6 +362,7 @@ def main(argv):
         if mode == "units":
             units_csv(Path(d))
             units_needs()
+            units_fields(Path(d))
             units_run(Path(d))
         elif mode in ("beam", "sheet", "sleeper") and len(argv) == 2:
             globals()[mode](os.path.abspath(argv[1]), d)

@@ -1,10 +1,12 @@
-"""A run's output folder: its run record (run.json), its scene, its CSV series and the
-reports the [[post]] tools wrote (<tool>_report.json), as `demfem_post.open(path)` gives it."""
+"""A run's output folder: its run record (run.json), its scene, its CSV series, its fields
+(XDMF + HDF5) and the reports the [[post]] tools wrote (<tool>_report.json), as
+`demfem_post.open(path)` gives it."""
 
 import glob
 import json
 import os
 
+from .fields import FieldSeries
 from .scene import load_scene
 from .table import read_csv
 
@@ -17,6 +19,7 @@ class Run:
         if not os.path.isdir(self.path):
             raise FileNotFoundError(f"{path}: no such output folder")
         self._tables = {}
+        self._fields = {}
 
     def __repr__(self):
         return f"demfem_post.open({self.path!r})"
@@ -99,6 +102,38 @@ class Run:
         """{name: Table} of every DEM sensor's series in the folder."""
         return {s[len("sensor_"):]: self.series(s) for s in self.series_names()
                 if s.startswith("sensor_")}
+
+    # --- fields (XDMF + HDF5) ----------------------------------------------------------------
+    def fields(self, name):
+        """The snapshots of `name`.xdmf ('particles', 'walls', 'fem', 'coupling', 'fem_modes',
+        ...) as a FieldSeries: .times, .at(time), .snapshot(i)."""
+        stem = name[:-5] if name.endswith(".xdmf") else name
+        if stem not in self._fields:
+            self._fields[stem] = FieldSeries(self.file(stem + ".xdmf"))
+        return self._fields[stem]
+
+    def particles(self, time):
+        """The particles at the snapshot nearest to `time` (s): a Field of their centres
+        (points; data radius, mass, velocity, id, ...) whose `shapes` is the Field of the
+        rocks' triangle surfaces when the run has polyhedra, else None."""
+        snap = self.fields("particles").at(time)
+        if not isinstance(snap, dict):
+            snap.shapes = None
+            return snap
+        centres = next(f for f in snap.values() if f.cell_type == "Polyvertex")
+        centres.shapes = next((f for f in snap.values() if f.cell_type == "Triangle"), None)
+        return centres
+
+    def walls(self, time):
+        """{wall name: Field} (triangles with their force data) at the snapshot nearest to
+        `time` (s)."""
+        snap = self.fields("walls").at(time)
+        return snap if isinstance(snap, dict) else {snap.name: snap}
+
+    def fem(self, time):
+        """The FEM mesh at the snapshot nearest to `time` (s): nodes (points, m), elements
+        (cells), nodal displacement and velocity, element stresses."""
+        return self.fields("fem").at(time)
 
     # --- reports of the [[post]] tools ------------------------------------------------------
     def report(self, name):
