@@ -1,7 +1,7 @@
 """ctest: the post-processing API (tools/demfem_post, docs/postprocessing.md).
 
 usage: test_post_api.py units
-       test_post_api.py beam|sheet|sleeper DEMFEM_RUN
+       test_post_api.py beam|sheet|sleeper|tutorial DEMFEM_RUN
 
 units: the CSV reader, the XDMF reader, missing modules, the run folder, the scene with
 overrides, exit names and plots on made-up files. beam, sheet, sleeper: run
@@ -10,7 +10,8 @@ and post steps) in a temporary folder and get the numbers of the reports those r
 (the beam check table demfem_run prints, sheet_report.json, sleeper_report.json) out of the
 output folder through the API: the raw series as numpy arrays, the statistics with numpy, so
 that a wrong reader or a wrong column cannot agree with the report by construction; and the
-fields (XDMF + HDF5) against the series. Exit 77 (skipped) where numpy is missing, or
+fields (XDMF + HDF5) against the series. tutorial: docs/postprocessing.md's tutorial runs
+and its numbers hold. Exit 77 (skipped) where numpy is missing, or
 matplotlib for the cases whose post steps plot. With tools/ on PYTHONPATH."""
 
 import json
@@ -236,6 +237,46 @@ def beam(demfem_run, work):
           "the probe node's uz in the field = the beam check's")
 
 
+def tutorial(demfem_run, work):
+    """docs/postprocessing.md's tutorial: its Python blocks run as written on the two beam
+    runs, and the numbers it states are the runs' (a tutorial that no longer holds fails)."""
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        skip("the tutorial draws plots: matplotlib is missing (Debian: python3-matplotlib)")
+    run_case("beam_fixed_ci.toml", demfem_run, work)
+    run_case("beam_dynamic_ci.toml", demfem_run, work)
+    page = (SOURCE / "docs" / "postprocessing.md").read_text()
+    section = page[page.index("## Tutorial"):page.index("## API reference")]
+    blocks = re.findall(r"```python\n(.*?)```", section, re.S)
+    check(len(blocks) == 3, "the tutorial has its three Python blocks")
+    os.chdir(work)  # the tutorial's paths are relative to where demfem run was started
+    namespace = {}
+    for code in blocks:
+        exec(compile(code, "docs/postprocessing.md", "exec"), namespace)
+    check(os.path.isfile("force.png") and os.path.isfile("deflection.png"), "its two plots")
+    fixed = demfem_post.open("out/beam_fixed_ci")
+    bc, fem = fixed.beam_check, fixed.fem(0.008)
+    stated = {  # each number as the page states it, and the value it stands for
+        "-7.889088959e-07": f"{bc['coupled'][0]:.9e}",
+        "-7.445089286e-07": f"{bc['analytical'][0]:.9e}",
+        "+5.96 %": f"{100 * (bc['coupled'][0] / bc['analytical'][0] - 1):+.2f} %",
+        "500.31 N": f"{-fixed.coupling['force_sum_z'][-1]:.2f} N",
+        "(189, 3) nodes, (80, 8)": f"{fem.points.shape} nodes, {fem.cells.shape}",
+        "-7.969e-07 m": f"{fem['displacement'][:, 2].min():.3e} m",
+        "97695 Pa": f"{fem.cell_data['von_mises'].max():.0f} Pa",
+    }
+    dynamic = demfem_post.open("out/beam_dynamic_ci").coupling
+    u, t = dynamic["fem_max_displacement"], dynamic["time"]
+    stated.update({
+        "1.396e-06 m at t = 1.3 ms": f"{u.max():.3e} m at t = {1e3 * t[u.argmax()]:.1f} ms",
+        "6.58e-07 m at 5 ms": f"{u[-1]:.2e} m at {1e3 * t[-1]:.0f} ms",
+        "(50 coupling steps)": f"({dynamic.rows} coupling steps)",
+    })
+    for text, value in stated.items():
+        check(text in section and text == value, f"the tutorial's {text} (the run: {value})")
+
+
 def window_mask(t, lo, hi):
     return (t >= lo) & (t <= hi)
 
@@ -364,7 +405,7 @@ def main(argv):
             units_needs()
             units_fields(Path(d))
             units_run(Path(d))
-        elif mode in ("beam", "sheet", "sleeper") and len(argv) == 2:
+        elif mode in ("beam", "sheet", "sleeper", "tutorial") and len(argv) == 2:
             globals()[mode](os.path.abspath(argv[1]), d)
         else:
             print(__doc__, file=sys.stderr)
