@@ -273,6 +273,16 @@ def tutorial(demfem_run, work):
         "6.58e-07 m at 5 ms": f"{u[-1]:.2e} m at {1e3 * t[-1]:.0f} ms",
         "(50 coupling steps)": f"({dynamic.rows} coupling steps)",
     })
+    static = fixed.fem_series["max_displacement"][-1]
+    first = u.argmax()
+    second = first + 1 + int(np.argmax(np.diff(u[first:]) > 0))  # past the trough, rising
+    second += int(np.argmax(np.diff(u[second:]) < 0))            # the top of that rise
+    stated.update({
+        "1.75 times": f"{u.max() / static:.2f} times",
+        "(7.97e-7 m,": f"({static:.2e} m,".replace("e-07", "e-7"),
+        "(the second peak: t = 3.9 ms)": f"(the second peak: t = {1e3 * t[second]:.1f} ms)",
+        "period of about 2.6 ms": f"period of about {1e3 * (t[second] - t[first]):.1f} ms",
+    })
     for text, value in stated.items():
         check(text in section and text == value, f"the tutorial's {text} (the run: {value})")
 
@@ -316,6 +326,8 @@ def check_sheet(run):
     grains = run.particles(t[-1])
     check(grains.shapes is None and close(grains["mass"][grains.points[:, 2] < plane].sum(),
                                           mass[-1]), "mass of the grains below the plane")
+    page = (SOURCE / "docs" / "postprocessing.md").read_text()
+    check(page.count(f"# {mass[-1]:.4f} kg") == 2, "docs/postprocessing.md's example of it")
     fem = run.fem(mt[-1])
     point = next(x for x in sc["fem"]["monitor"]["probes"] if x["name"] == rep["probe"])
     node = np.argmin(np.linalg.norm(fem.points - point["point"], axis=1))
