@@ -190,6 +190,9 @@ def iterations(rows, out):
 
 
 def main(argv):
+    if any(a in ("-h", "--help") for a in argv[1:]):  # not a folder or file named --help
+        print(__doc__)
+        return 0
     if len(argv) < 2:
         print(__doc__, file=sys.stderr)
         return 2

@@ -76,6 +76,9 @@ def ensemble(argv):
 
 
 def main(argv):
+    if any(a in ("-h", "--help") for a in argv[1:]):  # not a folder or file named --help
+        print(__doc__)
+        return 0
     if "--ensemble" in argv:
         return ensemble(argv)
     runs = argv[1] if len(argv) > 1 else "out/bench/coupling_schemes_runs"

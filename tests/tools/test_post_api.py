@@ -144,6 +144,19 @@ def units_fields(d):
           "a missing HDF5 file is named")
 
 
+def units_help(d):
+    """Every script in tools/ answers --help with its usage (exit 0) and writes nothing; a
+    ParaView script without ParaView's Python names pvpython instead (exit 2)."""
+    cwd = d / "help"
+    cwd.mkdir()
+    for script in sorted((SOURCE / "tools").glob("*.py")):
+        r = subprocess.run([sys.executable, str(script), "--help"], cwd=cwd, capture_output=True,
+                           text=True, env=dict(os.environ, PYTHONPATH=str(SOURCE / "tools")))
+        ok = (r.returncode == 0 and "usage" in (r.stdout + r.stderr).lower()
+              or r.returncode == 2 and "pvpython" in r.stderr)
+        check(ok and not any(cwd.iterdir()), f"{script.name} --help: its usage, nothing written")
+
+
 def units_run(d):
     out = d / "out"
     out.mkdir()
@@ -416,6 +429,7 @@ def main(argv):
             units_csv(Path(d))
             units_needs()
             units_fields(Path(d))
+            units_help(Path(d))
             units_run(Path(d))
         elif mode in ("beam", "sheet", "sleeper", "tutorial") and len(argv) == 2:
             globals()[mode](os.path.abspath(argv[1]), d)
