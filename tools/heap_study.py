@@ -12,27 +12,23 @@ heap has settled; the kinetic energy then is reported beside it).
   /usr/bin/python3 tools/heap_study.py --out out/heap_study --plot-only
 """
 import argparse
-import csv
 import json
 import math
 import os
 import subprocess
 import sys
 
+from demfem_post import MissingModule, read_csv
+from demfem_post.plots import pyplot
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENES = {"rocks": "cases/heap_repose_rocks.toml", "spheres": "cases/heap_repose_rocks_ref.toml"}
 
 
-def read_csv(path):
-    with open(path) as f:
-        rows = list(csv.DictReader(f))
-    return {k: [float(r[k]) for r in rows] for k in rows[0]} if rows else {}
-
-
 def summarise(folder, window):
-    rep = read_csv(os.path.join(folder, "sensor_repose.csv"))
-    ke = read_csv(os.path.join(folder, "sensor_energy.csv"))
-    flow = read_csv(os.path.join(folder, "sensor_outflow.csv"))
+    rep = read_csv(os.path.join(folder, "sensor_repose.csv")).lists()
+    ke = read_csv(os.path.join(folder, "sensor_energy.csv")).lists()
+    flow = read_csv(os.path.join(folder, "sensor_outflow.csv")).lists()
     t_end = rep["time"][-1]
     last = [a for t, a in zip(rep["time"], rep["angle_deg"]) if t >= t_end - window - 1e-9]
     last = [a for a in last if not math.isnan(a)]
@@ -91,10 +87,9 @@ def main():
     with open(os.path.join(a.out, f"heap_study_seed{a.seed}.json"), "w") as f:
         json.dump(results, f, indent=1)
     try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
+        plt = pyplot()
+    except MissingModule as e:
+        print(f"heap_study.py: no figure: {e}", file=sys.stderr)
         return
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4))
     for r in results.values():

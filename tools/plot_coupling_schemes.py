@@ -22,10 +22,9 @@ import math
 import os
 import sys
 
-import matplotlib
+from demfem_post.plots import pyplot_or_exit
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+plt = pyplot_or_exit("plot_coupling_schemes.py")
 
 # Problem (b): plate 0.2 x 0.2 x 0.002 m, 400 spheres of 19.9 mm at 7800 kg/m^3.
 PLATE_VOLUME = 0.2 * 0.2 * 0.002
@@ -191,6 +190,9 @@ def iterations(rows, out):
 
 
 def main(argv):
+    if any(a in ("-h", "--help") for a in argv[1:]):  # not a folder or file named --help
+        print(__doc__)
+        return 0
     if len(argv) < 2:
         print(__doc__, file=sys.stderr)
         return 2

@@ -12,37 +12,19 @@ is needed. Exit status 2 on a missing file, an unknown column or a CSV without d
 """
 
 import argparse
-import csv
 import math
 import os
 import sys
 
-
-def read_csv(path):
-    with open(path, newline="") as f:
-        rows = list(csv.reader(f))
-    if len(rows) < 2:
-        raise ValueError(f"{path}: no data rows (only a header or empty)")
-    header = [h.strip() for h in rows[0]]
-    cols = {h: [] for h in header}
-    for lineno, row in enumerate(rows[1:], start=2):
-        if len(row) != len(header):
-            raise ValueError(f"{path}:{lineno}: {len(row)} fields, header has {len(header)}")
-        for h, v in zip(header, row):
-            try:
-                cols[h].append(float(v))
-            except ValueError:
-                cols[h].append(math.nan)
-    return header, cols
+from demfem_post import read_csv
+from demfem_post.plots import pyplot
 
 
 def plot(path, x_name, columns, out):
-    import matplotlib
+    plt = pyplot()
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    header, cols = read_csv(path)
+    table = read_csv(path, incomplete_rows="error", text_as_nan=True)
+    header, cols = table.header, table.lists()
     if x_name is None:
         x_name = "time" if "time" in cols else header[0]
     if x_name not in cols:
@@ -93,9 +75,8 @@ def main(argv):
             if os.path.dirname(out):
                 os.makedirs(os.path.dirname(out), exist_ok=True)
             print(plot(path, a.x, columns, out))
-    except ImportError:
-        print("plot_series.py: matplotlib is missing (Debian: apt-get install python3-matplotlib)",
-              file=sys.stderr)
+    except ImportError as e:  # demfem_post's MissingModule: names the interpreter to use
+        print(f"plot_series.py: {e}", file=sys.stderr)
         return 2
     except (OSError, KeyError, ValueError) as e:
         print(f"plot_series.py: {e.args[0] if e.args else e}", file=sys.stderr)

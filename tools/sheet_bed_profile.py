@@ -16,9 +16,15 @@ import os
 import sys
 
 import numpy as np
-from paraview import servermanager as sm
-from paraview import simple as pv
-from vtkmodules.util.numpy_support import vtk_to_numpy
+
+from demfem_post.needs import need_or_exit
+
+# ParaView's Python: pvpython (Debian: python3-paraview), no display needed
+PARAVIEW = ("python3-paraview", "pvpython")
+sm = need_or_exit("sheet_bed_profile.py", "paraview.servermanager", *PARAVIEW)
+pv = need_or_exit("sheet_bed_profile.py", "paraview.simple", *PARAVIEW)
+vtk_to_numpy = need_or_exit("sheet_bed_profile.py", "vtkmodules.util.numpy_support",
+                            *PARAVIEW).vtk_to_numpy
 
 
 def main():

@@ -23,8 +23,9 @@ import json
 import os
 import sys
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from sheet_report import column, moving_average, read_csv, stats, window  # noqa: E402
+from demfem_post import read_csv
+from demfem_post.plots import pyplot_or_exit
+from demfem_post.windows import moving_average, stats, window
 
 
 def pair(text):
@@ -35,8 +36,7 @@ def pair(text):
 def series(out_dir, name):
     path = os.path.join(out_dir, f"sensor_{name}.csv")
     cols = read_csv(path)
-    return (column(cols, "time", path), column(cols, "mass_flow", path),
-            column(cols, "mass_crossed", path))
+    return cols.column("time"), cols.column("mass_flow"), cols.column("mass_crossed")
 
 
 def mass_at(t, mass, when):
@@ -147,10 +147,7 @@ def main(argv):
                         row += ["", "", ""]
                 f.write(",".join(row) + "\n")
     if a.figure:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        plt = pyplot_or_exit("sheet_flow_report.py")
 
         fig, ax = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True)
         for n, (t, rate, mass) in runs.items():

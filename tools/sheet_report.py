@@ -25,62 +25,13 @@ not reach are reported as missing (null). Exit status 2 on a missing file or col
 """
 
 import argparse
-import csv
 import json
-import math
 import os
 import sys
 
-
-def read_csv(path):
-    if not os.path.isfile(path):
-        raise FileNotFoundError(f"{path}: no such file")
-    with open(path, newline="") as f:
-        rows = list(csv.reader(f))
-    if len(rows) < 2:
-        raise ValueError(f"{path}: no data rows")
-    header = [h.strip() for h in rows[0]]
-    cols = {h: [] for h in header}
-    for row in rows[1:]:
-        if len(row) != len(header):
-            continue
-        for h, v in zip(header, row):
-            cols[h].append(float(v))
-    return cols
-
-
-def column(cols, name, path):
-    if name not in cols:
-        raise KeyError(f"{path}: no column '{name}' (columns: {', '.join(cols)})")
-    return cols[name]
-
-
-def window(t, v, lo, hi):
-    return [x for s, x in zip(t, v) if lo <= s <= hi]
-
-
-def stats(values):
-    if not values:
-        return None
-    m = sum(values) / len(values)
-    sd = math.sqrt(sum((x - m) ** 2 for x in values) / len(values))
-    return {"mean": m, "std": sd, "min": min(values), "max": max(values), "samples": len(values)}
-
-
-def moving_average(t, v, width):
-    """Centred moving average over `width` seconds (uniform samples assumed)."""
-    if len(t) < 2 or width <= 0:
-        return list(v)
-    dt = (t[-1] - t[0]) / (len(t) - 1)
-    half = max(1, int(round(width / dt / 2)))
-    prefix = [0.0]
-    for x in v:
-        prefix.append(prefix[-1] + x)
-    out = []
-    for i in range(len(v)):
-        a, b = max(0, i - half), min(len(v), i + half + 1)
-        out.append((prefix[b] - prefix[a]) / (b - a))
-    return out
+from demfem_post import read_csv
+from demfem_post.plots import pyplot
+from demfem_post.windows import moving_average, stats, window
 
 
 def flow_points(t, rate, mass, steady, tail):
@@ -171,10 +122,7 @@ def report_text(out_dir, flow, defl, force, probe):
 
 
 def plots(out_dir, ft, rate, mass, flow, mt, series, probe, smooth, fz, defl):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, ax = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True)
     ax[0].step(ft, rate, where="pre", lw=1.2, color="tab:red")
@@ -236,15 +184,14 @@ def main(argv):
     try:
         fpath = os.path.join(d, "sensor_outflow.csv")
         fc = read_csv(fpath)
-        ft, rate = column(fc, "time", fpath), column(fc, "mass_flow", fpath)
-        mass = column(fc, "mass_crossed", fpath)
+        ft, rate, mass = fc.column("time"), fc.column("mass_flow"), fc.column("mass_crossed")
         mpath = os.path.join(d, "fem_monitor.csv")
         mc = read_csv(mpath)
-        mt = column(mc, "time", mpath)
-        series = {h[:-3]: v for h, v in mc.items() if h.endswith("_uz")}
+        mt = mc.column("time")
+        series = {h[:-3]: v for h, v in mc.lists().items() if h.endswith("_uz")}
         if a.probe not in series:
             raise KeyError(f"{mpath}: no probe '{a.probe}' (probes: {', '.join(series)})")
-        fz = column(mc, "force_z", mpath)
+        fz = mc.column("force_z")
         uz = series[a.probe]
         smooth = moving_average(mt, uz, a.smooth)
         flow = flow_points(ft, rate, mass, a.flow_steady, a.tail)
@@ -260,9 +207,8 @@ def main(argv):
             f.write(text)
         print(text, end="")
         plots(d, ft, rate, mass, flow, mt, series, a.probe, smooth, fz, defl)
-    except ImportError:
-        print("sheet_report.py: matplotlib is missing (Debian: python3-matplotlib)",
-              file=sys.stderr)
+    except ImportError as e:  # demfem_post's MissingModule: names the interpreter to use
+        print(f"sheet_report.py: {e}", file=sys.stderr)
         return 2
     except (OSError, KeyError, ValueError) as e:
         print(f"sheet_report.py: {e.args[0] if e.args else e}", file=sys.stderr)

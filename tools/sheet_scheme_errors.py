@@ -21,18 +21,19 @@ mean deflection over 0.3-0.6 s of every run, each ensemble's average and standar
 and the difference of the averages relative to the reference ensemble's, with its standard
 error (the two standard errors of the averages added in quadrature).
 """
-import csv
 import math
 import os
 import sys
+
+from demfem_post import read_csv
 
 
 def series(folder):
     path = os.path.join(folder, "fem_monitor.csv")
     if not os.path.exists(path):
         return None
-    with open(path) as f:
-        return [(float(r["time"]), float(r["lmp_uz"])) for r in csv.DictReader(f)]
+    rows = read_csv(path)
+    return list(zip(rows.column("time"), rows.column("lmp_uz")))
 
 
 def flow_mean(s, a=0.3, b=0.6):
@@ -75,6 +76,9 @@ def ensemble(argv):
 
 
 def main(argv):
+    if any(a in ("-h", "--help") for a in argv[1:]):  # not a folder or file named --help
+        print(__doc__)
+        return 0
     if "--ensemble" in argv:
         return ensemble(argv)
     runs = argv[1] if len(argv) > 1 else "out/bench/coupling_schemes_runs"

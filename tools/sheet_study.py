@@ -26,7 +26,6 @@ convergence: the base; dt_D halved; the shell mesh refined to 5 mm; the base on 
 """
 
 import argparse
-import csv
 import json
 import math
 import os
@@ -34,6 +33,8 @@ import re
 import subprocess
 import sys
 import time
+
+from demfem_post import read_csv
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -47,17 +48,6 @@ def set_key(text, section, key, value):
     if not m:
         raise KeyError(f"no key {key} in [{section}]")
     return text[:m.start()] + f"{key} = {value}" + text[m.end():]
-
-
-def read_csv(path):
-    with open(path, newline="") as f:
-        rows = list(csv.reader(f))
-    cols = {h: [] for h in rows[0]}
-    for r in rows[1:]:
-        if len(r) == len(rows[0]):
-            for h, v in zip(rows[0], r):
-                cols[h].append(float(v))
-    return cols
 
 
 def moving_average(v, n):
@@ -92,11 +82,11 @@ def run_member(name, text, base, work, bin_dir):
     res = {"member": name, "status": r.returncode, "wall_s": wall,
            "message": (r.stderr.strip().splitlines() or [""])[-1][:300]}
     try:
-        c = read_csv(os.path.join(out, "coupling.csv"))
+        c = read_csv(os.path.join(out, "coupling.csv")).lists()
         res["max_overlap"] = max(c["max_overlap"]) if c["max_overlap"] else None
         res["max_energy_error"] = max(abs(x) for x in c["energy_error"]) if c["energy_error"] else None
         res["end_time"] = c["time"][-1] if c["time"] else 0.0
-        m = read_csv(os.path.join(out, "fem_monitor.csv"))
+        m = read_csv(os.path.join(out, "fem_monitor.csv")).lists()
         res["time"], res["uz"] = m["time"], m["lmp_uz"]
         res["max_abs_uz"] = max(abs(u) for u in m["lmp_uz"])
     except (OSError, KeyError, ValueError, IndexError):

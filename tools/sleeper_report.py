@@ -43,9 +43,8 @@ import re
 import sys
 import tomllib
 
-# the CSV reading of the sheet report (same folder)
-from sheet_report import column, read_csv
-from sweep import scene_keys
+from demfem_post import load_scene, read_csv, run_overrides
+from demfem_post.plots import pyplot_or_exit
 
 G = 9.81
 
@@ -79,22 +78,6 @@ def bounding_box(nodes):
     """(lo, hi) of the nodes (the sleeper is a box)."""
     return ([min(n[k] for n in nodes) for k in range(3)],
             [max(n[k] for n in nodes) for k in range(3)])
-
-
-def load_scene(scene_path, overrides=()):
-    """The scene as tomllib reads it, with `KEY=VALUE` overrides applied as --set does."""
-    with open(scene_path, "rb") as f:
-        sc = tomllib.load(f)
-    for o in overrides:
-        key, eq, text = o.partition("=")
-        if not eq:
-            raise ValueError(f"--set {o}: expected KEY=VALUE")
-        try:
-            value = tomllib.loads("v = " + text)["v"]
-            scene_keys.assign(sc, key.strip(), value)
-        except (tomllib.TOMLDecodeError, scene_keys.KeyError_) as e:
-            raise ValueError(f"{scene_path}: --set {o}: {e}") from None
-    return sc
 
 
 def strain_gauges(sc, mesh_nodes):
@@ -164,15 +147,6 @@ def scene_figures(scene_path, rock_density, overrides=()):
             "rocks_box_volume": rocks_box, "gauges": strain_gauges(sc, mesh_nodes)}
 
 
-def run_overrides(out):
-    """The --set overrides the run recorded in OUTPUT_DIR/run.json (none without one)."""
-    path = os.path.join(out, "run.json")
-    if not os.path.exists(path):
-        return []
-    with open(path) as f:
-        return list(json.load(f).get("overrides", []))
-
-
 def main(argv):
     ap = argparse.ArgumentParser(description="sleeper run report")
     ap.add_argument("output")
@@ -190,22 +164,22 @@ def main(argv):
         fig = scene_figures(a.scene, a.rock_density, run_overrides(out) + a.set)
         mon_path = os.path.join(out, "fem_monitor.csv")
         mon = read_csv(mon_path)
-        t = column(mon, "time", mon_path)
+        t = mon.column("time")
         probes = sorted({m.group(1) for h in mon for m in [re.match(r"(b\w+)_uz$", h)] if m})
         if not probes:
             raise KeyError(f"{mon_path}: no bottom probes b*_uz")
-        uz = [column(mon, p + "_uz", mon_path) for p in probes]
+        uz = [mon.column(p + "_uz") for p in probes]
         strain = {}  # label -> bottom-fibre axial strain per monitor row
         for label, (x0, x1, p0, p1) in fig["gauges"].items():
-            u0, u1 = column(mon, p0 + "_ux", mon_path), column(mon, p1 + "_ux", mon_path)
+            u0, u1 = mon.column(p0 + "_ux"), mon.column(p1 + "_ux")
             strain[label] = [(b - c) / (x1 - x0) for b, c in zip(u1, u0)]
         series_path = os.path.join(out, "fem_series.csv")
         max_strain = None
         if os.path.exists(series_path):
             rows = read_csv(series_path)
             if "max_principal_strain" in rows:
-                max_strain = (column(rows, "time", series_path),
-                              column(rows, "max_principal_strain", series_path))
+                max_strain = (rows.column("time"),
+                              rows.column("max_principal_strain"))
         settle = [1e3 * sum(u[i] for u in uz) / len(uz) for i in range(len(t))]  # mm
         tilt = [1e3 * (uz[-1][i] - uz[0][i]) for i in range(len(t))]  # last - first probe, mm
         cells = []
@@ -213,24 +187,24 @@ def main(argv):
             path = os.path.join(out, f"sensor_{c['name']}.csv")
             rows = read_csv(path)
             # the rocks push the cell down: -fz is the vertical load on it
-            cells.append((c, column(rows, "time", path),
-                          [-f / c["area"] / 1e3 for f in column(rows, "fz", path)]))
+            cells.append((c, rows.column("time"),
+                          [-f / c["area"] / 1e3 for f in rows.column("fz")]))
         base_path = os.path.join(out, "sensor_base.csv")
         base = read_csv(base_path)
-        tb, fb = column(base, "time", base_path), column(base, "fz", base_path)
+        tb, fb = base.column("time"), base.column("fz")
         # rocks frozen by [dem.freeze] are held by the engine, not the box: the force that
         # holds them (sensor kind "frozen", fz upwards) carries its share
         frozen_path = os.path.join(out, "sensor_frozen.csv")
         tf = ff = None
         if os.path.exists(frozen_path):
             rows = read_csv(frozen_path)
-            tf, ff = column(rows, "time", frozen_path), column(rows, "fz", frozen_path)
+            tf, ff = rows.column("time"), rows.column("fz")
         packing = {}
         for name in ("all_rocks", "packing_lower", "packing_upper", "under_sleeper"):
             path = os.path.join(out, f"sensor_{name}.csv")
             if os.path.exists(path):
                 rows = read_csv(path)
-                packing[name] = {k: column(rows, k, path) for k in
+                packing[name] = {k: rows.column(k) for k in
                                  ("time", "particles", "solid_fraction", "coordination", "top")}
     except (FileNotFoundError, KeyError, ValueError, tomllib.TOMLDecodeError) as e:
         print(f"sleeper_report.py: {e}", file=sys.stderr)
@@ -367,9 +341,7 @@ def main(argv):
         f.write("\n".join(lines) + "\n")
     print("\n".join(lines))
 
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot_or_exit("sleeper_report.py")
     f1, ax = plt.subplots(1, 2, figsize=(11, 4))
     ax[0].plot(t, settle, label="mean")
     ax[0].plot(t, [1e3 * v for v in uz[0]], lw=0.7, label=probes[0])

@@ -57,13 +57,13 @@ import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 
+from demfem_post import load_scene, read_csv
+from demfem_post.plots import pyplot_or_exit
+from sweep import scene_keys
+from sweep.exit_status import EXIT_BLOW_UP
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
-sys.path.insert(0, HERE)
-from sheet_report import column, read_csv  # noqa: E402
-from sleeper_report import load_scene  # noqa: E402
-from sweep import scene_keys  # noqa: E402
-from sweep.exit_status import EXIT_BLOW_UP  # noqa: E402
 
 CASES = os.path.join(ROOT, "cases")
 BED1 = os.path.join(CASES, "sleeper_bed1_mini.toml")
@@ -222,7 +222,7 @@ class Runner:
                 raise RuntimeError(f"{folder}: no bed in {INSERT_TRIES} tries of seeds")
             # where the load case's sleeper goes: above the highest rock under it
             top_path = os.path.join(folder, "out", "sleeper_bed2_mini", "sensor_under_sleeper.csv")
-            top = column(read_csv(top_path), "top", top_path)[-1]
+            top = read_csv(top_path).column("top")[-1]
             z0 = round(top + GAP, 6)
             mesh = os.path.join(folder, "sleeper.inp")
             subprocess.run([PYTHON, MAKE_SLEEPER, "--z0", f"{z0}", "--y0", f"{Y0}", "--out", mesh],
@@ -365,9 +365,9 @@ def member_series(rec):
     c0 = ramp + amp.get("unload_duration", 0.0)  # the cycles' start (reference time)
     mon_path = os.path.join(out, "fem_monitor.csv")
     mon = read_csv(mon_path)
-    t = column(mon, "time", mon_path)
+    t = mon.column("time")
     probes = sorted(h[:-3] for h in mon if h.startswith("b") and h.endswith("_uz"))
-    uz = [column(mon, p + "_uz", mon_path) for p in probes]
+    uz = [mon.column(p + "_uz") for p in probes]
     s = [1e3 * sum(u[i] for u in uz) / len(uz) for i in range(len(t))]
 
     def at(time_):
@@ -404,9 +404,7 @@ def member_series(rec):
 
 
 def cmd_collect(a):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot_or_exit("sleeper_study.py")
     for study in a.studies:
         label, unit, values, _, _ = STUDIES[study]
         folder = os.path.join(os.path.abspath(a.out), study)
