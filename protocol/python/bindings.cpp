@@ -153,6 +153,8 @@ PYBIND11_MODULE(_protocol, m) {
   m.attr("EXIT_COUPLER_DIED") = proto::kExitCouplerDied;
   m.attr("EXIT_VERSION_MISMATCH") = proto::kExitVersionMismatch;
   m.attr("EXIT_PROTOCOL_ERROR") = proto::kExitProtocolError;
+  // A backend that refuses its scene exits as demfem's own solvers do (the run's code).
+  m.attr("EXIT_BAD_INPUT") = demfem::kExitBadInput;
 
   py::enum_<proto::Role>(m, "Role").value("dem", proto::Role::dem).value("fem", proto::Role::fem);
   py::enum_<demfem::ForceMode>(m, "ForceMode")

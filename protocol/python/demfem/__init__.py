@@ -37,20 +37,16 @@ import os
 import sys
 import tomllib
 
-from ._protocol import (EXIT_BACKEND_ERROR, EXIT_COUPLER_DIED, EXIT_OK, EXIT_PROTOCOL_ERROR,
-                        EXIT_VERSION_MISMATCH, PROTOCOL_VERSION, STEP_SET_KINEMATICS,
-                        STEP_STATIC, ForceMode, InterfaceBuffers, InterfaceMesh, Role,
-                        SolverBackend, StepCommand, serve)
+from ._protocol import (EXIT_BACKEND_ERROR, EXIT_BAD_INPUT, EXIT_COUPLER_DIED, EXIT_OK,
+                        EXIT_PROTOCOL_ERROR, EXIT_VERSION_MISMATCH, PROTOCOL_VERSION,
+                        STEP_SET_KINEMATICS, STEP_STATIC, ForceMode, InterfaceBuffers,
+                        InterfaceMesh, Role, SolverBackend, StepCommand, serve)
 
 __all__ = ["SolverBackend", "InterfaceMesh", "InterfaceBuffers", "StepCommand", "Role",
            "ForceMode", "serve", "parse_args", "load_scene", "write_atomically", "run",
            "PROTOCOL_VERSION", "STEP_STATIC", "STEP_SET_KINEMATICS", "EXIT_OK",
            "EXIT_BACKEND_ERROR", "EXIT_COUPLER_DIED", "EXIT_VERSION_MISMATCH",
            "EXIT_PROTOCOL_ERROR", "EXIT_BAD_INPUT"]
-
-#: Exit status for bad input (a scene the backend cannot take), as demfem's own solvers.
-EXIT_BAD_INPUT = 2
-
 
 def parse_args(argv=None, parser=None):
     """The arguments demfem passes to a backend: --scene, --segment, --set (repeated),

@@ -1,6 +1,6 @@
 #pragma once
 // demfem run --resume: the checks of a checkpoint against the scene that need no process
-// (the launcher's, coupler/app/demfem_run.cpp), and the folder tests they use.
+// (the launcher's, coupler/src/launch/resume_point.cpp), and the folder tests they use.
 
 #include <filesystem>
 #include <optional>

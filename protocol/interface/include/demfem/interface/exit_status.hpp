@@ -1,11 +1,14 @@
 #pragma once
-// The exit statuses of demfem's programs, in one place: `demfem run` (coupler/app/
-// demfem_run.cpp), dem_server and fem_server return the run's codes below, and the protocol's
-// serve() its own (one solver's view of the session). tools/sweep does not copy them: it reads
-// this file (tools/sweep/exit_status.py parses the `inline constexpr int kExit... = N;  ///<`
-// lines, the short name before the first ':' is what the sweep prints, e.g. "exit 3
-// (blow-up)"), and its unit test checks that every kExit line here is read. Keep one constant
-// per line in that form. A signal ends a program with 128 + N (SIGTERM: 143) in both sets.
+// The exit statuses of demfem's programs, in one place: `demfem run` (the launcher, whose
+// map from what ended a run to its code is coupler/src/launch/exit_map.cpp), dem_server and
+// fem_server return the run's codes below, and the protocol's serve() its own (one solver's
+// view of the session). The Python SDK exports them through its bindings
+// (protocol/python/bindings.cpp: demfem.EXIT_OK, ..., EXIT_BAD_INPUT). tools/sweep does not
+// copy them either: it reads this file (tools/sweep/exit_status.py parses the `inline
+// constexpr int kExit... = N;  ///<` lines, the short name before the first ':' is what the
+// sweep prints, e.g. "exit 3 (blow-up)"), and its unit test checks that every kExit line here
+// is read and that no Python file of tools/ or the SDK copies one. Keep one constant per line
+// in that form. A signal ends a program with 128 + N (SIGTERM: 143) in both sets.
 
 namespace demfem {
 
