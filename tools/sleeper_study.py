@@ -60,7 +60,7 @@ from concurrent.futures import ThreadPoolExecutor
 from demfem_post import load_scene, read_csv
 from demfem_post.plots import pyplot_or_exit
 from sweep import scene_keys
-from sweep.exit_status import EXIT_BLOW_UP
+from sweep.exit_status import EXIT_BAD_INPUT, EXIT_BLOW_UP
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
@@ -200,7 +200,7 @@ class Runner:
                     cpu[stage] += c
                     with open(log_path) as f:
                         f.seek(start)
-                        full = code == 2 and "cannot insert" in f.read()
+                        full = code == EXIT_BAD_INPUT and "cannot insert" in f.read()
                     if full or code == EXIT_BLOW_UP:
                         why = "random insertion found no place for every rock" if full else \
                             "preparation blew up"
