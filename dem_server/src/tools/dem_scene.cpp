@@ -14,8 +14,8 @@
 #include <unistd.h>
 
 #include "demfem/dem/dem_output.hpp"
+#include "demfem/dem/shapes/geometry/stl_reader.hpp"
 #include "demfem/dem/shapes/mesh_body.hpp"
-#include "demfem/dem/stl_reader.hpp"
 #include "demfem/dem/wall_output.hpp"
 #include "demfem/io/checkpoint_file.hpp"
 #include "demfem/io/h5_file.hpp"
@@ -618,23 +618,26 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
   }
   std::vector<WallMesh> meshes;  // as added, for the checks of loaded particles
   for (auto& w : scene_.walls) {
-    WallMesh mesh;
+    TriangleMesh surface;
     switch (w.kind) {
       case WallSpec::Kind::stl:
         try {
-          mesh = read_stl(w.stl, w.weld_tolerance);
+          surface = read_stl(w.stl, w.weld_tolerance);
         } catch (const StlError& e) {
           throw SceneError(w.where + ": " + e.what());
         }
         break;
       case WallSpec::Kind::box:
-        mesh = make_box_mesh(w.lo, w.hi, w.open_top);
+        surface = make_box_mesh(w.lo, w.hi, w.open_top);
         break;
       case WallSpec::Kind::plane:
-        mesh = make_plane_mesh(w.point, w.normal, w.size);
+        surface = make_plane_mesh(w.point, w.normal, w.size);
         break;
     }
+    WallMesh mesh;
     mesh.name = w.name;
+    mesh.vertices = std::move(surface.vertices);
+    mesh.triangles = std::move(surface.triangles);
     mesh.material = w.material;
     mesh.motion = w.motion;
     if (w.body.enabled) mesh.body = body_spec(w, mesh);

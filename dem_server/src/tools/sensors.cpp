@@ -8,7 +8,6 @@
 
 #include "demfem/dem/packing.hpp"
 #include "demfem/dem/physics/rigid_body.hpp"
-#include "demfem/dem/stl_reader.hpp"
 #include "demfem/io/csv_writer.hpp"
 
 namespace demfem::dem {
