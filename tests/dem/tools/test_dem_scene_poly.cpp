@@ -8,8 +8,8 @@
 #include <random>
 #include <sstream>
 
-#include "demfem/dem/dem_output.hpp"
-#include "demfem/dem/dem_scene.hpp"
+#include "demfem/dem/run/dem_output.hpp"
+#include "demfem/dem/run/dem_run.hpp"
 #include "demfem/dem/shapes/convex_polyhedron.hpp"
 #include "demfem/dem/shapes/geometry/stl_reader.hpp"
 #include "demfem/io/h5_file.hpp"

@@ -14,8 +14,8 @@
 #include <cmath>
 #include <iostream>
 
-#include "demfem/dem/insertion.hpp"
-#include "demfem/dem/sensors.hpp"
+#include "demfem/dem/placement/insertion.hpp"
+#include "demfem/dem/sensors/sensors.hpp"
 #include "demfem/dem/shapes/geometry/stl_reader.hpp"
 
 using namespace demfem::dem;
