@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "demfem/dem/dem_system.hpp"
-#include "demfem/dem/insertion.hpp"
+#include "demfem/dem/placement/insertion.hpp"
 #include "demfem/dem/shapes/shape_library.hpp"
 
 namespace demfem::bench {

@@ -19,7 +19,7 @@
 
 #include "bench_report.hpp"
 #include "demfem/dem/dem_system.hpp"
-#include "demfem/dem/stl_reader.hpp"
+#include "demfem/dem/shapes/geometry/stl_reader.hpp"
 
 using namespace demfem::dem;
 
@@ -51,7 +51,11 @@ Impact impact(bool pair, double restitution, double dt) {
     b.velocity = {0, 0, -0.5 * kV};
     sys.add_particles(std::vector<ParticleInit>{a, b});
   } else {
-    WallMesh w = make_plane_mesh({0, 0, 0}, {0, 0, 1}, 0.05);
+    const TriangleMesh plane = make_plane_mesh({0, 0, 0}, {0, 0, 1}, 0.05);
+    WallMesh w;
+    w.name = plane.name;
+    w.vertices = plane.vertices;
+    w.triangles = plane.triangles;
     w.material = 1;
     sys.add_wall(w);
     ParticleInit a;

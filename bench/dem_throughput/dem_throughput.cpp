@@ -30,8 +30,8 @@
 
 #include "bench_report.hpp"
 #include "demfem/dem/dem_system.hpp"
-#include "demfem/dem/insertion.hpp"
 #include "demfem/dem/omp_wait.hpp"
+#include "demfem/dem/placement/insertion.hpp"
 #include "demfem/io/h5_file.hpp"
 
 using namespace demfem::dem;

@@ -24,7 +24,7 @@
 #include "ballast_bed.hpp"
 #include "bench_report.hpp"
 #include "demfem/dem/dem_system.hpp"
-#include "demfem/dem/insertion.hpp"
+#include "demfem/dem/placement/insertion.hpp"
 #include "demfem/dem/shapes/shape_library.hpp"
 
 using namespace demfem::dem;

@@ -41,8 +41,8 @@
 #include "ballast_bed.hpp"
 #include "bench_report.hpp"
 #include "demfem/dem/dem_system.hpp"
-#include "demfem/dem/insertion.hpp"
 #include "demfem/dem/omp_wait.hpp"
+#include "demfem/dem/placement/insertion.hpp"
 #include "demfem/dem/shapes/shape_library.hpp"
 #include "demfem/io/h5_file.hpp"
 

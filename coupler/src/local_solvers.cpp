@@ -12,7 +12,7 @@
 #include "demfem/coupling/solver_link.hpp"
 
 #include "demfem/dem/dem_backend.hpp"
-#include "demfem/dem/dem_scene.hpp"
+#include "demfem/dem/run/dem_run.hpp"
 #include "demfem/fem/assembly.hpp"
 #include "demfem/fem/fem_backend.hpp"
 #include "demfem/fem/fem_output.hpp"

@@ -15,8 +15,8 @@
 
 #include "demfem/coupling/coupling_settings.hpp"
 #include "demfem/coupling/supervisor.hpp"
-#include "demfem/dem/dem_scene.hpp"
-#include "demfem/dem/particle_source.hpp"
+#include "demfem/dem/scene/dem_scene.hpp"
+#include "demfem/dem/scene/particle_source.hpp"
 #include "demfem/interface/exit_status.hpp"
 
 namespace demfem::coupling {

@@ -15,8 +15,8 @@
 #include <string>
 
 #include "demfem/dem/dem_backend.hpp"
-#include "demfem/dem/dem_scene.hpp"
 #include "demfem/dem/omp_wait.hpp"
+#include "demfem/dem/run/dem_run.hpp"
 #include "demfem/io/folder_lock.hpp"
 #include "demfem/protocol/protocol.hpp"
 #include "demfem/scene/scene_reader.hpp"

@@ -7,7 +7,7 @@
 #include <cstdint>
 #include <string>
 
-#include "demfem/dem/stl_reader.hpp"
+#include "demfem/dem/shapes/geometry/stl_reader.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const int fd = memfd_create("fuzz.stl", 0);

@@ -32,8 +32,8 @@
 #include "../dem/core/dem_test_util.hpp"
 #include "../dem/core/poly_test_util.hpp"
 #include "demfem/dem/dem_system.hpp"
-#include "demfem/dem/particle_source.hpp"
-#include "demfem/dem/state_check.hpp"
+#include "demfem/dem/placement/state_check.hpp"
+#include "demfem/dem/scene/particle_source.hpp"
 #include "demfem/io/h5_file.hpp"
 
 namespace fuzz_particles {

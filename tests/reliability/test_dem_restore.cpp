@@ -13,8 +13,8 @@
 #include <sstream>
 #include <string>
 
-#include "demfem/dem/dem_scene.hpp"
-#include "demfem/dem/state_check.hpp"
+#include "demfem/dem/placement/state_check.hpp"
+#include "demfem/dem/run/dem_run.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem/scene/scene_reader.hpp"
 #include "demfem_test/temp_dir.hpp"

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "demfem/coupling/checkpoint.hpp"
-#include "demfem/dem/dem_scene.hpp"
+#include "demfem/dem/run/dem_run.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem/scene/scene_reader.hpp"
 #include "demfem_test/box_scene.hpp"

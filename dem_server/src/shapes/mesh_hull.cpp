@@ -4,6 +4,7 @@
 #include <cmath>
 #include <vector>
 
+#include "demfem/dem/shapes/geometry/stl_reader.hpp"
 #include "demfem/dem/shapes/mass_properties.hpp"
 #include "shape_util.hpp"
 
@@ -86,6 +87,11 @@ MeshHull hull_of_closed_mesh(std::span<const double> vertices,
                   " vs " + format_number(out.mesh_volume) + " m^3)";
   }
   return out;
+}
+
+MeshHull hull_of_stl(const std::filesystem::path& file) {
+  const TriangleMesh mesh = read_stl(file);
+  return hull_of_closed_mesh(mesh.vertices, mesh.triangles, file.string());
 }
 
 }  // namespace demfem::dem::shapes

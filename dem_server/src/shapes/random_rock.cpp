@@ -6,8 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "demfem/dem/shapes/geometry/rng.hpp"
 #include "demfem/dem/shapes/mass_properties.hpp"
-#include "demfem/dem/size_distribution.hpp"
 #include "shape_util.hpp"
 
 namespace demfem::dem::shapes {

@@ -82,4 +82,9 @@ std::uint32_t ShapeLibrary::pick(Rng& rng) const {
   return std::min<std::uint32_t>(k, static_cast<std::uint32_t>(shapes_.size() - 1));
 }
 
+ScaledShape ShapeLibrary::sample(Rng& rng, const SizeDistribution& dist) const {
+  const std::uint32_t k = pick(rng);
+  return scaled(k, dist.sample(rng));
+}
+
 }  // namespace demfem::dem::shapes

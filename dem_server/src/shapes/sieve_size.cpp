@@ -9,8 +9,8 @@
 #include <utility>
 #include <vector>
 
+#include "demfem/dem/shapes/geometry/rng.hpp"
 #include "demfem/dem/shapes/mass_properties.hpp"
-#include "demfem/dem/size_distribution.hpp"
 #include "shape_util.hpp"
 
 namespace demfem::dem::shapes {

@@ -5,8 +5,8 @@
 
 #include <cmath>
 
+#include "demfem/dem/shapes/geometry/stl_reader.hpp"
 #include "demfem/dem/shapes/shapes.hpp"
-#include "demfem/dem/stl_reader.hpp"
 #include "demfem_test/error_of.hpp"
 #include "demfem_test/temp_dir.hpp"
 
@@ -19,8 +19,8 @@ namespace {
 
 /// The cube [0, a]^3 with its top face split into four triangles around a centre vertex
 /// pushed down by h (a dent): closed, outward, not convex; volume a^3 - a^2 h / 3.
-WallMesh dented_cube(double a, double h) {
-  WallMesh m = make_box_mesh({0, 0, 0}, {a, a, a}, true);  // inward normals, no top
+TriangleMesh dented_cube(double a, double h) {
+  TriangleMesh m = make_box_mesh({0, 0, 0}, {a, a, a}, true);  // inward normals, no top
   for (std::size_t t = 0; t < m.triangles.size(); t += 3)
     std::swap(m.triangles[t + 1], m.triangles[t + 2]);
   // Top corners: vertices 4..7 of make_box_mesh (z = a): 4 (0,0), 5 (a,0), 6 (0,a), 7 (a,a).
@@ -69,8 +69,8 @@ TEST_CASE("an open STL is refused naming the file and an open edge", "[shapes][s
 
 TEST_CASE("non-manifold and inconsistently oriented meshes", "[shapes][stl]") {
   // Two boxes sharing an edge (welded): that edge is in 4 triangles.
-  const WallMesh a = make_box_mesh({0, 0, 0}, {1, 1, 1}, false);
-  const WallMesh b = make_box_mesh({1, 1, 0}, {2, 2, 1}, false);
+  const TriangleMesh a = make_box_mesh({0, 0, 0}, {1, 1, 1}, false);
+  const TriangleMesh b = make_box_mesh({1, 1, 0}, {2, 2, 1}, false);
   std::vector<double> v = a.vertices;
   std::vector<std::int32_t> t = a.triangles;
   auto id_of = [&](std::size_t i) {  // b's vertex i in v, added when new
@@ -87,7 +87,7 @@ TEST_CASE("non-manifold and inconsistently oriented meshes", "[shapes][stl]") {
                  Catch::Contains("belongs to 4 triangle(s)"));
 
   // One triangle flipped: closed, but the volume is unknown; the hull is still the box.
-  WallMesh c = make_box_mesh({0, 0, 0}, {1, 2, 3}, false);
+  TriangleMesh c = make_box_mesh({0, 0, 0}, {1, 2, 3}, false);
   std::swap(c.triangles[1], c.triangles[2]);
   const MeshHull h = hull_of_closed_mesh(c.vertices, c.triangles, "flipped");
   CHECK(h.hull_volume == Approx(6.0).epsilon(1e-14));

@@ -8,9 +8,9 @@
 #include <fstream>
 #include <sstream>
 
-#include "demfem/dem/dem_output.hpp"
-#include "demfem/dem/dem_scene.hpp"
-#include "demfem/dem/wall_output.hpp"
+#include "demfem/dem/run/dem_output.hpp"
+#include "demfem/dem/run/dem_run.hpp"
+#include "demfem/dem/run/wall_output.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem_test/temp_dir.hpp"
 

@@ -7,8 +7,8 @@
 #include <fstream>
 #include <sstream>
 
-#include "demfem/dem/dem_scene.hpp"
-#include "demfem/dem/stl_reader.hpp"
+#include "demfem/dem/run/dem_run.hpp"
+#include "demfem/dem/shapes/geometry/stl_reader.hpp"
 #include "demfem_test/error_of.hpp"
 #include "demfem_test/temp_dir.hpp"
 

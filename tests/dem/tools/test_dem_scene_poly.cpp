@@ -8,10 +8,10 @@
 #include <random>
 #include <sstream>
 
-#include "demfem/dem/dem_output.hpp"
-#include "demfem/dem/dem_scene.hpp"
+#include "demfem/dem/run/dem_output.hpp"
+#include "demfem/dem/run/dem_run.hpp"
 #include "demfem/dem/shapes/convex_polyhedron.hpp"
-#include "demfem/dem/stl_reader.hpp"
+#include "demfem/dem/shapes/geometry/stl_reader.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem_test/box_scene.hpp"
 #include "demfem_test/cube_shape.hpp"
@@ -141,11 +141,11 @@ TEST_CASE("[[dem.shapes]]: an STL scan becomes its hull; bad input names file, l
           "[scene][poly]") {
   TempDir dir;
   // a closed tetrahedron (an STL "scan"), an open mesh, a flat one
-  WallMesh tet;
+  TriangleMesh tet;
   tet.vertices = {0, 0, 0, 0.01, 0, 0, 0, 0.01, 0, 0, 0, 0.01};
   tet.triangles = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};
   write_stl_binary(dir / "rock.stl", tet);
-  WallMesh open = tet;
+  TriangleMesh open = tet;
   open.triangles.resize(9);
   write_stl_binary(dir / "open.stl", open);
   const std::string stl_entry = R"(kind = "stl"
@@ -232,7 +232,7 @@ TEST_CASE("a finely scanned STL rock is set up in seconds, with progress lines",
     x = {0.025 * a / l, 0.0175 * b / l, 0.01 * c / l};
   }
   const auto hull = demfem::dem::shapes::ConvexPolyhedron::hull(p, "scan");
-  WallMesh scan;
+  TriangleMesh scan;
   for (const auto& v : hull.vertices())
     scan.vertices.insert(scan.vertices.end(), v.begin(), v.end());
   for (const auto& t : hull.triangles())

@@ -14,9 +14,9 @@
 #include <cmath>
 #include <iostream>
 
-#include "demfem/dem/insertion.hpp"
-#include "demfem/dem/sensors.hpp"
-#include "demfem/dem/stl_reader.hpp"
+#include "demfem/dem/placement/insertion.hpp"
+#include "demfem/dem/sensors/sensors.hpp"
+#include "demfem/dem/shapes/geometry/stl_reader.hpp"
 
 using namespace demfem::dem;
 
@@ -43,7 +43,7 @@ HeapResult pour_heap(double friction, std::uint64_t seed = 100) {
   s.pairs = {pp, pf, ps, pf, pf, pf, ps, pf, ps};
   DemSystem sys(s);
   const double width = 0.016;
-  WallMesh box = make_box_mesh({-0.15, 0, 0}, {0.15, width, 0.2}, true);
+  const TriangleMesh box = make_box_mesh({-0.15, 0, 0}, {0.15, width, 0.2}, true);
   // the floor (the triangles whose vertices all lie at z = 0) gets its own material
   WallMesh floor, sides;
   floor.name = "floor", floor.material = 1, sides.name = "sides", sides.material = 2;

@@ -6,7 +6,7 @@
 #include <cmath>
 #include <string>
 
-#include "demfem/dem/insertion.hpp"
+#include "demfem/dem/placement/insertion.hpp"
 
 using namespace demfem::dem;
 

@@ -8,7 +8,7 @@
 #include <numbers>
 
 #include "demfem/dem/dem_system.hpp"
-#include "demfem/dem/packing.hpp"
+#include "demfem/dem/sensors/packing.hpp"
 
 using namespace demfem::dem;
 

@@ -7,9 +7,9 @@
 #include <fstream>
 #include <sstream>
 
-#include "demfem/dem/dem_output.hpp"
-#include "demfem/dem/dem_scene.hpp"
-#include "demfem/dem/particle_source.hpp"
+#include "demfem/dem/run/dem_output.hpp"
+#include "demfem/dem/run/dem_run.hpp"
+#include "demfem/dem/scene/particle_source.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem_test/box_scene.hpp"
 #include "demfem_test/error_of.hpp"

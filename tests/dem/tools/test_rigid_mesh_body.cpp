@@ -9,9 +9,9 @@
 #include <cmath>
 #include <utility>
 
-#include "demfem/dem/dem_scene.hpp"
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/dem/physics/rigid_body.hpp"
+#include "demfem/dem/scene/dem_scene.hpp"
 #include "demfem/dem/shapes/mesh_body.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem/scene/scene_reader.hpp"

@@ -6,7 +6,7 @@
 #include <cmath>
 #include <numbers>
 
-#include "demfem/dem/sensors.hpp"
+#include "demfem/dem/sensors/sensors.hpp"
 #include "demfem_test/cube_shape.hpp"
 
 using namespace demfem::dem;

@@ -7,7 +7,7 @@
 #include <numbers>
 #include <vector>
 
-#include "demfem/dem/size_distribution.hpp"
+#include "demfem/dem/shapes/geometry/size_distribution.hpp"
 
 using namespace demfem::dem;
 

@@ -9,7 +9,7 @@
 #include <limits>
 #include <map>
 
-#include "demfem/dem/stl_reader.hpp"
+#include "demfem/dem/shapes/geometry/stl_reader.hpp"
 #include "demfem_test/error_of.hpp"
 #include "demfem_test/temp_dir.hpp"
 
@@ -33,7 +33,7 @@ std::string message_of(const std::filesystem::path& p) {
 }
 
 /// A box has 8 corners and 12 triangles; an edge is shared by exactly two triangles.
-void check_closed_box(const WallMesh& m) {
+void check_closed_box(const TriangleMesh& m) {
   REQUIRE(m.vertices.size() == 3 * 8);
   REQUIRE(m.triangles.size() == 3 * 12);
   std::map<std::pair<int, int>, int> edges;
@@ -53,12 +53,12 @@ const char* kTriangle =
 
 TEST_CASE("ASCII and binary STL round trip a box with welded vertices", "[stl]") {
   TempDir dir;
-  const WallMesh box = make_box_mesh({0, 0, 0}, {0.5, 0.25, 0.125}, false);
+  const TriangleMesh box = make_box_mesh({0, 0, 0}, {0.5, 0.25, 0.125}, false);
   write_stl_ascii(dir / "box_ascii.stl", box);
   write_stl_binary(dir / "box_binary.stl", box);
   for (const char* name : {"box_ascii.stl", "box_binary.stl"}) {
     INFO(name);
-    const WallMesh m = read_stl(dir / name);
+    const TriangleMesh m = read_stl(dir / name);
     check_closed_box(m);
     CHECK(m.name == std::filesystem::path(name).stem().string());
     // Values representable in float come back exactly from both formats.
@@ -90,14 +90,14 @@ TEST_CASE("STL welding merges vertices within the tolerance only", "[stl]") {
 
 TEST_CASE("STL reader accepts the plane and open box generators' output", "[stl]") {
   TempDir dir;
-  const WallMesh plane = make_plane_mesh({1, 2, 3}, {0, 0, 2}, 2.0);
+  const TriangleMesh plane = make_plane_mesh({1, 2, 3}, {0, 0, 2}, 2.0);
   REQUIRE(plane.triangles.size() == 6);
   CHECK(mesh_area(plane.vertices, plane.triangles) == Approx(4.0).epsilon(1e-12));
   // Normal by the right-hand rule points along +z as asked.
   const auto& v = plane.vertices;
   const double ax = v[3] - v[0], ay = v[4] - v[1], bx = v[6] - v[0], by = v[7] - v[1];
   CHECK(ax * by - ay * bx > 0);
-  const WallMesh open = make_box_mesh({0, 0, 0}, {1, 1, 1}, true);
+  const TriangleMesh open = make_box_mesh({0, 0, 0}, {1, 1, 1}, true);
   CHECK(open.triangles.size() == 3 * 10);
   write_stl_binary(dir / "open.stl", open);
   CHECK(read_stl(dir / "open.stl").triangles.size() == 3 * 10);
@@ -160,7 +160,7 @@ TEST_CASE("malformed STL files give errors naming file and triangle or line", "[
     CHECK_THAT(message_of(dir / "word.stl"), Catch::Contains("word.stl:5: '1x' is not a number"));
   }
   SECTION("zero-area triangle (collinear)") {
-    WallMesh m = make_box_mesh({0, 0, 0}, {1, 1, 1}, false);
+    TriangleMesh m = make_box_mesh({0, 0, 0}, {1, 1, 1}, false);
     // Triangle 3 (index 2) made collinear: its third corner moved onto its first edge.
     const int a = m.triangles[6], b = m.triangles[7];
     m.vertices.insert(m.vertices.end(), {0.5 * (m.vertices[3 * a] + m.vertices[3 * b]),
@@ -185,7 +185,7 @@ TEST_CASE("malformed STL files give errors naming file and triangle or line", "[
     }
   }
   SECTION("binary: truncated, wrong count, NaN") {
-    const WallMesh box = make_box_mesh({0, 0, 0}, {1, 1, 1}, false);
+    const TriangleMesh box = make_box_mesh({0, 0, 0}, {1, 1, 1}, false);
     write_stl_binary(dir / "b.stl", box);
     const std::string bytes = read_bytes(dir / "b.stl");
     REQUIRE(bytes.size() == 84 + 50 * 12);

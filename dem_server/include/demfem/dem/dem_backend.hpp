@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "demfem/dem/dem_scene.hpp"
+#include "demfem/dem/run/dem_run.hpp"
 #include "demfem/io/checkpoint_file.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem/protocol/protocol.hpp"

@@ -34,8 +34,8 @@ struct MeshHull {
 MeshHull hull_of_closed_mesh(std::span<const double> vertices,
                              std::span<const std::int32_t> triangles, std::string_view source);
 
-/// read_stl(file) (dem_server/src/tools/stl_reader.cpp) then hull_of_closed_mesh; defined in
-/// demfem::dem (link it), which holds the STL reader. StlError for an unreadable file.
+/// read_stl(file) (geometry/stl_reader.hpp) then hull_of_closed_mesh. StlError for an
+/// unreadable file.
 MeshHull hull_of_stl(const std::filesystem::path& file);
 
 }  // namespace demfem::dem::shapes

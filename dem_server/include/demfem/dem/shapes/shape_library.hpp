@@ -17,9 +17,9 @@
 #include <span>
 #include <vector>
 
+#include "demfem/dem/shapes/geometry/size_distribution.hpp"
 #include "demfem/dem/shapes/particle_shape.hpp"
 #include "demfem/dem/shapes/random_rock.hpp"
-#include "demfem/dem/size_distribution.hpp"
 
 namespace demfem::dem::shapes {
 
@@ -57,12 +57,8 @@ class ShapeLibrary {
   ParticleShape particle(std::size_t k, double size) const { return scale(shapes_[k], size); }
   /// A uniform index in [0, size()).
   std::uint32_t pick(Rng& rng) const;
-  /// pick(rng), then dist.sample(rng), scaled. (Inline: SizeDistribution lives in
-  /// demfem::dem, which links this library.)
-  ScaledShape sample(Rng& rng, const SizeDistribution& dist) const {
-    const std::uint32_t k = pick(rng);
-    return scaled(k, dist.sample(rng));
-  }
+  /// pick(rng), then dist.sample(rng), scaled.
+  ScaledShape sample(Rng& rng, const SizeDistribution& dist) const;
 
  private:
   ShapeLibrary() = default;

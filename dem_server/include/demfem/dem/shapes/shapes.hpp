@@ -1,6 +1,8 @@
 #pragma once
 // Particle shapes for dilated convex polyhedra (thesis §2.1.1, eq. 2.4-2.5): the host-side
 // shape library (demfem::dem_shapes; host code with Eigen and Qhull, never compiled by nvcc).
+// It stands on the geometry base in geometry/ (triangle meshes and the STL reader, the
+// portable random stream, particle size distributions) and on nothing else of the DEM.
 // Units SI. Namespace demfem::dem::shapes. Every error is a ShapeError whose what() names the
 // input (file, generator and seed, or the caller's label) and the accepted range.
 //
@@ -31,8 +33,8 @@
 //   random_rock.hpp        random_rock(RockParams{triangles, elongation, flatness}, seed):
 //       exactly `triangles` (even, >= 4) triangles, extents 1, e, e f along x, y, z.
 //   mesh_hull.hpp          hull_of_closed_mesh(vertices, triangles, source),
-//       hull_of_stl(file) (in demfem::dem): the hull of a closed STL, with a warning when the
-//       mesh is not convex.
+//       hull_of_stl(file): the hull of a closed STL, with a warning when the mesh is not
+//       convex.
 //   shape_library.hpp      ShapeLibrary: K unit shapes (size 1 m); scaled(k, size) gives a
 //       particle's r_d, volume, moments and bounding radius without geometry (exact scaling);
 //       sample(rng, SizeDistribution) draws shape and size independently.

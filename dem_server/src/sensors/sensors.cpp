@@ -1,4 +1,4 @@
-#include "demfem/dem/sensors.hpp"
+#include "demfem/dem/sensors/sensors.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -6,9 +6,8 @@
 #include <numbers>
 #include <stdexcept>
 
-#include "demfem/dem/packing.hpp"
 #include "demfem/dem/physics/rigid_body.hpp"
-#include "demfem/dem/stl_reader.hpp"
+#include "demfem/dem/sensors/packing.hpp"
 #include "demfem/io/csv_writer.hpp"
 
 namespace demfem::dem {

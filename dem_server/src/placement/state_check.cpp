@@ -1,4 +1,4 @@
-#include "demfem/dem/state_check.hpp"
+#include "demfem/dem/placement/state_check.hpp"
 
 #include <algorithm>
 #include <cmath>

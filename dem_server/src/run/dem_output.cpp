@@ -1,4 +1,4 @@
-#include "demfem/dem/dem_output.hpp"
+#include "demfem/dem/run/dem_output.hpp"
 
 #include <array>
 #include <cmath>

@@ -1,4 +1,4 @@
-#include "demfem/dem/wall_output.hpp"
+#include "demfem/dem/run/wall_output.hpp"
 
 #include <cctype>
 #include <cmath>

@@ -1,4 +1,4 @@
-#include "demfem/dem/insertion.hpp"
+#include "demfem/dem/placement/insertion.hpp"
 
 #include <algorithm>
 #include <array>

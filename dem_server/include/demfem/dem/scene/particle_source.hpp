@@ -90,7 +90,7 @@ struct OverlapReport {
   double fraction = 0.0;  ///< overlap / min(r_i, r_j) (walls: / r_i)
   double depth = 0.0;     ///< m
   std::int64_t i = -1, j = -1;
-  std::size_t touching = 0;  ///< pairs that touch at all
+  std::size_t touching = 0;   ///< pairs that touch at all
   std::size_t unchecked = 0;  ///< polyhedra, left out (see largest_overlap)
 };
 /// Spheres only: polyhedra (from a state with history, which ran with them) are skipped.

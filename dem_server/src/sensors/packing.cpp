@@ -1,4 +1,4 @@
-#include "demfem/dem/packing.hpp"
+#include "demfem/dem/sensors/packing.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "demfem/dem/dem_system.hpp"
-#include "demfem/dem/size_distribution.hpp"
+#include "demfem/dem/shapes/geometry/size_distribution.hpp"
 
 namespace demfem::dem::shapes {
 class ShapeLibrary;

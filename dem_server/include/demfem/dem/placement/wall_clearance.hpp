@@ -12,15 +12,14 @@
 #include <string>
 #include <vector>
 
+#include "demfem/dem/shapes/geometry/triangle_mesh.hpp"
+
 namespace demfem::dem {
 
 class WallClearance {
  public:
-  struct Wall {
-    std::string name;
-    std::vector<double> vertices;         ///< 3 per vertex, m
-    std::vector<std::int32_t> triangles;  ///< 3 vertex indices per triangle
-  };
+  /// A wall's name and surface where it stands now.
+  using Wall = TriangleMesh;
   explicit WallClearance(const std::vector<Wall>& walls);
 
   bool empty() const { return tris_.empty(); }

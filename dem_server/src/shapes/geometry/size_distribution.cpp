@@ -1,4 +1,4 @@
-#include "demfem/dem/size_distribution.hpp"
+#include "demfem/dem/shapes/geometry/size_distribution.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -7,23 +7,6 @@
 #include <stdexcept>
 
 namespace demfem::dem {
-
-double Rng::normal() {
-  if (has_spare_) {
-    has_spare_ = false;
-    return spare_;
-  }
-  double u, v, s;
-  do {
-    u = 2.0 * uniform() - 1.0;
-    v = 2.0 * uniform() - 1.0;
-    s = u * u + v * v;
-  } while (s >= 1.0 || s == 0.0);
-  const double f = std::sqrt(-2.0 * std::log(s) / s);
-  spare_ = v * f;
-  has_spare_ = true;
-  return u * f;
-}
 
 SizeDistribution SizeDistribution::constant(double d) {
   SizeDistribution s;

@@ -1,4 +1,4 @@
-#include "demfem/dem/stl_reader.hpp"
+#include "demfem/dem/shapes/geometry/stl_reader.hpp"
 
 #include <algorithm>
 #include <bit>
@@ -172,8 +172,8 @@ RawTriangles parse_ascii(const std::string& file, const std::string& text) {
 }
 
 /// Merges vertices within `tol` (first come, first kept, so the result is deterministic).
-WallMesh weld(const std::string& file, const RawTriangles& raw, double tol) {
-  WallMesh mesh;
+TriangleMesh weld(const std::string& file, const RawTriangles& raw, double tol) {
+  TriangleMesh mesh;
   const std::size_t nt = raw.lines.size();
   const double cell = tol > 0 ? tol : 1.0;
   struct KeyHash {
@@ -230,7 +230,7 @@ WallMesh weld(const std::string& file, const RawTriangles& raw, double tol) {
 
 }  // namespace
 
-WallMesh read_stl(const std::filesystem::path& path, double weld_tolerance) {
+TriangleMesh read_stl(const std::filesystem::path& path, double weld_tolerance) {
   const std::string file = path.string();
   std::string bytes;
   try {
@@ -276,18 +276,18 @@ WallMesh read_stl(const std::filesystem::path& path, double weld_tolerance) {
       }
     tol = 1e-9 * norm(sub(hi, lo));
   }
-  WallMesh mesh = weld(file, raw, tol);
+  TriangleMesh mesh = weld(file, raw, tol);
   mesh.name = path.stem().string();
   return mesh;
 }
 
 namespace {
 
-Vec3 vertex(const WallMesh& m, std::int32_t i) {
+Vec3 vertex(const TriangleMesh& m, std::int32_t i) {
   return {m.vertices[3 * i], m.vertices[3 * i + 1], m.vertices[3 * i + 2]};
 }
 
-Vec3 unit_normal(const WallMesh& m, std::size_t t) {
+Vec3 unit_normal(const TriangleMesh& m, std::size_t t) {
   const Vec3 a = vertex(m, m.triangles[3 * t]), b = vertex(m, m.triangles[3 * t + 1]),
              c = vertex(m, m.triangles[3 * t + 2]);
   Vec3 n = cross(sub(b, a), sub(c, a));
@@ -298,7 +298,7 @@ Vec3 unit_normal(const WallMesh& m, std::size_t t) {
 
 }  // namespace
 
-void write_stl_ascii(const std::filesystem::path& file, const WallMesh& mesh) {
+void write_stl_ascii(const std::filesystem::path& file, const TriangleMesh& mesh) {
   std::ofstream out(file, std::ios::trunc);
   if (!out) throw StlError(file.string() + ": cannot create STL file");
   out.precision(17);
@@ -316,7 +316,7 @@ void write_stl_ascii(const std::filesystem::path& file, const WallMesh& mesh) {
   if (!out.flush()) throw StlError(file.string() + ": write failed");
 }
 
-void write_stl_binary(const std::filesystem::path& file, const WallMesh& mesh) {
+void write_stl_binary(const std::filesystem::path& file, const TriangleMesh& mesh) {
   std::ofstream out(file, std::ios::trunc | std::ios::binary);
   if (!out) throw StlError(file.string() + ": cannot create STL file");
   char header[80] = {};
@@ -340,9 +340,9 @@ void write_stl_binary(const std::filesystem::path& file, const WallMesh& mesh) {
   if (!out.flush()) throw StlError(file.string() + ": write failed");
 }
 
-WallMesh make_box_mesh(const std::array<double, 3>& lo, const std::array<double, 3>& hi,
-                       bool open_top) {
-  WallMesh m;
+TriangleMesh make_box_mesh(const std::array<double, 3>& lo, const std::array<double, 3>& hi,
+                           bool open_top) {
+  TriangleMesh m;
   m.name = "box";
   for (int i = 0; i < 8; ++i) {
     m.vertices.push_back((i & 1) ? hi[0] : lo[0]);
@@ -371,8 +371,8 @@ WallMesh make_box_mesh(const std::array<double, 3>& lo, const std::array<double,
   return m;
 }
 
-WallMesh make_plane_mesh(const std::array<double, 3>& point, const std::array<double, 3>& normal,
-                         double size) {
+TriangleMesh make_plane_mesh(const std::array<double, 3>& point,
+                             const std::array<double, 3>& normal, double size) {
   const double l = norm(normal);
   if (!(l > 0) || !(size > 0)) throw std::invalid_argument("make_plane_mesh: zero normal or size");
   const Vec3 n{normal[0] / l, normal[1] / l, normal[2] / l};
@@ -383,7 +383,7 @@ WallMesh make_plane_mesh(const std::array<double, 3>& point, const std::array<do
   u = {u[0] / lu, u[1] / lu, u[2] / lu};
   const Vec3 w = cross(n, u);
   const double h = 0.5 * size;
-  WallMesh m;
+  TriangleMesh m;
   m.name = "plane";
   const double su[4] = {-h, h, h, -h}, sw[4] = {-h, -h, h, h};
   for (int i = 0; i < 4; ++i)

@@ -114,8 +114,7 @@ ShapeSpec read_shape_spec(const Table& t) {
                            " (accepted: at most " + std::to_string(int(kMaxAspect)) +
                            "; only the ratios count, the box is scaled to its size)");
   } else if (s.kind == K::prism) {
-    s.aspect = {1.0,
-                t.number("height", 1.0, Range::closed(1.0 / kMaxAspect, kMaxAspect)), 1.0};
+    s.aspect = {1.0, t.number("height", 1.0, Range::closed(1.0 / kMaxAspect, kMaxAspect)), 1.0};
   }
   const std::string size = t.choice("size", "sieve", {"sieve", "volume_equivalent"});
   s.volume_equivalent = size == "volume_equivalent";

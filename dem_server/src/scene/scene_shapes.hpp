@@ -5,7 +5,7 @@
 #include <iosfwd>
 #include <memory>
 
-#include "demfem/dem/dem_scene.hpp"
+#include "demfem/dem/scene/dem_scene.hpp"
 #include "demfem/dem/shapes/shape_library.hpp"
 #include "demfem/scene/scene_reader.hpp"
 
@@ -20,7 +20,7 @@ ShapeSpec read_shape_spec(const scene::Table& t);
 /// `where`) for shape errors (degenerate cores, an open STL, r_d too large); notes a
 /// concave STL scan on `log`.
 std::unique_ptr<shapes::ShapeLibrary> build_shape_library(const ShapeSpec& spec,
-                                                          std::uint64_t run_seed,
-                                                          std::size_t entry, std::ostream* log);
+                                                          std::uint64_t run_seed, std::size_t entry,
+                                                          std::ostream* log);
 
 }  // namespace demfem::dem

@@ -1,4 +1,4 @@
-#include "demfem/dem/wall_clearance.hpp"
+#include "demfem/dem/placement/wall_clearance.hpp"
 
 #include <algorithm>
 #include <cmath>

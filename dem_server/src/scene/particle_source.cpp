@@ -1,4 +1,4 @@
-#include "demfem/dem/particle_source.hpp"
+#include "demfem/dem/scene/particle_source.hpp"
 
 #include <algorithm>
 #include <charconv>
@@ -13,10 +13,10 @@
 #include <sstream>
 #include <unordered_map>
 
-#include "demfem/dem/dem_scene.hpp"
 #include "demfem/dem/physics/geometry.hpp"
 #include "demfem/dem/physics/grid_cell.hpp"
-#include "demfem/dem/state_check.hpp"
+#include "demfem/dem/placement/state_check.hpp"
+#include "demfem/dem/scene/dem_scene.hpp"
 #include "demfem/io/file_hash.hpp"
 #include "demfem/io/h5_file.hpp"
 
