@@ -11,8 +11,7 @@
 #include <vector>
 
 #include "demfem/dem/physics/geometry.hpp"
-#include "demfem/dem/physics/integrator.hpp"
-#include "demfem/dem/physics/rigid_body.hpp"
+#include "demfem/dem/physics/step_integrator.hpp"
 #include "multiversion.hpp"
 
 namespace demfem::dem {
@@ -160,8 +159,8 @@ void DemSystem::Impl::forces_and_kick() {
     if (!frozen_idx.empty()) pa.frozen = frozen.data();
   }
 
-  const double h = 0.5 * s.dt;
   const double g[3] = {s.gravity[0], s.gravity[1], s.gravity[2]};
+  const phys::MotionArrays motion = motion_arrays();
   const bool walls_on = !tri_v.empty();
   const phys::WallView wv = wall_view();
   const phys::ParticleView& view = a.view;
@@ -205,18 +204,9 @@ void DemSystem::Impl::forces_and_kick() {
       fx = f.x, fy = f.y, fz = f.z;
       qx = q.x, qy = q.y, qz = q.z;
     }
-    const double m = st.mass[i];
-    fx += m * g[0], fy += m * g[1], fz += m * g[2];
-    st.fx[i] = fx, st.fy[i] = fy, st.fz[i] = fz;
-    phys::kick(st.vx[i], st.vy[i], st.vz[i], fx, fy, fz, h / m);
-    if constexpr (Poly) {
-      tx[i] = qx, ty[i] = qy, tz[i] = qz;
-      detail::poly_angular_kick(pp, i, st.wx.data(), st.wy.data(), st.wz.data(), Vec3{qx, qy, qz},
-                                h);
-    } else if constexpr (Friction) {
-      tx[i] = qx, ty[i] = qy, tz[i] = qz;
-      phys::kick(st.wx[i], st.wy[i], st.wz[i], qx, qy, qz, h / st.inertia[i]);
-    }
+    // spheres among polyhedra always spin: a pair torque may come from a polyhedron
+    phys::finish_kick(motion, i, Vec3{fx, fy, fz}, Vec3{qx, qy, qz}, g[0], g[1], g[2], s.dt,
+                      Poly || Friction);
   };
   constexpr std::int64_t kBlock = 256;  // particles per block: ~1500 pairs, ~150 kB of slots
   const int T = nt();
@@ -287,36 +277,41 @@ detail::PolyParticles DemSystem::Impl::poly_particles(const phys::ParticleView& 
                                shapes.view()};
 }
 
+phys::MotionArrays DemSystem::Impl::motion_arrays() {
+  const bool rigid = poly;  // the principal moments and shapes exist in systems with polyhedra
+  return phys::MotionArrays{st.px.data(),
+                            st.py.data(),
+                            st.pz.data(),
+                            st.vx.data(),
+                            st.vy.data(),
+                            st.vz.data(),
+                            st.wx.data(),
+                            st.wy.data(),
+                            st.wz.data(),
+                            st.qw.data(),
+                            st.qx.data(),
+                            st.qy.data(),
+                            st.qz.data(),
+                            st.fx.data(),
+                            st.fy.data(),
+                            st.fz.data(),
+                            tx.data(),
+                            ty.data(),
+                            tz.data(),
+                            st.mass.data(),
+                            st.inertia.data(),
+                            rigid ? st.ix.data() : nullptr,
+                            rigid ? st.iy.data() : nullptr,
+                            rigid ? st.iz.data() : nullptr,
+                            rigid ? st.shape_id.data() : nullptr};
+}
+
 double DemSystem::Impl::poly_kick_drift() {
   const bool have_build = bx.size() == n();
   detail::PolyDrift d{static_cast<std::int64_t>(n()),
                       s.dt,
                       nt(),
-                      st.px.data(),
-                      st.py.data(),
-                      st.pz.data(),
-                      st.vx.data(),
-                      st.vy.data(),
-                      st.vz.data(),
-                      st.wx.data(),
-                      st.wy.data(),
-                      st.wz.data(),
-                      st.qw.data(),
-                      st.qx.data(),
-                      st.qy.data(),
-                      st.qz.data(),
-                      st.fx.data(),
-                      st.fy.data(),
-                      st.fz.data(),
-                      tx.data(),
-                      ty.data(),
-                      tz.data(),
-                      st.mass.data(),
-                      st.inertia.data(),
-                      st.ix.data(),
-                      st.iy.data(),
-                      st.iz.data(),
-                      st.shape_id.data(),
+                      motion_arrays(),
                       have_build ? bx.data() : nullptr,
                       have_build ? by.data() : nullptr,
                       have_build ? bz.data() : nullptr};
@@ -340,28 +335,19 @@ double DemSystem::Impl::kick_drift() {
   const double dt = s.dt, h = 0.5 * s.dt;
   double m2 = 0.0, w2max = 0.0;
   const bool have_build = bx.size() == n();
-  double *vx = st.vx.data(), *vy = st.vy.data(), *vz = st.vz.data();
-  double *px = st.px.data(), *py = st.py.data(), *pz = st.pz.data();
-  double *wx = st.wx.data(), *wy = st.wy.data(), *wz = st.wz.data();
-  const double *fx = st.fx.data(), *fy = st.fy.data(), *fz = st.fz.data();
-  const double *mass = st.mass.data(), *inertia = st.inertia.data();
+  const phys::MotionArrays m = motion_arrays();
   const double *Tx = tx.data(), *Ty = ty.data(), *Tz = tz.data();
   const double *Bx = bx.data(), *By = by.data(), *Bz = bz.data();
+  const double *wx = st.wx.data(), *wy = st.wy.data(), *wz = st.wz.data();
+  // phys::kick_drift less the turn, which a second loop gives below
 #pragma omp parallel for simd num_threads(nt()) schedule(static) reduction(max : m2, w2max)
   for (std::int64_t i = 0; i < sn; ++i) {
-    const double hm = h / mass[i];
-    phys::kick(vx[i], vy[i], vz[i], fx[i], fy[i], fz[i], hm);
-    px[i] += dt * vx[i];
-    py[i] += dt * vy[i];
-    pz[i] += dt * vz[i];
-    if constexpr (Friction) {
-      phys::kick(wx[i], wy[i], wz[i], Tx[i], Ty[i], Tz[i], h / inertia[i]);
-    }
+    phys::kick_drift_translation(m, i, dt);
+    if constexpr (Friction) phys::kick_sphere_spin(m, i, Tx[i], Ty[i], Tz[i], h);
     const double w2 = wx[i] * wx[i] + wy[i] * wy[i] + wz[i] * wz[i];
     w2max = w2max > w2 ? w2max : w2;
     if (have_build) {
-      const double dx = px[i] - Bx[i], dy = py[i] - By[i], dz = pz[i] - Bz[i];
-      const double d2 = dx * dx + dy * dy + dz * dz;
+      const double d2 = phys::displacement2(m, i, Bx, By, Bz);
       m2 = m2 > d2 ? m2 : d2;
     }
   }
@@ -425,21 +411,17 @@ void DemSystem::Impl::step(bool last, ForceMode mode, std::int64_t substeps) {
   // displacement, and when that bound calls for an update, by the sum of the two largest
   // (a pass over the particles): a few fast spheres in a resting bed then use the whole
   // skin before they call for a build, instead of half of it.
-  const double dbuild = out_disp + disp;   // |x - x_build| <= sum of the refilter intervals
-  const bool one_level = skin_in >= skin;  // the list is the build's: no refilter
-  // the pair parts of the rules, for a bound pd of d_i + d_j since the last update
-  auto build_by_pairs = [&](double pd) {
-    return one_level ? pd > skin : out_pair + pd > skin - skin_in;
-  };
-  auto refilter_by_pairs = [&](double pd) { return !one_level && pd > skin_in; };
+  const double dbuild = out_disp + disp;  // |x - x_build| <= sum of the refilter intervals
+  const phys::ListRule rule{skin, skin_in, out_pair};
   double pdisp = 2.0 * disp;
-  if (!need_rebuild && disp < 1e300 && (build_by_pairs(pdisp) || refilter_by_pairs(pdisp)))
+  if (!need_rebuild && disp < 1e300 &&
+      (rule.build_by_pairs(pdisp) || rule.refilter_by_pairs(pdisp)))
     pdisp = two_largest_displacements();
   const double pbuild = out_pair + pdisp;  // d_i + d_j since the build, any pair
   // (one level: no refilter has added to out_disp since the build, so dbuild = disp)
-  if (need_rebuild || build_by_pairs(pdisp) || dbuild + wdisp > skin) {
+  if (need_rebuild || rule.build_by_pairs(pdisp) || rule.build_by_walls(dbuild, wdisp)) {
     rebuild();
-  } else if (refilter_by_pairs(pdisp)) {
+  } else if (rule.refilter_by_pairs(pdisp)) {
     if (adapt_inner_skin(false, pbuild)) {
       out_disp += disp;
       out_pair += pdisp;

@@ -307,6 +307,10 @@ struct DemSystem::Impl {
 
   detail::PolyParticles poly_particles(const phys::ParticleView& view) const;
 
+  // The arrays that the step integrator (physics/step_integrator.hpp) moves; the principal
+  // moments and shapes only in a system with polyhedra (spheres alone: none is a rigid body).
+  phys::MotionArrays motion_arrays();
+
   // Kick + drift of a system with polyhedra (polyhedra.cpp): per particle, spheres and rigid
   // bodies alike.
   double poly_kick_drift();
