@@ -131,11 +131,11 @@ void DemSystem::Impl::forces_and_kick() {
   a.pc = uniform_mat >= 0 ? pc.data() + uniform_mat * (nmat + 1) : pc.data();
   a.nmat = nmat;
   a.dt = s.dt;
-  a.shear = shear.data();
-  a.pf = pf.data();
-  a.pt = pt.data();
-  a.pr = pr.data();
-  a.rhist = rhist.data();
+  a.shear = slots.shear.data();
+  a.pf = slots.force.data();
+  a.pt = slots.torque.data();
+  a.pr = slots.rolling_torque.data();
+  a.rhist = slots.rolling_history.data();
   const PairKernel kern = pick_pair_kernel(Friction, Friction && rolling, uniform_mat >= 0);
   detail::PolyParticles pp{};
   detail::PolyPairs pa{};
@@ -143,19 +143,33 @@ void DemSystem::Impl::forces_and_kick() {
     pp = poly_particles(a.view);
     // the separation proofs of the last pass hold when it was this step's predecessor and
     // the list has not been updated since (a build or refilter renumbers the pairs)
-    const bool proofs = pslack_step == steps && steps_at_update < steps &&
-                        pslack.size() == nbr.size() && prot.size() == 9 * n() &&
-                        pxprev.size() == 3 * n();
-    if (!proofs) pslack.assign(nbr.size(), -1.0);
-    prot.resize(9 * n());
-    pxprev.resize(3 * n());
-    pmove.resize(n());
-    detail::poly_rotations(pp, prot.data(), pxprev.data(), pmove.data(), sn, nt());
-    pp.rot = prot.data();
-    pa = detail::PolyPairs{
-        pown.data(), nbr.data(),   st.material.data(), pc.data(),     nmat,        s.dt,
-        Friction,    rolling,      shear.data(),       rhist.data(),  pf.data(),   pt.data(),
-        ptj.data(),  paxis.data(), pfeat.data(),       pslack.data(), pmove.data()};
+    const bool proven = proofs.step == steps && steps_at_update < steps &&
+                        proofs.separation_left.size() == nbr.size() &&
+                        proofs.rotation.size() == 9 * n() && proofs.position.size() == 3 * n();
+    if (!proven) proofs.separation_left.assign(nbr.size(), -1.0);
+    proofs.rotation.resize(9 * n());
+    proofs.position.resize(3 * n());
+    proofs.core_motion.resize(n());
+    detail::poly_rotations(pp, proofs.rotation.data(), proofs.position.data(),
+                           proofs.core_motion.data(), sn, nt());
+    pp.rot = proofs.rotation.data();
+    pa = detail::PolyPairs{pown.data(),
+                           nbr.data(),
+                           st.material.data(),
+                           pc.data(),
+                           nmat,
+                           s.dt,
+                           Friction,
+                           rolling,
+                           slots.shear.data(),
+                           slots.rolling_history.data(),
+                           slots.force.data(),
+                           slots.torque.data(),
+                           slots.torque_j.data(),
+                           slots.separating_axis.data(),
+                           slots.closest_features.data(),
+                           proofs.separation_left.data(),
+                           proofs.core_motion.data()};
     if (!frozen_idx.empty()) pa.frozen = frozen.data();
   }
 
@@ -164,10 +178,10 @@ void DemSystem::Impl::forces_and_kick() {
   const bool walls_on = !tri_v.empty();
   const phys::WallView wv = wall_view();
   const phys::ParticleView& view = a.view;
-  const double* PF = pf.data();
-  const double* PT = pt.data();
-  const double* PR = pr.data();
-  const double* PTJ = ptj.data();
+  const double* PF = slots.force.data();
+  const double* PT = slots.torque.data();
+  const double* PR = slots.rolling_torque.data();
+  const double* PTJ = slots.torque_j.data();
   const bool roll = rolling;
   auto gather = [&](std::int64_t i, double& mo, double& mr, double& fmo) {
     double fx = 0, fy = 0, fz = 0;
@@ -255,7 +269,7 @@ void DemSystem::Impl::forces_and_kick() {
     }
   }
   if (active == T) balance.adapt();
-  if constexpr (Poly) pslack_step = steps + 1;
+  if constexpr (Poly) proofs.step = steps + 1;
   max_ov = mo;
   adv_max_ov = std::max(adv_max_ov, mo);
   adv_max_rel = std::max(adv_max_rel, mr);

@@ -18,16 +18,16 @@ namespace demfem::dem::phys {
 /// A particle is a rigid body with a full inertia tensor (a polyhedron) when shape_id is not
 /// null and shape_id[i] >= 0; otherwise a sphere (isotropic inertia `inertia`).
 struct MotionArrays {
-  double *px, *py, *pz;      ///< position, m
-  double *vx, *vy, *vz;      ///< velocity, m/s
-  double *wx, *wy, *wz;      ///< angular velocity (world frame), rad/s
-  double *qw, *qx, *qy, *qz; ///< orientation
-  double *fx, *fy, *fz;      ///< force of the last force pass, N
-  double *tx, *ty, *tz;      ///< torque of the last force pass, N m
-  const double* mass;        ///< kg
-  const double* inertia;     ///< a sphere's moment of inertia, kg m²
-  const double *ix, *iy, *iz;      ///< a rigid body's principal moments, kg m² (null: none)
-  const std::int32_t* shape_id;    ///< >= 0: a rigid body's shape (null: spheres only)
+  double *px, *py, *pz;          ///< position, m
+  double *vx, *vy, *vz;          ///< velocity, m/s
+  double *wx, *wy, *wz;          ///< angular velocity (world frame), rad/s
+  double *qw, *qx, *qy, *qz;     ///< orientation
+  double *fx, *fy, *fz;          ///< force of the last force pass, N
+  double *tx, *ty, *tz;          ///< torque of the last force pass, N m
+  const double* mass;            ///< kg
+  const double* inertia;         ///< a sphere's moment of inertia, kg m²
+  const double *ix, *iy, *iz;    ///< a rigid body's principal moments, kg m² (null: none)
+  const std::int32_t* shape_id;  ///< >= 0: a rigid body's shape (null: spheres only)
 };
 
 /// True when particle i turns as a rigid body with a full inertia tensor.
@@ -118,9 +118,7 @@ struct ListRule {
   DEMFEM_HD bool refilter_by_pairs(double pd) const { return !one_level() && pd > skin_in; }
   /// A particle (moved by at most `dbuild` since the build) and a wall vertex (moved by at
   /// most `wdisp`) may have closed the skin: build.
-  DEMFEM_HD bool build_by_walls(double dbuild, double wdisp) const {
-    return dbuild + wdisp > skin;
-  }
+  DEMFEM_HD bool build_by_walls(double dbuild, double wdisp) const { return dbuild + wdisp > skin; }
 };
 
 }  // namespace demfem::dem::phys
