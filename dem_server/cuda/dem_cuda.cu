@@ -1,5 +1,5 @@
 // CUDA backend of DemSystem: the same physics headers as the CPU backend
-// (physics/contact.hpp, physics/integrator.hpp) over device structure-of-arrays state.
+// (physics/contact.hpp, physics/step_integrator.hpp) over device structure-of-arrays state.
 // Walls use the shared sphere-triangle contact set (physics/wall_contact.hpp) inside the
 // gather kernel. One step is three kernels (kick+drift, pair forces per CSR row,
 // gather+kick), captured once into a CUDA graph and replayed without host synchronisation; the host
@@ -21,10 +21,9 @@
 
 #include "core/dem_cuda_backend.hpp"
 #include "demfem/dem/physics/contact.hpp"
-#include "demfem/dem/physics/integrator.hpp"
 #include "demfem/dem/physics/pair.hpp"
 #include "demfem/dem/physics/poly_contact.hpp"
-#include "demfem/dem/physics/rigid_body.hpp"
+#include "demfem/dem/physics/step_integrator.hpp"
 
 namespace demfem::dem {
 
@@ -103,6 +102,15 @@ __device__ phys::PolyView poly_view(const Dev& d) {
   return v;
 }
 
+// The arrays the step integrator moves (device pointers; rigid bodies only with polyhedra).
+__device__ phys::MotionArrays motion_arrays(const Dev& d) {
+  return phys::MotionArrays{d.px, d.py, d.pz, d.vx, d.vy, d.vz, d.wx, d.wy, d.wz,
+                            d.qw, d.qx, d.qy, d.qz, d.fx, d.fy, d.fz, d.tx, d.ty, d.tz,
+                            d.mass, d.inertia,
+                            d.poly ? d.ix : nullptr, d.poly ? d.iy : nullptr,
+                            d.poly ? d.iz : nullptr, d.poly ? d.shape_id : nullptr};
+}
+
 // Folds v (>= 0) into *dst, the bit pattern of a non-negative double (whose integer order is
 // the order of the values): a shuffle reduction over the warp, then one atomic per warp. Every
 // lane of the warp must call it (no thread of the block may have returned before).
@@ -124,24 +132,9 @@ __global__ void k_kick_drift(Dev d, std::size_t n, double dt, double half_skin2,
   if (i == 0) *d.max_ov = 0ull;  // max overlap of this step (read after the pair kernel)
   double d2 = 0.0;
   if (i < n) {
-    const double h = 0.5 * dt;
-    phys::kick(d.vx[i], d.vy[i], d.vz[i], d.fx[i], d.fy[i], d.fz[i], h / d.mass[i]);
-    d.px[i] += dt * d.vx[i];
-    d.py[i] += dt * d.vy[i];
-    d.pz[i] += dt * d.vz[i];
-    if (d.poly && d.shape_id[i] >= 0) {  // a rigid body: full inertia, NO_SQUISH rotation
-      const phys::Vec3 I{d.ix[i], d.iy[i], d.iz[i]};
-      phys::angular_kick(d.wx[i], d.wy[i], d.wz[i], d.qw[i], d.qx[i], d.qy[i], d.qz[i], I,
-                         phys::Vec3{d.tx[i], d.ty[i], d.tz[i]}, h);
-      phys::free_rotation(d.qw[i], d.qx[i], d.qy[i], d.qz[i], d.wx[i], d.wy[i], d.wz[i], I, dt);
-    } else {
-      if (friction || d.poly)
-        phys::kick(d.wx[i], d.wy[i], d.wz[i], d.tx[i], d.ty[i], d.tz[i], h / d.inertia[i]);
-      if (orientation)
-        phys::rotate_quaternion(d.qw[i], d.qx[i], d.qy[i], d.qz[i], d.wx[i], d.wy[i], d.wz[i], dt);
-    }
-    const double dx = d.px[i] - d.bx[i], dy = d.py[i] - d.by[i], dz = d.pz[i] - d.bz[i];
-    d2 = dx * dx + dy * dy + dz * dz;
+    const phys::MotionArrays m = motion_arrays(d);
+    phys::kick_drift(m, static_cast<std::int64_t>(i), dt, friction || d.poly, orientation);
+    d2 = phys::displacement2(m, static_cast<std::int64_t>(i), d.bx, d.by, d.bz);
     if (d2 > half_skin2) atomicExch(d.stop + 1, 1);
   }
   if (track) warp_max_to(d2, d.pdisp2);
@@ -188,7 +181,9 @@ __global__ void k_latch(Dev d, double dt, double skin, bool moving) {
     const double wdisp = sqrt(bits_to_double(*d.wdisp2));
     *d.pdisp2 = 0ull;
     *d.wdisp2 = 0ull;
-    rebuild = rebuild || 2.0 * disp > skin || disp + wdisp > skin;
+    const phys::ListRule one_level{skin, skin, 0.0};  // the list is the build's
+    rebuild = rebuild || one_level.build_by_pairs(2.0 * disp) ||
+              one_level.build_by_walls(disp, wdisp);
   }
   if (rebuild) d.stop[0] = 2;
 }
@@ -372,19 +367,8 @@ __global__ void k_gather_kick(Dev d, std::size_t n, std::size_t nmat, double dt,
       }
     }
   }
-  const double m = d.mass[i];
-  fx += m * gx, fy += m * gy, fz += m * gz;
-  d.fx[i] = fx, d.fy[i] = fy, d.fz[i] = fz;
-  const double h = 0.5 * dt;
-  phys::kick(d.vx[i], d.vy[i], d.vz[i], fx, fy, fz, h / m);
-  if (d.poly && d.shape_id[i] >= 0) {
-    d.tx[i] = qx, d.ty[i] = qy, d.tz[i] = qz;
-    phys::angular_kick(d.wx[i], d.wy[i], d.wz[i], d.qw[i], d.qx[i], d.qy[i], d.qz[i],
-                       phys::Vec3{d.ix[i], d.iy[i], d.iz[i]}, phys::Vec3{qx, qy, qz}, h);
-  } else if (Friction || d.poly) {
-    d.tx[i] = qx, d.ty[i] = qy, d.tz[i] = qz;
-    phys::kick(d.wx[i], d.wy[i], d.wz[i], qx, qy, qz, h / d.inertia[i]);
-  }
+  phys::finish_kick(motion_arrays(d), static_cast<std::int64_t>(i), phys::Vec3{fx, fy, fz},
+                    phys::Vec3{qx, qy, qz}, gx, gy, gz, dt, Friction || d.poly);
 }
 
 }  // namespace

@@ -33,8 +33,8 @@ GpuHostView DemSystem::Impl::gpu_view() {
   v.material = st.material.data();
   v.npairs = nbr.size();
   v.row = row.data(), v.trow = trow.data(), v.tpair = tpair.data(), v.nbr = nbr.data();
-  v.shear = shear.data();
-  v.rhist = rolling ? rhist.data() : nullptr;
+  v.shear = slots.shear.data();
+  v.rhist = rolling ? slots.rolling_history.data() : nullptr;
   v.bx = bx.data(), v.by = by.data(), v.bz = bz.data();
   v.pc = pc.data();
   v.nmat = nmat;
@@ -55,7 +55,9 @@ GpuHostView DemSystem::Impl::gpu_view() {
     v.bound = a.bound.data();
     v.shape_id = st.shape_id.data(), v.scale = st.scale.data();
     v.ix = st.ix.data(), v.iy = st.iy.data(), v.iz = st.iz.data();
-    v.ptj = ptj.data(), v.paxis = paxis.data(), v.pfeat = pfeat.data();
+    v.ptj = slots.torque_j.data();
+    v.paxis = slots.separating_axis.data();
+    v.pfeat = slots.closest_features.data();
   }
   if (!tri_v.empty()) {
     v.nverts = vpos.size() / 3, v.ntris = tri_v.size() / 3, v.nptri = ptri.size();

@@ -61,8 +61,8 @@ auto double_arrays(ImplT& I) {
                                                        {"tx", &I.tx},
                                                        {"ty", &I.ty},
                                                        {"tz", &I.tz},
-                                                       {"shear", &I.shear},
-                                                       {"rhist", &I.rhist},
+                                                       {"shear", &I.slots.shear},
+                                                       {"rhist", &I.slots.rolling_history},
                                                        {"wroll", &I.wroll},
                                                        {"bx", &I.bx},
                                                        {"by", &I.by},
@@ -194,8 +194,8 @@ PairsWithSprings pairs_with_springs(const ImplT& I) {
   const std::size_t n = I.row.empty() ? 0 : I.row.size() - 1;
   out.row.assign(I.row.empty() ? 0 : n + 1, 0);
   // without friction no pair has a spring (and no shear array): no pair is state
-  if (I.shear.size() != 3 * I.nbr.size()) return out;
-  const bool rolling = I.rhist.size() == I.shear.size();
+  if (I.slots.shear.size() != 3 * I.nbr.size()) return out;
+  const bool rolling = I.slots.rolling_history.size() == I.slots.shear.size();
   std::vector<std::pair<std::int32_t, std::size_t>> kept;  // (j, pair index)
   auto spring = [](const std::vector<double>& h, std::size_t k) {
     return h[3 * k] != 0.0 || h[3 * k + 1] != 0.0 || h[3 * k + 2] != 0.0;
@@ -204,15 +204,16 @@ PairsWithSprings pairs_with_springs(const ImplT& I) {
     kept.clear();
     for (auto k = static_cast<std::size_t>(I.row[i]); k < static_cast<std::size_t>(I.row[i + 1]);
          ++k)
-      if (spring(I.shear, k) || (rolling && spring(I.rhist, k))) kept.emplace_back(I.nbr[k], k);
+      if (spring(I.slots.shear, k) || (rolling && spring(I.slots.rolling_history, k)))
+        kept.emplace_back(I.nbr[k], k);
     std::sort(kept.begin(), kept.end());
     for (const auto& [j, k] : kept) {
       out.nbr.push_back(j);
-      out.shear.insert(out.shear.end(), I.shear.begin() + std::ptrdiff_t(3 * k),
-                       I.shear.begin() + std::ptrdiff_t(3 * k + 3));
+      out.shear.insert(out.shear.end(), I.slots.shear.begin() + std::ptrdiff_t(3 * k),
+                       I.slots.shear.begin() + std::ptrdiff_t(3 * k + 3));
       if (rolling)
-        out.rhist.insert(out.rhist.end(), I.rhist.begin() + std::ptrdiff_t(3 * k),
-                         I.rhist.begin() + std::ptrdiff_t(3 * k + 3));
+        out.rhist.insert(out.rhist.end(), I.slots.rolling_history.begin() + std::ptrdiff_t(3 * k),
+                         I.slots.rolling_history.begin() + std::ptrdiff_t(3 * k + 3));
     }
     out.row[i + 1] = static_cast<std::int64_t>(out.nbr.size());
   }
@@ -285,9 +286,9 @@ void check_state_indices(const ImplT& I, std::size_t nverts, const std::string& 
                                     std::to_string(lo + 1) + ", " + std::to_string(n) +
                                     "): partners are particles after i, ascending within a row");
     }
-  if (I.shear.size() != 3 * nbr.size())
-    refuse("shear", "has " + std::to_string(I.shear.size()) + " values, not 3 per pair of nbr (" +
-                        std::to_string(3 * nbr.size()) + ")");
+  if (I.slots.shear.size() != 3 * nbr.size())
+    refuse("shear", "has " + std::to_string(I.slots.shear.size()) +
+                        " values, not 3 per pair of nbr (" + std::to_string(3 * nbr.size()) + ")");
   const bool walls = !I.tri_wall.empty();
   for (std::size_t i = 0; i < I.wcount.size(); ++i)
     if (I.wcount[i] > (walls ? kMaxWallContacts : 0))
@@ -501,11 +502,12 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   // springs. Forces of the pairs do not depend on which non-touching pairs the list holds,
   // so the continuation is bitwise identical to an uninterrupted run.
   if (!I.rolling) {
-    I.rhist.clear(), I.wroll.clear();
+    I.slots.rolling_history.clear(), I.wroll.clear();
   } else {
-    if (I.rhist.empty()) I.rhist.assign(3 * I.nbr.size(), 0.0);
+    if (I.slots.rolling_history.empty()) I.slots.rolling_history.assign(3 * I.nbr.size(), 0.0);
     if (I.wroll.empty()) I.wroll.assign(3 * kMaxWallContacts * n, 0.0);
-    if (I.rhist.size() != 3 * I.nbr.size() || I.wroll.size() != 3 * kMaxWallContacts * n)
+    if (I.slots.rolling_history.size() != 3 * I.nbr.size() ||
+        I.wroll.size() != 3 * kMaxWallContacts * n)
       bad("restore: rolling history sizes in '" + group + "' of " + f.path().string() +
           " do not match the pair list and particles");
   }

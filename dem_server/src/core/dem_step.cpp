@@ -11,8 +11,7 @@
 #include <vector>
 
 #include "demfem/dem/physics/geometry.hpp"
-#include "demfem/dem/physics/integrator.hpp"
-#include "demfem/dem/physics/rigid_body.hpp"
+#include "demfem/dem/physics/step_integrator.hpp"
 #include "multiversion.hpp"
 
 namespace demfem::dem {
@@ -132,11 +131,11 @@ void DemSystem::Impl::forces_and_kick() {
   a.pc = uniform_mat >= 0 ? pc.data() + uniform_mat * (nmat + 1) : pc.data();
   a.nmat = nmat;
   a.dt = s.dt;
-  a.shear = shear.data();
-  a.pf = pf.data();
-  a.pt = pt.data();
-  a.pr = pr.data();
-  a.rhist = rhist.data();
+  a.shear = slots.shear.data();
+  a.pf = slots.force.data();
+  a.pt = slots.torque.data();
+  a.pr = slots.rolling_torque.data();
+  a.rhist = slots.rolling_history.data();
   const PairKernel kern = pick_pair_kernel(Friction, Friction && rolling, uniform_mat >= 0);
   detail::PolyParticles pp{};
   detail::PolyPairs pa{};
@@ -144,31 +143,45 @@ void DemSystem::Impl::forces_and_kick() {
     pp = poly_particles(a.view);
     // the separation proofs of the last pass hold when it was this step's predecessor and
     // the list has not been updated since (a build or refilter renumbers the pairs)
-    const bool proofs = pslack_step == steps && steps_at_update < steps &&
-                        pslack.size() == nbr.size() && prot.size() == 9 * n() &&
-                        pxprev.size() == 3 * n();
-    if (!proofs) pslack.assign(nbr.size(), -1.0);
-    prot.resize(9 * n());
-    pxprev.resize(3 * n());
-    pmove.resize(n());
-    detail::poly_rotations(pp, prot.data(), pxprev.data(), pmove.data(), sn, nt());
-    pp.rot = prot.data();
-    pa = detail::PolyPairs{
-        pown.data(), nbr.data(),   st.material.data(), pc.data(),     nmat,        s.dt,
-        Friction,    rolling,      shear.data(),       rhist.data(),  pf.data(),   pt.data(),
-        ptj.data(),  paxis.data(), pfeat.data(),       pslack.data(), pmove.data()};
+    const bool proven = proofs.step == steps && steps_at_update < steps &&
+                        proofs.separation_left.size() == nbr.size() &&
+                        proofs.rotation.size() == 9 * n() && proofs.position.size() == 3 * n();
+    if (!proven) proofs.separation_left.assign(nbr.size(), -1.0);
+    proofs.rotation.resize(9 * n());
+    proofs.position.resize(3 * n());
+    proofs.core_motion.resize(n());
+    detail::poly_rotations(pp, proofs.rotation.data(), proofs.position.data(),
+                           proofs.core_motion.data(), sn, nt());
+    pp.rot = proofs.rotation.data();
+    pa = detail::PolyPairs{pown.data(),
+                           nbr.data(),
+                           st.material.data(),
+                           pc.data(),
+                           nmat,
+                           s.dt,
+                           Friction,
+                           rolling,
+                           slots.shear.data(),
+                           slots.rolling_history.data(),
+                           slots.force.data(),
+                           slots.torque.data(),
+                           slots.torque_j.data(),
+                           slots.separating_axis.data(),
+                           slots.closest_features.data(),
+                           proofs.separation_left.data(),
+                           proofs.core_motion.data()};
     if (!frozen_idx.empty()) pa.frozen = frozen.data();
   }
 
-  const double h = 0.5 * s.dt;
   const double g[3] = {s.gravity[0], s.gravity[1], s.gravity[2]};
+  const phys::MotionArrays motion = motion_arrays();
   const bool walls_on = !tri_v.empty();
   const phys::WallView wv = wall_view();
   const phys::ParticleView& view = a.view;
-  const double* PF = pf.data();
-  const double* PT = pt.data();
-  const double* PR = pr.data();
-  const double* PTJ = ptj.data();
+  const double* PF = slots.force.data();
+  const double* PT = slots.torque.data();
+  const double* PR = slots.rolling_torque.data();
+  const double* PTJ = slots.torque_j.data();
   const bool roll = rolling;
   auto gather = [&](std::int64_t i, double& mo, double& mr, double& fmo) {
     double fx = 0, fy = 0, fz = 0;
@@ -205,18 +218,9 @@ void DemSystem::Impl::forces_and_kick() {
       fx = f.x, fy = f.y, fz = f.z;
       qx = q.x, qy = q.y, qz = q.z;
     }
-    const double m = st.mass[i];
-    fx += m * g[0], fy += m * g[1], fz += m * g[2];
-    st.fx[i] = fx, st.fy[i] = fy, st.fz[i] = fz;
-    phys::kick(st.vx[i], st.vy[i], st.vz[i], fx, fy, fz, h / m);
-    if constexpr (Poly) {
-      tx[i] = qx, ty[i] = qy, tz[i] = qz;
-      detail::poly_angular_kick(pp, i, st.wx.data(), st.wy.data(), st.wz.data(), Vec3{qx, qy, qz},
-                                h);
-    } else if constexpr (Friction) {
-      tx[i] = qx, ty[i] = qy, tz[i] = qz;
-      phys::kick(st.wx[i], st.wy[i], st.wz[i], qx, qy, qz, h / st.inertia[i]);
-    }
+    // spheres among polyhedra always spin: a pair torque may come from a polyhedron
+    phys::finish_kick(motion, i, Vec3{fx, fy, fz}, Vec3{qx, qy, qz}, g[0], g[1], g[2], s.dt,
+                      Poly || Friction);
   };
   constexpr std::int64_t kBlock = 256;  // particles per block: ~1500 pairs, ~150 kB of slots
   const int T = nt();
@@ -265,7 +269,7 @@ void DemSystem::Impl::forces_and_kick() {
     }
   }
   if (active == T) balance.adapt();
-  if constexpr (Poly) pslack_step = steps + 1;
+  if constexpr (Poly) proofs.step = steps + 1;
   max_ov = mo;
   adv_max_ov = std::max(adv_max_ov, mo);
   adv_max_rel = std::max(adv_max_rel, mr);
@@ -287,36 +291,41 @@ detail::PolyParticles DemSystem::Impl::poly_particles(const phys::ParticleView& 
                                shapes.view()};
 }
 
+phys::MotionArrays DemSystem::Impl::motion_arrays() {
+  const bool rigid = poly;  // the principal moments and shapes exist in systems with polyhedra
+  return phys::MotionArrays{st.px.data(),
+                            st.py.data(),
+                            st.pz.data(),
+                            st.vx.data(),
+                            st.vy.data(),
+                            st.vz.data(),
+                            st.wx.data(),
+                            st.wy.data(),
+                            st.wz.data(),
+                            st.qw.data(),
+                            st.qx.data(),
+                            st.qy.data(),
+                            st.qz.data(),
+                            st.fx.data(),
+                            st.fy.data(),
+                            st.fz.data(),
+                            tx.data(),
+                            ty.data(),
+                            tz.data(),
+                            st.mass.data(),
+                            st.inertia.data(),
+                            rigid ? st.ix.data() : nullptr,
+                            rigid ? st.iy.data() : nullptr,
+                            rigid ? st.iz.data() : nullptr,
+                            rigid ? st.shape_id.data() : nullptr};
+}
+
 double DemSystem::Impl::poly_kick_drift() {
   const bool have_build = bx.size() == n();
   detail::PolyDrift d{static_cast<std::int64_t>(n()),
                       s.dt,
                       nt(),
-                      st.px.data(),
-                      st.py.data(),
-                      st.pz.data(),
-                      st.vx.data(),
-                      st.vy.data(),
-                      st.vz.data(),
-                      st.wx.data(),
-                      st.wy.data(),
-                      st.wz.data(),
-                      st.qw.data(),
-                      st.qx.data(),
-                      st.qy.data(),
-                      st.qz.data(),
-                      st.fx.data(),
-                      st.fy.data(),
-                      st.fz.data(),
-                      tx.data(),
-                      ty.data(),
-                      tz.data(),
-                      st.mass.data(),
-                      st.inertia.data(),
-                      st.ix.data(),
-                      st.iy.data(),
-                      st.iz.data(),
-                      st.shape_id.data(),
+                      motion_arrays(),
                       have_build ? bx.data() : nullptr,
                       have_build ? by.data() : nullptr,
                       have_build ? bz.data() : nullptr};
@@ -340,28 +349,19 @@ double DemSystem::Impl::kick_drift() {
   const double dt = s.dt, h = 0.5 * s.dt;
   double m2 = 0.0, w2max = 0.0;
   const bool have_build = bx.size() == n();
-  double *vx = st.vx.data(), *vy = st.vy.data(), *vz = st.vz.data();
-  double *px = st.px.data(), *py = st.py.data(), *pz = st.pz.data();
-  double *wx = st.wx.data(), *wy = st.wy.data(), *wz = st.wz.data();
-  const double *fx = st.fx.data(), *fy = st.fy.data(), *fz = st.fz.data();
-  const double *mass = st.mass.data(), *inertia = st.inertia.data();
+  const phys::MotionArrays m = motion_arrays();
   const double *Tx = tx.data(), *Ty = ty.data(), *Tz = tz.data();
   const double *Bx = bx.data(), *By = by.data(), *Bz = bz.data();
+  const double *wx = st.wx.data(), *wy = st.wy.data(), *wz = st.wz.data();
+  // phys::kick_drift less the turn, which a second loop gives below
 #pragma omp parallel for simd num_threads(nt()) schedule(static) reduction(max : m2, w2max)
   for (std::int64_t i = 0; i < sn; ++i) {
-    const double hm = h / mass[i];
-    phys::kick(vx[i], vy[i], vz[i], fx[i], fy[i], fz[i], hm);
-    px[i] += dt * vx[i];
-    py[i] += dt * vy[i];
-    pz[i] += dt * vz[i];
-    if constexpr (Friction) {
-      phys::kick(wx[i], wy[i], wz[i], Tx[i], Ty[i], Tz[i], h / inertia[i]);
-    }
+    phys::kick_drift_translation(m, i, dt);
+    if constexpr (Friction) phys::kick_sphere_spin(m, i, Tx[i], Ty[i], Tz[i], h);
     const double w2 = wx[i] * wx[i] + wy[i] * wy[i] + wz[i] * wz[i];
     w2max = w2max > w2 ? w2max : w2;
     if (have_build) {
-      const double dx = px[i] - Bx[i], dy = py[i] - By[i], dz = pz[i] - Bz[i];
-      const double d2 = dx * dx + dy * dy + dz * dz;
+      const double d2 = phys::displacement2(m, i, Bx, By, Bz);
       m2 = m2 > d2 ? m2 : d2;
     }
   }
@@ -425,21 +425,17 @@ void DemSystem::Impl::step(bool last, ForceMode mode, std::int64_t substeps) {
   // displacement, and when that bound calls for an update, by the sum of the two largest
   // (a pass over the particles): a few fast spheres in a resting bed then use the whole
   // skin before they call for a build, instead of half of it.
-  const double dbuild = out_disp + disp;   // |x - x_build| <= sum of the refilter intervals
-  const bool one_level = skin_in >= skin;  // the list is the build's: no refilter
-  // the pair parts of the rules, for a bound pd of d_i + d_j since the last update
-  auto build_by_pairs = [&](double pd) {
-    return one_level ? pd > skin : out_pair + pd > skin - skin_in;
-  };
-  auto refilter_by_pairs = [&](double pd) { return !one_level && pd > skin_in; };
+  const double dbuild = out_disp + disp;  // |x - x_build| <= sum of the refilter intervals
+  const phys::ListRule rule{skin, skin_in, out_pair};
   double pdisp = 2.0 * disp;
-  if (!need_rebuild && disp < 1e300 && (build_by_pairs(pdisp) || refilter_by_pairs(pdisp)))
+  if (!need_rebuild && disp < 1e300 &&
+      (rule.build_by_pairs(pdisp) || rule.refilter_by_pairs(pdisp)))
     pdisp = two_largest_displacements();
   const double pbuild = out_pair + pdisp;  // d_i + d_j since the build, any pair
   // (one level: no refilter has added to out_disp since the build, so dbuild = disp)
-  if (need_rebuild || build_by_pairs(pdisp) || dbuild + wdisp > skin) {
+  if (need_rebuild || rule.build_by_pairs(pdisp) || rule.build_by_walls(dbuild, wdisp)) {
     rebuild();
-  } else if (refilter_by_pairs(pdisp)) {
+  } else if (rule.refilter_by_pairs(pdisp)) {
     if (adapt_inner_skin(false, pbuild)) {
       out_disp += disp;
       out_pair += pdisp;

@@ -263,20 +263,20 @@ void DemSystem::remove_particles(std::span<const std::uint8_t> keep) {
       for (std::int64_t p = I.row[i]; p < I.row[i + 1]; ++p) {
         if (map[I.nbr[p]] < 0) continue;
         nnbr.push_back(map[I.nbr[p]]);
-        if (!I.shear.empty())
-          for (int d = 0; d < 3; ++d) nsh.push_back(I.shear[3 * p + d]);
-        if (!I.rhist.empty())
-          for (int d = 0; d < 3; ++d) nrh.push_back(I.rhist[3 * p + d]);
-        if (!I.paxis.empty())
-          for (int d = 0; d < 3; ++d) nax.push_back(I.paxis[3 * p + d]);
-        if (!I.pfeat.empty())
-          for (int d = 0; d < 6; ++d) nft.push_back(I.pfeat[6 * p + d]);
+        if (!I.slots.shear.empty())
+          for (int d = 0; d < 3; ++d) nsh.push_back(I.slots.shear[3 * p + d]);
+        if (!I.slots.rolling_history.empty())
+          for (int d = 0; d < 3; ++d) nrh.push_back(I.slots.rolling_history[3 * p + d]);
+        if (!I.slots.separating_axis.empty())
+          for (int d = 0; d < 3; ++d) nax.push_back(I.slots.separating_axis[3 * p + d]);
+        if (!I.slots.closest_features.empty())
+          for (int d = 0; d < 6; ++d) nft.push_back(I.slots.closest_features[6 * p + d]);
       }
       nrow[map[i] + 1] = static_cast<std::int64_t>(nnbr.size());
     }
-    I.row.swap(nrow), I.nbr.swap(nnbr), I.shear.swap(nsh), I.rhist.swap(nrh);
-    I.paxis.swap(nax);
-    I.pfeat.swap(nft);
+    I.row.swap(nrow), I.nbr.swap(nnbr), I.slots.shear.swap(nsh), I.slots.rolling_history.swap(nrh);
+    I.slots.separating_axis.swap(nax);
+    I.slots.closest_features.swap(nft);
   }
   auto& st = I.st;
   for (auto* v :
@@ -442,7 +442,7 @@ std::size_t DemSystem::neighbour_pairs() const {
   return impl_->nbr.size();
 }
 std::size_t DemSystem::contact_count() const {
-  const auto& pf = impl_->pf;
+  const auto& pf = impl_->slots.force;
   std::size_t c = 0;
   for (std::size_t p = 0; p + 2 < pf.size(); p += 3)
     if (pf[p] != 0.0 || pf[p + 1] != 0.0 || pf[p + 2] != 0.0) ++c;
@@ -454,7 +454,8 @@ std::vector<std::int32_t> DemSystem::contact_counts() const {
   for (std::size_t i = 0; i + 1 < I.row.size() && i < n.size(); ++i) {
     for (auto k = I.row[i]; k < I.row[i + 1]; ++k) {
       const auto p = static_cast<std::size_t>(3 * k);
-      if (p + 2 < I.pf.size() && (I.pf[p] != 0.0 || I.pf[p + 1] != 0.0 || I.pf[p + 2] != 0.0)) {
+      if (p + 2 < I.slots.force.size() &&
+          (I.slots.force[p] != 0.0 || I.slots.force[p + 1] != 0.0 || I.slots.force[p + 2] != 0.0)) {
         ++n[i];
         ++n[static_cast<std::size_t>(I.nbr[static_cast<std::size_t>(k)])];
       }
@@ -476,9 +477,12 @@ std::size_t DemSystem::state_bytes() const {
     add(*v);
   add(st.material), add(st.shape), add(st.shape_id);
   add(I.row), add(I.nbr), add(I.pown), add(I.trow), add(I.tpair), add(I.tsrc);
-  add(I.gather_row), add(I.gather_pair), add(I.gather_sign), add(I.shear), add(I.rhist);
-  add(I.pf), add(I.pt), add(I.pr), add(I.ptj), add(I.paxis), add(I.pfeat), add(I.prot),
-      add(I.pslack), add(I.pmove), add(I.pxprev), add(I.orow), add(I.onbr);
+  add(I.gather_row), add(I.gather_pair), add(I.gather_sign), add(I.slots.shear),
+      add(I.slots.rolling_history);
+  add(I.slots.force), add(I.slots.torque), add(I.slots.rolling_torque), add(I.slots.torque_j),
+      add(I.slots.separating_axis), add(I.slots.closest_features), add(I.proofs.rotation),
+      add(I.proofs.separation_left), add(I.proofs.core_motion), add(I.proofs.position), add(I.orow),
+      add(I.onbr);
   add(I.prow), add(I.ptri), add(I.wkey), add(I.wshear), add(I.wroll), add(I.wf), add(I.wp);
   add(I.wb), add(I.wtri), add(I.wcount);
   const auto& a = I.shapes.arrays();

@@ -4,7 +4,8 @@
 // refilter, skin), dem_step.cpp (force pass and integration), dem_walls.cpp (wall store,
 // wall kinematics and loads), dem_gpu_bridge.cpp (the CUDA backend's host side) and
 // dem_state_io.cpp (save / restore). The physics (contact law, integrator, triangle
-// geometry) comes from include/demfem/dem/physics/*.hpp, shared with the CUDA backend.
+// geometry, the step integrator) comes from include/demfem/dem/physics/*.hpp, shared with
+// the CUDA backend.
 //
 // Step structure (velocity Verlet, see physics/integrator.hpp):
 //   1. per particle: half kick with the last force, drift, max displacement since the last
@@ -39,8 +40,10 @@
 #include "demfem/dem/physics/pair.hpp"
 #include "demfem/dem/physics/wall_contact.hpp"
 #include "demfem/dem/physics/wall_motion.hpp"
+#include "pair_slots.hpp"
 #include "polyhedra.hpp"
 #include "rigid_mesh_bodies.hpp"
+#include "separation_proofs.hpp"
 #include "shape_table.hpp"
 
 namespace demfem::dem {
@@ -76,16 +79,8 @@ struct DemSystem::Impl {
   detail::ShapeTable shapes;
   bool poly = false;
   std::size_t poly_count = 0;       // particles that are polyhedra (the threads' work estimate)
-  std::vector<double> ptj;          // 3 per pair: torque on j (poly systems; pt is the torque on i)
-  std::vector<double> paxis;        // 3 per pair: separating-axis cache of the narrow phase
-  std::vector<std::int32_t> pfeat;  // 6 per pair: closest-feature cache (GJK warm start)
-  std::vector<double> prot;         // 9 per particle: the polyhedra's rotations in a force pass
-  // The separation proofs of the CPU pair pass (polyhedra.hpp, PolyPairs::pslack): per pair the
-  // proven separation left, per particle the bound of its motion since the last pass and its
-  // position then. Valid only from the pass of the step before (pslack_step == steps) with no
-  // list update between; derived, never saved (a pass without them computes every pair).
-  std::vector<double> pslack, pmove, pxprev;
-  std::int64_t pslack_step = -1;
+  // The separation proofs of the polyhedra's pair pass (separation_proofs.hpp).
+  detail::SeparationProofs proofs;
   // Frozen particles (DemSystem::freeze): the mask (empty: none), and derived from it the
   // frozen particles' indices and the pose each is held at (7 per particle: x, y, z, qw, qx,
   // qy, qz), which hold_frozen() puts back after each kick and drift.
@@ -122,9 +117,7 @@ struct DemSystem::Impl {
   std::vector<std::int64_t> gather_row;   // n + 1
   std::vector<std::int64_t> gather_pair;  // pair of each entry
   std::vector<double> gather_sign;        // +1 own row (force on i), -1 transposed (force on j)
-  std::vector<double> shear;              // 3 per pair
-  std::vector<double> rhist;              // 3 per pair: rolling-torque history (only if rolling)
-  std::vector<double> pf, pt, pr;         // 3 per pair: force on i, n x F_t, rolling torque on i
+  detail::PairSlots slots;                // per pair of the list: springs, forces, caches
   std::vector<double> bx, by, bz;         // positions at the last refilter
   // Two-level list: a build from the cell grid keeps the candidate pairs within
   // r_i + r_j + skin (orow, onbr, same layout as row, nbr); the list proper holds those
@@ -306,6 +299,10 @@ struct DemSystem::Impl {
   void forces_and_kick();
 
   detail::PolyParticles poly_particles(const phys::ParticleView& view) const;
+
+  // The arrays that the step integrator (physics/step_integrator.hpp) moves; the principal
+  // moments and shapes only in a system with polyhedra (spheres alone: none is a rigid body).
+  phys::MotionArrays motion_arrays();
 
   // Kick + drift of a system with polyhedra (polyhedra.cpp): per particle, spheres and rigid
   // bodies alike.

@@ -261,8 +261,8 @@ void DemSystem::Impl::refilter() {
   if (poly) nfeat.assign(6 * npair, -1);
   if (friction) nshear.assign(3 * npair, 0.0);
   if ((friction || poly) && row.size() == np + 1) {
-    const bool carry_axis =
-        poly && paxis.size() == 3 * nbr.size() && pfeat.size() == 6 * nbr.size();
+    const bool carry_axis = poly && slots.separating_axis.size() == 3 * nbr.size() &&
+                            slots.closest_features.size() == 6 * nbr.size();
 #pragma omp parallel for num_threads(nt()) schedule(static)
     for (std::int64_t i = 0; i < sn; ++i) {
       std::int64_t a = row[i], b = nrow[i];
@@ -273,12 +273,12 @@ void DemSystem::Impl::refilter() {
           ++b;
         } else {
           if (friction)
-            for (int d = 0; d < 3; ++d) nshear[3 * b + d] = shear[3 * a + d];
-          if (friction && rolling && rhist.size() == shear.size())
-            for (int d = 0; d < 3; ++d) nrhist[3 * b + d] = rhist[3 * a + d];
+            for (int d = 0; d < 3; ++d) nshear[3 * b + d] = slots.shear[3 * a + d];
+          if (friction && rolling && slots.rolling_history.size() == slots.shear.size())
+            for (int d = 0; d < 3; ++d) nrhist[3 * b + d] = slots.rolling_history[3 * a + d];
           if (carry_axis) {
-            for (int d = 0; d < 3; ++d) naxis[3 * b + d] = paxis[3 * a + d];
-            for (int d = 0; d < 6; ++d) nfeat[6 * b + d] = pfeat[6 * a + d];
+            for (int d = 0; d < 3; ++d) naxis[3 * b + d] = slots.separating_axis[3 * a + d];
+            for (int d = 0; d < 6; ++d) nfeat[6 * b + d] = slots.closest_features[6 * a + d];
           }
           ++a, ++b;
         }
@@ -287,10 +287,10 @@ void DemSystem::Impl::refilter() {
   }
   row.swap(nrow);
   nbr.swap(nnbr);
-  shear.swap(nshear);
-  rhist.swap(nrhist);
-  paxis.swap(naxis);
-  pfeat.swap(nfeat);
+  slots.shear.swap(nshear);
+  slots.rolling_history.swap(nrhist);
+  slots.separating_axis.swap(naxis);
+  slots.closest_features.swap(nfeat);
   pown.resize(npair);
 #pragma omp parallel for num_threads(nt()) schedule(static)
   for (std::int64_t i = 0; i < sn; ++i)
@@ -298,19 +298,19 @@ void DemSystem::Impl::refilter() {
   uniform_mat = np > 0 ? st.material[0] : -1;
   for (std::size_t i = 0; i < np && uniform_mat >= 0; ++i)
     if (st.material[i] != uniform_mat) uniform_mat = -1;
-  pf.assign(3 * npair, 0.0);
+  slots.force.assign(3 * npair, 0.0);
   if (friction || poly)
-    pt.assign(3 * npair, 0.0);
+    slots.torque.assign(3 * npair, 0.0);
   else
-    pt.clear();
+    slots.torque.clear();
   if (poly)
-    ptj.assign(3 * npair, 0.0);
+    slots.torque_j.assign(3 * npair, 0.0);
   else
-    ptj.clear();
+    slots.torque_j.clear();
   if (rolling)
-    pr.assign(3 * npair, 0.0);
+    slots.rolling_torque.assign(3 * npair, 0.0);
   else
-    pr.clear();
+    slots.rolling_torque.clear();
   // transposed index: for each j the pairs (i, j), i ascending (counting sort is stable)
   trow.assign(np + 1, 0);
   for (std::size_t p = 0; p < npair; ++p) ++trow[nbr[p] + 1];

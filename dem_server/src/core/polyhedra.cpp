@@ -8,9 +8,8 @@
 
 #include <cmath>
 
-#include "demfem/dem/physics/integrator.hpp"
 #include "demfem/dem/physics/poly_contact.hpp"
-#include "demfem/dem/physics/rigid_body.hpp"
+#include "demfem/dem/physics/step_integrator.hpp"
 
 namespace demfem::dem::detail {
 
@@ -113,42 +112,17 @@ DEMFEM_CLONES void poly_wall_contacts(const PolyParticles& p, const phys::WallVi
     phys::poly_wall_contacts<false>(pw, w, i, pc_row, dt, f, q, mo, fmo);
 }
 
-void poly_angular_kick(const PolyParticles& p, std::int64_t i, double* wx, double* wy, double* wz,
-                       Vec3 t, double h) {
-  if (p.shape_id[i] >= 0) {
-    phys::angular_kick(wx[i], wy[i], wz[i], p.qw[i], p.qx[i], p.qy[i], p.qz[i],
-                       Vec3{p.ix[i], p.iy[i], p.iz[i]}, t, h);
-  } else {
-    phys::kick(wx[i], wy[i], wz[i], t.x, t.y, t.z, h / p.inertia[i]);
-  }
-}
-
 double poly_kick_drift(const PolyDrift& d) {
-  const double dt = d.dt, h = 0.5 * d.dt;
   double m2 = 0.0;
   const bool have_build = d.bx != nullptr;
 #pragma omp parallel for num_threads(d.threads) schedule(static) reduction(max : m2)
   for (std::int64_t i = 0; i < d.n; ++i) {
     // a frozen particle is held at rest (hold_frozen): not moved, but its distance from the
-    // list's build position still counts
-    if (d.frozen == nullptr || d.frozen[i] == 0) {
-      phys::kick(d.vx[i], d.vy[i], d.vz[i], d.fx[i], d.fy[i], d.fz[i], h / d.mass[i]);
-      d.px[i] += dt * d.vx[i];
-      d.py[i] += dt * d.vy[i];
-      d.pz[i] += dt * d.vz[i];
-      const Vec3 t{d.tx[i], d.ty[i], d.tz[i]};
-      if (d.shape_id[i] >= 0) {
-        const Vec3 I{d.ix[i], d.iy[i], d.iz[i]};
-        phys::angular_kick(d.wx[i], d.wy[i], d.wz[i], d.qw[i], d.qx[i], d.qy[i], d.qz[i], I, t, h);
-        phys::free_rotation(d.qw[i], d.qx[i], d.qy[i], d.qz[i], d.wx[i], d.wy[i], d.wz[i], I, dt);
-      } else {
-        phys::kick(d.wx[i], d.wy[i], d.wz[i], t.x, t.y, t.z, h / d.inertia[i]);
-        phys::rotate_quaternion(d.qw[i], d.qx[i], d.qy[i], d.qz[i], d.wx[i], d.wy[i], d.wz[i], dt);
-      }
-    }
+    // list's build position still counts. Spheres among polyhedra always spin and turn.
+    if (d.frozen == nullptr || d.frozen[i] == 0)
+      phys::kick_drift(d.motion, i, d.dt, /*spin=*/true, /*turn=*/true);
     if (have_build) {
-      const double dx = d.px[i] - d.bx[i], dy = d.py[i] - d.by[i], dz = d.pz[i] - d.bz[i];
-      const double d2 = dx * dx + dy * dy + dz * dz;
+      const double d2 = phys::displacement2(d.motion, i, d.bx, d.by, d.bz);
       m2 = m2 > d2 ? m2 : d2;
     }
   }

@@ -8,6 +8,7 @@
 #include <cstdint>
 
 #include "demfem/dem/physics/poly_contact.hpp"
+#include "demfem/dem/physics/step_integrator.hpp"
 
 namespace demfem::dem::detail {
 
@@ -63,18 +64,12 @@ void poly_wall_contacts(const PolyParticles& p, const phys::WallView& w, std::in
                         const phys::PairConstants* pc_row, double dt, bool friction, phys::Vec3& f,
                         phys::Vec3& q, double& mo, double& fmo);
 
-/// Half kick of the angular velocity of particle i by torque t (rigid body or sphere).
-void poly_angular_kick(const PolyParticles& p, std::int64_t i, double* wx, double* wy, double* wz,
-                       phys::Vec3 t, double h);
-
 /// Arrays of the kick + drift of a mixed system.
 struct PolyDrift {
   std::int64_t n;
   double dt;
   int threads;
-  double *px, *py, *pz, *vx, *vy, *vz, *wx, *wy, *wz, *qw, *qx, *qy, *qz;
-  const double *fx, *fy, *fz, *tx, *ty, *tz, *mass, *inertia, *ix, *iy, *iz;
-  const std::int32_t* shape_id;
+  phys::MotionArrays motion;
   const double *bx, *by, *bz;  ///< positions at the last list update (null: none)
   const std::uint8_t* frozen = nullptr;  ///< per particle, or null: frozen ones are not moved
 };

@@ -369,23 +369,47 @@ DEMFEM_HD PolyWallParticle poly_wall_particle(const PolyView& v, int i) {
   return w;
 }
 
-/// Adds the wall contact forces and torques of polyhedron i to f and q (world), fills its
-/// wall slots (the sphere layout of WallView: key, spring, force, point, barycentric weights
-/// and triangle per contact) and raises mo / fmo (largest overlap, with the flexible mesh).
-template <bool Friction>
-DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, std::int64_t i,
-                                  const PairConstants* pc_row, double dt, Vec3& f, Vec3& q,
-                                  double& mo, double& fmo) {
-  if (w.prow[i] == w.prow[i + 1] && w.wcount[i] == 0) return;
-  // the touching triangles: overlap, normal, point, touching region (the triangle as the
-  // reference face), and the triangle's feature the contact is at
-  std::int32_t ctri[kMaxPolyWallCandidates];
-  int cfeat[kMaxPolyWallCandidates];  // 0 face, 1..3 edge ab/bc/ca, 4..6 vertex a/b/c
-  double cdelta[kMaxPolyWallCandidates], cw[kMaxPolyWallCandidates];
-  double cs[kMaxPolyWallCandidates][6];
-  Vec3 cn[kMaxPolyWallCandidates], cpt[kMaxPolyWallCandidates], cm[kMaxPolyWallCandidates];
-  Vec3 cpa[kMaxPolyWallCandidates], cpb[kMaxPolyWallCandidates];  // closest core points
-  double cdist[kMaxPolyWallCandidates];
+/// The feature of triangle abc (normal nt) at a contact of normal n: its face when n is its
+/// normal, else its support feature towards the particle (along -n).
+DEMFEM_HD int triangle_contact_feature(Vec3 a, Vec3 b, Vec3 c, Vec3 nt, Vec3 n) {
+  const double al = dot(nt, n);
+  if (al >= kFaceAlign || al <= -kFaceAlign) return kFace;
+  const double h[3] = {-dot(a, n), -dot(b, n), -dot(c, n)};
+  const double hm = h[0] > h[1] ? (h[0] > h[2] ? h[0] : h[2]) : (h[1] > h[2] ? h[1] : h[2]);
+  const double tol = 1e-9 * std::sqrt(norm2(b - a) + norm2(c - a));
+  const bool top[3] = {h[0] >= hm - tol, h[1] >= hm - tol, h[2] >= hm - tol};
+  const int ntop = int(top[0]) + int(top[1]) + int(top[2]);
+  if (ntop >= 3) return kFace;
+  if (ntop == 2) return top[0] && top[1] ? kEdgeAB : (top[1] && top[2] ? kEdgeBC : kEdgeCA);
+  return top[0] ? kVertexA : (top[1] ? kVertexB : kVertexC);
+}
+
+/// The triangles that touch a polyhedron (poly_wall_contacts), and how they group into
+/// contacts. Per touching triangle: overlap, normal, point, touching region (the triangle as
+/// the reference face) and the triangle's feature the contact is at.
+struct PolyWallTouches {
+  int count = 0;
+  std::int32_t tri[kMaxPolyWallCandidates];
+  int feature[kMaxPolyWallCandidates];  // 0 face, 1..3 edge ab/bc/ca, 4..6 vertex a/b/c
+  double delta[kMaxPolyWallCandidates], weight[kMaxPolyWallCandidates];
+  double second[kMaxPolyWallCandidates][6];
+  Vec3 n[kMaxPolyWallCandidates], point[kMaxPolyWallCandidates], moment[kMaxPolyWallCandidates];
+  Vec3 pa[kMaxPolyWallCandidates], pb[kMaxPolyWallCandidates];  // closest core points
+  double dist[kMaxPolyWallCandidates];
+  int group[kMaxPolyWallCandidates];  // label of each touch's contact: its smallest member
+  bool keep[kMaxPolyWallCandidates];  // false: the group is shadowed by a face contact
+};
+
+/// Vertex k of triangle tri of the wall store.
+DEMFEM_HD Vec3 wall_vertex(const WallView& w, std::int32_t tri, int k) {
+  const std::int32_t u = w.tri_v[3 * tri + k];
+  return Vec3{w.vpos[3 * u], w.vpos[3 * u + 1], w.vpos[3 * u + 2]};
+}
+
+/// The candidate triangles of polyhedron i that touch it, into t (first the face normal of
+/// each triangle is tried as the separating axis).
+DEMFEM_HD void poly_wall_touches(const PolyWallParticle& p, const WallView& w, std::int64_t i,
+                                 PolyWallTouches& t) {
   int nc = 0;
   const double* v = w.vpos;
   for (std::int64_t k = w.prow[i]; k < w.prow[i + 1] && nc < kMaxPolyWallCandidates; ++k) {
@@ -394,60 +418,45 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
     const Vec3 a{v[3 * tv[0]], v[3 * tv[0] + 1], v[3 * tv[0] + 2]};
     const Vec3 b{v[3 * tv[1]], v[3 * tv[1] + 1], v[3 * tv[1] + 2]};
     const Vec3 c{v[3 * tv[2]], v[3 * tv[2] + 1], v[3 * tv[2] + 2]};
-    const Core t = triangle_core(a, b, c);
+    const Core tc = triangle_core(a, b, c);
     // the triangle's normal towards the particle's centre, turned to point from the particle
     // to the triangle, is the first axis tried: it rejects a triangle whose plane the
     // particle's lowest point is more than r_d above, and it starts GJK at the lowest point
     Vec3 nt0 = cross(b - a, c - a);
     nt0 = (dot(nt0, p.core.x - a) > 0.0 ? -1.0 : 1.0) / std::sqrt(norm2(nt0)) * nt0;
-    const ConvexContact k2 = convex_contact(p.core, p.r, t, 0.0, 0.0, nt0, true);
+    const ConvexContact k2 = convex_contact(p.core, p.r, tc, 0.0, 0.0, nt0, true);
     const double delta = p.r - k2.dist;
     if (k2.separated || !(delta > 0.0)) continue;
-    // the triangle's feature: its face when n is its normal, else its support feature
-    // towards the particle (along -n)
-    const Vec3 nt = core_face_normal(t, 0);
-    const double al = dot(nt, k2.n);
-    int feat;
-    if (al >= kFaceAlign || al <= -kFaceAlign) {
-      feat = kFace;
-    } else {
-      const double h[3] = {-dot(a, k2.n), -dot(b, k2.n), -dot(c, k2.n)};
-      const double hm = h[0] > h[1] ? (h[0] > h[2] ? h[0] : h[2]) : (h[1] > h[2] ? h[1] : h[2]);
-      const double tol = 1e-9 * std::sqrt(norm2(b - a) + norm2(c - a));
-      const bool top[3] = {h[0] >= hm - tol, h[1] >= hm - tol, h[2] >= hm - tol};
-      const int ntop = int(top[0]) + int(top[1]) + int(top[2]);
-      if (ntop >= 3)
-        feat = kFace;
-      else if (ntop == 2)
-        feat = top[0] && top[1] ? kEdgeAB : (top[1] && top[2] ? kEdgeBC : kEdgeCA);
-      else
-        feat = top[0] ? kVertexA : (top[1] ? kVertexB : kVertexC);
-    }
-    ctri[nc] = tri;
-    cfeat[nc] = feat;
-    cdelta[nc] = delta;
-    cn[nc] = k2.n;
-    cpt[nc] = k2.point;
-    cw[nc] = k2.ref_side >= 0 ? k2.weight : 0.0;
-    cm[nc] = k2.moment;
-    cpa[nc] = k2.pa, cpb[nc] = k2.pb, cdist[nc] = k2.dist;
-    for (int m = 0; m < 6; ++m) cs[nc][m] = k2.second[m];
+    t.tri[nc] = tri;
+    t.feature[nc] = triangle_contact_feature(a, b, c, core_face_normal(tc, 0), k2.n);
+    t.delta[nc] = delta;
+    t.n[nc] = k2.n;
+    t.point[nc] = k2.point;
+    t.weight[nc] = k2.ref_side >= 0 ? k2.weight : 0.0;
+    t.moment[nc] = k2.moment;
+    t.pa[nc] = k2.pa, t.pb[nc] = k2.pb, t.dist[nc] = k2.dist;
+    for (int m = 0; m < 6; ++m) t.second[nc][m] = k2.second[m];
     ++nc;
   }
-  // groups: triangles sharing a vertex (transitively) whose contact normals differ by less
-  // than kMergeAngle are one contact (label = smallest member); their touching regions
-  // partition the overlap (each is clipped to its own triangle)
-  int group[kMaxPolyWallCandidates];
+  t.count = nc;
+}
+
+/// Groups: triangles sharing a vertex (transitively) whose contact normals differ by less than
+/// kMergeAngle are one contact (label = smallest member); their touching regions partition the
+/// overlap (each is clipped to its own triangle).
+DEMFEM_HD void group_poly_wall_touches(const WallView& w, PolyWallTouches& t) {
+  const int nc = t.count;
+  int* group = t.group;
   for (int a = 0; a < nc; ++a) group[a] = a;
   for (bool changed = true; changed;) {
     changed = false;
     for (int a = 0; a < nc; ++a)
       for (int b = a + 1; b < nc; ++b) {
-        if (group[a] == group[b] || dot(cn[a], cn[b]) < kMergeCos) continue;
+        if (group[a] == group[b] || dot(t.n[a], t.n[b]) < kMergeCos) continue;
         bool adjacent = false;
         for (int e = 0; e < 3; ++e)
           for (int g = 0; g < 3; ++g)
-            adjacent = adjacent || w.tri_v[3 * ctri[a] + e] == w.tri_v[3 * ctri[b] + g];
+            adjacent = adjacent || w.tri_v[3 * t.tri[a] + e] == w.tri_v[3 * t.tri[b] + g];
         if (!adjacent) continue;
         const int lo = group[a] < group[b] ? group[a] : group[b];
         const int hi = group[a] < group[b] ? group[b] : group[a];
@@ -456,11 +465,16 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
         changed = true;
       }
   }
-  // a group of edge and vertex contacts only is dropped when one of its edges or vertices
-  // belongs to a triangle touching with its face in another group (the sphere rule: the face
-  // contact is that contact)
-  bool keep[kMaxPolyWallCandidates];
-  for (int a = 0; a < nc; ++a) keep[a] = true;
+}
+
+/// A group of edge and vertex contacts only is dropped (keep = false) when one of its edges or
+/// vertices belongs to a triangle touching with its face in another group (the sphere rule:
+/// the face contact is that contact).
+DEMFEM_HD void drop_shadowed_poly_wall_groups(const WallView& w, PolyWallTouches& t) {
+  const int nc = t.count;
+  const int* group = t.group;
+  const int* cfeat = t.feature;
+  for (int a = 0; a < nc; ++a) t.keep[a] = true;
   for (int a = 0; a < nc; ++a) {
     if (group[a] != a) continue;
     bool has_face = false;
@@ -469,10 +483,10 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
     bool shadowed = false;
     for (int b = a; b < nc && !shadowed; ++b) {
       if (group[b] != a) continue;
-      const std::int32_t* tb = w.tri_v + 3 * ctri[b];
+      const std::int32_t* tb = w.tri_v + 3 * t.tri[b];
       for (int o = 0; o < nc && !shadowed; ++o) {
         if (group[o] == a || cfeat[o] != kFace) continue;
-        const std::int32_t* to = w.tri_v + 3 * ctri[o];
+        const std::int32_t* to = w.tri_v + 3 * t.tri[o];
         if (cfeat[b] <= kEdgeCA) {  // the edge's two vertices both on the face triangle
           const int e0 = cfeat[b] - 1;
           const std::int32_t u0 = tb[e0], u1 = tb[(e0 + 1) % 3];
@@ -487,8 +501,94 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
     }
     if (shadowed)
       for (int b = a; b < nc; ++b)
-        if (group[b] == a) keep[b] = false;
+        if (group[b] == a) t.keep[b] = false;
   }
+}
+
+/// The contact of group a (label a) as one: its deepest member, the touching region summed over
+/// the members, and from it the normal n and the point c (the deepest member's where no member
+/// has a region).
+DEMFEM_HD int poly_wall_group_region(const PolyWallTouches& t, int a, Region& reg, Vec3& n,
+                                     Vec3& c) {
+  int deep = a;
+  reg = Region{0.0, {0, 0, 0, 0, 0, 0}, Vec3{0, 0, 0}};
+  Vec3 nsum{0, 0, 0}, msum{0, 0, 0};
+  for (int b = a; b < t.count; ++b) {
+    if (t.group[b] != a) continue;
+    if (t.delta[b] > t.delta[deep]) deep = b;
+    reg.weight += t.weight[b];
+    nsum = nsum + t.weight[b] * t.n[b];
+    msum = msum + t.moment[b];
+    if (t.weight[b] > 0.0)
+      for (int m = 0; m < 6; ++m) reg.second[m] += t.second[b][m];
+  }
+  n = t.n[deep];
+  c = t.point[deep];
+  if (reg.weight > 0.0) {
+    n = (1.0 / std::sqrt(norm2(nsum))) * nsum;
+    const Vec3 cen = (1.0 / reg.weight) * msum;
+    c = cen + dot(n, t.point[deep] - cen) * n;
+    reg.centre = cen;
+  }
+  return deep;
+}
+
+/// True when group a's contact takes the smooth law (el: its elastic part): the law asks for
+/// it, the particle is a polyhedron, every member is apart from the core and the rock's
+/// vertices see enough of the overlap delta.
+DEMFEM_HD bool smooth_poly_wall_group(const PolyWallParticle& p, const WallView& w,
+                                      const PolyWallTouches& t, int a, const PairConstants& pcw,
+                                      double delta, SmoothElastic& el) {
+  if (!(pcw.law == kLawSmooth && p.core.kind == Core::kPolyhedron)) return false;
+  // the group's members, their closest pairs (all at positive distance)
+  Vec3 gt[3 * kMaxPolyWallCandidates], gpa[kMaxPolyWallCandidates], gpb[kMaxPolyWallCandidates];
+  int m = 0;
+  bool apart = true;
+  for (int b = a; b < t.count; ++b) {
+    if (t.group[b] != a) continue;
+    for (int e = 0; e < 3; ++e) gt[3 * m + e] = wall_vertex(w, t.tri[b], e);
+    gpa[m] = t.pa[b], gpb[m] = t.pb[b];
+    apart = apart && t.dist[b] > 0.0;
+    ++m;
+  }
+  SmoothSum sum;
+  // the wall's own edges and vertices have no terms (smooth_wall_sum): where the group's
+  // deepest point is one of them in the rock's face, the rock's vertices see less than the
+  // overlap, and the pressure-centre law takes the contact
+  return apart && smooth_wall_sum(p.core, p.r, p.body.x, gt, gpa, gpb, m, sum) &&
+         smooth_elastic(sum, pcw.e_star, p.r, el) && el.delta_s >= kSmoothWallFloor * delta;
+}
+
+/// The carrier of group a's contact at point c: the member triangle nearest c (the first of
+/// equally near ones), and c's closest point on it in cpc.
+DEMFEM_HD std::int32_t poly_wall_carrier(const WallView& w, const PolyWallTouches& t, int a,
+                                         int deep, Vec3 c, ClosestPoint& cpc) {
+  std::int32_t tri = t.tri[deep];
+  cpc = ClosestPoint{};
+  double best = 1e300;
+  for (int b = a; b < t.count; ++b) {
+    if (t.group[b] != a) continue;
+    const ClosestPoint cp = closest_point_triangle(
+        c, wall_vertex(w, t.tri[b], 0), wall_vertex(w, t.tri[b], 1), wall_vertex(w, t.tri[b], 2));
+    const double dd = norm2(cp.point - c);
+    if (dd < best) best = dd, tri = t.tri[b], cpc = cp;
+  }
+  return tri;
+}
+
+/// Adds the wall contact forces and torques of polyhedron i to f and q (world), fills its
+/// wall slots (the sphere layout of WallView: key, spring, force, point, barycentric weights
+/// and triangle per contact) and raises mo / fmo (largest overlap, with the flexible mesh).
+template <bool Friction>
+DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, std::int64_t i,
+                                  const PairConstants* pc_row, double dt, Vec3& f, Vec3& q,
+                                  double& mo, double& fmo) {
+  if (w.prow[i] == w.prow[i + 1] && w.wcount[i] == 0) return;
+  PolyWallTouches t;
+  poly_wall_touches(p, w, i, t);
+  group_poly_wall_touches(w, t);
+  drop_shadowed_poly_wall_groups(w, t);
+  const int nc = t.count;
   std::int64_t* key = w.wkey + kMaxWallContacts * i;
   double* shr = w.wshear + 3 * kMaxWallContacts * i;
   std::int64_t okey[kMaxWallContacts];
@@ -502,67 +602,17 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
   }
   int cnt = 0;
   for (int a = 0; a < nc && cnt < kMaxWallContacts; ++a) {
-    if (!keep[a] || group[a] != a) continue;  // each group once, at its first member
-    int deep = a;
-    Region reg{0.0, {0, 0, 0, 0, 0, 0}, Vec3{0, 0, 0}};
-    Vec3 nsum{0, 0, 0}, msum{0, 0, 0};
-    for (int b = a; b < nc; ++b) {
-      if (group[b] != a) continue;
-      if (cdelta[b] > cdelta[deep]) deep = b;
-      reg.weight += cw[b];
-      nsum = nsum + cw[b] * cn[b];
-      msum = msum + cm[b];
-      if (cw[b] > 0.0)
-        for (int m = 0; m < 6; ++m) reg.second[m] += cs[b][m];
-    }
-    Vec3 n = cn[deep];
-    Vec3 c = cpt[deep];
-    if (reg.weight > 0.0) {
-      n = (1.0 / std::sqrt(norm2(nsum))) * nsum;
-      const Vec3 cen = (1.0 / reg.weight) * msum;
-      c = cen + dot(n, cpt[deep] - cen) * n;
-      reg.centre = cen;
-    }
-    const double delta = cdelta[deep];
-    const PairConstants& pcw = pc_row[w.tri_mat[ctri[deep]]];
+    if (!t.keep[a] || t.group[a] != a) continue;  // each group once, at its first member
+    Region reg;
+    Vec3 n, c;
+    const int deep = poly_wall_group_region(t, a, reg, n, c);
+    const double delta = t.delta[deep];
+    const PairConstants& pcw = pc_row[w.tri_mat[t.tri[deep]]];
     SmoothElastic el;
-    bool smooth = false;
-    if (pcw.law == kLawSmooth && p.core.kind == Core::kPolyhedron) {
-      // the group's members, their closest pairs (all at positive distance)
-      Vec3 gt[3 * kMaxPolyWallCandidates], gpa[kMaxPolyWallCandidates], gpb[kMaxPolyWallCandidates];
-      int m = 0;
-      bool apart = true;
-      for (int b = a; b < nc; ++b) {
-        if (group[b] != a) continue;
-        const std::int32_t* tb = w.tri_v + 3 * ctri[b];
-        for (int e = 0; e < 3; ++e)
-          gt[3 * m + e] = Vec3{v[3 * tb[e]], v[3 * tb[e] + 1], v[3 * tb[e] + 2]};
-        gpa[m] = cpa[b], gpb[m] = cpb[b];
-        apart = apart && cdist[b] > 0.0;
-        ++m;
-      }
-      SmoothSum sum;
-      // the wall's own edges and vertices have no terms (smooth_wall_sum): where the group's
-      // deepest point is one of them in the rock's face, the rock's vertices see less than the
-      // overlap, and the pressure-centre law takes the contact
-      smooth = apart && smooth_wall_sum(p.core, p.r, p.body.x, gt, gpa, gpb, m, sum) &&
-               smooth_elastic(sum, pcw.e_star, p.r, el) && el.delta_s >= kSmoothWallFloor * delta;
-    }
+    const bool smooth = smooth_poly_wall_group(p, w, t, a, pcw, delta, el);
     if (smooth) c = el.point;  // the force's point: the carrier's and the record's
-    // the carrier: the member triangle nearest the contact point
-    std::int32_t tri = ctri[deep];
-    ClosestPoint cpc{};
-    double best = 1e300;
-    for (int b = a; b < nc; ++b) {
-      if (group[b] != a) continue;
-      const std::int32_t* tv = w.tri_v + 3 * ctri[b];
-      const ClosestPoint cp =
-          closest_point_triangle(c, Vec3{v[3 * tv[0]], v[3 * tv[0] + 1], v[3 * tv[0] + 2]},
-                                 Vec3{v[3 * tv[1]], v[3 * tv[1] + 1], v[3 * tv[1] + 2]},
-                                 Vec3{v[3 * tv[2]], v[3 * tv[2] + 1], v[3 * tv[2] + 2]});
-      const double dd = norm2(cp.point - c);
-      if (dd < best) best = dd, tri = ctri[b], cpc = cp;
-    }
+    ClosestPoint cpc;
+    const std::int32_t tri = poly_wall_carrier(w, t, a, deep, c, cpc);
     const std::int32_t* tv = w.tri_v + 3 * tri;
     const double* vv = w.vvel;
     const Vec3 vw = cpc.u * Vec3{vv[3 * tv[0]], vv[3 * tv[0] + 1], vv[3 * tv[0] + 2]} +
@@ -575,7 +625,7 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
       bool found = false;
       for (int o = 0; o < oc && !found; ++o)
         for (int b = a; b < nc && !found; ++b) {
-          if (group[b] != a || okey[o] != ctri[b]) continue;
+          if (t.group[b] != a || okey[o] != t.tri[b]) continue;
           sh = Vec3{osh[3 * o], osh[3 * o + 1], osh[3 * o + 2]};
           found = true;
         }
@@ -591,7 +641,7 @@ DEMFEM_HD void poly_wall_contacts(const PolyWallParticle& p, const WallView& w, 
     f = f + r.force;
     q = q + r.torque_i;
     if constexpr (Friction) shr[3 * cnt] = sh.x, shr[3 * cnt + 1] = sh.y, shr[3 * cnt + 2] = sh.z;
-    key[cnt] = ctri[deep];
+    key[cnt] = t.tri[deep];
     const std::int64_t slot = kMaxWallContacts * i + cnt;
     w.wf[3 * slot] = r.force.x, w.wf[3 * slot + 1] = r.force.y, w.wf[3 * slot + 2] = r.force.z;
     w.wp[3 * slot] = c.x, w.wp[3 * slot + 1] = c.y, w.wp[3 * slot + 2] = c.z;
