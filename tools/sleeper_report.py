@@ -41,6 +41,7 @@ import math
 import os
 import re
 import sys
+import types
 import tomllib
 
 from demfem_post import load_scene, read_csv, run_overrides
@@ -147,70 +148,57 @@ def scene_figures(scene_path, rock_density, overrides=()):
             "rocks_box_volume": rocks_box, "gauges": strain_gauges(sc, mesh_nodes)}
 
 
-def main(argv):
-    ap = argparse.ArgumentParser(description="sleeper run report")
-    ap.add_argument("output")
-    ap.add_argument("--scene", required=True, help="the load case's scene (TOML)")
-    ap.add_argument("--hold", default=None,
-                    help="T0,T1: window of the static hold, s; or last:D, the run's last D s "
-                         "(runs of another length, e.g. a time-scale study's members)")
-    ap.add_argument("--rock-density", type=float, default=None,
-                    help="kg/m^3 (default: the scene's granite)")
-    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                    help="a scene key as the run had it (demfem run --set)")
-    a = ap.parse_args(argv)
-    out = a.output
-    try:
-        fig = scene_figures(a.scene, a.rock_density, run_overrides(out) + a.set)
-        mon_path = os.path.join(out, "fem_monitor.csv")
-        mon = read_csv(mon_path)
-        t = mon.column("time")
-        probes = sorted({m.group(1) for h in mon for m in [re.match(r"(b\w+)_uz$", h)] if m})
-        if not probes:
-            raise KeyError(f"{mon_path}: no bottom probes b*_uz")
-        uz = [mon.column(p + "_uz") for p in probes]
-        strain = {}  # label -> bottom-fibre axial strain per monitor row
-        for label, (x0, x1, p0, p1) in fig["gauges"].items():
-            u0, u1 = mon.column(p0 + "_ux"), mon.column(p1 + "_ux")
-            strain[label] = [(b - c) / (x1 - x0) for b, c in zip(u1, u0)]
-        series_path = os.path.join(out, "fem_series.csv")
-        max_strain = None
-        if os.path.exists(series_path):
-            rows = read_csv(series_path)
-            if "max_principal_strain" in rows:
-                max_strain = (rows.column("time"),
-                              rows.column("max_principal_strain"))
-        settle = [1e3 * sum(u[i] for u in uz) / len(uz) for i in range(len(t))]  # mm
-        tilt = [1e3 * (uz[-1][i] - uz[0][i]) for i in range(len(t))]  # last - first probe, mm
-        cells = []
-        for c in fig["cells"]:
-            path = os.path.join(out, f"sensor_{c['name']}.csv")
+def read_run(out, fig):
+    """The run's series the report needs (monitor, FEM series, sensors) as a namespace."""
+    d = types.SimpleNamespace()
+    mon_path = os.path.join(out, "fem_monitor.csv")
+    mon = read_csv(mon_path)
+    d.t = t = mon.column("time")
+    d.probes = sorted({m.group(1) for h in mon for m in [re.match(r"(b\w+)_uz$", h)] if m})
+    if not d.probes:
+        raise KeyError(f"{mon_path}: no bottom probes b*_uz")
+    d.uz = uz = [mon.column(p + "_uz") for p in d.probes]
+    d.strain = {}  # label -> bottom-fibre axial strain per monitor row
+    for label, (x0, x1, p0, p1) in fig["gauges"].items():
+        u0, u1 = mon.column(p0 + "_ux"), mon.column(p1 + "_ux")
+        d.strain[label] = [(b - c) / (x1 - x0) for b, c in zip(u1, u0)]
+    series_path = os.path.join(out, "fem_series.csv")
+    d.max_strain = None
+    if os.path.exists(series_path):
+        rows = read_csv(series_path)
+        if "max_principal_strain" in rows:
+            d.max_strain = (rows.column("time"), rows.column("max_principal_strain"))
+    d.settle = [1e3 * sum(u[i] for u in uz) / len(uz) for i in range(len(t))]  # mm
+    d.tilt = [1e3 * (uz[-1][i] - uz[0][i]) for i in range(len(t))]  # last - first probe, mm
+    d.cells = []
+    for c in fig["cells"]:
+        rows = read_csv(os.path.join(out, f"sensor_{c['name']}.csv"))
+        # the rocks push the cell down: -fz is the vertical load on it
+        d.cells.append((c, rows.column("time"),
+                        [-f / c["area"] / 1e3 for f in rows.column("fz")]))
+    base = read_csv(os.path.join(out, "sensor_base.csv"))
+    d.tb, d.fb = base.column("time"), base.column("fz")
+    # rocks frozen by [dem.freeze] are held by the engine, not the box: the force that
+    # holds them (sensor kind "frozen", fz upwards) carries its share
+    frozen_path = os.path.join(out, "sensor_frozen.csv")
+    d.tf = d.ff = None
+    if os.path.exists(frozen_path):
+        rows = read_csv(frozen_path)
+        d.tf, d.ff = rows.column("time"), rows.column("fz")
+    d.packing = {}
+    for name in ("all_rocks", "packing_lower", "packing_upper", "under_sleeper"):
+        path = os.path.join(out, f"sensor_{name}.csv")
+        if os.path.exists(path):
             rows = read_csv(path)
-            # the rocks push the cell down: -fz is the vertical load on it
-            cells.append((c, rows.column("time"),
-                          [-f / c["area"] / 1e3 for f in rows.column("fz")]))
-        base_path = os.path.join(out, "sensor_base.csv")
-        base = read_csv(base_path)
-        tb, fb = base.column("time"), base.column("fz")
-        # rocks frozen by [dem.freeze] are held by the engine, not the box: the force that
-        # holds them (sensor kind "frozen", fz upwards) carries its share
-        frozen_path = os.path.join(out, "sensor_frozen.csv")
-        tf = ff = None
-        if os.path.exists(frozen_path):
-            rows = read_csv(frozen_path)
-            tf, ff = rows.column("time"), rows.column("fz")
-        packing = {}
-        for name in ("all_rocks", "packing_lower", "packing_upper", "under_sleeper"):
-            path = os.path.join(out, f"sensor_{name}.csv")
-            if os.path.exists(path):
-                rows = read_csv(path)
-                packing[name] = {k: rows.column(k) for k in
-                                 ("time", "particles", "solid_fraction", "coordination", "top")}
-    except (FileNotFoundError, KeyError, ValueError, tomllib.TOMLDecodeError) as e:
-        print(f"sleeper_report.py: {e}", file=sys.stderr)
-        return 2
+            d.packing[name] = {k: rows.column(k) for k in
+                               ("time", "particles", "solid_fraction", "coordination", "top")}
+    return d
 
-    # settlement at the cycles' minima (load at cycle_min): reference times T_r + k / f
+
+def cycle_minima(fig, d):
+    """Settlement at the cycles' minima (load at cycle_min), reference times T_r + k / f;
+    returns [(cycle, settlement)], the index of the load's start and its time."""
+    t, settle = d.t, d.settle
     pat = fig["pattern"]
     ts = pat.get("time_scale", 1.0)
     t0 = pat.get("start_time", 0.0)
@@ -226,76 +214,93 @@ def main(argv):
         i = min(range(len(t)), key=lambda j: abs(t[j] - tk))
         cyc.append((k, settle[i]))
     i_seat = min(range(len(t)), key=lambda j: abs(t[j] - t0))
+    return cyc, i_seat, t0
 
-    report = {"probes": probes, "final_time": t[-1], "settlement_final_mm": settle[-1],
+
+def hold_figures(fig, d, hold_arg, i_seat):
+    """The static hold's window means: settlement, force balance, cells, strain."""
+    t, settle, packing = d.t, d.settle, d.packing
+    if hold_arg.startswith("last:"):
+        h1 = t[-1]
+        h0 = h1 - float(hold_arg[5:])
+    else:
+        h0, h1 = (float(x) for x in hold_arg.split(","))
+    hold = {"window": [h0, h1]}
+    held_settle = window_mean(t, settle, h0, h1)
+    if held_settle is not None:
+        # the settlement under the load alone: counted from the seated sleeper (the load's
+        # start), without the seating, whose size the prepared bed's top decides
+        hold["held_settlement_mm"] = held_settle
+        hold["held_settlement_under_load_mm"] = held_settle - settle[i_seat]
+    tb, fb, tf, ff = d.tb, d.fb, d.tf, d.ff
+    base_hold = window_mean(tb, fb, h0, h1)
+    if base_hold is not None and "all_rocks" in packing and fig["rocks_box_volume"]:
+        ar = packing["all_rocks"]
+        rocks_v = window_mean(ar["time"], ar["solid_fraction"], h0, h1) * fig["rocks_box_volume"]
+        w_rocks = rocks_v * fig["rock_density"] * G
+        w_cells = sum(c["mass"] for c in fig["cells"]) * G
+        w_sleeper = fig["sleeper_mass"] * G
+        load = fig["seating_N"] + fig["peak_load_N"]
+        expected = w_rocks + w_cells + w_sleeper + load
+        held = (window_mean(tf, ff, h0, h1) or 0.0) if tf is not None else 0.0
+        if tf is not None:
+            hold["frozen_support_N"] = held
+        hold.update({
+            "base_reaction_N": -base_hold, "rocks_weight_N": w_rocks,
+            "cells_weight_N": w_cells, "sleeper_weight_N": w_sleeper, "load_N": load,
+            "expected_N": expected,
+            "balance_rel": (-base_hold + held - expected) / expected,
+            "base_reaction_sd_N": math.sqrt(max(0.0, window_mean(
+                tb, [f * f for f in fb], h0, h1) - base_hold ** 2)),
+        })
+    hold["cell_pressure_kPa"] = {c["name"]: window_mean(tc, p, h0, h1) for c, tc, p in d.cells}
+    read = [(p, c) for (c, _, _), p in zip(d.cells, hold["cell_pressure_kPa"].values())
+            if p is not None]
+    if read:  # the issue's question: is the pressure largest under a rail seat or the centre?
+        p, c = max(read, key=lambda pc: pc[0])
+        hold["largest_cell"] = {"name": c["name"], "x": c["x"], "pressure_kPa": p}
+    if d.strain:
+        hold["strain"] = {label: window_mean(t, e, h0, h1) for label, e in d.strain.items()}
+    return hold
+
+
+def first_loaded_rows(packing):
+    # a loaded state has no contact forces before its first step: the packing's first row
+    # is the first one after it
+    return {name: next((i for i, x in enumerate(p["time"]) if x > 0), 0)
+            for name, p in packing.items()}
+
+
+def report_of(fig, d, cyc, i_seat, hold_arg):
+    t, settle, tilt = d.t, d.settle, d.tilt
+    report = {"probes": d.probes, "final_time": t[-1], "settlement_final_mm": settle[-1],
               "settlement_min_mm": min(settle), "settlement_at_load_start_mm": settle[i_seat],
               "tilt_at_load_start_mm": tilt[i_seat], "tilt_final_mm": tilt[-1],
               "cycles": [{"cycle": k, "settlement_mm": s} for k, s in cyc],
               "sleeper_mass_kg": fig["sleeper_mass"], "applied_load_N":
               fig["seating_N"] + fig["peak_load_N"]}
-    if strain:
+    if d.strain:
         report["strain"] = {}
         for label, (x0, x1, _, _) in fig["gauges"].items():
-            e = strain[label]
+            e = d.strain[label]
             report["strain"][label] = {"x0": x0, "x1": x1, "max": max(e), "min": min(e),
                                        "final": e[-1]}
-    if max_strain is not None:
-        report["max_principal_strain"] = max(max_strain[1])
-    # a loaded state has no contact forces before its first step: the packing's first row
-    # is the first one after it
-    first = {name: next((i for i, x in enumerate(p["time"]) if x > 0), 0)
-             for name, p in packing.items()}
-    for name, p in packing.items():
+    if d.max_strain is not None:
+        report["max_principal_strain"] = max(d.max_strain[1])
+    first = first_loaded_rows(d.packing)
+    for name, p in d.packing.items():
         report["packing_" + name if not name.startswith("packing") else name] = {
             "first": {k: v[first[name]] for k, v in p.items()},
             "last": {k: v[-1] for k, v in p.items()}}
-    if a.hold:
-        if a.hold.startswith("last:"):
-            h1 = t[-1]
-            h0 = h1 - float(a.hold[5:])
-        else:
-            h0, h1 = (float(x) for x in a.hold.split(","))
-        hold = {"window": [h0, h1]}
-        held_settle = window_mean(t, settle, h0, h1)
-        if held_settle is not None:
-            # the settlement under the load alone: counted from the seated sleeper (the load's
-            # start), without the seating, whose size the prepared bed's top decides
-            hold["held_settlement_mm"] = held_settle
-            hold["held_settlement_under_load_mm"] = held_settle - settle[i_seat]
-        base_hold = window_mean(tb, fb, h0, h1)
-        if base_hold is not None and "all_rocks" in packing and fig["rocks_box_volume"]:
-            ar = packing["all_rocks"]
-            rocks_v = window_mean(ar["time"], ar["solid_fraction"], h0, h1) * fig["rocks_box_volume"]
-            w_rocks = rocks_v * fig["rock_density"] * G
-            w_cells = sum(c["mass"] for c in fig["cells"]) * G
-            w_sleeper = fig["sleeper_mass"] * G
-            load = fig["seating_N"] + fig["peak_load_N"]
-            expected = w_rocks + w_cells + w_sleeper + load
-            held = (window_mean(tf, ff, h0, h1) or 0.0) if tf is not None else 0.0
-            if tf is not None:
-                hold["frozen_support_N"] = held
-            hold.update({
-                "base_reaction_N": -base_hold, "rocks_weight_N": w_rocks,
-                "cells_weight_N": w_cells, "sleeper_weight_N": w_sleeper, "load_N": load,
-                "expected_N": expected,
-                "balance_rel": (-base_hold + held - expected) / expected,
-                "base_reaction_sd_N": math.sqrt(max(0.0, window_mean(
-                    tb, [f * f for f in fb], h0, h1) - base_hold ** 2)),
-            })
-        hold["cell_pressure_kPa"] = {c["name"]: window_mean(tc, p, h0, h1) for c, tc, p in cells}
-        read = [(p, c) for (c, _, _), p in zip(cells, hold["cell_pressure_kPa"].values())
-                if p is not None]
-        if read:  # the issue's question: is the pressure largest under a rail seat or the centre?
-            p, c = max(read, key=lambda pc: pc[0])
-            hold["largest_cell"] = {"name": c["name"], "x": c["x"], "pressure_kPa": p}
-        if strain:
-            hold["strain"] = {label: window_mean(t, e, h0, h1) for label, e in strain.items()}
-        report["hold"] = hold
+    if hold_arg:
+        report["hold"] = hold_figures(fig, d, hold_arg, i_seat)
+    return report
 
-    with open(os.path.join(out, "sleeper_report.json"), "w") as f:
-        json.dump(report, f, indent=1)
+
+def report_lines(out, d, report, cyc, i_seat):
+    t, settle, tilt = d.t, d.settle, d.tilt
     lines = [f"sleeper run {out}: {len(t)} monitor rows up to t = {t[-1]:.4f} s",
-             f"settlement (mean uz of {len(probes)} bottom probes): at the load start "
+             f"settlement (mean uz of {len(d.probes)} bottom probes): at the load start "
              f"{settle[i_seat]:.3f} mm, final {settle[-1]:.3f} mm, lowest {min(settle):.3f} mm; "
              f"tilt (last - first probe) {tilt[i_seat]:.3f} mm at the load start, "
              f"{tilt[-1]:.3f} mm at the end"]
@@ -309,7 +314,8 @@ def main(argv):
     if "max_principal_strain" in report:
         lines.append(f"largest principal strain of all elements: "
                      f"{1e6 * report['max_principal_strain']:.1f} microstrain")
-    for name, p in packing.items():
+    first = first_loaded_rows(d.packing)
+    for name, p in d.packing.items():
         i = first[name]
         lines.append(f"{name} (t = {p['time'][i]:.4f} -> {p['time'][-1]:.4f} s): solid fraction "
                      f"{p['solid_fraction'][i]:.4f} -> {p['solid_fraction'][-1]:.4f}, "
@@ -317,33 +323,38 @@ def main(argv):
                      f"{p['particles'][i]:.0f} rocks, top {p['top'][0]:.4f} (t = 0) -> "
                      f"{p['top'][-1]:.4f} m")
     if "hold" in report:
-        h = report["hold"]
-        if "held_settlement_mm" in h:
-            lines.append(f"settlement in the hold {window_text(h['window'])}: "
-                         f"{h['held_settlement_mm']:.3f} mm, of it under the load (from the load "
-                         f"start) {h['held_settlement_under_load_mm']:.3f} mm")
-        if "base_reaction_N" in h:
-            held = (f" + frozen rocks' support {h['frozen_support_N']:.1f} N"
-                    if "frozen_support_N" in h else "")
-            lines.append(
-                f"static hold {window_text(h['window'])}: base reaction {h['base_reaction_N']:.1f} N "
-                f"(sd {h['base_reaction_sd_N']:.1f}){held} against rocks {h['rocks_weight_N']:.1f} + "
-                f"cells {h['cells_weight_N']:.1f} + sleeper {h['sleeper_weight_N']:.1f} + load "
-                f"{h['load_N']:.1f} = {h['expected_N']:.1f} N: {100 * h['balance_rel']:+.3f} %")
-        lines.append("cell pressures in the hold (kPa): " + ", ".join(
-            f"{n} {p:.2f}" if p is not None else f"{n} -"
-            for n, p in h["cell_pressure_kPa"].items()))
-        if "largest_cell" in h:
-            c = h["largest_cell"]
-            lines.append(f"largest cell pressure in the hold: {c['name']} at x = {c['x']:.4f} m "
-                         f"({c['pressure_kPa']:.2f} kPa)")
-    with open(os.path.join(out, "sleeper_report.txt"), "w") as f:
-        f.write("\n".join(lines) + "\n")
-    print("\n".join(lines))
+        lines += hold_lines(report["hold"])
+    return lines
 
-    plt = pyplot_or_exit("sleeper_report.py")
+
+def hold_lines(h):
+    lines = []
+    if "held_settlement_mm" in h:
+        lines.append(f"settlement in the hold {window_text(h['window'])}: "
+                     f"{h['held_settlement_mm']:.3f} mm, of it under the load (from the load "
+                     f"start) {h['held_settlement_under_load_mm']:.3f} mm")
+    if "base_reaction_N" in h:
+        held = (f" + frozen rocks' support {h['frozen_support_N']:.1f} N"
+                if "frozen_support_N" in h else "")
+        lines.append(
+            f"static hold {window_text(h['window'])}: base reaction {h['base_reaction_N']:.1f} N "
+            f"(sd {h['base_reaction_sd_N']:.1f}){held} against rocks {h['rocks_weight_N']:.1f} + "
+            f"cells {h['cells_weight_N']:.1f} + sleeper {h['sleeper_weight_N']:.1f} + load "
+            f"{h['load_N']:.1f} = {h['expected_N']:.1f} N: {100 * h['balance_rel']:+.3f} %")
+    lines.append("cell pressures in the hold (kPa): " + ", ".join(
+        f"{n} {p:.2f}" if p is not None else f"{n} -"
+        for n, p in h["cell_pressure_kPa"].items()))
+    if "largest_cell" in h:
+        c = h["largest_cell"]
+        lines.append(f"largest cell pressure in the hold: {c['name']} at x = {c['x']:.4f} m "
+                     f"({c['pressure_kPa']:.2f} kPa)")
+    return lines
+
+
+def plot_settlement(plt, out, d, cyc, t0):
+    t, uz, probes = d.t, d.uz, d.probes
     f1, ax = plt.subplots(1, 2, figsize=(11, 4))
-    ax[0].plot(t, settle, label="mean")
+    ax[0].plot(t, d.settle, label="mean")
     ax[0].plot(t, [1e3 * v for v in uz[0]], lw=0.7, label=probes[0])
     ax[0].plot(t, [1e3 * v for v in uz[-1]], lw=0.7, label=probes[-1])
     ax[0].axvline(t0, color="grey", lw=0.5)
@@ -358,16 +369,19 @@ def main(argv):
     ax[1].grid(True)
     f1.tight_layout()
     f1.savefig(os.path.join(out, "settlement.png"), dpi=110)
+
+
+def plot_cells(plt, out, d, report):
     f2, ax = plt.subplots(1, 2, figsize=(11, 4))
-    for c, tc, p in cells:
+    for c, tc, p in d.cells:
         ax[0].plot(tc, p, label=c["name"])
     ax[0].set_xlabel("time (s)")
     ax[0].set_ylabel("cell pressure: vertical force / top area (kPa)")
     ax[0].legend()
     ax[0].grid(True)
     if "hold" in report:
-        xs = [c["x"] for c, _, _ in cells]
-        ps = [report["hold"]["cell_pressure_kPa"][c["name"]] for c, _, _ in cells]
+        xs = [c["x"] for c, _, _ in d.cells]
+        ps = [report["hold"]["cell_pressure_kPa"][c["name"]] for c, _, _ in d.cells]
         ax[1].plot(xs, ps, "o-")
         ax[1].set_title(f"static hold {window_text(report['hold']['window'])}")
     ax[1].set_xlabel("cell centre x (m)")
@@ -375,22 +389,59 @@ def main(argv):
     ax[1].grid(True)
     f2.tight_layout()
     f2.savefig(os.path.join(out, "cell_pressures.png"), dpi=110)
-    if strain or max_strain is not None:
-        f3, ax = plt.subplots(figsize=(7, 4))
-        for label, e in strain.items():
-            x0, x1 = fig["gauges"][label][:2]
-            ax.plot(t, [1e6 * v for v in e], lw=0.8,
-                    label=f"bottom fibre, x {x0:.3f}-{x1:.3f} m ({label})")
-        if max_strain is not None:
-            ax.plot(max_strain[0], [1e6 * v for v in max_strain[1]], "k.", ms=3,
-                    label="largest principal strain, all elements")
-        ax.axvline(t0, color="grey", lw=0.5)
-        ax.set_xlabel("time (s)")
-        ax.set_ylabel("strain (microstrain; bottom fibre: + tension)")
-        ax.legend(fontsize=8)
-        ax.grid(True)
-        f3.tight_layout()
-        f3.savefig(os.path.join(out, "sleeper_strain.png"), dpi=110)
+
+
+def plot_strain(plt, out, fig, d, t0):
+    if not d.strain and d.max_strain is None:
+        return
+    f3, ax = plt.subplots(figsize=(7, 4))
+    for label, e in d.strain.items():
+        x0, x1 = fig["gauges"][label][:2]
+        ax.plot(d.t, [1e6 * v for v in e], lw=0.8,
+                label=f"bottom fibre, x {x0:.3f}-{x1:.3f} m ({label})")
+    if d.max_strain is not None:
+        ax.plot(d.max_strain[0], [1e6 * v for v in d.max_strain[1]], "k.", ms=3,
+                label="largest principal strain, all elements")
+    ax.axvline(t0, color="grey", lw=0.5)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("strain (microstrain; bottom fibre: + tension)")
+    ax.legend(fontsize=8)
+    ax.grid(True)
+    f3.tight_layout()
+    f3.savefig(os.path.join(out, "sleeper_strain.png"), dpi=110)
+
+
+def main(argv):
+    ap = argparse.ArgumentParser(description="sleeper run report")
+    ap.add_argument("output")
+    ap.add_argument("--scene", required=True, help="the load case's scene (TOML)")
+    ap.add_argument("--hold", default=None,
+                    help="T0,T1: window of the static hold, s; or last:D, the run's last D s "
+                         "(runs of another length, e.g. a time-scale study's members)")
+    ap.add_argument("--rock-density", type=float, default=None,
+                    help="kg/m^3 (default: the scene's granite)")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="a scene key as the run had it (demfem run --set)")
+    a = ap.parse_args(argv)
+    out = a.output
+    try:
+        fig = scene_figures(a.scene, a.rock_density, run_overrides(out) + a.set)
+        d = read_run(out, fig)
+    except (FileNotFoundError, KeyError, ValueError, tomllib.TOMLDecodeError) as e:
+        print(f"sleeper_report.py: {e}", file=sys.stderr)
+        return 2
+    cyc, i_seat, t0 = cycle_minima(fig, d)
+    report = report_of(fig, d, cyc, i_seat, a.hold)
+    with open(os.path.join(out, "sleeper_report.json"), "w") as f:
+        json.dump(report, f, indent=1)
+    lines = report_lines(out, d, report, cyc, i_seat)
+    with open(os.path.join(out, "sleeper_report.txt"), "w") as f:
+        f.write("\n".join(lines) + "\n")
+    print("\n".join(lines))
+    plt = pyplot_or_exit("sleeper_report.py")
+    plot_settlement(plt, out, d, cyc, t0)
+    plot_cells(plt, out, d, report)
+    plot_strain(plt, out, fig, d, t0)
     return 0
 
 
