@@ -11,11 +11,7 @@ void ConcurrentScheme::advance(StepCommand dem_cmd, StepCommand fem_cmd, StepDia
   InterfaceBuffers& buf = buffers();
   StepExchange& ex = exchange();
   constexpr std::uint32_t b = kSharedBuffer;
-  std::ranges::copy(st.positions, buf.positions(b).begin());
-  std::ranges::copy(st.velocities, buf.velocities(b).begin());
-  std::ranges::copy(st.accelerations, buf.accelerations(b).begin());
-  st.dem_start = st.positions;
-  dem_cmd.flags |= protocol::kStepSetKinematics;
+  hand_fem_kinematics_to_dem(dem_cmd);
   st.fem_force = st.dem_force_prev;
   fem_cmd.buffer = kConcurrentFemBuffer;
   std::ranges::copy(st.fem_force, buf.forces(fem_cmd.buffer).begin());

@@ -68,4 +68,15 @@ std::unique_ptr<CouplingScheme> make_coupling_scheme(const SchemeContext& contex
   throw std::logic_error("make_coupling_scheme: unknown coupling scheme");
 }
 
+void CouplingScheme::hand_fem_kinematics_to_dem(StepCommand& dem_cmd) {
+  SchemeState& st = state();
+  InterfaceBuffers& buf = buffers();
+  constexpr std::uint32_t b = kSharedBuffer;
+  std::ranges::copy(st.positions, buf.positions(b).begin());
+  std::ranges::copy(st.velocities, buf.velocities(b).begin());
+  std::ranges::copy(st.accelerations, buf.accelerations(b).begin());
+  st.dem_start = st.positions;
+  dem_cmd.flags |= protocol::kStepSetKinematics;
+}
+
 }  // namespace demfem::coupling

@@ -64,6 +64,10 @@ class CouplingScheme {
   /// interface at its end; the accepted FEM positions become the step's start of the next.
   virtual void account_interface(StepDiagnostics& d);
 
+  /// The DEM's step starts from the FEM's state at t_i: its positions, velocities and
+  /// accelerations into the shared buffer (the DEM moves the mesh by x + v tau + a tau^2/2).
+  void hand_fem_kinematics_to_dem(StepCommand& dem_cmd);
+
   const CouplingSettings& settings() const { return ctx_.settings; }
   StepExchange& exchange() { return ctx_.exchange; }
   InterfaceBuffers& buffers() { return ctx_.exchange.buffers(); }

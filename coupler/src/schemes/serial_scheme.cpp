@@ -18,11 +18,7 @@ void SerialScheme::just_in_time(StepCommand dem_cmd, StepCommand fem_cmd, StepDi
   SchemeState& st = state();
   InterfaceBuffers& buf = buffers();
   constexpr std::uint32_t b = kSharedBuffer;
-  std::ranges::copy(st.positions, buf.positions(b).begin());
-  std::ranges::copy(st.velocities, buf.velocities(b).begin());
-  std::ranges::copy(st.accelerations, buf.accelerations(b).begin());
-  st.dem_start = st.positions;
-  dem_cmd.flags |= protocol::kStepSetKinematics;
+  hand_fem_kinematics_to_dem(dem_cmd);
   exchange().dem_step(dem_cmd, d);
   // The DEM adapter left its forces in the buffer; the FEM reads them there.
   st.fem_force = st.dem_force;
