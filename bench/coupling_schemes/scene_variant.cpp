@@ -1,6 +1,8 @@
 // The scene of each run: the case with its [coupling] rewritten for a scheme.
 #include "study.hpp"
 
+#include "demfem/coupling/coupling_settings.hpp"
+
 #include <cstdio>
 #include <fstream>
 #include <sstream>
@@ -11,17 +13,8 @@ namespace demfem::bench::coupling_study {
 namespace {
 
 // The implicit keys a case sets in [coupling]; an explicit variant must not carry them.
-const std::set<std::string> kImplicitKeys = {"acceleration",
-                                             "max_iterations",
-                                             "displacement_tolerance",
-                                             "force_tolerance",
-                                             "displacement_abs_tolerance",
-                                             "force_abs_tolerance",
-                                             "on_nonconvergence",
-                                             "initial_relaxation",
-                                             "reuse_steps",
-                                             "max_columns",
-                                             "qr_filter"};
+const std::set<std::string> kImplicitKeys(demfem::coupling::kImplicitCouplingKeys.begin(),
+                                          demfem::coupling::kImplicitCouplingKeys.end());
 
 std::string trim(const std::string& s) {
   const auto a = s.find_first_not_of(" \t");

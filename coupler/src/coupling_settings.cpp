@@ -75,23 +75,12 @@ void check_step_counts(const CouplingSettings& s, const Table& root) {
   }
 }
 
-constexpr const char* kImplicitKeys[] = {"acceleration",
-                                         "max_iterations",
-                                         "displacement_tolerance",
-                                         "force_tolerance",
-                                         "displacement_abs_tolerance",
-                                         "force_abs_tolerance",
-                                         "on_nonconvergence",
-                                         "initial_relaxation",
-                                         "reuse_steps",
-                                         "max_columns",
-                                         "qr_filter"};
 
 // The implicit scheme's keys of [coupling]; any of them with another scheme, or an IQN-ILS key
 // with another acceleration, is refused (it would be silently without effect).
 void read_implicit_settings(CouplingSettings& s, const Table& c) {
   if (s.scheme != Scheme::implicit) {
-    for (const char* key : kImplicitKeys) {
+    for (const char* key : kImplicitCouplingKeys) {
       if (c.has(key)) c.fail(key, "is only used by scheme = \"implicit\"");
     }
     return;
@@ -240,7 +229,7 @@ CouplingSettings read_coupling_settings(const scene::Document& doc) {
       coupling->skip("settle");
       coupling->skip("blowup");
       coupling->skip("beam_check");
-      for (const char* key : kImplicitKeys) coupling->skip(key);
+      for (const char* key : kImplicitCouplingKeys) coupling->skip(key);
     } else {
       s.force_averaging = coupling->boolean("force_averaging", false);
       read_implicit_settings(s, *coupling);

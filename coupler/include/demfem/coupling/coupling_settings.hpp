@@ -18,6 +18,12 @@
 
 namespace demfem::coupling {
 
+/// The keys of [coupling] that belong to the implicit scheme (refused with any other scheme).
+inline constexpr std::array<const char*, 11> kImplicitCouplingKeys = {
+    "acceleration",     "max_iterations",     "displacement_tolerance", "force_tolerance",
+    "displacement_abs_tolerance", "force_abs_tolerance", "on_nonconvergence",
+    "initial_relaxation", "reuse_steps",      "max_columns",            "qr_filter"};
+
 /// @brief The coupling algorithm (docs/coupling.md).
 enum class Scheme : std::uint8_t {
   dem_only,        ///< no [fem]: the DEM runs alone
