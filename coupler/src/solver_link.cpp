@@ -209,9 +209,10 @@ InterfaceMesh RemoteLink::start() {
   // A process that dies before it attaches is reported by the launcher (PeerDied, with its
   // exit status); one that answers with an error or breaks the protocol is named here.
   Role current = Role::fem;
-  auto handshake_failure = [&](const std::exception& e, const char* how) {
+  auto handshake_failure = [&](const std::exception& e, const char* how, bool bad_input = false) {
     return HandshakeFailed(current,
-                           description(current) + " " + how + " in its handshake: " + e.what());
+                           description(current) + " " + how + " in its handshake: " + e.what(),
+                           bad_input);
   };
   try {
     for (Role r : {Role::fem, Role::dem}) {
@@ -238,7 +239,10 @@ InterfaceMesh RemoteLink::start() {
   } catch (const InterfaceMismatch&) {
     throw;
   } catch (const protocol::SolverError& e) {
-    throw handshake_failure(e, "reported an error");
+    // The mesh goes to both solvers: the error names the one that sent it, not the FEM whose
+    // turn the exchange began with.
+    current = e.role();
+    throw handshake_failure(e, "reported an error", e.kind() == protocol::ErrorKind::bad_input);
   } catch (const protocol::ProtocolError& e) {
     throw handshake_failure(e, "broke the protocol");
   }

@@ -166,12 +166,18 @@ def case_restart(demfem_run, source, program, tmp):
           f"{xb[-1]['force_sum_z']} N, {len(differing)} values differ")
 
 
-def expect_refusal(demfem_run, scene, out, what, pattern, *extra):
+def expect_refusal(demfem_run, scene, out, what, pattern, *extra, code=None):
     r = run(demfem_run, scene, out, *extra)
     text = r.stdout + r.stderr
     if check(r.returncode != 0, f"{what}: exit 0"):
         check(re.search(pattern, text) is not None,
               f"{what}: exit {r.returncode}, no /{pattern}/ in:\n{text[-3000:]}")
+    if code is not None:
+        # A deck refused in the handshake is bad input (2), and the launcher blames the DEM,
+        # not the FEM whose turn the mesh exchange began with (it did both before).
+        check(r.returncode == code, f"{what}: exit {r.returncode}, expected {code}")
+        check(re.search(r"the external DEM backend .* reported an error in its handshake",
+                        text) is not None, f"{what}: the DEM is not named:\n{text[-2000:]}")
     print(f"{what}: exit {r.returncode}")
     return r
 
@@ -193,10 +199,10 @@ def case_badinput(demfem_run, source, program, tmp):
     no_mesh = "\n".join(l for l in deck.splitlines() if "demfem_surface" not in l)
     expect_refusal(demfem_run, scene, f"{tmp}/no_mesh", "a deck without the coupling mesh",
                    r"has no fix 'demfem_surface' \(dem.external.mesh_fix\).*mesh fixes: none",
-                   "--set", command, "--set", variant("no_mesh.liggghts", no_mesh))
+                   "--set", command, "--set", variant("no_mesh.liggghts", no_mesh), code=2)
     expect_refusal(demfem_run, scene, f"{tmp}/wrong_id", "a mesh ID that does not exist",
                    r"has no fix 'no_such_mesh'.*mesh fixes: demfem_surface \(mesh/surface\)",
-                   "--set", command, "--set", 'dem.external.mesh_fix="no_such_mesh"')
+                   "--set", command, "--set", 'dem.external.mesh_fix="no_such_mesh"', code=2)
     no_contacts = deck.replace(" store_force_contact_stress yes", "")
     expect_refusal(demfem_run, scene, f"{tmp}/no_contacts", "a wall that keeps no contacts",
                    r"add `store_force_contact_stress yes`", "--set", command, "--set",

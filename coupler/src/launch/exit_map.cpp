@@ -91,7 +91,7 @@ void fail_with_exit_status(std::exception_ptr error, RunSolvers& solvers,
   } catch (const InterfaceMismatch& e) {
     outcome.fail(kExitBadInput, e.what());
   } catch (const HandshakeFailed& e) {
-    outcome.fail(kExitFailed, e.what());
+    outcome.fail(e.bad_input() ? kExitBadInput : kExitFailed, e.what());
   } catch (const scene::SceneError& e) {
     outcome.fail(kExitBadInput, std::string("scene error: ") + e.what());
   } catch (const protocol::PeerDied& e) {

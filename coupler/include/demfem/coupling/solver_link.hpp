@@ -29,11 +29,15 @@ using protocol::StepResult;
 /// exchange); what() names the process (its program and pid) and the cause.
 class HandshakeFailed : public protocol::ProtocolError {
  public:
-  HandshakeFailed(Role role, const std::string& text) : ProtocolError(text), role_(role) {}
+  HandshakeFailed(Role role, const std::string& text, bool bad_input = false)
+      : ProtocolError(text), role_(role), bad_input_(bad_input) {}
   Role role() const { return role_; }
+  /// The solver refused its input (a SolverError of kind bad_input): exit 2, not 1.
+  bool bad_input() const { return bad_input_; }
 
  private:
   Role role_;
+  bool bad_input_;
 };
 
 /// @brief The FEM reported another interface size than the run expects (the scene's
