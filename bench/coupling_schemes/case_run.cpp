@@ -14,6 +14,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "demfem/io/csv_writer.hpp"
 #include "demfem/io/h5_file.hpp"
 
 namespace demfem::bench::coupling_study {
@@ -57,17 +58,7 @@ double median(std::vector<double> v) {
 }
 
 std::vector<std::vector<std::string>> read_csv(const fs::path& p) {
-  std::vector<std::vector<std::string>> rows;
-  std::ifstream in(p);
-  std::string line;
-  while (std::getline(in, line)) {
-    std::vector<std::string> row;
-    std::stringstream s(line);
-    std::string cell;
-    while (std::getline(s, cell, ',')) row.push_back(cell);
-    rows.push_back(row);
-  }
-  return rows;
+  return io::read_csv_cells(p);
 }
 
 // `fields`: an accuracy run, with the FEM's field output at every max(dt_F, pb.sample) (the

@@ -55,6 +55,20 @@ std::vector<std::string> read_csv_rows(const std::filesystem::path& path) {
   return rows;
 }
 
+std::vector<std::vector<std::string>> read_csv_cells(const std::filesystem::path& path) {
+  std::vector<std::vector<std::string>> rows;
+  std::ifstream in(path);
+  std::string line;
+  while (std::getline(in, line)) {
+    std::vector<std::string> row;
+    std::stringstream s(line);
+    std::string cell;
+    while (std::getline(s, cell, ',')) row.push_back(cell);
+    rows.push_back(row);
+  }
+  return rows;
+}
+
 CsvWriter CsvWriter::resume(const std::filesystem::path& path, std::size_t keep_rows) {
   keep_csv_rows(path, keep_rows);
   std::string header;

@@ -12,21 +12,13 @@
 #include <string>
 #include <vector>
 
+#include "demfem/io/csv_writer.hpp"
+
 namespace demfem::test {
 
 /// The rows of a CSV file, split at commas (no quoting: demfem writes none).
 inline std::vector<std::vector<std::string>> read_csv(const std::filesystem::path& p) {
-  std::vector<std::vector<std::string>> rows;
-  std::ifstream in(p);
-  std::string line;
-  while (std::getline(in, line)) {
-    std::vector<std::string> row;
-    std::stringstream s(line);
-    std::string cell;
-    while (std::getline(s, cell, ',')) row.push_back(cell);
-    rows.push_back(row);
-  }
-  return rows;
+  return io::read_csv_cells(p);
 }
 
 /// The pids of the solver processes a run reports ("started dem_server (pid N)").

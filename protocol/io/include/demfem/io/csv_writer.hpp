@@ -22,6 +22,10 @@ void keep_csv_rows(const std::filesystem::path& path, std::size_t keep_rows,
 /// The complete data rows of a CSV series (header and a last line without newline left out).
 std::vector<std::string> read_csv_rows(const std::filesystem::path& path);
 
+/// Every line of a CSV file, the header first, split at commas (demfem writes no quoting); an
+/// unreadable file gives no rows. For readers that take a table as it stands (tests, benches).
+std::vector<std::vector<std::string>> read_csv_cells(const std::filesystem::path& path);
+
 /// @brief Appends rows of numbers under a fixed header.
 class CsvWriter {
  public:
