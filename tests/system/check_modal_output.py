@@ -18,7 +18,7 @@ import subprocess
 import sys
 import tempfile
 
-from pv_checks import SKIP, Checks, pvpython_or_none
+from pv_checks import SKIP, Checks, offscreen_env, pvpython_or_none, run_demfem
 
 
 def main():
@@ -30,16 +30,12 @@ def main():
 
     with tempfile.TemporaryDirectory() as d:
         out = os.path.join(d, "out")
-        r = subprocess.run([demfem_run, os.path.join(source, "cases", "beam_modes.toml"),
-                            "--output-dir", out, "--quiet"], capture_output=True, text=True,
-                           timeout=300)
-        if r.returncode != 0:
-            print("demfem_run failed:", r.returncode, r.stdout, r.stderr)
+        if run_demfem(demfem_run, os.path.join(source, "cases", "beam_modes.toml"), out,
+                      "--quiet") is None:
             return 1
         with open(os.path.join(out, "fem_modes.csv")) as f:
             rows = list(csv.DictReader(f))
-        env = dict(os.environ)
-        env.pop("DISPLAY", None)
+        env = offscreen_env()
         r = subprocess.run([pvpython, os.path.join(source, "tools", "inspect_output.py"), out,
                             "--steps", "all", "--values", "200"], capture_output=True, text=True,
                            timeout=300, env=env)

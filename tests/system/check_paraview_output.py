@@ -20,7 +20,7 @@ import subprocess
 import sys
 import tempfile
 
-from pv_checks import SKIP, Checks, pvpython_or_none
+from pv_checks import SKIP, Checks, offscreen_env, pvpython_or_none, run_demfem
 
 check = Checks()
 
@@ -38,13 +38,9 @@ def main():
     tool = os.path.join(source, "tools", "inspect_output.py")
     with tempfile.TemporaryDirectory() as d:
         out = os.path.join(d, "out")
-        r = subprocess.run([demfem_run, scene, "--output-dir", out, "--quiet"],
-                           capture_output=True, text=True, timeout=300)
-        if r.returncode != 0:
-            print("demfem_run failed:", r.returncode, r.stdout, r.stderr)
+        if run_demfem(demfem_run, scene, out, "--quiet") is None:
             return 1
-        env = dict(os.environ)
-        env.pop("DISPLAY", None)  # reading needs no display (checked: pvpython runs offscreen)
+        env = offscreen_env()
         r = subprocess.run([pvpython, tool, out, "--steps", "all", "--values", "20"], capture_output=True,
                            text=True, timeout=300, env=env)
         if r.returncode != 0:

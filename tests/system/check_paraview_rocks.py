@@ -23,7 +23,7 @@ import subprocess
 import sys
 import tempfile
 
-from pv_checks import SKIP, Checks, pvpython_or_none
+from pv_checks import SKIP, Checks, offscreen_env, pvpython_or_none, run_demfem
 
 check = Checks()
 
@@ -40,13 +40,9 @@ def main():
     probe = os.path.join(source, "tests", "system", "paraview_rocks_probe.py")
     with tempfile.TemporaryDirectory() as d:
         out = os.path.join(d, "out")
-        r = subprocess.run([demfem_run, scene, "--output-dir", out, "--quiet"],
-                           capture_output=True, text=True, timeout=300)
-        if r.returncode != 0:
-            print("demfem_run failed:", r.returncode, r.stdout, r.stderr)
+        if run_demfem(demfem_run, scene, out, "--quiet") is None:
             return 1
-        env = dict(os.environ)
-        env.pop("DISPLAY", None)
+        env = offscreen_env()
         r = subprocess.run([pvpython, probe, out], capture_output=True, text=True, timeout=300,
                            env=env)
         if r.returncode != 0:

@@ -28,7 +28,7 @@ import subprocess
 import sys
 import tempfile
 
-from pv_checks import SKIP, Checks, pvpython_or_none
+from pv_checks import SKIP, Checks, offscreen_env, pvpython_or_none, run_demfem
 
 
 def close(a, b, rel):
@@ -44,18 +44,15 @@ def main():
 
     with tempfile.TemporaryDirectory() as d:
         out = os.path.join(d, "out")
-        r = subprocess.run([demfem_run, os.path.join(source, "cases", "beam_fixed_ci.toml"),
-                            "--output-dir", out], capture_output=True, text=True, timeout=300)
-        if r.returncode != 0:
-            print("demfem_run failed:", r.returncode, r.stdout[-3000:], r.stderr[-3000:])
+        r = run_demfem(demfem_run, os.path.join(source, "cases", "beam_fixed_ci.toml"), out)
+        if r is None:
             return 1
         printed = r.stdout
         with open(os.path.join(out, "fem_series.csv")) as f:
             series = list(csv.DictReader(f))
         with open(os.path.join(out, "beam_check.csv")) as f:
             beam = next(csv.DictReader(f))
-        env = dict(os.environ)
-        env.pop("DISPLAY", None)
+        env = offscreen_env()
         r = subprocess.run([pvpython, os.path.join(source, "tools", "inspect_output.py"), out,
                             "--steps", "all", "--values", "1000"], capture_output=True,
                            text=True, timeout=300, env=env)

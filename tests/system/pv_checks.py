@@ -3,6 +3,7 @@ finding ParaView's interpreter (or skipping, ctest's SKIP_RETURN_CODE 77, where 
 installed) and collecting the failed checks into one report and exit status."""
 import os
 import shutil
+import subprocess
 
 SKIP = 77  # ctest: skipped
 
@@ -15,6 +16,24 @@ def pvpython_or_none():
         return p
     print(f"pvpython not found ({p}; Debian: python3-paraview, or set DEMFEM_PVPYTHON): skipped")
     return None
+
+
+def run_demfem(demfem_run, scene, out, *extra):
+    """demfem_run SCENE --output-dir OUT [EXTRA...]: the finished process, or None (with its
+    exit status and output's end printed) when it failed."""
+    r = subprocess.run([demfem_run, scene, "--output-dir", out, *extra], capture_output=True,
+                       text=True, timeout=300)
+    if r.returncode != 0:
+        print("demfem_run failed:", r.returncode, r.stdout[-3000:], r.stderr[-3000:])
+        return None
+    return r
+
+
+def offscreen_env():
+    """The environment for pvpython reading output: no display (it runs offscreen)."""
+    env = dict(os.environ)
+    env.pop("DISPLAY", None)
+    return env
 
 
 class Checks:
