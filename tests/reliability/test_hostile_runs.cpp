@@ -1,4 +1,4 @@
-// Hostile use of a run as a whole (issue 19; docs/reliability.md, "Hostile tests"): two runs
+// Hostile use of a run as a whole (issue 19; docs/reports/reliability_history.md, "Hostile tests"): two runs
 // in one folder, signals and a killed coupler inside a long coupling step, a solver that never
 // attaches, impossible step counts, bad input found before any process starts, resumes that
 // must be refused, the run record. Every run is a real demfem_run with real solver processes;

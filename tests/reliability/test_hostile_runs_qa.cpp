@@ -1,5 +1,5 @@
-// Hostile use of whole runs, second round (issue 19, checked again after its fixes; docs/
-// reliability.md, "Hostile tests: the QA round"): a bad FEM model found after the processes
+// Hostile use of whole runs, second round (issue 19, checked again after its fixes; docs/reports/
+// reliability_history.md, "Hostile tests"): a bad FEM model found after the processes
 // started, the output folder's lock file removed under a running run, a moved output folder,
 // a missing solver executable, solvers run alone with impossible step counts. Every run is a
 // real demfem_run (or solver) process; each test takes a few seconds.
