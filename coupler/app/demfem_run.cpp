@@ -28,9 +28,9 @@
 #include <vector>
 
 #include "demfem/coupling/coupling_run.hpp"
-#include "demfem/coupling/progress.hpp"
-#include "demfem/coupling/scene_steps.hpp"
-#include "demfem/coupling/supervisor.hpp"
+#include "launch/progress.hpp"
+#include "launch/scene_steps.hpp"
+#include "launch/supervisor.hpp"
 #include "demfem/dem/omp_wait.hpp"
 #include "demfem/interface/exit_status.hpp"
 #include "launch/exit_map.hpp"

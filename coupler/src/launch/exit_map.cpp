@@ -6,7 +6,7 @@
 
 #include "demfem/coupling/coupling_run.hpp"
 #include "demfem/coupling/solver_link.hpp"
-#include "demfem/coupling/supervisor.hpp"
+#include "launch/supervisor.hpp"
 #include "demfem/interface/exit_status.hpp"
 #include "demfem/scene/scene_reader.hpp"
 

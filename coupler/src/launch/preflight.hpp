@@ -11,9 +11,9 @@
 #include <vector>
 
 #include "demfem/coupling/coupling_settings.hpp"
-#include "demfem/coupling/external_backend.hpp"
+#include "launch/external_backend.hpp"
 #include "demfem/coupling/local_solvers.hpp"
-#include "demfem/coupling/scene_steps.hpp"
+#include "launch/scene_steps.hpp"
 #include "demfem/scene/scene_reader.hpp"
 #include "launch/debug_kill.hpp"
 #include "launch/launch_options.hpp"

@@ -8,7 +8,7 @@
 
 #include "demfem/coupling/coupling_run.hpp"
 #include "demfem/coupling/output_folder.hpp"
-#include "demfem/coupling/resume_check.hpp"
+#include "launch/resume_check.hpp"
 #include "demfem/interface/exit_status.hpp"
 
 namespace fs = std::filesystem;

@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "demfem/coupling/run_record.hpp"
+#include "launch/run_record.hpp"
 #include "demfem/io/folder_lock.hpp"
 #include "launch/launch_options.hpp"
 #include "launch/preflight.hpp"

@@ -9,7 +9,7 @@
 #include <string>
 
 #include "demfem/coupling/coupling_run.hpp"
-#include "demfem/coupling/progress.hpp"
+#include "launch/progress.hpp"
 #include "demfem/protocol/protocol.hpp"
 #include "launch/run_folder.hpp"
 

@@ -5,7 +5,7 @@
 #include <cstdio>
 #include <utility>
 
-#include "demfem/coupling/external_backend.hpp"
+#include "launch/external_backend.hpp"
 #include "demfem/coupling/local_solvers.hpp"
 
 namespace demfem::coupling::launch {

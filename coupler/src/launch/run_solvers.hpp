@@ -12,7 +12,7 @@
 
 #include "demfem/coupling/coupling_run.hpp"
 #include "demfem/coupling/solver_link.hpp"
-#include "demfem/coupling/supervisor.hpp"
+#include "launch/supervisor.hpp"
 #include "demfem/protocol/protocol.hpp"
 #include "launch/debug_kill.hpp"
 #include "launch/launch_options.hpp"

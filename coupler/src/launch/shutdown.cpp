@@ -4,7 +4,7 @@
 #include <cstdio>
 
 #include "demfem/coupling/local_solvers.hpp"
-#include "demfem/coupling/supervisor.hpp"
+#include "launch/supervisor.hpp"
 #include "demfem/interface/exit_status.hpp"
 
 namespace demfem::coupling::launch {

@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "demfem/coupling/coupling_settings.hpp"
-#include "demfem/coupling/supervisor.hpp"
+#include "launch/supervisor.hpp"
 #include "demfem/protocol/protocol.hpp"
 
 namespace demfem::coupling {
