@@ -61,7 +61,7 @@ def status(out, member):
 def started_pids_and_segments(out):
     """Solver pids and shared-memory segments named in every attempt log of the sweep."""
     pids, segs = set(), set()
-    for log in Path(out).glob("members/*/attempt-*.log"):
+    for log in (Path(out) / "members").rglob("attempt-*.log"):  # members and their stages
         text = log.read_text(errors="replace")
         pids |= {int(p) for p in re.findall(r"started (?:dem|fem)_server \(pid (\d+)\)", text)}
         segs |= set(re.findall(r"segment /(demfem-[0-9a-f]+)", text))

@@ -613,8 +613,8 @@ with open(stand_in, "w") as f:
     f.write("#!/bin/sh\nexec sleep 60\n")
 os.chmod(stand_in, 0o755)
 plan = types.SimpleNamespace(demfem_run=stand_in, scene="s.toml", args=[], timeout=0)
-m = types.SimpleNamespace(folder=folder, overrides=[], threads=1)
-code, _, _ = member._attempt(plan, m, False, os.path.join(folder, "a.log"), h, None)
+run = member.RunUnit("", "s.toml", [], folder, "", folder)
+code, _, _ = member._attempt(plan, run, 1, False, os.path.join(folder, "a.log"), h, None)
 print(code, h.stop.is_set())
 """
 
