@@ -12,6 +12,12 @@ CI beam with them (stage "load", starting from the pour's end state).
           pour is kept; one whose load stage's demfem_run is killed is retried from that
           stage's checkpoint; run again once the fault is gone, only the failed stage runs,
           and the aggregate equals that of the sweep without faults byte for byte
+  shared_beds
+          tests/sweep/shared_beds.toml (2 dampings x 2 seeds of a beam whose spheres come
+          from a pour that [dem.load] scene prepares per seed): with [execution] beds =
+          "shared" the 4 members make 2 pours, in the sweep's bed folder, and their tables
+          equal byte for byte those of the same sweep with beds = "member" (4 pours, one in
+          each member's folder)
 """
 
 import os
@@ -127,6 +133,27 @@ def case_resume(tmp, exe):
     check_nothing_left(out)
 
 
+def case_shared_beds(tmp, exe):
+    shared_file = SOURCE / "tests" / "sweep" / "shared_beds.toml"
+    shared = tmp / "shared"
+    run_sweep(shared, "--no-plots", demfem_run=exe, sweep_file=shared_file)
+    pours = sorted((shared / "beds").glob("out/beam_pour_ci/set-*/dem_state.h5"))
+    check(len(pours) == 2, f"beds = \"shared\": {len(pours)} pours for 2 seeds: {pours}")
+    check(not list((shared / "members").glob("*/out")), "a member prepared a pour of its own")
+    own_file = tmp / "own_beds.toml"
+    own_file.write_text(shared_file.read_text().replace(
+        'scene = "beam_pour_load.toml"', f'scene = "{shared_file.parent}/beam_pour_load.toml"')
+        .replace('beds = "shared"', 'beds = "member"'))
+    own = tmp / "own"
+    run_sweep(own, "--no-plots", demfem_run=exe, sweep_file=own_file)
+    pours = sorted(own.glob("members/*/out/beam_pour_ci/set-*/dem_state.h5"))
+    check(len(pours) == 4 and not (own / "beds").exists(),
+          f"beds = \"member\": {len(pours)} pours for 4 members")
+    for name in ("summary.csv", "series_deflection.csv"):
+        same_file(shared / name, own / name, f"{name} (shared beds, each member's own)")
+
+
 if __name__ == "__main__":
     os.environ["PYTHONPATH"] = str(SOURCE / "tools")
-    sys.exit(main({"chain": case_chain, "resume": case_resume}, sys.argv))
+    sys.exit(main({"chain": case_chain, "resume": case_resume,
+                   "shared_beds": case_shared_beds}, sys.argv))

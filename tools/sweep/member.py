@@ -39,12 +39,14 @@ class RunUnit:
 
 
 def run_units(plan, member):
-    """The runs a member is made of, in order."""
+    """The runs a member is made of, in order. They start in the member's folder, or in the
+    sweep's shared bed folder (plan.run_dir): where [dem.load] scene prepares its beds."""
+    cwd = plan.run_dir or member.folder
     if not member.stages:
         return [RunUnit("", plan.scene, member.overrides, member.folder, member.checkpoints,
-                        member.folder)]
+                        cwd)]
     return [RunUnit(ms["name"], ps["scene"], ms["overrides"], ms["folder"], ms["checkpoints"],
-                    member.folder) for ps, ms in zip(plan.stages, member.stages)]
+                    cwd) for ps, ms in zip(plan.stages, member.stages)]
 
 
 def classify(code, resumed):
@@ -218,6 +220,7 @@ def _run_unit(plan, member, unit, rec, handle, env, log, where, settled, last):
     not end well."""
     folder = Path(unit.folder)
     folder.mkdir(parents=True, exist_ok=True)
+    Path(unit.cwd).mkdir(parents=True, exist_ok=True)
     status_path = Path(member.folder) / records.STATUS_FILE
     name = f"member {member.id}" + (f", stage {unit.stage}" if unit.stage else "")
     stage_rec = rec["stages"][unit.stage] if unit.stage else {}

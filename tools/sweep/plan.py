@@ -48,6 +48,10 @@ class Plan:
     parameters: list      # [{"name", "unit", "keys", "values"}]
     members: list
     stages: list = field(default_factory=list)  # [{"name", "scene", "scene_sha256"}]
+    # The folder members run in ("" = each its own): with [execution] beds = "shared",
+    # <output_dir>/beds, where the beds that [dem.load] scene prepares are made once per
+    # variant and shared by every member that asks for it.
+    run_dir: str = ""
 
     def to_json(self):
         d = asdict(self)
@@ -205,6 +209,7 @@ def build_plan(spec, output_dir, demfem_run, progress=None):
         parameters=[{"name": p.name, "unit": p.unit, "keys": p.keys, "values": p.values}
                     for p in spec.parameters],
         members=members,
+        run_dir=str(out / "beds") if spec.execution.beds == "shared" else "",
         stages=[{"name": st.name, "scene": str(st.scene),
                  "scene_sha256": hashlib.sha256(st.scene.read_bytes()).hexdigest()}
                 for st in spec.stages])

@@ -240,6 +240,7 @@ class Execution:
     jobs: int = 0
     args: list = field(default_factory=list)
     max_members: int = MAX_MEMBERS_DEFAULT
+    beds: str = "member"  # where [dem.load] scene beds are prepared: "member" or "shared"
 
 
 @dataclass
@@ -423,6 +424,7 @@ def _read_execution(root):
         ex.jobs = et.integer("jobs", 0, 0, 100000)
         ex.args = et.strings("args", [])
         ex.max_members = et.integer("max_members", MAX_MEMBERS_DEFAULT, 1, MAX_MEMBERS_LIMIT)
+        ex.beds = et.string("beds", "member", choices=("member", "shared"))
         for a in ex.args:
             if a in ("--output-dir", "--resume", "--set", "--check", "--bin-dir") or \
                     a.startswith(("--output-dir=", "--resume=", "--set=")):
