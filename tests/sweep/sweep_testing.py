@@ -130,3 +130,40 @@ def wait_for(cond, what, guard=HANG_GUARD_S):
             raise Failure(f"still waiting for {what} after {guard:g} s: it hangs")
         time.sleep(0.005)
 
+
+def write(folder, name, text):
+    """Writes `text` (dedented) to folder/name; returns the path."""
+    import textwrap
+    p = Path(folder) / name
+    p.write_text(textwrap.dedent(text))
+    return p
+
+
+def sweep_file_case(scenes):
+    """A unittest base class whose tests have a temporary folder holding `scenes` (file name
+    -> text) and read sweep files written there: read(text), refused(text, *parts)."""
+    import tempfile
+    import unittest
+
+    from sweep.sweep_file import SweepError, read_sweep_file
+
+    class SweepFileCase(unittest.TestCase):
+        def setUp(self):
+            self.tmp = tempfile.TemporaryDirectory()
+            for name, text in scenes.items():
+                write(self.tmp.name, name, text)
+
+        def tearDown(self):
+            self.tmp.cleanup()
+
+        def read(self, text):
+            return read_sweep_file(write(self.tmp.name, "s.toml", text))
+
+        def refused(self, text, *parts):
+            with self.assertRaises(SweepError) as c:
+                self.read(text)
+            for p in parts:
+                self.assertIn(p, str(c.exception))
+            return str(c.exception)
+
+    return SweepFileCase

@@ -8,8 +8,6 @@ there, and the next run going on at that stage without running the done ones aga
 import json
 import os
 import sys
-import tempfile
-import textwrap
 import unittest
 from pathlib import Path
 
@@ -17,7 +15,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tools"))
 
 from sweep import member as member_mod  # noqa: E402
 from sweep.plan import build_plan  # noqa: E402
-from sweep.sweep_file import SweepError, read_sweep_file  # noqa: E402
+from sweep.sweep_file import SweepError  # noqa: E402
+from sweep_testing import sweep_file_case, write  # noqa: E402
 
 BED = """
 [run]
@@ -103,30 +102,7 @@ with open(os.path.join(out, "run.json"), "w") as f:
 """
 
 
-def write(folder, name, text):
-    p = Path(folder) / name
-    p.write_text(textwrap.dedent(text))
-    return p
-
-
-class Stages(unittest.TestCase):
-    def setUp(self):
-        self.tmp = tempfile.TemporaryDirectory()
-        write(self.tmp.name, "bed.toml", BED)
-        write(self.tmp.name, "load.toml", LOAD)
-
-    def tearDown(self):
-        self.tmp.cleanup()
-
-    def read(self, text):
-        return read_sweep_file(write(self.tmp.name, "s.toml", text))
-
-    def refused(self, text, *parts):
-        with self.assertRaises(SweepError) as c:
-            self.read(text)
-        for p in parts:
-            self.assertIn(p, str(c.exception))
-
+class Stages(sweep_file_case({"bed.toml": BED, "load.toml": LOAD})):
     def test_plan_of_a_chain(self):
         spec = self.read(CHAIN)
         self.assertEqual([s.name for s in spec.stages], ["bed", "load"])

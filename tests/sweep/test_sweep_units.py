@@ -11,7 +11,6 @@ import signal
 import subprocess
 import sys
 import tempfile
-import textwrap
 import threading
 import time
 import tomllib
@@ -25,6 +24,7 @@ from sweep.collect import extract, interpolate  # noqa: E402
 from sweep.member import Handle, classify, describe_exit  # noqa: E402
 from sweep.plan import build_plan  # noqa: E402
 from sweep.sweep_file import Quantity, SlurmOptions, SweepError, read_sweep_file  # noqa: E402
+from sweep_testing import sweep_file_case, write  # noqa: E402
 
 SCENE = """
 [run]
@@ -99,12 +99,6 @@ class SceneKeys(unittest.TestCase):
             self.assertEqual(tomllib.loads(f"v = {text}")["v"], v, text)
 
 
-def write(tmp, name, text):
-    p = Path(tmp) / name
-    p.write_text(textwrap.dedent(text))
-    return p
-
-
 def wait_file(path, guard=60.0):
     deadline = time.monotonic() + guard
     while not Path(path).exists() and time.monotonic() < deadline:
@@ -138,25 +132,8 @@ reduce = "max"
 """
 
 
-class SweepFileCase(unittest.TestCase):
-    """A folder with the scene; reads sweep files written there (no tests of its own)."""
-
-    def setUp(self):
-        self.tmp = tempfile.TemporaryDirectory()
-        write(self.tmp.name, "scene.toml", SCENE)
-
-    def tearDown(self):
-        self.tmp.cleanup()
-
-    def read(self, text):
-        return read_sweep_file(write(self.tmp.name, "s.toml", text))
-
-    def refused(self, text, *parts):
-        with self.assertRaises(SweepError) as c:
-            self.read(text)
-        for p in parts:
-            self.assertIn(p, str(c.exception))
-        return str(c.exception)
+# A folder with the scene; reads sweep files written there (no tests of its own).
+SweepFileCase = sweep_file_case({"scene.toml": SCENE})
 
 
 class SweepFile(SweepFileCase):
