@@ -10,6 +10,10 @@ import time
 from pathlib import Path
 
 SOURCE = Path(__file__).resolve().parents[2]
+# The sweep package for the tests that import it (ctest sets PYTHONPATH too; this is for a
+# test run by hand).
+if str(SOURCE / "tools") not in sys.path:
+    sys.path.insert(0, str(SOURCE / "tools"))
 SWEEP_FILE = SOURCE / "cases" / "sweeps" / "beam_load_ci.toml"
 FAULTS = Path(__file__).resolve().parent / "fault_demfem_run.py"
 PYTHON = "/usr/bin/python3"

@@ -21,9 +21,7 @@ import tempfile
 import tomllib
 from pathlib import Path
 
-from sweep_testing import SOURCE, check, read_csv
-
-sys.path.insert(0, str(SOURCE / "tools"))
+from sweep_testing import SOURCE, check, read_csv  # first: it puts tools/ on sys.path
 
 BASE = SOURCE / "cases" / "sheet_ci.toml"
 

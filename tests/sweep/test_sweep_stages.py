@@ -7,16 +7,14 @@ there, and the next run going on at that stage without running the done ones aga
 
 import json
 import os
-import sys
 import unittest
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tools"))
+from sweep_testing import sweep_file_case, write  # first: it puts tools/ on sys.path
 
-from sweep import member as member_mod  # noqa: E402
-from sweep.plan import build_plan  # noqa: E402
-from sweep.sweep_file import SweepError  # noqa: E402
-from sweep_testing import sweep_file_case, write  # noqa: E402
+from sweep import member as member_mod
+from sweep.plan import build_plan
+from sweep.sweep_file import SweepError
 
 BED = """
 [run]

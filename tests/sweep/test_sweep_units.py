@@ -17,14 +17,13 @@ import tomllib
 import unittest
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tools"))
+from sweep_testing import sweep_file_case, write  # first: it puts tools/ on sys.path
 
-from sweep import exit_status, scene_keys, slurm, stats  # noqa: E402
-from sweep.collect import extract, interpolate  # noqa: E402
-from sweep.member import Handle, classify, describe_exit  # noqa: E402
-from sweep.plan import build_plan  # noqa: E402
-from sweep.sweep_file import Quantity, SlurmOptions, SweepError, read_sweep_file  # noqa: E402
-from sweep_testing import sweep_file_case, write  # noqa: E402
+from sweep import exit_status, scene_keys, slurm, stats
+from sweep.collect import extract, interpolate
+from sweep.member import Handle, classify, describe_exit
+from sweep.plan import build_plan
+from sweep.sweep_file import Quantity, SlurmOptions, SweepError, read_sweep_file
 
 SCENE = """
 [run]
