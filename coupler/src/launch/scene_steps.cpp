@@ -14,10 +14,10 @@
 #include <vector>
 
 #include "demfem/coupling/coupling_settings.hpp"
-#include "launch/supervisor.hpp"
 #include "demfem/dem/scene/dem_scene.hpp"
 #include "demfem/dem/scene/particle_source.hpp"
 #include "demfem/interface/exit_status.hpp"
+#include "launch/supervisor.hpp"
 
 namespace demfem::coupling {
 
