@@ -30,7 +30,7 @@ import os
 import sys
 
 from demfem_post import read_csv, tool_errors
-from demfem_post.plots import pyplot
+from demfem_post.plots import pyplot, save_figure
 from demfem_post.windows import moving_average, stats, window
 
 
@@ -138,9 +138,7 @@ def plots(out_dir, ft, rate, mass, flow, mt, series, probe, smooth, fz, defl):
     for a in ax:
         a.grid(True, alpha=0.3)
     fig.suptitle("Mass flow under the flaps (eq. 2.26)")
-    fig.tight_layout()
-    fig.savefig(os.path.join(out_dir, "mass_flow.png"), dpi=110)
-    plt.close(fig)
+    save_figure(fig, os.path.join(out_dir, "mass_flow.png"))
 
     fig, ax = plt.subplots(2, 1, figsize=(8, 6), sharex=True,
                            gridspec_kw={"height_ratios": [2, 1]})
@@ -159,9 +157,7 @@ def plots(out_dir, ft, rate, mass, flow, mt, series, probe, smooth, fz, defl):
     for a in ax:
         a.grid(True, alpha=0.3)
     fig.suptitle("Deflection of the steel sheet (cf. thesis fig. 5.4)")
-    fig.tight_layout()
-    fig.savefig(os.path.join(out_dir, "deflection.png"), dpi=110)
-    plt.close(fig)
+    save_figure(fig, os.path.join(out_dir, "deflection.png"))
 
 
 def pair(text):
