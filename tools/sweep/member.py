@@ -206,8 +206,7 @@ def run_member(plan, member, handle=None, env=None, log=print, where=None, settl
             if unit.stage and rec["stages"][unit.stage]["state"] == records.DONE:
                 continue  # done in an earlier sweep: its output is what the next one uses
             last = i == len(units) - 1
-            if not _run_unit(plan, member, unit, rec, handle, env, log, where,
-                             settled if last else (lambda: None), last):
+            if not _run_unit(plan, member, unit, rec, handle, env, log, where, settled, last):
                 return rec
         return rec
     finally:
@@ -216,8 +215,8 @@ def run_member(plan, member, handle=None, env=None, log=print, where=None, settl
 
 def _run_unit(plan, member, unit, rec, handle, env, log, where, settled, last):
     """The attempts of one run of the member (retried from its checkpoint), recorded in
-    `rec`. True when it is done; the member's record is final when it is the last run or did
-    not end well."""
+    `rec`. True when it is done; the member's record is final (and `settled()` called) when
+    it is the last run or did not end well."""
     folder = Path(unit.folder)
     folder.mkdir(parents=True, exist_ok=True)
     Path(unit.cwd).mkdir(parents=True, exist_ok=True)
