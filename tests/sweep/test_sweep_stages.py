@@ -208,6 +208,21 @@ class Stages(sweep_file_case({"bed.toml": BED, "load.toml": LOAD})):
             member_mod.run_member(changed, changed.members[0], log=lambda *a: None)
         self.assertIn("other stages", str(c.exception))
 
+    def test_a_failing_first_stage_ends_the_member_and_frees_its_cores(self):
+        stand_in = write(self.tmp.name, "demfem_run", STAND_IN)
+        os.chmod(stand_in, 0o755)
+        calls, fail_file = Path(self.tmp.name) / "calls", Path(self.tmp.name) / "fail"
+        os.environ.update(CALLS=str(calls), FAIL_STAGE="bed", FAIL_FILE=str(fail_file))
+        fail_file.write_text("")
+        plan = build_plan(self.read(CHAIN), Path(self.tmp.name) / "out", str(stand_in))
+        plan.max_retries = 0
+        settled = []
+        rec = member_mod.run_member(plan, plan.members[0], log=lambda *a: None,
+                                    settled=lambda: settled.append(1))
+        self.assertEqual(len(calls.read_text().splitlines()), 1)  # the load never started
+        self.assertEqual((rec["state"], rec["stages"]["load"]["state"]), ("failed", "new"))
+        self.assertEqual(settled, [1])  # the pool hears once that the member's cores are free
+
 
 if __name__ == "__main__":
     unittest.main(verbosity=2)
