@@ -22,7 +22,7 @@ import math
 import os
 import sys
 
-from demfem_post.plots import pyplot_or_exit
+from demfem_post.plots import pyplot_or_exit, save_figure
 
 plt = pyplot_or_exit("plot_coupling_schemes.py")
 
@@ -108,11 +108,7 @@ def work_precision(rows, out):
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
     fig.suptitle("Work-precision (labels: dt_F in s; unstable runs left out)", fontsize=11)
-    fig.tight_layout()
-    path = os.path.join(out, "coupling_work_precision.png")
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+    return save_figure(fig, os.path.join(out, "coupling_work_precision.png"), dpi=90)
 
 
 def stability(rows, out):
@@ -145,11 +141,7 @@ def stability(rows, out):
     ax.set_title("Stability map, problem (b): light plate under a dense bed", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, loc="lower right")
-    fig.tight_layout()
-    path = os.path.join(out, "coupling_stability.png")
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+    return save_figure(fig, os.path.join(out, "coupling_stability.png"), dpi=90)
 
 
 def iterations(rows, out):
@@ -182,11 +174,7 @@ def iterations(rows, out):
         ax.set_title(TITLES[problem].split(":")[0], fontsize=10)
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
-    fig.tight_layout()
-    path = os.path.join(out, "coupling_iterations.png")
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+    return save_figure(fig, os.path.join(out, "coupling_iterations.png"), dpi=90)
 
 
 def main(argv):

@@ -16,7 +16,7 @@ import math
 import os
 import sys
 
-from demfem_post import read_csv
+from demfem_post import read_csv, tool_errors
 from demfem_post.plots import pyplot
 
 
@@ -63,7 +63,7 @@ def main(argv):
     if a.output and len(a.csv) != 1:
         p.error("-o takes one CSV; use --out-dir for several")
     columns = [c.strip() for c in a.columns.split(",")] if a.columns else None
-    try:
+    with tool_errors("plot_series.py"):
         for path in a.csv:
             if not os.path.isfile(path):
                 raise FileNotFoundError(f"{path}: no such file")
@@ -75,12 +75,6 @@ def main(argv):
             if os.path.dirname(out):
                 os.makedirs(os.path.dirname(out), exist_ok=True)
             print(plot(path, a.x, columns, out))
-    except ImportError as e:  # demfem_post's MissingModule: names the interpreter to use
-        print(f"plot_series.py: {e}", file=sys.stderr)
-        return 2
-    except (OSError, KeyError, ValueError) as e:
-        print(f"plot_series.py: {e.args[0] if e.args else e}", file=sys.stderr)
-        return 2
     return 0
 
 

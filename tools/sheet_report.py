@@ -29,8 +29,8 @@ import json
 import os
 import sys
 
-from demfem_post import read_csv
-from demfem_post.plots import pyplot
+from demfem_post import read_csv, tool_errors
+from demfem_post.plots import pyplot, save_figure
 from demfem_post.windows import moving_average, stats, window
 
 
@@ -138,9 +138,7 @@ def plots(out_dir, ft, rate, mass, flow, mt, series, probe, smooth, fz, defl):
     for a in ax:
         a.grid(True, alpha=0.3)
     fig.suptitle("Mass flow under the flaps (eq. 2.26)")
-    fig.tight_layout()
-    fig.savefig(os.path.join(out_dir, "mass_flow.png"), dpi=110)
-    plt.close(fig)
+    save_figure(fig, os.path.join(out_dir, "mass_flow.png"))
 
     fig, ax = plt.subplots(2, 1, figsize=(8, 6), sharex=True,
                            gridspec_kw={"height_ratios": [2, 1]})
@@ -159,9 +157,7 @@ def plots(out_dir, ft, rate, mass, flow, mt, series, probe, smooth, fz, defl):
     for a in ax:
         a.grid(True, alpha=0.3)
     fig.suptitle("Deflection of the steel sheet (cf. thesis fig. 5.4)")
-    fig.tight_layout()
-    fig.savefig(os.path.join(out_dir, "deflection.png"), dpi=110)
-    plt.close(fig)
+    save_figure(fig, os.path.join(out_dir, "deflection.png"))
 
 
 def pair(text):
@@ -181,7 +177,7 @@ def main(argv):
     a = p.parse_args(argv)
     d = a.output_dir
     dsteady = a.deflection_steady or (a.flow_steady[0] + 0.27, a.flow_steady[1] + 0.27)
-    try:
+    with tool_errors("sheet_report.py"):
         fpath = os.path.join(d, "sensor_outflow.csv")
         fc = read_csv(fpath)
         ft, rate, mass = fc.column("time"), fc.column("mass_flow"), fc.column("mass_crossed")
@@ -207,12 +203,6 @@ def main(argv):
             f.write(text)
         print(text, end="")
         plots(d, ft, rate, mass, flow, mt, series, a.probe, smooth, fz, defl)
-    except ImportError as e:  # demfem_post's MissingModule: names the interpreter to use
-        print(f"sheet_report.py: {e}", file=sys.stderr)
-        return 2
-    except (OSError, KeyError, ValueError) as e:
-        print(f"sheet_report.py: {e.args[0] if e.args else e}", file=sys.stderr)
-        return 2
     return 0
 
 

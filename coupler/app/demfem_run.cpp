@@ -28,21 +28,21 @@
 #include <vector>
 
 #include "demfem/coupling/coupling_run.hpp"
-#include "demfem/coupling/progress.hpp"
-#include "demfem/coupling/scene_steps.hpp"
-#include "demfem/coupling/supervisor.hpp"
 #include "demfem/dem/omp_wait.hpp"
 #include "demfem/interface/exit_status.hpp"
 #include "launch/exit_map.hpp"
 #include "launch/launch_options.hpp"
 #include "launch/modal_analysis.hpp"
 #include "launch/preflight.hpp"
+#include "launch/progress.hpp"
 #include "launch/resume_point.hpp"
 #include "launch/run_folder.hpp"
 #include "launch/run_outcome.hpp"
 #include "launch/run_report.hpp"
 #include "launch/run_solvers.hpp"
+#include "launch/scene_steps.hpp"
 #include "launch/shutdown.hpp"
+#include "launch/supervisor.hpp"
 
 using namespace demfem;
 using namespace demfem::coupling;

@@ -1,6 +1,6 @@
 #include <catch2/catch.hpp>
 
-#include "demfem/coupling/progress.hpp"
+#include "launch/progress.hpp"
 
 TEST_CASE("progress line: time, percentage, rate and ETA") {
   // 50 of 100 steps in 10 s: 5 steps/s, 50 left -> 10 s.

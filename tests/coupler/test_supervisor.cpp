@@ -3,7 +3,7 @@
 
 #include <csignal>
 
-#include "demfem/coupling/supervisor.hpp"
+#include "launch/supervisor.hpp"
 
 using namespace demfem::coupling;
 using namespace std::chrono_literals;

@@ -3,7 +3,7 @@
 (`demfem sweep --demfem-run tests/sweep/fault_demfem_run.py`) and runs the real one
 ($DEMFEM_TEST_REAL_RUN), injecting faults into chosen members on their first attempt:
 
-  DEMFEM_TEST_KILL="s00_r01=demfem_run,s01_r02=dem_server"
+  DEMFEM_TEST_KILL="s00_r01=demfem_run,s01_r02=dem_server"  (a stage: "s00_r01/load=...")
       once a checkpoint after step 0 is committed, SIGKILL from outside to the member's
       demfem_run (the coupler) or to its dem_server / fem_server; the first attempt only
       (a marker file in the member folder remembers it).
@@ -27,7 +27,9 @@ args = sys.argv[1:]
 if "--output-dir" not in args or "--check" in args:
     os.execv(real, [real] + args)
 out = Path(args[args.index("--output-dir") + 1])
-member = out.name
+# A member's folder is members/<id>; a stage of a chained member writes into
+# members/<id>/<stage>, named "<id>/<stage>" in the lists below.
+member = out.name if out.parent.name == "members" else f"{out.parent.name}/{out.name}"
 if os.environ.get("DEMFEM_TEST_RECORD"):
     import json
     start = time.time()

@@ -10,6 +10,10 @@ import time
 from pathlib import Path
 
 SOURCE = Path(__file__).resolve().parents[2]
+# The sweep package for the tests that import it (ctest sets PYTHONPATH too; this is for a
+# test run by hand).
+if str(SOURCE / "tools") not in sys.path:
+    sys.path.insert(0, str(SOURCE / "tools"))
 SWEEP_FILE = SOURCE / "cases" / "sweeps" / "beam_load_ci.toml"
 FAULTS = Path(__file__).resolve().parent / "fault_demfem_run.py"
 PYTHON = "/usr/bin/python3"
@@ -61,7 +65,7 @@ def status(out, member):
 def started_pids_and_segments(out):
     """Solver pids and shared-memory segments named in every attempt log of the sweep."""
     pids, segs = set(), set()
-    for log in Path(out).glob("members/*/attempt-*.log"):
+    for log in (Path(out) / "members").rglob("attempt-*.log"):  # members and their stages
         text = log.read_text(errors="replace")
         pids |= {int(p) for p in re.findall(r"started (?:dem|fem)_server \(pid (\d+)\)", text)}
         segs |= set(re.findall(r"segment /(demfem-[0-9a-f]+)", text))
@@ -130,3 +134,40 @@ def wait_for(cond, what, guard=HANG_GUARD_S):
             raise Failure(f"still waiting for {what} after {guard:g} s: it hangs")
         time.sleep(0.005)
 
+
+def write(folder, name, text):
+    """Writes `text` (dedented) to folder/name; returns the path."""
+    import textwrap
+    p = Path(folder) / name
+    p.write_text(textwrap.dedent(text))
+    return p
+
+
+def sweep_file_case(scenes):
+    """A unittest base class whose tests have a temporary folder holding `scenes` (file name
+    -> text) and read sweep files written there: read(text), refused(text, *parts)."""
+    import tempfile
+    import unittest
+
+    from sweep.sweep_file import SweepError, read_sweep_file
+
+    class SweepFileCase(unittest.TestCase):
+        def setUp(self):
+            self.tmp = tempfile.TemporaryDirectory()
+            for name, text in scenes.items():
+                write(self.tmp.name, name, text)
+
+        def tearDown(self):
+            self.tmp.cleanup()
+
+        def read(self, text):
+            return read_sweep_file(write(self.tmp.name, "s.toml", text))
+
+        def refused(self, text, *parts):
+            with self.assertRaises(SweepError) as c:
+                self.read(text)
+            for p in parts:
+                self.assertIn(p, str(c.exception))
+            return str(c.exception)
+
+    return SweepFileCase

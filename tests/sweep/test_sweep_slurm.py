@@ -7,7 +7,8 @@ task is retried there from its checkpoint; a member that keeps failing is report
 Then, with a stand-in for demfem_run that only sleeps: a task cancelled with SIGTERM (as at
 a time limit) records its member "interrupted", a task killed with SIGKILL leaves its
 member "lost"; --status says so with what Slurm knows; running the sweep again resubmits
-both.
+both. And the chained example (cases/sweeps/beam_chain_ci.toml): a task runs its member's
+stages one after the other, and the aggregate equals the local sweep's.
 
   test_sweep_slurm.py BUILD/bin/demfem_run
 """
@@ -70,7 +71,32 @@ def case_slurm(tmp, exe):
     r = run_sweep(out, "--slurm", demfem_run=FAULTS, env=env)
     check("nothing to submit" in r.stdout, "a finished sweep submitted again")
     check_nothing_left(out)
+    chained_sweep(tmp, exe)
     cancelled_and_killed_tasks(tmp, exe)
+
+
+def chained_sweep(tmp, exe):
+    """The chained example (cases/sweeps/beam_chain_ci.toml): each array task runs its
+    member's chain (pour, then load), one task per member; with a load stage killed inside its
+    task (retried there from that stage's checkpoint) the aggregate equals the local sweep's."""
+    chain = SOURCE / "cases" / "sweeps" / "beam_chain_ci.toml"
+    ref = tmp / "chain_reference"
+    run_sweep(ref, "--no-check", "--no-plots", demfem_run=exe, sweep_file=chain)
+    out = tmp / "chain_slurm"
+    env = {"DEMFEM_TEST_REAL_RUN": exe, "DEMFEM_TEST_KILL": "s01_r01/load=demfem_run"}
+    run_sweep(out, "--slurm", "--wait", "--poll", "0.3", "--partition", "debug", "--no-plots",
+              demfem_run=FAULTS, env=env, sweep_file=chain)
+    jobs = json.loads((out / "slurm" / "jobs.json").read_text())["jobs"]
+    check(len(jobs) == 1 and jobs[0]["members"] == list(range(4)), f"chain jobs.json: {jobs}")
+    st = status(out, "s01_r01")
+    loads = [a for a in st["attempts"] if a["stage"] == "load"]
+    check(st["stages"]["pour"]["state"] == "done" and len(loads) == 2 and
+          loads[0]["exit"] == 137 and loads[1]["resume"] and
+          all(a.get("slurm_job") == str(jobs[0]["job_id"]) for a in st["attempts"]),
+          f"s01_r01 (load stage killed in its array task): {st}")
+    for name in ("summary.csv", "series_deflection.csv"):
+        same_file(ref / name, out / name, f"the chained sweep's {name} (local, Slurm)")
+    check_nothing_left(out)
 
 
 def _ppid(proc):

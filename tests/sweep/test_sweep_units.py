@@ -11,20 +11,19 @@ import signal
 import subprocess
 import sys
 import tempfile
-import textwrap
 import threading
 import time
 import tomllib
 import unittest
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tools"))
+from sweep_testing import sweep_file_case, write  # first: it puts tools/ on sys.path
 
-from sweep import exit_status, scene_keys, slurm, stats  # noqa: E402
-from sweep.collect import extract, interpolate  # noqa: E402
-from sweep.member import Handle, classify, describe_exit  # noqa: E402
-from sweep.plan import build_plan  # noqa: E402
-from sweep.sweep_file import Quantity, SlurmOptions, SweepError, read_sweep_file  # noqa: E402
+from sweep import exit_status, scene_keys, slurm, stats
+from sweep.collect import extract, interpolate
+from sweep.member import Handle, classify, describe_exit
+from sweep.plan import build_plan
+from sweep.sweep_file import Quantity, SlurmOptions, SweepError, read_sweep_file
 
 SCENE = """
 [run]
@@ -99,12 +98,6 @@ class SceneKeys(unittest.TestCase):
             self.assertEqual(tomllib.loads(f"v = {text}")["v"], v, text)
 
 
-def write(tmp, name, text):
-    p = Path(tmp) / name
-    p.write_text(textwrap.dedent(text))
-    return p
-
-
 def wait_file(path, guard=60.0):
     deadline = time.monotonic() + guard
     while not Path(path).exists() and time.monotonic() < deadline:
@@ -138,25 +131,8 @@ reduce = "max"
 """
 
 
-class SweepFileCase(unittest.TestCase):
-    """A folder with the scene; reads sweep files written there (no tests of its own)."""
-
-    def setUp(self):
-        self.tmp = tempfile.TemporaryDirectory()
-        write(self.tmp.name, "scene.toml", SCENE)
-
-    def tearDown(self):
-        self.tmp.cleanup()
-
-    def read(self, text):
-        return read_sweep_file(write(self.tmp.name, "s.toml", text))
-
-    def refused(self, text, *parts):
-        with self.assertRaises(SweepError) as c:
-            self.read(text)
-        for p in parts:
-            self.assertIn(p, str(c.exception))
-        return str(c.exception)
+# A folder with the scene; reads sweep files written there (no tests of its own).
+SweepFileCase = sweep_file_case({"scene.toml": SCENE})
 
 
 class SweepFile(SweepFileCase):
@@ -613,8 +589,8 @@ with open(stand_in, "w") as f:
     f.write("#!/bin/sh\nexec sleep 60\n")
 os.chmod(stand_in, 0o755)
 plan = types.SimpleNamespace(demfem_run=stand_in, scene="s.toml", args=[], timeout=0)
-m = types.SimpleNamespace(folder=folder, overrides=[], threads=1)
-code, _, _ = member._attempt(plan, m, False, os.path.join(folder, "a.log"), h, None)
+run = member.RunUnit("", "s.toml", [], folder, "", folder)
+code, _, _ = member._attempt(plan, run, 1, False, os.path.join(folder, "a.log"), h, None)
 print(code, h.stop.is_set())
 """
 

@@ -19,7 +19,7 @@ if sys.version_info < (3, 11):  # tomllib, for the scenes
                       f"Python {sys.version.split()[0]}: run with /usr/bin/python3 (Debian 12)")
 
 from .fields import Field, FieldSeries  # noqa: E402
-from .needs import MissingModule, need  # noqa: E402
+from .needs import MissingModule, need, tool_errors  # noqa: E402
 from .run_folder import Run  # noqa: E402
 from .scene import load_scene, run_overrides  # noqa: E402
 from .table import Table, read_csv  # noqa: E402

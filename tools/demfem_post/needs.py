@@ -2,6 +2,7 @@
 names the module, the interpreter that lacked it, the Debian package and the interpreter to
 run with, instead of a bare ModuleNotFoundError."""
 
+import contextlib
 import importlib
 import sys
 
@@ -27,4 +28,19 @@ def need_or_exit(tool, module, debian_package, interpreter="/usr/bin/python3"):
         return need(module, debian_package, interpreter)
     except MissingModule as e:
         print(f"{tool}: {e}", file=sys.stderr)
+        sys.exit(2)
+
+
+@contextlib.contextmanager
+def tool_errors(tool):
+    """For a script's work: a missing module (MissingModule names the interpreter to use), a
+    missing file, column or key, or a bad value ends it with `tool: reason` on stderr and exit
+    status 2 instead of a traceback."""
+    try:
+        yield
+    except ImportError as e:
+        print(f"{tool}: {e}", file=sys.stderr)
+        sys.exit(2)
+    except (OSError, KeyError, ValueError) as e:
+        print(f"{tool}: {e.args[0] if e.args else e}", file=sys.stderr)
         sys.exit(2)

@@ -15,6 +15,14 @@ def pyplot_or_exit(tool):
     return need_or_exit(tool, "matplotlib.pyplot", "python3-matplotlib")
 
 
+def save_figure(fig, path, dpi=110):
+    """Lays `fig` out, writes it to `path` (PNG by the name) and closes it; returns `path`."""
+    fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    pyplot().close(fig)
+    return path
+
+
 def plot_columns(table, y=None, x=None, out=None, ax=None):
     """Lines of `table`'s columns `y` (a name, a list, or None: all but x and step) against
     `x` (None: time, else the first column), labelled by column; saved to `out` when given."""

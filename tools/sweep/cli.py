@@ -12,7 +12,7 @@ from pathlib import Path
 from sweep import records, slurm, status
 from sweep.collect import collect
 from sweep.exit_status import EXIT_BAD_INPUT, EXIT_FAILED
-from sweep.member import Handle, describe_exit, run_member
+from sweep.member import Handle, describe_exit, run_member, run_units
 from sweep.plan import build_plan, check_identity, load_plan, save_plan
 from sweep.pool import LocalPool, machine_cpus, machine_gpus
 from sweep.progress import Reporter, eta_seconds, line
@@ -200,14 +200,21 @@ def check_settings(plan, todo):
         seen.add(m.setting)
         if len(seen) % 100 == 0:  # tens of ms each: a large grid takes a while
             print(f"sweep {plan.name}: checked {len(seen)} of {total} settings", flush=True)
-        cmd = [plan.demfem_run, plan.scene, "--check"]
-        for o in m.overrides:
-            cmd += ["--set", o]
-        r = subprocess.run(cmd, capture_output=True, text=True)
-        if r.returncode != 0:
-            raise SweepError(f"setting {m.setting} (member {m.id}) is refused by demfem_run "
-                             f"--check (exit {r.returncode}):\n  " +
-                             (r.stderr.strip() or r.stdout.strip()).replace("\n", "\n  "))
+        earlier = []
+        for unit in run_units(plan, m):
+            # An override that names an earlier stage's folder (its state file) is left out:
+            # that file is made when the stage before has run; the scene's own value is checked.
+            cmd = [plan.demfem_run, unit.scene, "--check"]
+            for o in unit.overrides:
+                if not any(f + "/" in o for f in earlier):
+                    cmd += ["--set", o]
+            earlier.append(unit.folder)
+            r = subprocess.run(cmd, capture_output=True, text=True)
+            if r.returncode != 0:
+                raise SweepError(f"setting {m.setting} (member {m.id}" +
+                                 (f", stage {unit.stage}" if unit.stage else "") +
+                                 f") is refused by demfem_run --check (exit {r.returncode}):\n  "
+                                 + (r.stderr.strip() or r.stdout.strip()).replace("\n", "\n  "))
 
 
 def print_eta(plan, states):

@@ -165,18 +165,28 @@ def collect(spec, plan, states, log=print, plots=True):
             continue
         vals = {}
         for q in spec.quantities:
-            t, v = read_series(Path(m.folder) / q.file, q.time_column, q.column, q.where, m.id)
+            # a stage's quantity lies in that stage's folder of the member
+            t, v = read_series(Path(m.folder) / q.stage / q.file, q.time_column, q.column,
+                               q.where, m.id)
             vals[q.name] = extract(q, t, v, q.where, m.id)
         values[m.id] = vals
 
+    # With stages, each stage's state and run time (s) besides the member's (their sum).
+    stage_names = [st["name"] for st in plan.stages]
     header = ["member", "setting"] + pnames + ["seed"] + [q.name for q in scalars] + \
-        ["status", "attempts", "run_time"]
+        ["status", "attempts", "run_time"] + \
+        [f"{n}_{c}" for n in stage_names for c in ("status", "run_time")]
     rows = []
     for m, state, rec, _ in states:
         vals = values.get(m.id, {})
+        per_stage = []
+        for n in stage_names:
+            st = (rec.get("stages") or {}).get(n) or {}
+            per_stage += [st.get("state", "new"), st.get("run_time", math.nan)]
         rows.append([m.id, m.setting] + [m.values[p] for p in pnames] + [m.seed] +
                     [vals.get(q.name, math.nan) for q in scalars] +
-                    [state, len(rec.get("attempts", [])), rec.get("run_time", math.nan)])
+                    [state, len(rec.get("attempts", [])), rec.get("run_time", math.nan)] +
+                    per_stage)
     write_csv_atomic(out / "members.csv", header, rows)
 
     settings = {}

@@ -7,11 +7,12 @@ import hashlib
 import itertools
 import os
 import tomllib
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from sweep import scene_keys
 from sweep.records import IDENTITY_FILE, read_json, write_json_atomic
+from sweep.stages import stage_overrides
 from sweep.sweep_file import MAX_MEMBERS_LIMIT, SweepError, read_text
 
 
@@ -28,6 +29,9 @@ class Member:
     gpu: bool             # dem.backend = "cuda": one GPU
     checkpoints: str      # checkpoint folder relative to the member folder ("" = none)
     folder: str           # absolute
+    # With [[stage]]: per stage in order {"name", "overrides", "checkpoints" (relative to the
+    # stage's folder), "folder" (<folder>/<name>)}; empty: the member is one run.
+    stages: list = field(default_factory=list)
 
 
 @dataclass
@@ -43,6 +47,11 @@ class Plan:
     args: list
     parameters: list      # [{"name", "unit", "keys", "values"}]
     members: list
+    stages: list = field(default_factory=list)  # [{"name", "scene", "scene_sha256"}]
+    # The folder members run in ("" = each its own): with [execution] beds = "shared",
+    # <output_dir>/beds, where the beds that [dem.load] scene prepares are made once per
+    # variant and shared by every member that asks for it.
+    run_dir: str = ""
 
     def to_json(self):
         d = asdict(self)
@@ -115,7 +124,7 @@ def _prepare_problem(path, sets, depth=0):
     return None
 
 
-def member_paths(spec, scene, mid, overrides, cache):
+def member_paths(scene_path, scene, mid, overrides, cache):
     """Checks that every folder the member writes lies inside its own folder (its scene with
     its overrides: checkpoint.directory, the output folders of the beds that [dem.load]
     prepares); returns the checkpoint folder relative to the member folder ("" = none)."""
@@ -125,7 +134,7 @@ def member_paths(spec, scene, mid, overrides, cache):
         if not isinstance(checkpoints, str) or _escapes(checkpoints):
             set_by = [o for o in overrides if o.startswith("checkpoint")]
             raise SweepError(
-                f"{spec.scene}: key 'checkpoint.directory' of member {mid} is {checkpoints!r}"
+                f"{scene_path}: key 'checkpoint.directory' of member {mid} is {checkpoints!r}"
                 + (f" (from the sweep's --set {' '.join(set_by)})" if set_by else "") +
                 ": a sweep needs a relative path inside the member's folder (no '..' out of "
                 "it), so that every member has its own checkpoints")
@@ -135,7 +144,7 @@ def member_paths(spec, scene, mid, overrides, cache):
         sets = load.get("set", [])
         key = (load["scene"], repr(sets))
         if key not in cache:
-            cache[key] = _prepare_problem(spec.scene.parent / load["scene"], sets)
+            cache[key] = _prepare_problem(Path(scene_path).parent / load["scene"], sets)
         if cache[key]:
             raise SweepError(f"member {mid} prepares its bed with {load['scene']}: {cache[key]}")
     return checkpoints
@@ -166,31 +175,30 @@ def build_plan(spec, output_dir, demfem_run, progress=None):
                 base.append((k, vals[vi]))
             values[p.name] = p.values[0][vi]
         # One copy per setting: a repetition sets the same key each time (its seed), so the
-        # copy is reused and only that key is written again.
-        scene = copy.deepcopy(spec.scene_data)
+        # copy is reused and only that key is written again. (With stages, each stage's
+        # scene gets only the keys it takes: _member_stages.)
+        scene = None if spec.stages else copy.deepcopy(spec.scene_data)
         for k, v in base:
-            scene_keys.assign(scene, k, v)  # checked when the file was read
+            if scene is not None:
+                scene_keys.assign(scene, k, v)  # checked when the file was read
         base_text = [f"{k}={scene_keys.toml_value(v)}" for k, v in base]
         for ri, seed in enumerate(spec.repetitions.seeds):
-            scene_keys.assign(scene, spec.repetitions.key, seed)
             overrides = base_text + [f"{spec.repetitions.key}={scene_keys.toml_value(seed)}"]
             mid = f"s{si:0{ws}d}_r{ri:0{wr}d}"
-            has_dem = isinstance(scene.get("dem"), dict)
-            threads = scene_keys.get(scene, "dem.threads", 0) if has_dem else 0
-            if not isinstance(threads, int) or isinstance(threads, bool) or threads < 0:
-                raise SweepError(f"{spec.scene}: dem.threads of member {mid} is "
-                                 f"{threads!r}, not an integer >= 0")
-            if threads == 0:
-                # 0 would give every member all the cores: members get execution.threads.
-                threads = spec.execution.threads
-                if has_dem:
-                    overrides.append(f"dem.threads={threads}")
-            gpu = has_dem and scene_keys.get(scene, "dem.backend", "cpu") == "cuda"
-            checkpoints = member_paths(spec, scene, mid, overrides, checked_paths)
+            folder = out / "members" / mid
+            if spec.stages:
+                stages, threads, gpu = _member_stages(spec, mid, overrides, folder,
+                                                      checked_paths)
+                checkpoints = ""
+            else:
+                scene_keys.assign(scene, spec.repetitions.key, seed)
+                stages = []
+                threads, gpu, checkpoints = _single_run(spec, scene, mid, overrides,
+                                                        checked_paths)
             members.append(Member(
                 index=len(members), id=mid, setting=si, repetition=ri, seed=seed,
                 values=values, overrides=overrides, threads=threads, gpu=gpu,
-                checkpoints=checkpoints, folder=str(out / "members" / mid)))
+                checkpoints=checkpoints, folder=str(folder), stages=stages))
             if progress and len(members) % 10000 == 0:
                 progress(len(members), total)
     return Plan(
@@ -200,13 +208,74 @@ def build_plan(spec, output_dir, demfem_run, progress=None):
         timeout=spec.execution.timeout, args=list(spec.execution.args),
         parameters=[{"name": p.name, "unit": p.unit, "keys": p.keys, "values": p.values}
                     for p in spec.parameters],
-        members=members)
+        members=members,
+        run_dir=str(out / "beds") if spec.execution.beds == "shared" else "",
+        stages=[{"name": st.name, "scene": str(st.scene),
+                 "scene_sha256": hashlib.sha256(st.scene.read_bytes()).hexdigest()}
+                for st in spec.stages])
+
+
+def _threads_of(scene_path, scene, what):
+    """The scene's dem.threads (0 without [dem]), checked."""
+    has_dem = isinstance(scene.get("dem"), dict)
+    threads = scene_keys.get(scene, "dem.threads", 0) if has_dem else 0
+    if not isinstance(threads, int) or isinstance(threads, bool) or threads < 0:
+        raise SweepError(f"{scene_path}: dem.threads of {what} is {threads!r}, not an "
+                         "integer >= 0")
+    return threads, has_dem
+
+
+def _single_run(spec, scene, mid, overrides, checked_paths):
+    """A member that is one run of the scene (with its overrides applied to `scene`): its
+    threads (dem.threads appended to `overrides` where the scene leaves it 0), whether it
+    needs a GPU, its checkpoint folder."""
+    threads, has_dem = _threads_of(spec.scene, scene, f"member {mid}")
+    if threads == 0:
+        # 0 would give every member all the cores: members get execution.threads.
+        threads = spec.execution.threads
+        if has_dem:
+            overrides.append(f"dem.threads={threads}")
+    gpu = has_dem and scene_keys.get(scene, "dem.backend", "cpu") == "cuda"
+    return threads, gpu, member_paths(spec.scene, scene, mid, overrides, checked_paths)
+
+
+def _member_stages(spec, mid, overrides, folder, checked_paths):
+    """The stages of member `mid`: each one's overrides (the member's that it gets, its
+    `set` with the folders of the earlier stages, dem.threads where its scene leaves it 0),
+    checkpoint folder; and the member's threads (the most of any stage: they run one after
+    the other) and whether a stage needs a GPU."""
+    stages, folders, threads, gpu = [], {}, 1, False
+    for st in spec.stages:
+        own = stage_overrides(st, overrides, folders)
+        scene = copy.deepcopy(st.scene_data)
+        for o in own:
+            key, value = o.split("=", 1)
+            scene_keys.assign(scene, key, tomllib.loads("v = " + value)["v"])
+        n, has_dem = _threads_of(st.scene, scene, f"member {mid}, stage {st.name},")
+        if n == 0:
+            n = spec.execution.threads
+            if has_dem:
+                own.append(f"dem.threads={n}")
+        threads = max(threads, n)
+        gpu = gpu or (has_dem and scene_keys.get(scene, "dem.backend", "cpu") == "cuda")
+        checkpoints = member_paths(st.scene, scene, f"{mid} (stage {st.name})", own,
+                                   checked_paths)
+        folders[st.name] = str(folder / st.name)
+        stages.append({"name": st.name, "overrides": own, "checkpoints": checkpoints,
+                       "folder": folders[st.name]})
+    return stages, threads, gpu
 
 
 def identity(plan, member):
-    """What makes a member's results: the scene's content and the overrides."""
-    return {"sweep": plan.name, "scene": plan.scene, "scene_sha256": plan.scene_sha256,
-            "overrides": member.overrides}
+    """What makes a member's results: the scene's content and the overrides (with stages:
+    each stage's scene content and overrides too)."""
+    out = {"sweep": plan.name, "scene": plan.scene, "scene_sha256": plan.scene_sha256,
+           "overrides": member.overrides}
+    if member.stages:
+        out["stages"] = [{"name": ps["name"], "scene_sha256": ps["scene_sha256"],
+                          "overrides": ms["overrides"]}
+                         for ps, ms in zip(plan.stages, member.stages)]
+    return out
 
 
 def check_identity(plan, member):
@@ -222,6 +291,9 @@ def check_identity(plan, member):
     elif rec.get("overrides") != want["overrides"]:
         why = (f"other settings ({' '.join(rec.get('overrides') or [])}) than the sweep file "
                f"now gives it ({' '.join(want['overrides'])}): the parameters or seeds changed")
+    elif rec.get("stages") != want.get("stages"):
+        why = ("other stages (their scenes' content or their overrides changed since: "
+               f"{rec.get('stages')} then, {want.get('stages')} now)")
     else:
         return
     raise SweepError(f"{member.folder}: this member was run with {why}. Results of two sweeps "

@@ -143,8 +143,10 @@ class LocalPool:
                 if state == records.DONE:
                     counts["done"] += 1
                     run_times.append(rec["run_time"])
+                    runs = (f"{len(rec['stages'])} stages, {len(rec['attempts'])} runs"
+                            if rec.get("stages") else f"attempt {len(rec['attempts'])}")
                     self.reporter.message(f"member {mid} done in {rec['run_time']:.2f} s "
-                                          f"(attempt {len(rec['attempts'])})")
+                                          f"({runs})")
                 elif state == records.FAILED:
                     counts["failed"] += 1
             self.reporter.show(line(self.plan.name, {

@@ -57,7 +57,7 @@ def read_json(path):
 
 
 def run_record_finished(folder):
-    """True when demfem_run's run record (run.json, coupler/src/run_record.cpp) says the run
+    """True when demfem_run's run record (run.json, coupler/src/launch/run_record.cpp) says the run
     finished successfully: status "completed" and exit_code 0."""
     rec = read_json(Path(folder) / RUN_RECORD)
     if not rec:

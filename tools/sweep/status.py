@@ -70,6 +70,10 @@ def report(plan, states, out_write, header=True):
             continue  # counted above; a line each would bury the ones that need a look
         attempts = len(rec.get("attempts", []))
         text = f"  {m.id}: {state}"
+        if rec.get("stages") and rec.get("stage"):  # a chain: where it stands
+            text += f" at stage {rec['stage']} (" + ", ".join(
+                f"{ms['name']} {(rec['stages'].get(ms['name']) or {}).get('state', 'new')}"
+                for ms in m.stages) + ")"
         if attempts:
             last = rec["attempts"][-1]
             text += f", {attempts} attempt(s), last exit {last.get('exit')}"

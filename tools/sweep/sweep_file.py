@@ -13,6 +13,7 @@ from pathlib import Path
 
 from sweep import scene_keys
 from sweep.safe_text import control_character, sbatch_option_problem, slurm_value_problem
+from sweep.stages import check_override, read_stages
 from sweep.toml_lines import key_lines
 
 REQUIRED = object()
@@ -221,6 +222,7 @@ class Quantity:
     last: float = math.nan  # > 0: the window is the member's last `last` seconds instead
     relative_to: float = math.nan  # a time: the column's value then is subtracted first
     where: str = ""     # "file:line: key 'quantity[i]'" for messages at collection
+    stage: str = ""     # the stage whose folder holds `file` ("" = the member's folder)
 
 
 @dataclass
@@ -238,6 +240,7 @@ class Execution:
     jobs: int = 0
     args: list = field(default_factory=list)
     max_members: int = MAX_MEMBERS_DEFAULT
+    beds: str = "member"  # where [dem.load] scene beds are prepared: "member" or "shared"
 
 
 @dataclass
@@ -263,6 +266,7 @@ class Spec:
     execution: Execution
     slurm: SlurmOptions
     quantities: list
+    stages: list = field(default_factory=list)   # [stages.Stage]; empty: one run per member
 
 
 def _scene_value_ok(v):
@@ -288,23 +292,56 @@ def read_sweep_file(path):
     sw = root.table("sweep")
     if sw is None:
         root.fail("sweep", "is required but missing (the [sweep] table names the base scene)")
-    scene_text = sw.string("scene")
-    scene = Path(scene_text)
-    if not scene.is_absolute():
-        scene = path.parent / scene
-    scene = Path(os.path.abspath(scene))
     name = sw.string("name", path.stem)
     if not _NAME.fullmatch(name):
         sw.fail("name", "must be letters, digits, '_', '.' or '-' (it names folders and jobs)")
     output_dir = Path(sw.string("output_dir", str(Path("out") / "sweeps" / name)))
+    stages = read_stages(root, path, _read_scene)
+    if stages:
+        if sw.has("scene"):
+            sw.fail("scene", "is not given with [[stage]]: each stage names its scene")
+        # The last stage is the member's result: quantities are taken from it by default.
+        scene, scene_data = stages[-1].scene, stages[-1].scene_data
+    else:
+        scene = Path(sw.string("scene"))
+        scene = Path(os.path.abspath(scene if scene.is_absolute() else path.parent / scene))
+        scene_data = _read_scene(sw, "scene", scene)
     sw.finish()
-    try:
-        scene_data = tomllib.loads(read_text(scene, "a scene file (TOML)"))
-    except SweepError as e:
-        sw.fail("scene", f"cannot read the scene: {e}")
-    except tomllib.TOMLDecodeError as e:
-        sw.fail("scene", f"the scene {scene} is not valid TOML: {e}")
 
+    parameters, seen_keys = _read_parameters(root, scene, scene_data, stages)
+    rep = _read_repetitions(root, scene, scene_data, stages, seen_keys)
+    ex = _read_execution(root)
+    sl = _read_slurm(root)
+    quantities = _read_quantities(root, parameters, stages)
+    root.finish()
+    return Spec(path, name, scene, scene_data, output_dir, parameters, rep, ex, sl, quantities,
+                stages)
+
+
+def _read_scene(table, key, scene):
+    """The TOML data of the scene that `table.key` names (SweepError naming that key)."""
+    try:
+        return tomllib.loads(read_text(scene, "a scene file (TOML)"))
+    except SweepError as e:
+        table.fail(key, f"cannot read the scene: {e}")
+    except tomllib.TOMLDecodeError as e:
+        table.fail(key, f"the scene {scene} is not valid TOML: {e}")
+
+
+def _check_key(table, where, key, value, scene, scene_data, stages):
+    """`key`, a scene key that the sweep sets for every member (a parameter's; the
+    repetitions' seed), against the scene, or the stages, it goes to; a problem is reported
+    at `table.where`."""
+    if stages:
+        check_override(stages, key, value, lambda message: table.fail(where, message))
+        return
+    try:
+        scene_keys.assign(copy.deepcopy(scene_data), key, value)
+    except scene_keys.KeyError_ as e:
+        table.fail(where, f"{e} (scene {scene})")
+
+
+def _read_parameters(root, scene, scene_data, stages):
     parameters = []
     seen_keys = {}
     for t in root.tables("parameter"):
@@ -328,11 +365,7 @@ def read_sweep_file(path):
             if k in SWEEP_OWN_KEYS:
                 keys_t.fail(k, "is set by the sweep itself: every member writes into its own "
                             "folder, <output_dir>/members/<member>")
-            try:
-                probe = copy.deepcopy(scene_data)
-                scene_keys.assign(probe, k, v[0])
-            except scene_keys.KeyError_ as e:
-                keys_t.fail(k, f"{e} (scene {scene})")
+            _check_key(keys_t, k, k, v[0], scene, scene_data, stages)
             seen_keys[k] = keys_t.where(k)
             keys.append(k)
             values.append(list(v))
@@ -342,7 +375,10 @@ def read_sweep_file(path):
         unit = t.string("unit", "", allow_empty=True)
         t.finish()
         parameters.append(Parameter(pname, unit, keys, values))
+    return parameters, seen_keys
 
+
+def _read_repetitions(root, scene, scene_data, stages, seen_keys):
     rt = root.table("repetitions")
     if rt is None:
         rep = Repetitions(1, [scene_keys.get(scene_data, "run.seed", 1)], "run.seed")
@@ -372,13 +408,13 @@ def read_sweep_file(path):
             rt.fail("key", f"'{key}' is also a parameter ({seen_keys[key]})")
         if key in SWEEP_OWN_KEYS:
             rt.fail("key", f"'{key}' is set by the sweep itself (each member's own folder)")
-        try:
-            scene_keys.assign(copy.deepcopy(scene_data), key, seeds[0])
-        except scene_keys.KeyError_ as e:
-            rt.fail("key", f"{e} (scene {scene})")
+        _check_key(rt, "key", key, seeds[0], scene, scene_data, stages)
         rt.finish()
         rep = Repetitions(count, seeds, key)
+    return rep
 
+
+def _read_execution(root):
     ex = Execution()
     et = root.table("execution")
     if et is not None:
@@ -388,12 +424,16 @@ def read_sweep_file(path):
         ex.jobs = et.integer("jobs", 0, 0, 100000)
         ex.args = et.strings("args", [])
         ex.max_members = et.integer("max_members", MAX_MEMBERS_DEFAULT, 1, MAX_MEMBERS_LIMIT)
+        ex.beds = et.string("beds", "member", choices=("member", "shared"))
         for a in ex.args:
             if a in ("--output-dir", "--resume", "--set", "--check", "--bin-dir") or \
                     a.startswith(("--output-dir=", "--resume=", "--set=")):
                 et.fail("args", f"'{a}' is set by the sweep itself for each member")
         et.finish()
+    return ex
 
+
+def _read_slurm(root):
     sl = SlurmOptions()
     st = root.table("slurm")
     if st is not None:
@@ -409,7 +449,10 @@ def read_sweep_file(path):
             if bad:
                 st.fail("options", bad)
         st.finish()
+    return sl
 
+
+def _read_quantities(root, parameters, stages):
     quantities = []
     names = {p.name for p in parameters}
     for t in root.tables("quantity"):
@@ -458,8 +501,11 @@ def read_sweep_file(path):
             q.last = t.number("last", lo=0.0, lo_open=True)
         if t.has("relative_to"):
             q.relative_to = t.number("relative_to")
+        if stages:
+            q.stage = t.string("stage", stages[-1].name,
+                               choices=[s.name for s in stages])
+        elif t.has("stage"):
+            t.fail("stage", "needs [[stage]] tables (a sweep without them has one run per member)")
         t.finish()
         quantities.append(q)
-
-    root.finish()
-    return Spec(path, name, scene, scene_data, output_dir, parameters, rep, ex, sl, quantities)
+    return quantities

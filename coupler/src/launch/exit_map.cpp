@@ -6,9 +6,9 @@
 
 #include "demfem/coupling/coupling_run.hpp"
 #include "demfem/coupling/solver_link.hpp"
-#include "demfem/coupling/supervisor.hpp"
 #include "demfem/interface/exit_status.hpp"
 #include "demfem/scene/scene_reader.hpp"
+#include "launch/supervisor.hpp"
 
 namespace demfem::coupling::launch {
 namespace {

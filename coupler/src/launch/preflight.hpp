@@ -11,12 +11,12 @@
 #include <vector>
 
 #include "demfem/coupling/coupling_settings.hpp"
-#include "demfem/coupling/external_backend.hpp"
 #include "demfem/coupling/local_solvers.hpp"
-#include "demfem/coupling/scene_steps.hpp"
 #include "demfem/scene/scene_reader.hpp"
 #include "launch/debug_kill.hpp"
+#include "launch/external_backend.hpp"
 #include "launch/launch_options.hpp"
+#include "launch/scene_steps.hpp"
 
 namespace demfem::coupling::launch {
 

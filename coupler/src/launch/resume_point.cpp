@@ -5,9 +5,9 @@
 
 #include "demfem/coupling/checkpoint.hpp"
 #include "demfem/coupling/coupling_run.hpp"
-#include "demfem/coupling/resume_check.hpp"
 #include "demfem/interface/exit_status.hpp"
 #include "demfem/io/h5_file.hpp"
+#include "launch/resume_check.hpp"
 
 namespace fs = std::filesystem;
 

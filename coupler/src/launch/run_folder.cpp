@@ -8,8 +8,8 @@
 
 #include "demfem/coupling/coupling_run.hpp"
 #include "demfem/coupling/output_folder.hpp"
-#include "demfem/coupling/resume_check.hpp"
 #include "demfem/interface/exit_status.hpp"
+#include "launch/resume_check.hpp"
 
 namespace fs = std::filesystem;
 

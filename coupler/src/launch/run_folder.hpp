@@ -13,10 +13,10 @@
 #include <string>
 #include <vector>
 
-#include "demfem/coupling/run_record.hpp"
 #include "demfem/io/folder_lock.hpp"
 #include "launch/launch_options.hpp"
 #include "launch/preflight.hpp"
+#include "launch/run_record.hpp"
 
 namespace demfem::coupling::launch {
 

@@ -2,8 +2,8 @@
 
 #include <cstdio>
 
-#include "demfem/coupling/supervisor.hpp"
 #include "demfem/interface/exit_status.hpp"
+#include "launch/supervisor.hpp"
 
 namespace demfem::coupling::launch {
 

@@ -9,8 +9,8 @@
 #include <string>
 
 #include "demfem/coupling/coupling_run.hpp"
-#include "demfem/coupling/progress.hpp"
 #include "demfem/protocol/protocol.hpp"
+#include "launch/progress.hpp"
 #include "launch/run_folder.hpp"
 
 namespace demfem::coupling::launch {

@@ -5,8 +5,8 @@
 #include <cstdio>
 #include <utility>
 
-#include "demfem/coupling/external_backend.hpp"
 #include "demfem/coupling/local_solvers.hpp"
+#include "launch/external_backend.hpp"
 
 namespace demfem::coupling::launch {
 

@@ -12,12 +12,12 @@
 
 #include "demfem/coupling/coupling_run.hpp"
 #include "demfem/coupling/solver_link.hpp"
-#include "demfem/coupling/supervisor.hpp"
 #include "demfem/protocol/protocol.hpp"
 #include "launch/debug_kill.hpp"
 #include "launch/launch_options.hpp"
 #include "launch/preflight.hpp"
 #include "launch/resume_point.hpp"
+#include "launch/supervisor.hpp"
 
 namespace demfem::coupling::launch {
 

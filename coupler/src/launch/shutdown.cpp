@@ -4,8 +4,8 @@
 #include <cstdio>
 
 #include "demfem/coupling/local_solvers.hpp"
-#include "demfem/coupling/supervisor.hpp"
 #include "demfem/interface/exit_status.hpp"
+#include "launch/supervisor.hpp"
 
 namespace demfem::coupling::launch {
 

@@ -1,4 +1,4 @@
-#include "demfem/coupling/progress.hpp"
+#include "launch/progress.hpp"
 
 #include <cmath>
 

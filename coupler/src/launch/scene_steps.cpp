@@ -1,4 +1,4 @@
-#include "demfem/coupling/scene_steps.hpp"
+#include "launch/scene_steps.hpp"
 
 #include <fcntl.h>
 #include <sys/file.h>
@@ -14,10 +14,10 @@
 #include <vector>
 
 #include "demfem/coupling/coupling_settings.hpp"
-#include "demfem/coupling/supervisor.hpp"
 #include "demfem/dem/scene/dem_scene.hpp"
 #include "demfem/dem/scene/particle_source.hpp"
 #include "demfem/interface/exit_status.hpp"
+#include "launch/supervisor.hpp"
 
 namespace demfem::coupling {
 

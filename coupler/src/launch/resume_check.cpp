@@ -1,4 +1,4 @@
-#include "demfem/coupling/resume_check.hpp"
+#include "launch/resume_check.hpp"
 
 #include <cstdio>
 #include <string>

@@ -1,4 +1,4 @@
-#include "demfem/coupling/supervisor.hpp"
+#include "launch/supervisor.hpp"
 
 #include <spawn.h>
 #include <sys/wait.h>

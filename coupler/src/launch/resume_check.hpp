@@ -7,7 +7,7 @@
 
 #include "demfem/coupling/coupling_settings.hpp"
 #include "demfem/coupling/local_solvers.hpp"
-#include "demfem/coupling/run_record.hpp"
+#include "launch/run_record.hpp"
 
 namespace demfem::coupling {
 

@@ -12,8 +12,8 @@
 #include <vector>
 
 #include "demfem/coupling/coupling_settings.hpp"
-#include "demfem/coupling/supervisor.hpp"
 #include "demfem/protocol/protocol.hpp"
+#include "launch/supervisor.hpp"
 
 namespace demfem::coupling {
 

@@ -1,4 +1,4 @@
-#include "demfem/coupling/run_record.hpp"
+#include "launch/run_record.hpp"
 
 #include <unistd.h>
 

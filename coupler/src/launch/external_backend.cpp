@@ -1,4 +1,4 @@
-#include "demfem/coupling/external_backend.hpp"
+#include "launch/external_backend.hpp"
 
 #include <unistd.h>
 
