@@ -125,6 +125,7 @@ int main(int argc, char** argv) {
                                                .role = demfem::protocol::Role::dem,
                                                .remove_orphaned_segments = true});
       backend.release_other_ranks();
+      backend.write_times(cl.output_folder(run) / "liggghts_dem_times.json");
     } else {
       demfem::liggghts::serve_other_rank(MPI_COMM_WORLD, domain);
     }
