@@ -18,6 +18,11 @@
             restarted from the step-140 checkpoint
             (a LIGGGHTS restart file that the deck reads), and coupling.csv equals the
             uninterrupted run's in every value column, bitwise
+  srun      (under tests/sweep/slurm_cluster.sh, the sweep tests' one-node Slurm)
+            beam_spheres_ci.toml to 5 ms with liggghts_dem on 2 ranks started by
+            `srun -n 2 --mpi=pmix` against the program alone on one rank: LIGGGHTS runs on 2
+            ranks, every coupling step's force and deflection within 1e-12, no job left in
+            squeue, no segment in /dev/shm
   badinput  a deck without the coupling mesh, a dem.external.mesh_fix that names no fix, a deck
             whose wall keeps no contacts, polyhedra (dem.shapes), a LIGGGHTS error mid-run
             (atoms lost): each a clear message, a non-zero exit status
@@ -37,7 +42,7 @@ import tempfile
 
 failures = []
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-           OMPI_MCA_rmaps_base_oversubscribe="1")
+           OMPI_MCA_rmaps_base_oversubscribe="1", OMPI_MCA_mpi_yield_when_idle="1")
 
 
 def check(ok, what):
@@ -166,6 +171,38 @@ def case_restart(demfem_run, source, program, tmp):
           f"{xb[-1]['force_sum_z']} N, {len(differing)} values differ")
 
 
+def case_srun(demfem_run, source, program, tmp):
+    if not check(os.environ.get("SLURM_CONF"), "SLURM_CONF is not set: run under "
+                 "tests/sweep/slurm_cluster.sh"):
+        return
+    scene = os.path.join(source, "examples/liggghts_dem/beam_spheres_ci.toml")
+    short = ("--set", "run.end_time=0.005")
+    series = {}
+    for name, command in (("alone", f'dem.command=["{program}"]'),
+                          ("srun", f'dem.command=["srun", "-n", "2", "--mpi=pmix", '
+                                   f'"{program}"]')):
+        out = f"{tmp}/{name}"
+        r = run(demfem_run, scene, out, *short, "--set", command)
+        if not check(r.returncode == 0, f"{name}: exit {r.returncode}\n"
+                     f"{r.stdout[-3000:]}\n{r.stderr[-3000:]}"):
+            return
+        series[name] = rows(out)
+        grid = "2 by 1 by 1 MPI processor grid" if name == "srun" else "1 by 1 by 1"
+        check(grid in r.stdout + r.stderr, f"{name}: LIGGGHTS did not report '{grid}'")
+    worst = 0.0
+    for a, b in zip(series["alone"], series["srun"]):
+        for key in ("force_sum_z", "fem_max_displacement"):
+            x, y = float(a[key]), float(b[key])
+            worst = max(worst, abs(x - y) / max(abs(x), 1e-300))
+    check(len(series["alone"]) == len(series["srun"]) == 50 and worst <= 1e-12,
+          f"srun -n 2 and one rank differ: {worst:.3e} relative, "
+          f"{len(series['alone'])} and {len(series['srun'])} rows")
+    jobs = subprocess.run(["squeue", "-h"], capture_output=True, text=True).stdout.strip()
+    check(not jobs, f"Slurm jobs left: {jobs}")
+    print(f"srun -n 2 vs one rank: largest relative difference {worst:.3e} over "
+          f"{len(series['srun'])} steps")
+
+
 def expect_refusal(demfem_run, scene, out, what, pattern, *extra, code=None):
     r = run(demfem_run, scene, out, *extra)
     text = r.stdout + r.stderr
@@ -238,7 +275,7 @@ def main():
     tmp = tempfile.mkdtemp(prefix="demfem_liggghts_")
     try:
         {"beam": case_beam, "moving": case_moving, "restart": case_restart,
-         "badinput": case_badinput}[case](demfem_run, source, program, tmp)
+         "srun": case_srun, "badinput": case_badinput}[case](demfem_run, source, program, tmp)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     for f in failures:
