@@ -100,6 +100,8 @@ void LiggghtsBackend::attach_everywhere(const std::string& restart) {
 protocol::StepResult LiggghtsBackend::step(const protocol::StepCommand& cmd,
                                            protocol::InterfaceBuffers& buffers) {
   if (!domain_.attached()) attach_everywhere({});  // resumed, but sent no checkpoint
+  step_in_progress_ = cmd.step;
+  time_in_progress_ = cmd.time;
   StepTimes& times = domain_.times();
   const StepTimes before = times;
   const bool average = cmd.force_mode == ForceMode::average;
@@ -132,6 +134,7 @@ protocol::StepResult LiggghtsBackend::step(const protocol::StepCommand& cmd,
   std::copy(held.begin(), held.end(), buffers.dem_positions(cmd.buffer).begin());
   times.protocol_io += seconds_since(start);
   if (step_times_.size() < kKeptStepTimes) step_times_.push_back(times - before);
+  step_in_progress_ = -1;
   protocol::StepResult result;
   result.values[0] = report.max_overlap;
   result.values[1] = report.kinetic_energy;
