@@ -114,6 +114,10 @@ void note_liggghts_exit() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // LIGGGHTS writes its messages to stdout, which is a pipe under demfem run: line by line,
+  // so that an error that ends in MPI_Abort (which flushes nothing) still shows its ERROR
+  // line.
+  std::setvbuf(stdout, nullptr, _IOLBF, 0);
   MPI_Init(&argc, &argv);
   int rank = 0;
   MPI_Comm_rank(MPI_COMM_WORLD, &rank);
@@ -147,7 +151,8 @@ int main(int argc, char** argv) {
   bool restored = false;
   {
     demfem::liggghts::LiggghtsDomain domain(MPI_COMM_WORLD, settings.deck, settings.mesh_fix,
-                                            settings.dem_timestep, cl.output_folder(run));
+                                            settings.dem_timestep, cl.output_folder(run),
+                                            run.seed);
     if (rank == 0) {
       demfem::liggghts::LiggghtsBackend backend(MPI_COMM_WORLD, domain,
                                                 settings.steps_per_coupling_step, resume);

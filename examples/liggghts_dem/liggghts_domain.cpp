@@ -73,6 +73,19 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
 
 }  // namespace
 
+std::uint64_t liggghts_seed(std::uint64_t run_seed) {
+  // LIGGGHTS takes only primes above 10000 as seeds: the first prime from 100003 + 1000 s
+  // on (primes lie closer than 1000 apart there, so each run.seed gets its own).
+  auto is_prime = [](std::uint64_t n) {
+    for (std::uint64_t d = 2; d * d <= n; ++d)
+      if (n % d == 0) return false;
+    return true;
+  };
+  std::uint64_t candidate = 100003 + 1000 * (run_seed % 1000000000);
+  while (!is_prime(candidate)) ++candidate;
+  return candidate;
+}
+
 void write_interface_stl(const InterfaceMesh& mesh, const fs::path& file) {
   const fs::path partial = file.string() + ".partial";
   {
@@ -95,9 +108,9 @@ void write_interface_stl(const InterfaceMesh& mesh, const fs::path& file) {
 }
 
 LiggghtsDomain::LiggghtsDomain(MPI_Comm world, fs::path deck, std::string mesh_fix,
-                               double dem_timestep, fs::path output_dir)
+                               double dem_timestep, fs::path output_dir, std::uint64_t seed)
     : world_(world), deck_(std::move(deck)), output_dir_(std::move(output_dir)),
-      mesh_fix_(std::move(mesh_fix)), dem_timestep_(dem_timestep) {
+      mesh_fix_(std::move(mesh_fix)), seed_(seed), dem_timestep_(dem_timestep) {
   MPI_Comm_rank(world_, &rank_);
 }
 
@@ -159,11 +172,15 @@ std::string LiggghtsDomain::attach(const InterfaceMesh& mesh, const fs::path& re
     MPI_Barrier(world_);
     // The deck reads the mesh as ${demfem_mesh}; LIGGGHTS's screen output goes to stdout (the
     // run's log), its own log file beside the run's output.
-    std::vector<std::string> args = {"liggghts",      "-log",         log.string(),
-                                     "-echo",         "none",         "-var",
-                                     "demfem_mesh",   stl.string(),   "-var",
+    // ${demfem_output} is the run's output folder (for the deck's own files),
+    // ${demfem_seed} a seed for the deck's random commands that follows run.seed.
+    std::vector<std::string> args = {"liggghts",       "-log",        log.string(),
+                                     "-echo",          "none",        "-var",
+                                     "demfem_mesh",    stl.string(),  "-var",
                                      "demfem_restart", restart_file,  "-var",
-                                     "demfem_resume", resume};
+                                     "demfem_resume",  resume,        "-var",
+                                     "demfem_output",  output_dir_.string(), "-var",
+                                     "demfem_seed",    std::to_string(liggghts_seed(seed_))};
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     void* handle = nullptr;

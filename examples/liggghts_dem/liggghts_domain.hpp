@@ -72,9 +72,10 @@ class LiggghtsDomain {
  public:
   /// `deck`: the user's LIGGGHTS input; `mesh_fix`: the ID of its fix mesh/surface on
   /// the coupling mesh; `dem_timestep`: dem.dt, s (it replaces the deck's); `output_dir`:
-  /// where the interface STL and LIGGGHTS's log go.
+  /// where the interface STL and LIGGGHTS's log go; `seed`: run.seed (the deck's
+  /// ${demfem_seed} is liggghts_seed(seed)).
   LiggghtsDomain(MPI_Comm world, std::filesystem::path deck, std::string mesh_fix,
-                 double dem_timestep, std::filesystem::path output_dir);
+                 double dem_timestep, std::filesystem::path output_dir, std::uint64_t seed);
   ~LiggghtsDomain();
   LiggghtsDomain(const LiggghtsDomain&) = delete;
   LiggghtsDomain& operator=(const LiggghtsDomain&) = delete;
@@ -132,6 +133,7 @@ class LiggghtsDomain {
   int rank_ = 0;
   std::filesystem::path deck_, output_dir_;
   std::string mesh_fix_;
+  std::uint64_t seed_ = 1;
   InterfaceMesh mesh_;
   LAMMPS_NS::LAMMPS* lammps_ = nullptr;
   LAMMPS_NS::TriMesh* tri_mesh_ = nullptr;
@@ -148,6 +150,10 @@ class LiggghtsDomain {
   double dem_timestep_ = 0.0;
   double timestep_ = 0.0;  ///< LIGGGHTS's time step now, s
 };
+
+/// The deck's ${demfem_seed} for run.seed `run_seed`: a prime above 10000, as LIGGGHTS's
+/// random commands require, different for each run.seed below 10^9.
+std::uint64_t liggghts_seed(std::uint64_t run_seed);
 
 /// The adapter's part of a checkpoint, beside LIGGGHTS's restart file `restart`.
 std::filesystem::path adapter_state_file(const std::filesystem::path& restart);
