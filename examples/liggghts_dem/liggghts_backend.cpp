@@ -186,8 +186,8 @@ void LiggghtsBackend::write_times(const std::filesystem::path& file) const {
   }
   std::FILE* out = std::fopen(file.c_str(), "w");
   if (!out) return;
-  std::fprintf(out, "{\"ranks\": %d, \"steps\": %lld, \"runs\": %lld, \"set_ups\": %lld,\n",
-               ranks_, static_cast<long long>(t.steps), static_cast<long long>(t.runs),
+  std::fprintf(out, "{\"ranks\": %d, \"steps\": %lld, \"runs\": %lld, \"set_ups\": %lld,\n", ranks_,
+               static_cast<long long>(t.steps), static_cast<long long>(t.runs),
                static_cast<long long>(t.set_ups));
   for (const char* kind : {"seconds", "median_step_seconds"}) {
     const bool total = kind[0] == 's';
@@ -200,13 +200,14 @@ void LiggghtsBackend::write_times(const std::filesystem::path& file) const {
   std::fprintf(out, " \"liggghts\": %.9g, \"adapter\": %.9g}\n", t.liggghts(), t.adapter());
   std::fclose(out);
   if (t.steps > 0)
-    std::printf("liggghts_dem: %lld coupling steps: LIGGGHTS %.4g s (loop %.4g, run commands "
-                "%.4g, %lld set-ups %.4g), adapter %.4g s (%.2f %%): mesh update %.4g, gather "
-                "%.4g, broadcast %.4g, protocol I/O %.4g\n",
-                static_cast<long long>(t.steps), t.liggghts(), t.loop, t.run_fixed,
-                static_cast<long long>(t.set_ups), t.set_up, t.adapter(),
-                100.0 * t.adapter() / (t.adapter() + t.liggghts()), t.mesh_update, t.gather,
-                t.broadcast, t.protocol_io);
+    std::printf(
+        "liggghts_dem: %lld coupling steps: LIGGGHTS %.4g s (loop %.4g, run commands "
+        "%.4g, %lld set-ups %.4g), adapter %.4g s (%.2f %%): mesh update %.4g, gather "
+        "%.4g, broadcast %.4g, protocol I/O %.4g\n",
+        static_cast<long long>(t.steps), t.liggghts(), t.loop, t.run_fixed,
+        static_cast<long long>(t.set_ups), t.set_up, t.adapter(),
+        100.0 * t.adapter() / (t.adapter() + t.liggghts()), t.mesh_update, t.gather, t.broadcast,
+        t.protocol_io);
 }
 
 void LiggghtsBackend::release_other_ranks() {

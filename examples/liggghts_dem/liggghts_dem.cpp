@@ -106,8 +106,8 @@ void note_liggghts_exit() {
   if (step >= 0)
     std::snprintf(where, sizeof where, "in coupling step %lld (t = %.9g s)",
                   static_cast<long long>(step), exit_note.backend->time_in_progress());
-  std::fprintf(stderr, "liggghts_dem: LIGGGHTS ended the DEM %s: %s (LIGGGHTS's log: %s)\n",
-               where, message.c_str(), exit_note.log.c_str());
+  std::fprintf(stderr, "liggghts_dem: LIGGGHTS ended the DEM %s: %s (LIGGGHTS's log: %s)\n", where,
+               message.c_str(), exit_note.log.c_str());
   std::fflush(stderr);
 }
 
@@ -151,8 +151,7 @@ int main(int argc, char** argv) {
   bool restored = false;
   {
     demfem::liggghts::LiggghtsDomain domain(MPI_COMM_WORLD, settings.deck, settings.mesh_fix,
-                                            settings.dem_timestep, cl.output_folder(run),
-                                            run.seed);
+                                            settings.dem_timestep, cl.output_folder(run), run.seed);
     if (rank == 0) {
       demfem::liggghts::LiggghtsBackend backend(MPI_COMM_WORLD, domain,
                                                 settings.steps_per_coupling_step, resume);

@@ -5,8 +5,8 @@
 #include <fix_contact_property_atom_wall.h>
 #include <fix_mesh_surface.h>
 #include <lammps.h>
-#include <mesh_mover.h>
 #include <library.h>
+#include <mesh_mover.h>
 #include <modify.h>
 #include <timer.h>
 #include <tri_mesh.h>
@@ -109,8 +109,12 @@ void write_interface_stl(const InterfaceMesh& mesh, const fs::path& file) {
 
 LiggghtsDomain::LiggghtsDomain(MPI_Comm world, fs::path deck, std::string mesh_fix,
                                double dem_timestep, fs::path output_dir, std::uint64_t seed)
-    : world_(world), deck_(std::move(deck)), output_dir_(std::move(output_dir)),
-      mesh_fix_(std::move(mesh_fix)), seed_(seed), dem_timestep_(dem_timestep) {
+    : world_(world),
+      deck_(std::move(deck)),
+      output_dir_(std::move(output_dir)),
+      mesh_fix_(std::move(mesh_fix)),
+      seed_(seed),
+      dem_timestep_(dem_timestep) {
   MPI_Comm_rank(world_, &rank_);
 }
 
@@ -174,13 +178,14 @@ std::string LiggghtsDomain::attach(const InterfaceMesh& mesh, const fs::path& re
     // run's log), its own log file beside the run's output.
     // ${demfem_output} is the run's output folder (for the deck's own files),
     // ${demfem_seed} a seed for the deck's random commands that follows run.seed.
-    std::vector<std::string> args = {"liggghts",       "-log",        log.string(),
-                                     "-echo",          "none",        "-var",
-                                     "demfem_mesh",    stl.string(),  "-var",
-                                     "demfem_restart", restart_file,  "-var",
-                                     "demfem_resume",  resume,        "-var",
-                                     "demfem_output",  output_dir_.string(), "-var",
-                                     "demfem_seed",    std::to_string(liggghts_seed(seed_))};
+    const std::pair<const char*, std::string> variables[] = {
+        {"demfem_mesh", stl.string()},
+        {"demfem_restart", restart_file},
+        {"demfem_resume", resume},
+        {"demfem_output", output_dir_.string()},
+        {"demfem_seed", std::to_string(liggghts_seed(seed_))}};
+    std::vector<std::string> args = {"liggghts", "-log", log.string(), "-echo", "none"};
+    for (const auto& [name, value] : variables) args.insert(args.end(), {"-var", name, value});
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     void* handle = nullptr;
@@ -310,8 +315,8 @@ void LiggghtsDomain::reduce_onto_rank0(StepReport& report, double overlap) {
   sums_[n] = local_kinetic_energy();
   sums_[n + 1] = overlap;
   std::vector<double> total(rank_ == 0 ? sums_.size() : 0);
-  MPI_Reduce(sums_.data(), rank_ == 0 ? total.data() : nullptr, 1, reduction_type_,
-             reduction_op_, 0, world_);
+  MPI_Reduce(sums_.data(), rank_ == 0 ? total.data() : nullptr, 1, reduction_type_, reduction_op_,
+             0, world_);
   if (rank_ != 0) return;
   report.kinetic_energy = total[n];
   report.max_overlap = total[n + 1];

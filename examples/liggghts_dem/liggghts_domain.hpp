@@ -55,16 +55,26 @@ struct StepTimes {
   double adapter() const { return mesh_update + gather + broadcast + protocol_io; }
   /// The parts by name, LIGGGHTS's first.
   std::array<std::pair<const char*, double>, 7> parts() const {
-    return {{{"loop", loop}, {"run_fixed", run_fixed}, {"set_up", set_up},
-             {"mesh_update", mesh_update}, {"gather", gather}, {"broadcast", broadcast},
+    return {{{"loop", loop},
+             {"run_fixed", run_fixed},
+             {"set_up", set_up},
+             {"mesh_update", mesh_update},
+             {"gather", gather},
+             {"broadcast", broadcast},
              {"protocol_io", protocol_io}}};
   }
   /// The times between two readings (`earlier` first).
   StepTimes operator-(const StepTimes& earlier) const {
-    return {loop - earlier.loop, run_fixed - earlier.run_fixed, set_up - earlier.set_up,
-            mesh_update - earlier.mesh_update, gather - earlier.gather,
-            broadcast - earlier.broadcast, protocol_io - earlier.protocol_io,
-            steps - earlier.steps, runs - earlier.runs, set_ups - earlier.set_ups};
+    return {loop - earlier.loop,
+            run_fixed - earlier.run_fixed,
+            set_up - earlier.set_up,
+            mesh_update - earlier.mesh_update,
+            gather - earlier.gather,
+            broadcast - earlier.broadcast,
+            protocol_io - earlier.protocol_io,
+            steps - earlier.steps,
+            runs - earlier.runs,
+            set_ups - earlier.set_ups};
   }
 };
 
@@ -141,7 +151,7 @@ class LiggghtsDomain {
   std::unique_ptr<MeshNodeAccess> node_access_;
   std::vector<double> positions_;  ///< 3 n: the mesh nodes as LIGGGHTS holds them, m
   std::vector<double> held_velocities_;  ///< 3 n: the mesh's node velocities, m/s
-  std::vector<double> sums_;  ///< 3 n node forces, then the kinetic energy and overlap
+  std::vector<double> sums_;             ///< 3 n node forces, then the kinetic energy and overlap
   MPI_Datatype reduction_type_ = MPI_DATATYPE_NULL;
   MPI_Op reduction_op_ = MPI_OP_NULL;
   StepTimes times_;

@@ -30,7 +30,9 @@ namespace {
 constexpr std::size_t kValuesPerParticle = 7;  // tag, force, torque
 }
 
-fs::path adapter_state_file(const fs::path& restart) { return restart.string() + ".adapter"; }
+fs::path adapter_state_file(const fs::path& restart) {
+  return restart.string() + ".adapter";
+}
 
 void LiggghtsDomain::write_restart(const fs::path& file) {
   // The adapter's state first: a checkpoint whose restart file is whole has it too.
