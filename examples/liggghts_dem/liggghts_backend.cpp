@@ -16,16 +16,38 @@ namespace {
 // and triangle counts, followed by the mesh).
 using OrderMessage = std::array<double, 5>;
 
+// How long a waiting rank polls for the next order, yielding the core between polls, before
+// it sleeps between them: a coupling step's FEM part and the coupler's work take about this
+// long, and a rank that sleeps wakes 0.1 ms late or more on a loaded machine (measured:
+// 110 us of each 2-rank coupling step of bench/liggghts_dem went to rank 0 waiting for it).
+constexpr auto kPollBeforeSleep = std::chrono::milliseconds(2);
+
 OrderMessage broadcast_order(MPI_Comm world, OrderMessage message) {
   MPI_Request request;
   MPI_Ibcast(message.data(), static_cast<int>(message.size()), MPI_DOUBLE, 0, world, &request);
   // The other ranks wait here while rank 0 waits for the coupler, often for the whole FEM
-  // step: a blocking MPI_Bcast would spin a core that the FEM and the coupler need.
+  // step: a blocking MPI_Bcast would spin a core that the FEM and the coupler need for as
+  // long as the wait lasts (a checkpoint, a slow FEM step, a recovery).
+  const auto start = std::chrono::steady_clock::now();
   for (int done = 0;;) {
     MPI_Test(&request, &done, MPI_STATUS_IGNORE);
     if (done) return message;
-    std::this_thread::sleep_for(std::chrono::microseconds(50));
+    if (std::chrono::steady_clock::now() - start < kPollBeforeSleep)
+      std::this_thread::yield();
+    else
+      std::this_thread::sleep_for(std::chrono::microseconds(50));
   }
+}
+
+double median(std::vector<double> values) {
+  if (values.empty()) return 0.0;
+  const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+  std::nth_element(values.begin(), middle, values.end());
+  return *middle;
+}
+
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
 void broadcast_values(MPI_Comm world, std::vector<double>& values) {
@@ -78,25 +100,41 @@ void LiggghtsBackend::attach_everywhere(const std::string& restart) {
 protocol::StepResult LiggghtsBackend::step(const protocol::StepCommand& cmd,
                                            protocol::InterfaceBuffers& buffers) {
   if (!domain_.attached()) attach_everywhere({});  // resumed, but sent no checkpoint
+  step_in_progress_ = cmd.step;
+  time_in_progress_ = cmd.time;
+  StepTimes& times = domain_.times();
+  const StepTimes before = times;
   const bool average = cmd.force_mode == ForceMode::average;
   const bool kinematics = (cmd.flags & protocol::kStepSetKinematics) != 0;
+  auto start = std::chrono::steady_clock::now();
   broadcast_order(world_, {static_cast<double>(RankOrder::step), cmd.dt,
                            static_cast<double>(cmd.substeps), average ? 1.0 : 0.0,
                            kinematics ? 1.0 : 0.0});
+  times.broadcast += seconds_since(start);
   if (kinematics) {
     // The mesh stays at the step's start within the step (dem_server moves it on as
-    // x + v t + a t^2 / 2), with the node velocities for the contact law.
+    // x + v t + a t^2 / 2), with the node velocities for the contact law: positions and
+    // velocities travel to the other ranks in one message.
+    start = std::chrono::steady_clock::now();
     const auto x = buffers.positions(cmd.buffer), v = buffers.velocities(cmd.buffer);
-    std::vector<double> positions(x.begin(), x.end()), velocities(v.begin(), v.end());
-    broadcast_values(world_, positions);
-    broadcast_values(world_, velocities);
-    domain_.move_mesh(positions, velocities);
+    kinematics_.resize(x.size() + v.size());
+    std::copy(x.begin(), x.end(), kinematics_.begin());
+    std::copy(v.begin(), v.end(), kinematics_.begin() + static_cast<std::ptrdiff_t>(x.size()));
+    times.protocol_io += seconds_since(start);
+    start = std::chrono::steady_clock::now();
+    broadcast_values(world_, kinematics_);
+    times.broadcast += seconds_since(start);
+    domain_.move_mesh(kinematics_);
   }
   const StepReport report = domain_.advance(cmd.dt, cmd.substeps, average);
+  start = std::chrono::steady_clock::now();
   std::copy(report.node_forces.begin(), report.node_forces.end(),
             buffers.forces(cmd.buffer).begin());
   const auto& held = domain_.mesh_positions();
   std::copy(held.begin(), held.end(), buffers.dem_positions(cmd.buffer).begin());
+  times.protocol_io += seconds_since(start);
+  if (step_times_.size() < kKeptStepTimes) step_times_.push_back(times - before);
+  step_in_progress_ = -1;
   protocol::StepResult result;
   result.values[0] = report.max_overlap;
   result.values[1] = report.kinetic_energy;
@@ -135,11 +173,49 @@ void LiggghtsBackend::restore_checkpoint(const std::filesystem::path& file, std:
             "${demfem_restart} when ${demfem_resume} is 1 starts afresh instead (docs/liggghts.md)");
 }
 
+void LiggghtsBackend::write_times(const std::filesystem::path& file) const {
+  // Totals over the run, and the median coupling step of each part: a machine shared with
+  // other work stalls a process now and then, which a total counts in full.
+  const StepTimes& t = domain_.times();
+  const auto parts = t.parts();
+  std::vector<double> medians;
+  for (std::size_t k = 0; k < parts.size(); ++k) {
+    std::vector<double> values;
+    for (const auto& s : step_times_) values.push_back(s.parts()[k].second);
+    medians.push_back(median(values));
+  }
+  std::FILE* out = std::fopen(file.c_str(), "w");
+  if (!out) return;
+  std::fprintf(out, "{\"ranks\": %d, \"steps\": %lld, \"runs\": %lld, \"set_ups\": %lld,\n", ranks_,
+               static_cast<long long>(t.steps), static_cast<long long>(t.runs),
+               static_cast<long long>(t.set_ups));
+  for (const char* kind : {"seconds", "median_step_seconds"}) {
+    const bool total = kind[0] == 's';
+    std::fprintf(out, " \"%s\": {", kind);
+    for (std::size_t k = 0; k < parts.size(); ++k)
+      std::fprintf(out, "%s\"%s\": %.9g", k ? ", " : "", parts[k].first,
+                   total ? parts[k].second : medians[k]);
+    std::fprintf(out, "},\n");
+  }
+  std::fprintf(out, " \"liggghts\": %.9g, \"adapter\": %.9g}\n", t.liggghts(), t.adapter());
+  std::fclose(out);
+  if (t.steps > 0)
+    std::printf(
+        "liggghts_dem: %lld coupling steps: LIGGGHTS %.4g s (loop %.4g, run commands "
+        "%.4g, %lld set-ups %.4g), adapter %.4g s (%.2f %%): mesh update %.4g, gather "
+        "%.4g, broadcast %.4g, protocol I/O %.4g\n",
+        static_cast<long long>(t.steps), t.liggghts(), t.loop, t.run_fixed,
+        static_cast<long long>(t.set_ups), t.set_up, t.adapter(),
+        100.0 * t.adapter() / (t.adapter() + t.liggghts()), t.mesh_update, t.gather, t.broadcast,
+        t.protocol_io);
+}
+
 void LiggghtsBackend::release_other_ranks() {
   broadcast_order(world_, {static_cast<double>(RankOrder::quit), 0.0, 0.0, 0.0, 0.0});
 }
 
 void serve_other_rank(MPI_Comm world, LiggghtsDomain& domain) {
+  std::vector<double> kinematics;  // node positions, then velocities (3 n each)
   for (;;) {
     const OrderMessage order = broadcast_order(world, {});
     switch (static_cast<RankOrder>(static_cast<int>(order[0]))) {
@@ -154,10 +230,9 @@ void serve_other_rank(MPI_Comm world, LiggghtsDomain& domain) {
       }
       case RankOrder::step:
         if (order[4] != 0.0) {
-          std::vector<double> positions(3 * domain.mesh().node_count()), velocities(positions);
-          broadcast_values(world, positions);
-          broadcast_values(world, velocities);
-          domain.move_mesh(positions, velocities);
+          kinematics.resize(6 * domain.mesh().node_count());
+          broadcast_values(world, kinematics);
+          domain.move_mesh(kinematics);
         }
         domain.advance(order[1], static_cast<std::int64_t>(order[2]), order[3] != 0.0);
         break;

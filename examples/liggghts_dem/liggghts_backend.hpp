@@ -37,6 +37,15 @@ class LiggghtsBackend : public protocol::SolverBackend {
   /// Tells the other ranks to leave serve_other_rank(): call once, after serve().
   void release_other_ranks();
 
+  /// What rank 0 is doing, for the note on LIGGGHTS's own exit (liggghts_dem.cpp): the
+  /// coupling step in progress (-1 outside step()) and its time, s.
+  std::int64_t step_in_progress() const { return step_in_progress_; }
+  double time_in_progress() const { return time_in_progress_; }
+
+  /// Writes where the coupling steps' wall time went (StepTimes, rank 0's) as JSON to
+  /// `file` and one line to stdout; bench/liggghts_dem reads the file.
+  void write_times(const std::filesystem::path& file) const;
+
  private:
   MPI_Comm world_;
   int ranks_ = 1;
@@ -44,6 +53,12 @@ class LiggghtsBackend : public protocol::SolverBackend {
   std::int64_t steps_per_coupling_step_;
   bool resume_;
   InterfaceMesh mesh_;
+  std::int64_t step_in_progress_ = -1;
+  double time_in_progress_ = 0.0;
+  std::vector<double> kinematics_;  ///< node positions, then velocities (3 n each)
+  /// Each coupling step's times (the first kKeptStepTimes), for their medians.
+  static constexpr std::size_t kKeptStepTimes = 1000000;
+  std::vector<StepTimes> step_times_;
 
   /// Every rank opens LIGGGHTS on the mesh and runs the deck, from `restart` when not empty.
   void attach_everywhere(const std::string& restart);

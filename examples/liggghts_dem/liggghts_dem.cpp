@@ -28,7 +28,9 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <iostream>
+#include <string>
 
 #include "demfem/interface/exit_status.hpp"
 #include "demfem/protocol/protocol.hpp"
@@ -81,9 +83,41 @@ std::optional<int> read_settings(const demfem::scene::SolverCommandLine& cl,
   return std::nullopt;
 }
 
+/// LIGGGHTS ends the process on an error in its input or in a run (Error::all: its ERROR
+/// line, MPI_Finalize, exit(1); 3.8 offers no way to catch it), so the coupler sees a dead
+/// DEM. Rank 0 then says, on its way out, which coupling step LIGGGHTS stopped in and with
+/// which of its messages (the last ERROR line of its log), beside the launcher's "dem solver
+/// died". Errors on one rank (Error::one) abort every rank through MPI_Abort instead, which
+/// runs no exit handler; LIGGGHTS's "ERROR on proc N" line and mpirun's report remain.
+struct ExitNote {
+  const demfem::liggghts::LiggghtsBackend* backend = nullptr;  ///< set while serve() runs
+  std::filesystem::path log;
+};
+ExitNote exit_note;
+
+void note_liggghts_exit() {
+  if (!exit_note.backend) return;  // not inside serve(): an ordinary end
+  std::string message = "no ERROR line in " + exit_note.log.string();
+  std::ifstream in(exit_note.log);
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind("ERROR", 0) == 0) message = line;
+  const std::int64_t step = exit_note.backend->step_in_progress();
+  char where[96] = "outside a coupling step (a handshake, checkpoint or restore)";
+  if (step >= 0)
+    std::snprintf(where, sizeof where, "in coupling step %lld (t = %.9g s)",
+                  static_cast<long long>(step), exit_note.backend->time_in_progress());
+  std::fprintf(stderr, "liggghts_dem: LIGGGHTS ended the DEM %s: %s (LIGGGHTS's log: %s)\n", where,
+               message.c_str(), exit_note.log.c_str());
+  std::fflush(stderr);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  // LIGGGHTS writes its messages to stdout, which is a pipe under demfem run: line by line,
+  // so that an error that ends in MPI_Abort (which flushes nothing) still shows its ERROR
+  // line.
+  std::setvbuf(stdout, nullptr, _IOLBF, 0);
   MPI_Init(&argc, &argv);
   int rank = 0;
   MPI_Comm_rank(MPI_COMM_WORLD, &rank);
@@ -117,14 +151,18 @@ int main(int argc, char** argv) {
   bool restored = false;
   {
     demfem::liggghts::LiggghtsDomain domain(MPI_COMM_WORLD, settings.deck, settings.mesh_fix,
-                                            settings.dem_timestep, cl.output_folder(run));
+                                            settings.dem_timestep, cl.output_folder(run), run.seed);
     if (rank == 0) {
       demfem::liggghts::LiggghtsBackend backend(MPI_COMM_WORLD, domain,
                                                 settings.steps_per_coupling_step, resume);
+      exit_note = {&backend, cl.output_folder(run) / "liggghts.log"};
+      std::atexit(note_liggghts_exit);
       code = demfem::protocol::serve(backend, {.segment = cl.segment,
                                                .role = demfem::protocol::Role::dem,
                                                .remove_orphaned_segments = true});
+      exit_note.backend = nullptr;
       backend.release_other_ranks();
+      backend.write_times(cl.output_folder(run) / "liggghts_dem_times.json");
     } else {
       demfem::liggghts::serve_other_rank(MPI_COMM_WORLD, domain);
     }

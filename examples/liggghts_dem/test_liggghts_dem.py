@@ -18,9 +18,21 @@
             restarted from the step-140 checkpoint
             (a LIGGGHTS restart file that the deck reads), and coupling.csv equals the
             uninterrupted run's in every value column, bitwise
+  srun      (under tests/sweep/slurm_cluster.sh, the sweep tests' one-node Slurm)
+            beam_spheres_ci.toml to 5 ms with liggghts_dem on 2 ranks started by
+            `srun -n 2 --mpi=pmix` against the program alone on one rank: LIGGGHTS runs on 2
+            ranks, every coupling step's force and deflection within 1e-12, no job left in
+            squeue, no segment in /dev/shm
   badinput  a deck without the coupling mesh, a dem.external.mesh_fix that names no fix, a deck
-            whose wall keeps no contacts, polyhedra (dem.shapes), a LIGGGHTS error mid-run
-            (atoms lost): each a clear message, a non-zero exit status
+            whose wall keeps no contacts, polyhedra (dem.shapes), LIGGGHTS errors mid-run
+            (atoms lost; a deck command that fails at LIGGGHTS step 1200): each a clear
+            message (mid-run: the coupling step and LIGGGHTS's ERROR line), a non-zero exit
+            status (1 mid-run)
+  rankdeath rank 1 of `mpirun -np 2` SIGKILLed mid-run (beam_spheres_ci): mpirun ends, the
+            launcher restarts the DEM from the last checkpoint, which LIGGGHTS 3.8 cannot read
+            on 2 ranks: a clear refusal naming the way out, exit 1, within 180 s (no hung
+            mpirun), no rank left running, no segment and no Open MPI shared-memory file
+            (vader_segment.*) of the job left in /dev/shm
 
 Usage: test_liggghts_dem.py CASE DEMFEM_RUN SOURCE_DIR LIGGGHTS_DEM. Exits 77 (skipped, saying
 why) where liggghts_dem was not built (no libliggghts-dev or MPI) or mpirun is missing.
@@ -31,13 +43,15 @@ import csv
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
+import time
 
 failures = []
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-           OMPI_MCA_rmaps_base_oversubscribe="1")
+           OMPI_MCA_rmaps_base_oversubscribe="1", OMPI_MCA_mpi_yield_when_idle="1")
 
 
 def check(ok, what):
@@ -166,6 +180,103 @@ def case_restart(demfem_run, source, program, tmp):
           f"{xb[-1]['force_sum_z']} N, {len(differing)} values differ")
 
 
+def case_srun(demfem_run, source, program, tmp):
+    if not check(os.environ.get("SLURM_CONF"), "SLURM_CONF is not set: run under "
+                 "tests/sweep/slurm_cluster.sh"):
+        return
+    scene = os.path.join(source, "examples/liggghts_dem/beam_spheres_ci.toml")
+    short = ("--set", "run.end_time=0.005")
+    series = {}
+    for name, command in (("alone", f'dem.command=["{program}"]'),
+                          ("srun", f'dem.command=["srun", "-n", "2", "--mpi=pmix", '
+                                   f'"{program}"]')):
+        out = f"{tmp}/{name}"
+        r = run(demfem_run, scene, out, *short, "--set", command)
+        if not check(r.returncode == 0, f"{name}: exit {r.returncode}\n"
+                     f"{r.stdout[-3000:]}\n{r.stderr[-3000:]}"):
+            return
+        series[name] = rows(out)
+        grid = "2 by 1 by 1 MPI processor grid" if name == "srun" else "1 by 1 by 1"
+        check(grid in r.stdout + r.stderr, f"{name}: LIGGGHTS did not report '{grid}'")
+    worst = 0.0
+    for a, b in zip(series["alone"], series["srun"]):
+        for key in ("force_sum_z", "fem_max_displacement"):
+            x, y = float(a[key]), float(b[key])
+            worst = max(worst, abs(x - y) / max(abs(x), 1e-300))
+    check(len(series["alone"]) == len(series["srun"]) == 50 and worst <= 1e-12,
+          f"srun -n 2 and one rank differ: {worst:.3e} relative, "
+          f"{len(series['alone'])} and {len(series['srun'])} rows")
+    jobs = subprocess.run(["squeue", "-h"], capture_output=True, text=True).stdout.strip()
+    check(not jobs, f"Slurm jobs left: {jobs}")
+    print(f"srun -n 2 vs one rank: largest relative difference {worst:.3e} over "
+          f"{len(series['srun'])} steps")
+
+
+def ranks_of(tag):
+    """{rank: (pid, Open MPI job id)} of the liggghts_dem processes started with DEMFEM_TEST_TAG."""
+    found = {}
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            with open(f"/proc/{pid}/environ", "rb") as f:
+                env = dict(e.split(b"=", 1) for e in f.read().split(b"\0") if b"=" in e)
+        except OSError:
+            continue
+        if env.get(b"DEMFEM_TEST_TAG") == tag.encode() and b"OMPI_COMM_WORLD_RANK" in env:
+            found[int(env[b"OMPI_COMM_WORLD_RANK"])] = (int(pid),
+                                                         int(env.get(b"OMPI_MCA_ess_base_jobid", 0)))
+    return found
+
+
+def case_rankdeath(demfem_run, source, program, tmp):
+    scene = os.path.join(source, "examples/liggghts_dem/beam_spheres_ci.toml")
+    out = f"{tmp}/killed"
+    tag = f"rankdeath-{os.getpid()}"
+    env = dict(ENV, DEMFEM_TEST_TAG=tag)
+    p = subprocess.Popen([demfem_run, scene, "--output-dir", out, "--set", "run.end_time=2",
+                          "--set", liggghts_command(program, 2)], stdout=subprocess.PIPE,
+                         stderr=subprocess.STDOUT, text=True, errors="replace", env=env,
+                         start_new_session=True)
+    victim = None
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and p.poll() is None:
+        try:
+            with open(os.path.join(out, "coupling.csv")) as f:
+                done = sum(1 for _ in f) - 1
+        except OSError:
+            done = 0
+        ranks = ranks_of(tag)
+        if done >= 25 and 1 in ranks:  # past the checkpoints of steps 10 and 20
+            victim = ranks[1]
+            os.kill(victim[0], signal.SIGKILL)
+            break
+        time.sleep(0.05)
+    if not check(victim is not None, "rank 1 was not found running past coupling step 25"):
+        os.killpg(p.pid, signal.SIGKILL)
+        p.communicate()
+        return
+    try:
+        text, _ = p.communicate(timeout=180)
+    except subprocess.TimeoutExpired:
+        os.killpg(p.pid, signal.SIGKILL)
+        text, _ = p.communicate()
+        check(False, "demfem run did not end within 180 s of the kill (a hung mpirun?)")
+    check(p.returncode == 1, f"exit {p.returncode}, expected 1:\n{text[-3000:]}")
+    for pattern in (r"the DEM solver failed in coupling step \d+ .*2 MPI ranks.*dem solver died",
+                    r"restart 1 of 3, rolling back to checkpoint",
+                    r"cannot restore .*dem\.h5 on 2 MPI ranks: LIGGGHTS 3\.8's read_restart .*"
+                    r"resume on one rank"):
+        check(re.search(pattern, text) is not None, f"no /{pattern}/ in:\n{text[-3000:]}")
+    for seg in re.findall(r"segment /(demfem-[0-9a-f]+)", text):
+        check(not any(f.startswith(seg) for f in os.listdir("/dev/shm")),
+              f"segment {seg} left in /dev/shm")
+    time.sleep(1)
+    check(not ranks_of(tag), f"liggghts_dem ranks left running: {ranks_of(tag)}")
+    job = f".{victim[1]:x}."  # Open MPI's vader_segment.<host>.<job id, hex>.<local rank>
+    left = [f for f in os.listdir("/dev/shm") if f.startswith("vader_segment") and job in f]
+    check(victim[1] != 0 and not left, f"Open MPI shared-memory files left: {left}")
+    print(f"rank 1 (pid {victim[0]}) killed: exit {p.returncode}, nothing left in /dev/shm")
+
+
 def expect_refusal(demfem_run, scene, out, what, pattern, *extra, code=None):
     r = run(demfem_run, scene, out, *extra)
     text = r.stdout + r.stderr
@@ -217,6 +328,20 @@ def case_badinput(demfem_run, source, program, tmp):
     check(re.search(r"the DEM solver failed in coupling step \d+ .*liggghts_dem \(LIGGGHTS",
                     r.stdout + r.stderr) is not None,
           "a LIGGGHTS error mid-run: the launcher does not name the step and the DEM backend")
+    check(re.search(r"liggghts_dem: LIGGGHTS ended the DEM in coupling step \d+ .*ERROR: Lost "
+                    r"atoms", r.stdout + r.stderr) is not None,
+          "a LIGGGHTS error mid-run: the adapter does not name the step and LIGGGHTS's message")
+    # A deck command that fails at LIGGGHTS step 1200, in coupling step 2 (n_D = 500): a
+    # variable that names no variable, printed every 1200 steps (quoted: evaluated then).
+    failing = deck + ('\nvariable bad equal "step*v_no_such_variable"\n'
+                      'fix fail all print 1200 "${bad}"\n')
+    r = expect_refusal(demfem_run, scene, f"{tmp}/step_k", "a LIGGGHTS error at step k",
+                       r"liggghts_dem: LIGGGHTS ended the DEM in coupling step 2 \(t = 0\.002 "
+                       r"s\): ERROR: Invalid variable name in variable formula", "--set", command,
+                       "--set", variant("step_k.liggghts", failing))
+    check(r.returncode == 1, f"a LIGGGHTS error at step k: exit {r.returncode}, expected 1")
+    check("the DEM solver failed in coupling step 2 (t = 0.002 s)" in r.stdout + r.stderr,
+          "a LIGGGHTS error at step k: the launcher does not name coupling step 2")
     with open(scene) as f:
         text = f.read()
     with open(os.path.join(tmp, "polyhedra.toml"), "w") as f:
@@ -238,6 +363,7 @@ def main():
     tmp = tempfile.mkdtemp(prefix="demfem_liggghts_")
     try:
         {"beam": case_beam, "moving": case_moving, "restart": case_restart,
+         "srun": case_srun, "rankdeath": case_rankdeath,
          "badinput": case_badinput}[case](demfem_run, source, program, tmp)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
