@@ -52,7 +52,7 @@ DemSettings settings(int threads, const std::string& backend, double restitution
   s.materials = {{"grain", 1e8, 0.3, 2500.0}, {"wall", 1e8, 0.3, 0.0}};
   s.pairs.assign(4, MaterialPair{0.5, restitution, 0.0});
   s.threads = threads;
-  s.backend = backend;
+  s.backend = dem_backend_from_name(backend);
   return s;
 }
 

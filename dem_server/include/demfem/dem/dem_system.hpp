@@ -46,6 +46,15 @@ struct MaterialPair {
 /// std::invalid_argument for any other name.
 MaterialPair::PolyLaw poly_law_from_name(const std::string& name);
 
+/// @brief Where a DEM system steps: the CPU backend (OpenMP) or the CUDA backend (a device).
+enum class DemBackendKind { cpu, cuda };
+
+/// The backend of a scene's name ("cpu", "cuda"); throws std::invalid_argument for any other
+/// name, naming the accepted ones.
+DemBackendKind dem_backend_from_name(const std::string& name);
+/// The scene's name of a backend: "cpu" or "cuda".
+const char* dem_backend_name(DemBackendKind kind);
+
 /// @brief Global settings of a DEM system.
 struct DemSettings {
   double dt = 1e-5;                            ///< s
@@ -61,8 +70,8 @@ struct DemSettings {
   /// force, so by default it is integrated only when some particle is not a sphere (and the
   /// orientation of a sphere stays as it was set); on for rolling markers, visualisation.
   bool track_orientation = false;
-  std::string backend = "cpu";  ///< "cpu" or "cuda"
-  int threads = 0;              ///< CPU threads; 0 = OpenMP default
+  DemBackendKind backend = DemBackendKind::cpu;
+  int threads = 0;  ///< CPU threads; 0 = OpenMP default
 };
 
 /// @brief Shape of a particle: a sphere, or a dilated convex polyhedron (thesis §2.1.1: a
