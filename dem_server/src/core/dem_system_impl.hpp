@@ -279,6 +279,10 @@ struct DemSystem::Impl {
   // The pair list proper: the candidates of the last build closer than r_i + r_j + skin_in
   // now. Springs are carried over from the previous list (merge of sorted rows).
   void refilter();
+  // The indices derived from the pair list (row, nbr): the owner of each pair, the transpose,
+  // the gather list, the per-pair force slots. refilter() and the CUDA backend's adoption of
+  // a list built on the device call it.
+  void index_list();
 
   // ---------------------------------------------------------------------------------------
   // Forces and the second half kick, in one parallel region. Each thread owns a contiguous
