@@ -449,6 +449,12 @@ std::int64_t DemSystem::neighbour_refilters() const {
 std::size_t DemSystem::neighbour_pairs() const {
   return impl_->nbr.size();
 }
+
+DemSystem::PairList DemSystem::pair_list() const {
+  const Impl& I = *impl_;
+  return PairList{I.row, I.nbr, I.slots.shear, I.bx, I.by, I.bz, I.prow, I.ptri};
+}
+
 std::size_t DemSystem::contact_count() const {
   const auto& pf = impl_->slots.force;
   std::size_t c = 0;

@@ -334,6 +334,16 @@ class DemSystem {
   std::int64_t neighbour_rebuilds() const;
   std::int64_t neighbour_refilters() const;
   std::size_t neighbour_pairs() const;
+  /// @brief The current neighbour list, for checks of one backend against another.
+  struct PairList {
+    std::vector<std::int64_t> row;      ///< n + 1: particle i's pairs are row[i] .. row[i + 1]
+    std::vector<std::int32_t> partner;  ///< per pair: j > i, ascending within a row
+    std::vector<double> spring;         ///< 3 per pair: tangential spring, m (empty: no friction)
+    std::vector<double> bx, by, bz;     ///< positions the list was last filtered at, m
+    std::vector<std::int64_t> triangle_row;  ///< n + 1 (empty without walls)
+    std::vector<std::int32_t> triangles;     ///< per particle: candidate wall triangles
+  };
+  PairList pair_list() const;
   /// Number of particle-particle pairs in contact in the last step.
   std::size_t contact_count() const;
   /// Per particle: its particle-particle pairs in contact in the last step (coordination).
