@@ -1,5 +1,6 @@
 // DEM throughput: particle-steps per second of a settled bed (Hertz–Mindlin with history,
-// dt = 1e-5 s) from 10^3 to 10^6 spheres, on the CPU with 1 and 2 threads and, where
+// dt = 1e-5 s) from 10^3 to 10^6 spheres (10^7 with --max-particles 1e7, for a device), on
+// the CPU with 1 and 2 threads (--threads; none with --no-cpu) and, where
 // available, on the GPU; the share of time in contact detection, force computation and
 // integration. Includes the target case of the issue: 20,000 spheres of radius 2 mm,
 // E = 100 MPa, nu = 0.3, e = 0.4, mu = 0.5.
@@ -52,7 +53,7 @@ DemSettings settings(int threads, const std::string& backend, double restitution
   s.materials = {{"grain", 1e8, 0.3, 2500.0}, {"wall", 1e8, 0.3, 0.0}};
   s.pairs.assign(4, MaterialPair{0.5, restitution, 0.0});
   s.threads = threads;
-  s.backend = backend;
+  s.backend = dem_backend_from_name(backend);
   return s;
 }
 
@@ -249,6 +250,9 @@ int main(int argc, char** argv) {
                  "the best and the median (on a shared machine one run varies by up to 25 %)")
       ->check(CLI::Range(1, 1000));
   app.add_flag("!--no-gpu", gpu, "skip the GPU even when one is present");
+  bool cpu_rows = true;
+  app.add_flag("!--no-cpu", cpu_rows,
+               "the GPU row only (a device sweep; concurrent runs sharing one device)");
   std::string settle_backend = "auto";
   app.add_option("--settle-backend", settle_backend,
                  "backend that settles the beds: cpu, cuda, or auto (cuda when the GPU runs, "
@@ -264,7 +268,8 @@ int main(int argc, char** argv) {
   const std::vector<BedSpec> specs = {
       {1000, 0.0015, 0.0025, "d 3-5 mm"},     {10000, 0.0015, 0.0025, "d 3-5 mm"},
       {20000, 0.002, 0.002, "target r 2 mm"}, {100000, 0.0015, 0.0025, "d 3-5 mm"},
-      {200000, 0.0015, 0.0025, "d 3-5 mm"},   {1000000, 0.0015, 0.0025, "d 3-5 mm"}};
+      {200000, 0.0015, 0.0025, "d 3-5 mm"},   {1000000, 0.0015, 0.0025, "d 3-5 mm"},
+      {10000000, 0.0015, 0.0025, "d 3-5 mm"}};
   demfem::bench::Report rep(
       "dem_throughput",
       {"particles", "bed", "settled s", "KE/(N m g d)", "backend", "threads", "contacts/particle",
@@ -343,7 +348,8 @@ int main(int argc, char** argv) {
     const std::int64_t steps = std::clamp<std::int64_t>(
         static_cast<std::int64_t>(work / static_cast<double>(spec.n)), 200, 20000);
     std::vector<std::pair<std::string, int>> runs;
-    for (int t : threads) runs.push_back({"cpu", t});
+    if (cpu_rows)
+      for (int t : threads) runs.push_back({"cpu", t});
     if (have_gpu) runs.push_back({"cuda", 0});
     // Every configuration is measured `repeat` times in turns, so that a busy spell of a
     // shared machine falls on all of them alike. The row holds the fastest run (its rate per

@@ -66,7 +66,7 @@ DemSettings settings(int threads, const std::string& backend, double restitution
   s.pairs.assign(4, MaterialPair{0.6, restitution, 0.0});
   for (auto& p : s.pairs) p.poly_law = law;
   s.threads = threads;
-  s.backend = backend;
+  s.backend = dem_backend_from_name(backend);
   return s;
 }
 

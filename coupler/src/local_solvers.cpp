@@ -176,7 +176,7 @@ SolverSections check_solver_sections(const scene::Document& scene, std::uint64_t
           dem->where("interface_material") +
           ": a coupled scene needs it: the [[dem.materials]] name of the structure's surface");
     }
-    out.dem_backend = ds.settings.backend;
+    out.dem_backend = dem::dem_backend_name(ds.settings.backend);
     out.dem_threads = ds.settings.threads > 0 ? ds.settings.threads : omp_get_max_threads();
     out.dem_setup_particles = dem::DemRun::check_setup(ds, seed);
   }

@@ -14,6 +14,7 @@
 
 #include <cuda_runtime.h>
 
+#include <array>
 #include <cstdio>
 #include <cstring>
 #include <stdexcept>
@@ -24,6 +25,7 @@
 #include "demfem/dem/physics/pair.hpp"
 #include "demfem/dem/physics/poly_contact.hpp"
 #include "demfem/dem/physics/step_integrator.hpp"
+#include "device_list.hpp"
 
 namespace demfem::dem {
 
@@ -40,6 +42,19 @@ void ensure(T*& p, std::size_t& cap, std::size_t n) {
   if (n <= cap && p) return;
   if (p) cudaFree(p);
   check(cudaMalloc(&p, (n > 0 ? n : 1) * sizeof(T)), "cudaMalloc");
+  cap = n;
+}
+
+// As ensure(), keeping the first `keep` values (a pair history that a list build reads).
+template <class T>
+void ensure_keep(T*& p, std::size_t& cap, std::size_t n, std::size_t keep) {
+  if (n <= cap && p) return;
+  T* q = nullptr;
+  check(cudaMalloc(&q, (n > 0 ? n : 1) * sizeof(T)), "cudaMalloc");
+  if (p && keep > 0)
+    check(cudaMemcpy(q, p, keep * sizeof(T), cudaMemcpyDeviceToDevice), "cudaMemcpy");
+  if (p) cudaFree(p);
+  p = q;
   cap = n;
 }
 
@@ -387,6 +402,8 @@ struct CudaBackend {
   bool flex_average = false;
   double flex_inv = 1.0;
   int* host_flags = nullptr;  // pinned: stop[2], steps_done (as 2 ints)
+  std::size_t ntris = 0, nptri = 0;
+  DeviceNeighbourList list;  // the list builder (device_list.hpp)
 };
 
 bool cuda_device_present() {
@@ -501,6 +518,7 @@ void cuda_upload_state(CudaBackend* b, const GpuHostView& v) {
     up(d.ix, c[79], v.ix, n), up(d.iy, c[80], v.iy, n), up(d.iz, c[81], v.iz, n);
   }
   d.walls = v.ntris > 0;
+  b->ntris = v.ntris;
   if (d.walls) {
     const std::size_t ns = static_cast<std::size_t>(phys::kMaxWallContacts) * n;
     up(d.vpos, c[40], v.vpos, 3 * v.nverts), up(d.vvel, c[41], v.vvel, 3 * v.nverts);
@@ -549,6 +567,7 @@ void cuda_upload_lists(CudaBackend* b, const GpuHostView& v) {
   up(d.bx, c[30], v.bx, n), up(d.by, c[31], v.by, n), up(d.bz, c[32], v.bz, n);
   ensure(d.pf, c[33], 3 * np);
   if (v.ntris > 0) up(d.prow, c[53], v.prow, n + 1), up(d.ptri, c[54], v.ptri, v.nptri);
+  b->nptri = v.ntris > 0 ? v.nptri : 0;
   if (v.ntris > 0 && v.walls_moving) up(d.vbuild, c[55], v.vbuild, 3 * v.nverts);
   if (v.poly) {
     up(d.paxis, c[82], v.paxis, 3 * np), up(d.pfeat, c[83], v.pfeat, 6 * np);
@@ -590,6 +609,81 @@ void cuda_download_state(CudaBackend* b, const GpuHostView& v) {
     if (v.flex_force && b->flex_nodes == v.flex_nodes)
       down(v.flex_force, d.flex_force, 3 * v.flex_nodes);
   }
+}
+
+namespace {
+// The arrays a list build may move (the captured step holds their addresses).
+std::array<const void*, 17> list_arrays(const Dev& d) {
+  return {d.row, d.trow, d.tpair, d.nbr,   d.bx,    d.by,  d.bz,   d.pf,  d.shear,
+          d.pt,  d.pr,   d.rhist, d.paxis, d.pfeat, d.ptj, d.prow, d.ptri};
+}
+}  // namespace
+
+std::size_t cuda_build_lists(CudaBackend* b, double skin, double rmax) {
+  const std::size_t n = b->n;
+  std::size_t* c = b->cap;
+  Dev& d = b->d;
+  check(cudaStreamSynchronize(b->stream), "cudaStreamSynchronize");  // the drift is done
+  DeviceListInput in;
+  in.n = n, in.px = d.px, in.py = d.py, in.pz = d.pz, in.radius = d.radius;
+  in.rmax = rmax, in.skin = skin;
+  in.old_npairs = b->npairs, in.old_row = d.row, in.old_nbr = d.nbr;
+  in.ntris = d.walls ? b->ntris : 0, in.vpos = d.vpos, in.tri_v = d.tri_v;
+  const DeviceListCounts counts = b->list.count(in);
+  const auto before = list_arrays(d);
+  const std::size_t np = counts.npairs, old = b->npairs;
+  const std::size_t keep = np > old ? np : old;  // histories: old values in, new values out
+  ensure(d.row, c[26], n + 1), ensure(d.trow, c[27], n + 1);
+  ensure(d.tpair, c[28], np), ensure(d.nbr, c[29], np);
+  ensure(d.bx, c[30], n), ensure(d.by, c[31], n), ensure(d.bz, c[32], n);
+  ensure(d.pf, c[33], 3 * np);
+  DeviceListOutput out;
+  out.row = d.row, out.trow = d.trow, out.tpair = d.tpair, out.nbr = d.nbr;
+  out.bx = d.bx, out.by = d.by, out.bz = d.bz;
+  if (b->friction) {
+    ensure_keep(d.shear, c[34], 3 * keep, 3 * old);
+    ensure(d.pt, c[35], 3 * np), ensure(d.pr, c[36], 3 * np);
+    out.hist[0].values = d.shear;
+    if (b->rolling) {
+      ensure_keep(d.rhist, c[37], 3 * keep, 3 * old);
+      out.hist[1].values = d.rhist;
+    }
+  }
+  if (d.poly) {
+    ensure_keep(d.paxis, c[82], 3 * keep, 3 * old), ensure_keep(d.pfeat, c[83], 6 * keep, 6 * old);
+    ensure(d.ptj, c[84], 3 * np), ensure(d.pt, c[35], 3 * np);
+    out.hist[2].values = d.paxis;
+    out.feat.values = d.pfeat;
+  }
+  if (in.ntris > 0) {
+    ensure(d.prow, c[53], n + 1), ensure(d.ptri, c[54], counts.nptri);
+    out.prow = d.prow, out.ptri = d.ptri;
+  }
+  b->list.fill(in, out);
+  if (in.ntris > 0 && b->walls_moving)  // the wall vertices at the build
+    check(cudaMemcpy(d.vbuild, d.vpos, 3 * b->nverts * sizeof(double), cudaMemcpyDeviceToDevice),
+          "cudaMemcpy");
+  check(cudaDeviceSynchronize(), "list build");
+  b->npairs = np, b->nptri = counts.nptri;
+  // the captured step holds the arrays' addresses: capture again only when one moved
+  if (b->graph && before != list_arrays(d)) cudaGraphExecDestroy(b->graph), b->graph = nullptr;
+  return np;
+}
+
+void cuda_list_sizes(CudaBackend* b, std::size_t* npairs, std::size_t* nptri) {
+  *npairs = b->npairs;
+  *nptri = b->nptri;
+}
+
+void cuda_download_lists(CudaBackend* b, const GpuListDownload& v) {
+  const std::size_t n = b->n;
+  const Dev& d = b->d;
+  check(cudaStreamSynchronize(b->stream), "cudaStreamSynchronize");
+  down(v.row, d.row, n + 1), down(v.nbr, d.nbr, b->npairs);
+  down(v.bx, d.bx, n), down(v.by, d.by, n), down(v.bz, d.bz, n);
+  if (v.prow != nullptr && b->ntris > 0)
+    down(v.prow, d.prow, n + 1), down(v.ptri, d.ptri, b->nptri);
+  if (v.vbuild != nullptr && b->walls_moving) down(v.vbuild, d.vbuild, 3 * b->nverts);
 }
 
 namespace {

@@ -42,6 +42,15 @@ std::int64_t cuda_run_steps(CudaBackend*, std::int64_t, double, double, double,
                             const std::atomic<bool>*) {
   no_cuda();
 }
+std::size_t cuda_build_lists(CudaBackend*, double, double) {
+  no_cuda();
+}
+void cuda_list_sizes(CudaBackend*, std::size_t*, std::size_t*) {
+  no_cuda();
+}
+void cuda_download_lists(CudaBackend*, const GpuListDownload&) {
+  no_cuda();
+}
 void cuda_finish_step(CudaBackend*) {
   no_cuda();
 }

@@ -78,6 +78,16 @@ struct GpuHostView {
   std::int32_t* pfeat = nullptr;  // 6 per pair (in/out)
 };
 
+/// Host arrays a list built on the device is copied into (sized from cuda_list_sizes()).
+struct GpuListDownload {
+  std::int64_t* row = nullptr;                         ///< n + 1
+  std::int32_t* nbr = nullptr;                         ///< pairs
+  double *bx = nullptr, *by = nullptr, *bz = nullptr;  ///< build positions, n
+  std::int64_t* prow = nullptr;                        ///< n + 1 (null: no walls)
+  std::int32_t* ptri = nullptr;                        ///< wall candidates
+  double* vbuild = nullptr;  ///< 3 per wall vertex (null unless walls move)
+};
+
 bool cuda_device_present();
 CudaBackend* cuda_backend_create();
 void cuda_backend_destroy(CudaBackend* b);
@@ -98,6 +108,15 @@ void cuda_download_state(CudaBackend* b, const GpuHostView& v);
 /// host does). Returns early, after a chunk, when `cancel` (may be null) is found set.
 std::int64_t cuda_run_steps(CudaBackend* b, std::int64_t steps, double skin, double t, double tau,
                             const std::atomic<bool>* cancel = nullptr);
+/// Builds the neighbour list and the wall candidates on the device from the device's
+/// positions (cuda/device_list.hpp: the CPU's one-level list, pair for pair), carrying the
+/// pair histories over: no particle state crosses to the host. Returns the pair count.
+std::size_t cuda_build_lists(CudaBackend* b, double skin, double rmax);
+/// Pairs and wall candidates of the device's list.
+void cuda_list_sizes(CudaBackend* b, std::size_t* npairs, std::size_t* nptri);
+/// Copies the device's list (rows, partners, build positions, wall candidates and the wall
+/// vertices at the build) to the host.
+void cuda_download_lists(CudaBackend* b, const GpuListDownload& v);
 /// Completes a step whose drift was done but whose forces were held back for a rebuild.
 void cuda_finish_step(CudaBackend* b);
 /// Largest overlap of the last step, m.

@@ -1,5 +1,6 @@
 // DemSystem::Impl and the CUDA backend: the host side of a device step (the views of the
-// state and the walls handed to the device, the list build the device asks for).
+// state and the walls handed to the device; the list the device built, taken over at the end
+// of an advance).
 
 #include "dem_system_impl.hpp"
 
@@ -80,6 +81,33 @@ GpuHostView DemSystem::Impl::gpu_view() {
   return v;
 }
 
+void DemSystem::Impl::adopt_device_list() {
+  std::size_t npairs = 0, nptri = 0;
+  cuda_list_sizes(gpu, &npairs, &nptri);
+  const std::size_t np = n();
+  row.resize(np + 1), nbr.resize(npairs), bx.resize(np), by.resize(np), bz.resize(np);
+  GpuListDownload dl;
+  dl.row = row.data(), dl.nbr = nbr.data(), dl.bx = bx.data(), dl.by = by.data();
+  dl.bz = bz.data();
+  if (!tri_v.empty()) {
+    prow.resize(np + 1), ptri.resize(nptri);
+    dl.prow = prow.data(), dl.ptri = ptri.data();
+    if (walls_moving) dl.vbuild = vbuild.data();
+  }
+  cuda_download_lists(gpu, dl);
+  if (!tri_v.empty() && !walls_moving) vbuild = vpos;
+  orow = row, onbr = nbr;  // one level: the candidates are the list
+  index_list();
+  // the histories come with the state (cuda_download_state), sized as refilter() sizes them
+  slots.shear.assign(friction ? 3 * npairs : 0, 0.0);
+  slots.rolling_history.assign(rolling ? 3 * npairs : 0, 0.0);
+  slots.separating_axis.assign(poly ? 3 * npairs : 0, 0.0);
+  slots.closest_features.assign(poly ? 6 * npairs : 0, -1);
+  out_disp = 0.0, out_pair = 0.0;
+  steps_at_update = steps;
+  need_rebuild = false;
+}
+
 void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
   const double t0 = omp_get_wtime();
   if (has_flex) {
@@ -104,6 +132,7 @@ void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
   cuda_upload_lists(gpu, view());
   std::int64_t left = substeps;
   double tdet = 0.0;
+  bool built_on_device = false;
   while (left > 0) {
     const std::int64_t done = cuda_run_steps(gpu, left, skin, t, flex_tau, cancel);
     for (std::int64_t k = 0; k < done; ++k) t += s.dt, flex_tau += s.dt;  // the device's sums
@@ -112,9 +141,9 @@ void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
     check_cancel(substeps - left, substeps);
     if (left > 0) {  // drift of the next step done, forces wait for the new list
       const double r0 = omp_get_wtime();
-      cuda_download_state(gpu, view());  // with the moved walls
-      rebuild();
-      cuda_upload_lists(gpu, view());
+      cuda_build_lists(gpu, skin, rmax);  // on the device, from the device's positions
+      ++rebuilds, ++refilters;            // one level: a build is its own refilter
+      built_on_device = true;
       tdet += omp_get_wtime() - r0;
       cuda_finish_step(gpu);
       t += s.dt, flex_tau += s.dt;
@@ -122,6 +151,7 @@ void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
       --left;
     }
   }
+  if (built_on_device) adopt_device_list();
   cuda_download_state(gpu, view());
   max_ov = cuda_max_overlap(gpu);
   adv_max_ov = cuda_advance_max_overlap(gpu);

@@ -63,11 +63,19 @@ void validate(const DemSettings& s) {
         " must be in [0, 1] (fraction of the skin; 0 = adaptive)");
   if (!(s.skin >= 0.0) || !std::isfinite(s.skin))
     bad("settings.skin = " + std::to_string(s.skin) + " must be >= 0 m");
-  if (s.backend != "cpu" && s.backend != "cuda")
-    bad("settings.backend = '" + s.backend + "', accepted: 'cpu', 'cuda'");
   if (s.threads < 0) bad("settings.threads = " + std::to_string(s.threads) + " must be >= 0");
 }
 }  // namespace
+
+DemBackendKind dem_backend_from_name(const std::string& name) {
+  if (name == "cpu") return DemBackendKind::cpu;
+  if (name == "cuda") return DemBackendKind::cuda;
+  throw std::invalid_argument("backend '" + name + "', accepted: 'cpu', 'cuda'");
+}
+
+const char* dem_backend_name(DemBackendKind kind) {
+  return kind == DemBackendKind::cuda ? "cuda" : "cpu";
+}
 
 MaterialPair::PolyLaw poly_law_from_name(const std::string& name) {
   if (name == "pressure_centre") return MaterialPair::PolyLaw::pressure_centre;
@@ -114,7 +122,7 @@ DemSystem::DemSystem(DemSettings settings) : impl_(std::make_unique<Impl>()) {
   impl_->s = std::move(settings);
   impl_->threads = impl_->s.threads > 0 ? impl_->s.threads : omp_get_max_threads();
   impl_->setup_pairs();
-  if (impl_->s.backend == "cuda") {
+  if (impl_->s.backend == DemBackendKind::cuda) {
     if (!cuda_available())
       throw std::runtime_error(
           "DemSystem: settings.backend = 'cuda' but this build has no CUDA backend or no CUDA "
@@ -441,6 +449,12 @@ std::int64_t DemSystem::neighbour_refilters() const {
 std::size_t DemSystem::neighbour_pairs() const {
   return impl_->nbr.size();
 }
+
+DemSystem::PairList DemSystem::pair_list() const {
+  const Impl& I = *impl_;
+  return PairList{I.row, I.nbr, I.slots.shear, I.bx, I.by, I.bz, I.prow, I.ptri};
+}
+
 std::size_t DemSystem::contact_count() const {
   const auto& pf = impl_->slots.force;
   std::size_t c = 0;

@@ -78,7 +78,7 @@ struct DemSystem::Impl {
   // system of spheres alone never runs their code (its bits and speed are those of before).
   detail::ShapeTable shapes;
   bool poly = false;
-  std::size_t poly_count = 0;       // particles that are polyhedra (the threads' work estimate)
+  std::size_t poly_count = 0;  // particles that are polyhedra (the threads' work estimate)
   // The separation proofs of the polyhedra's pair pass (separation_proofs.hpp).
   detail::SeparationProofs proofs;
   // Frozen particles (DemSystem::freeze): the mask (empty: none), and derived from it the
@@ -279,6 +279,10 @@ struct DemSystem::Impl {
   // The pair list proper: the candidates of the last build closer than r_i + r_j + skin_in
   // now. Springs are carried over from the previous list (merge of sorted rows).
   void refilter();
+  // The indices derived from the pair list (row, nbr): the owner of each pair, the transpose,
+  // the gather list, the per-pair force slots. refilter() and the CUDA backend's adoption of
+  // a list built on the device call it.
+  void index_list();
 
   // ---------------------------------------------------------------------------------------
   // Forces and the second half kick, in one parallel region. Each thread owns a contiguous
@@ -338,11 +342,16 @@ struct DemSystem::Impl {
 
   GpuHostView gpu_view();
 
-  // CUDA backend: the same step on the device; the neighbour list is built here (host) when
-  // the device reports that it must be (the CPU rule, moving walls included). Moving walls
+  // CUDA backend: the same step on the device; the neighbour list is built on the device
+  // when the device reports that it must be (the CPU rule, moving walls included), from the
+  // device's positions (cuda/device_list.hpp); the host builds the first list of an advance()
+  // only when its own is stale (particles added or removed, a restore). Moving walls
   // and the flexible mesh are placed on the device every step by the CPU's formulas
   // (physics/wall_motion.hpp); the device sums the flexible node forces as `mode` asks.
   void advance_gpu(std::int64_t substeps, ForceMode mode);
+  // After an advance in which the device rebuilt the list: the device's list taken over
+  // (rows, partners, build positions, wall candidates), its indices derived (index_list()).
+  void adopt_device_list();
 
   void refresh_particle_derived();
 };

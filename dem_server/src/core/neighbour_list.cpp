@@ -5,6 +5,7 @@
 
 #include "dem_system_impl.hpp"
 #include "demfem/dem/physics/grid_cell.hpp"
+#include "demfem/dem/physics/triangle_bins.hpp"
 
 #include <omp.h>
 
@@ -53,37 +54,12 @@ void DemSystem::Impl::rebuild() {
     }
   if (np == 0)
     for (int d = 0; d < 3; ++d) lo[d] = hi[d] = 0.0;
-  double h = std::max(2.0 * rmax + skin, 1e-12);
-  // At most 4 np + 4096 cells: a sparse cloud (a particle far from the rest) gets coarser
-  // cells instead of a grid over its whole extent. The count is formed in double: in integers
-  // the product of three axes of 10^6 or more cells (a particle 450 m from a bed of 0.2 mm
-  // cells) wrapped around, passed the bound, and the grid's allocation failed (bad_alloc).
-  std::int64_t dim[3];
-  for (;;) {
-    double tot = 1.0;
-    for (int d = 0; d < 3; ++d) {
-      // an infinite extent (a particle gone to inf, which the blow-up guard reports after
-      // the advance) counts as none: its cell coordinate is clamped into the grid
-      const double ext = std::isfinite(hi[d] - lo[d]) ? hi[d] - lo[d] : 0.0;
-      const double cells = std::floor(ext / h) + 1.0;
-      dim[d] = cells <= 4.0 * static_cast<double>(np) + 4096.0 ? static_cast<std::int64_t>(cells)
-                                                               : std::int64_t{1} << 62;
-      tot *= cells;
-    }
-    if (tot <= static_cast<double>(4 * np + 4096)) break;
-    h *= 1.26;  // a sparse cloud: coarser cells keep the grid small
-  }
-  const std::int64_t ncell = dim[0] * dim[1] * dim[2];
-  const double inv_h = 1.0 / h;
+  const phys::CellGrid grid = phys::cell_grid(lo, hi, static_cast<std::int64_t>(np), rmax, skin);
+  const std::int64_t ncell = grid.cells();
+  const std::int64_t* dim = grid.dim;
   std::vector<std::int32_t> cell(np);
-  auto cell_coord = [&](double x, int d) {
-    // floor, not truncation: the same cell after the clamp (below 0 both give 0)
-    return std::clamp<std::int64_t>(phys::saturated_cell((x - lo[d]) * inv_h), 0, dim[d] - 1);
-  };
   for (std::size_t i = 0; i < np; ++i)
-    cell[i] = static_cast<std::int32_t>((cell_coord(P[2][i], 2) * dim[1] + cell_coord(P[1][i], 1)) *
-                                            dim[0] +
-                                        cell_coord(P[0][i], 0));
+    cell[i] = static_cast<std::int32_t>(grid.cell(P[0][i], P[1][i], P[2][i]));
   std::vector<std::int64_t> cstart(ncell + 1, 0);
   for (std::size_t i = 0; i < np; ++i) ++cstart[cell[i] + 1];
   for (std::int64_t c = 0; c < ncell; ++c) cstart[c + 1] += cstart[c];
@@ -102,23 +78,11 @@ void DemSystem::Impl::rebuild() {
     const std::int32_t i = sorted[k];
     sx[k] = P[0][i], sy[k] = P[1][i], sz[k] = P[2][i], sr[k] = R[i];
   }
+  const phys::CellOrder order{cstart.data(), sorted.data(), sx.data(),
+                              sy.data(),     sz.data(),     sr.data()};
   auto scan = [&](std::size_t i, auto&& emit) {
-    const double xi = P[0][i], yi = P[1][i], zi = P[2][i], ri = R[i];
-    const std::int64_t cx = cell_coord(xi, 0), cy = cell_coord(yi, 1), cz = cell_coord(zi, 2);
-    for (std::int64_t z = std::max<std::int64_t>(0, cz - 1); z <= std::min(dim[2] - 1, cz + 1); ++z)
-      for (std::int64_t y = std::max<std::int64_t>(0, cy - 1); y <= std::min(dim[1] - 1, cy + 1);
-           ++y) {
-        // the three cells x - 1 .. x + 1 of a row are consecutive in cell order
-        const std::int64_t c0 = (z * dim[1] + y) * dim[0];
-        const std::int64_t k1 = cstart[c0 + std::min(dim[0] - 1, cx + 1) + 1];
-        for (std::int64_t k = cstart[c0 + std::max<std::int64_t>(0, cx - 1)]; k < k1; ++k) {
-          const std::size_t j = static_cast<std::size_t>(sorted[k]);
-          if (j <= i) continue;
-          const double dx = sx[k] - xi, dy = sy[k] - yi, dz = sz[k] - zi;
-          const double cut = ri + sr[k] + skin;
-          if (dx * dx + dy * dy + dz * dz < cut * cut) emit(static_cast<std::int32_t>(j));
-        }
-      }
+    phys::for_each_candidate(grid, order, static_cast<std::int64_t>(i), P[0][i], P[1][i], P[2][i],
+                             R[i], skin, emit);
   };
   // One scan: the particles in nt() contiguous chunks, each chunk's sorted rows appended to
   // its own buffer, then the buffers copied into place (the rows of a scan per particle,
@@ -159,20 +123,7 @@ void DemSystem::Impl::rebuild() {
     std::vector<std::int64_t> tcount(ncell + 1, 0);
     std::vector<std::array<std::int64_t, 6>> box(ntri);
     for (std::size_t k = 0; k < ntri; ++k) {
-      double tl[3] = {1e300, 1e300, 1e300}, th[3] = {-1e300, -1e300, -1e300};
-      for (int e = 0; e < 3; ++e)
-        for (int d = 0; d < 3; ++d) {
-          const double x = vpos[3 * tri_v[3 * k + e] + d];
-          tl[d] = std::min(tl[d], x - grow);
-          th[d] = std::max(th[d], x + grow);
-        }
-      bool out = false;
-      for (int d = 0; d < 3; ++d) {
-        if (th[d] < lo[d] || tl[d] > lo[d] + dim[d] * h) out = true;
-        box[k][d] = cell_coord(tl[d], d);
-        box[k][3 + d] = cell_coord(th[d], d);
-      }
-      if (out)
+      if (!phys::triangle_cell_box(grid, vpos.data(), tri_v.data() + 3 * k, grow, box[k].data()))
         box[k][0] = -1;
       else
         for (std::int64_t z = box[k][2]; z <= box[k][5]; ++z)
@@ -193,15 +144,8 @@ void DemSystem::Impl::rebuild() {
       }
     }
     auto near = [&](std::size_t i, std::int32_t k) {
-      const Vec3 p{P[0][i], P[1][i], P[2][i]};
-      const double* v = vpos.data();
-      const std::int32_t* tv = tri_v.data() + 3 * k;
-      const auto cp =
-          phys::closest_point_triangle(p, Vec3{v[3 * tv[0]], v[3 * tv[0] + 1], v[3 * tv[0] + 2]},
-                                       Vec3{v[3 * tv[1]], v[3 * tv[1] + 1], v[3 * tv[1] + 2]},
-                                       Vec3{v[3 * tv[2]], v[3 * tv[2] + 1], v[3 * tv[2] + 2]});
-      const double cut = R[i] + skin;
-      return phys::norm2(p - cp.point) < cut * cut;
+      return phys::near_triangle(Vec3{P[0][i], P[1][i], P[2][i]}, R[i], skin, vpos.data(),
+                                 tri_v.data() + 3 * k);
     };
 #pragma omp parallel for num_threads(nt()) schedule(static)
     for (std::int64_t i = 0; i < sn; ++i) {
@@ -291,6 +235,15 @@ void DemSystem::Impl::refilter() {
   slots.rolling_history.swap(nrhist);
   slots.separating_axis.swap(naxis);
   slots.closest_features.swap(nfeat);
+  index_list();
+  bx.resize(np), by.resize(np), bz.resize(np);
+#pragma omp parallel for num_threads(nt()) schedule(static)
+  for (std::int64_t i = 0; i < sn; ++i) bx[i] = st.px[i], by[i] = st.py[i], bz[i] = st.pz[i];
+}
+
+void DemSystem::Impl::index_list() {
+  const std::size_t np = n(), npair = nbr.size();
+  const std::int64_t sn = static_cast<std::int64_t>(np);
   pown.resize(npair);
 #pragma omp parallel for num_threads(nt()) schedule(static)
   for (std::int64_t i = 0; i < sn; ++i)
@@ -332,7 +285,6 @@ void DemSystem::Impl::refilter() {
   gather_row.resize(np + 1);
   gather_pair.resize(2 * npair);
   gather_sign.resize(2 * npair);
-  bx.resize(np), by.resize(np), bz.resize(np);
 #pragma omp parallel for num_threads(nt()) schedule(static)
   for (std::int64_t i = 0; i <= sn; ++i) gather_row[i] = row[i] + trow[i];
 #pragma omp parallel for num_threads(nt()) schedule(static)
@@ -341,7 +293,6 @@ void DemSystem::Impl::refilter() {
     for (std::int64_t p = row[i]; p < row[i + 1]; ++p) gather_pair[g] = p, gather_sign[g++] = 1.0;
     for (std::int64_t k = trow[i]; k < trow[i + 1]; ++k)
       gather_pair[g] = tpair[k], gather_sign[g++] = -1.0;
-    bx[i] = st.px[i], by[i] = st.py[i], bz[i] = st.pz[i];
   }
 }
 

@@ -37,7 +37,7 @@ namespace {
 // and the removal above a height, [dem.freeze].
 void read_settings(const Table& dem, DemScene& s) {
   auto& st = s.settings;
-  st.backend = dem.choice("backend", "cpu", {"cpu", "cuda"});
+  st.backend = dem_backend_from_name(dem.choice("backend", "cpu", {"cpu", "cuda"}));
   s.backend_where = dem.where("backend");
   st.threads = static_cast<int>(dem.integer("threads", 0, 0, 4096));
   st.dt = dem.number("dt", Range::positive());
@@ -62,7 +62,7 @@ void read_settings(const Table& dem, DemScene& s) {
     box.finish();
     f.max_speed = fz->number("max_speed", 0.01, Range::positive());
     fz->finish();
-    if (f.enabled && st.backend == "cuda")
+    if (f.enabled && st.backend == DemBackendKind::cuda)
       fz->fail("enabled", "frozen particles are held by the CPU backend only (dem.backend)");
     if (f.enabled) s.freeze = f;
   }

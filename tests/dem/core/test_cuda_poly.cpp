@@ -17,7 +17,7 @@ namespace {
 // 96 particles: rocks of three hulls (r_d 0.4 mm, random orientations and spins) and spheres,
 // falling in a converging field onto a mesh floor (rigid, or the flexible coupled mesh with
 // prescribed kinematics); friction 0.5, rolling resistance 0.02 between spheres.
-DemSystem poly_scene(const std::string& backend, bool flexible, MaterialPair::PolyLaw law) {
+DemSystem poly_scene(DemBackendKind backend, bool flexible, MaterialPair::PolyLaw law) {
   auto s = two_material_settings(1e8, 0.3, 2500.0, 0.4, 0.5, 1e-5, 0.02);
   for (auto& pair : s.pairs) pair.poly_law = law;
   s.gravity = {0, 0, -9.81};
@@ -76,7 +76,7 @@ TEST_CASE("CPU and CUDA backends agree with dilated polyhedra", "[dem][gpu][poly
   INFO("smooth law: " << (law == MaterialPair::PolyLaw::smooth));
   for (bool flexible : {false, true}) {
     INFO("flexible floor: " << flexible);
-    DemSystem cpu = poly_scene("cpu", flexible, law);
+    DemSystem cpu = poly_scene(DemBackendKind::cpu, flexible, law);
     auto run = [&](DemSystem& sys, std::vector<std::vector<double>>& forces) {
       if (!flexible) {
         sys.advance(600);
@@ -103,7 +103,7 @@ TEST_CASE("CPU and CUDA backends agree with dilated polyhedra", "[dem][gpu][poly
       WARN("CPU-vs-CUDA comparison with polyhedra skipped: no CUDA device (or built without CUDA)");
       return;
     }
-    DemSystem gpu = poly_scene("cuda", flexible, law);
+    DemSystem gpu = poly_scene(DemBackendKind::cuda, flexible, law);
     run(gpu, fg);
     const auto& a = cpu.particles();
     const auto& b = gpu.particles();

@@ -36,7 +36,7 @@ constexpr double kDt = 1e-5;
 // (0.5 m/s for 3 ms), a flap at x = 13 mm rotating about its bottom edge towards the
 // particles (-20 rad/s from t = 1 ms) and a side wall at y = 13 mm oscillating along y
 // (0.3 mm, 250 Hz).
-DemSystem moving_scene(const std::string& backend) {
+DemSystem moving_scene(DemBackendKind backend) {
   auto s = two_material_settings(1e8, 0.3, 2500.0, 0.4, 0.5, kDt, 0.02);
   s.gravity = {0, 0, -9.81};
   s.threads = 1;
@@ -115,7 +115,7 @@ RunResult run_moving_scene(DemSystem& sys) {
 // A plate sweeping at 2 m/s through a row of resting spheres without gravity: the particles do
 // not move before the plate arrives, so only the wall part of the rebuild rule
 // (particle + wall displacement > skin) brings the plate's triangles into their candidate lists.
-DemSystem sweep_scene(const std::string& backend) {
+DemSystem sweep_scene(DemBackendKind backend) {
   auto s = two_material_settings(1e8, 0.3, 2500.0, 0.5, 0.3, kDt);
   s.backend = backend;
   DemSystem sys(s);
@@ -139,7 +139,7 @@ double max_abs(const std::vector<double>& v) {
 TEST_CASE("CPU and CUDA backends agree with moving walls and a flexible mesh", "[dem][gpu]") {
   // The CPU run is checked first to be a meaningful reference: every moving wall is touched
   // at the end of some advance() (contacts come and go), the floor at the end of each.
-  DemSystem cpu = moving_scene("cpu");
+  DemSystem cpu = moving_scene(DemBackendKind::cpu);
   const RunResult rc = run_moving_scene(cpu);
   REQUIRE(cpu.step_count() == 400);
   for (int w = 0; w < 3; ++w) {
@@ -153,7 +153,7 @@ TEST_CASE("CPU and CUDA backends agree with moving walls and a flexible mesh", "
     REQUIRE(max_abs(rc.flex_forces[c]) > 0.0);
     REQUIRE(rc.flex_max_overlap[c] > 0.0);
   }
-  DemSystem cpu_sweep = sweep_scene("cpu");
+  DemSystem cpu_sweep = sweep_scene(DemBackendKind::cpu);
   cpu_sweep.advance(300);  // the plate moves 6 mm and pushes the first sphere
   REQUIRE(cpu_sweep.particles().vx[0] > 0.1);
   if (!cuda_available()) {
@@ -170,13 +170,13 @@ TEST_CASE("CPU and CUDA backends agree with moving walls and a flexible mesh", "
   //   rigid wall vertices: 1e-15 m (sin/cos differ by a few ulp of 1);
   //   node forces and wall forces: 1e-6 of the largest node / wall force component.
   //   the sweep: positions within 1e-9 of the radius.
-  DemSystem gpu_sweep = sweep_scene("cuda");
+  DemSystem gpu_sweep = sweep_scene(DemBackendKind::cuda);
   gpu_sweep.advance(300);
   for (std::size_t i = 0; i < 5; ++i) {
     INFO("sweep particle " << i);
     CHECK(std::abs(gpu_sweep.particles().px[i] - cpu_sweep.particles().px[i]) < 1e-9 * 0.002);
   }
-  DemSystem gpu = moving_scene("cuda");
+  DemSystem gpu = moving_scene(DemBackendKind::cuda);
   const RunResult rg = run_moving_scene(gpu);
   CHECK(gpu.step_count() == cpu.step_count());
   CHECK(gpu.time() == cpu.time());

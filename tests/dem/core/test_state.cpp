@@ -21,7 +21,7 @@ namespace {
 // friction and rolling resistance, or without walls (for the CUDA comparison) in a
 // converging velocity field so that many contacts form (v = -40 (x - c) 1/s: about 150-300
 // contacts from step 400 on; -4 1/s left the cloud almost contact-free in 1000 steps).
-DemSystem make_scene(int threads, bool walls, const std::string& backend = "cpu", int side = 8,
+DemSystem make_scene(int threads, bool walls, DemBackendKind backend = DemBackendKind::cpu, int side = 8,
                      double list_skin = 0.0) {
   auto s = two_material_settings(1e8, 0.3, 2500.0, 0.4, 0.5, 1e-5, 0.02);
   s.list_skin = list_skin;
@@ -63,8 +63,8 @@ TEST_CASE("Runs are bitwise reproducible, also across thread counts", "[dem][det
   // the particle loops run on two threads (systems below 2048 particles use one). The two
   // threads' particle ranges follow their measured busy times, so they differ from step to
   // step and from run to run: the bits must not depend on them.
-  DemSystem a = make_scene(1, true, "cpu", 16), b = make_scene(1, true, "cpu", 16),
-            c = make_scene(2, true, "cpu", 16);
+  DemSystem a = make_scene(1, true, DemBackendKind::cpu, 16), b = make_scene(1, true, DemBackendKind::cpu, 16),
+            c = make_scene(2, true, DemBackendKind::cpu, 16);
   a.advance(200);
   b.advance(200);
   c.advance(200);
@@ -80,13 +80,13 @@ TEST_CASE("A run inside a parallel region (fewer threads than asked) gives the s
   // Reference: the same run on one thread. Tolerance: none (bitwise). A parameter study may
   // run systems side by side from OpenMP threads: the inner regions then get fewer threads
   // than settings.threads (here one, nesting off), and every particle must still be done.
-  DemSystem ref = make_scene(1, true, "cpu", 16);
+  DemSystem ref = make_scene(1, true, DemBackendKind::cpu, 16);
   ref.advance(100);
   const int levels = omp_get_max_active_levels();
   omp_set_max_active_levels(1);
   std::vector<DemSystem> runs;
-  runs.push_back(make_scene(2, true, "cpu", 16));
-  runs.push_back(make_scene(2, true, "cpu", 16));
+  runs.push_back(make_scene(2, true, DemBackendKind::cpu, 16));
+  runs.push_back(make_scene(2, true, DemBackendKind::cpu, 16));
 #pragma omp parallel for num_threads(2)
   for (int r = 0; r < 2; ++r) runs[static_cast<std::size_t>(r)].advance(100);
   omp_set_max_active_levels(levels);
@@ -175,16 +175,16 @@ TEST_CASE("In-memory save point: a step redone from it gives the bits of its fir
   // forces and wall contact slots (friction history) are part of the state; the bed has
   // friction and rolling resistance (pair springs). On the CUDA backend (where there is one,
   // or in the emulator build) the state goes to the device at every advance(): the same rule.
-  std::string backend = "cpu";
+  DemBackendKind backend = DemBackendKind::cpu;
   SECTION("CPU backend") {}
   SECTION("CUDA backend") {
     if (!cuda_available()) {
       WARN("the CUDA save point is not checked here: no CUDA device (or built without CUDA)");
       return;
     }
-    backend = "cuda";
+    backend = DemBackendKind::cuda;
   }
-  auto make = [](const std::string& backend) {
+  auto make = [](DemBackendKind backend) {
     DemSystem sys = make_scene(2, false, backend);
     const WallMesh floor = plane_mesh(0.08, 4);
     demfem::InterfaceMesh mesh;
@@ -210,7 +210,7 @@ TEST_CASE("In-memory save point: a step redone from it gives the bits of its fir
   ref.advance(400);
   sys.advance(400);
   REQUIRE(ref.max_overlap() > 0.0);  // in contact (contact_count() is the CPU backend's)
-  if (backend == "cpu") REQUIRE(ref.contact_count() > 50);
+  if (backend == DemBackendKind::cpu) REQUIRE(ref.contact_count() > 50);
   kinematics(ref, 0.5);
   ref.advance(50, demfem::ForceMode::average);
   const ParticleState first = ref.particles();
@@ -303,7 +303,7 @@ TEST_CASE("The two-level pair list gives the bits of a one-level list", "[dem][d
   // the whole skin, refiltered only at a build). Tolerance: none (bitwise): a pair list that
   // missed a touching pair, or a spring lost at a refilter, changes the trajectory.
   auto run = [](double list_skin) {
-    DemSystem sys = make_scene(1, true, "cpu", 8, list_skin);
+    DemSystem sys = make_scene(1, true, DemBackendKind::cpu, 8, list_skin);
     sys.advance(600);
     return sys;
   };
@@ -348,7 +348,7 @@ TEST_CASE("Bad input is rejected with a message naming the key", "[dem][input]")
   CHECK_THROWS_WITH(sys.add_wall(w), Catch::Contains("vertex index 99"));
   if (!cuda_available()) {
     auto sc = two_material_settings(1e8, 0.3, 2500.0, 0.4, 0.5, 1e-5);
-    sc.backend = "cuda";
+    sc.backend = DemBackendKind::cuda;
     CHECK_THROWS_WITH(DemSystem(sc), Catch::Contains("cuda"));
   }
 }
@@ -364,7 +364,7 @@ TEST_CASE("CPU and CUDA backends agree over 1000 steps", "[dem][gpu]") {
   }
   for (bool walls : {false, true}) {
     INFO("with a mesh floor: " << walls);
-    DemSystem cpu = make_scene(2, walls), gpu = make_scene(2, walls, "cuda");
+    DemSystem cpu = make_scene(2, walls), gpu = make_scene(2, walls, DemBackendKind::cuda);
     cpu.advance(1000);
     gpu.advance(1000);
     const auto& a = cpu.particles();

@@ -109,7 +109,7 @@ TEST_CASE("a complete [dem] section is read into the settings", "[scene]") {
   const DemScene s = parse(kBase);
   CHECK(s.settings.dt == 2e-6);
   CHECK(s.settings.threads == 1);
-  CHECK(s.settings.backend == "cpu");
+  CHECK(s.settings.backend == DemBackendKind::cpu);
   REQUIRE(s.settings.materials.size() == 2);
   CHECK(s.settings.materials[1].density == 0.0);
   REQUIRE(s.settings.pairs.size() == 4);

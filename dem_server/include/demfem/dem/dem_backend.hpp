@@ -37,7 +37,8 @@ class DemBackend final : public protocol::SolverBackend {
   explicit DemBackend(DemRun& run) : run_(run) {}
 
   std::string name() const override {
-    return "demfem-dem 0.1 (" + run_.system().settings().backend + ")";
+    return std::string("demfem-dem 0.1 (") + dem_backend_name(run_.system().settings().backend) +
+           ")";
   }
 
   std::optional<InterfaceMesh> published_mesh() override { return std::nullopt; }

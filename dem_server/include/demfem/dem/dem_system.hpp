@@ -46,6 +46,15 @@ struct MaterialPair {
 /// std::invalid_argument for any other name.
 MaterialPair::PolyLaw poly_law_from_name(const std::string& name);
 
+/// @brief Where a DEM system steps: the CPU backend (OpenMP) or the CUDA backend (a device).
+enum class DemBackendKind { cpu, cuda };
+
+/// The backend of a scene's name ("cpu", "cuda"); throws std::invalid_argument for any other
+/// name, naming the accepted ones.
+DemBackendKind dem_backend_from_name(const std::string& name);
+/// The scene's name of a backend: "cpu" or "cuda".
+const char* dem_backend_name(DemBackendKind kind);
+
 /// @brief Global settings of a DEM system.
 struct DemSettings {
   double dt = 1e-5;                            ///< s
@@ -61,8 +70,8 @@ struct DemSettings {
   /// force, so by default it is integrated only when some particle is not a sphere (and the
   /// orientation of a sphere stays as it was set); on for rolling markers, visualisation.
   bool track_orientation = false;
-  std::string backend = "cpu";  ///< "cpu" or "cuda"
-  int threads = 0;              ///< CPU threads; 0 = OpenMP default
+  DemBackendKind backend = DemBackendKind::cpu;
+  int threads = 0;  ///< CPU threads; 0 = OpenMP default
 };
 
 /// @brief Shape of a particle: a sphere, or a dilated convex polyhedron (thesis §2.1.1: a
@@ -325,6 +334,16 @@ class DemSystem {
   std::int64_t neighbour_rebuilds() const;
   std::int64_t neighbour_refilters() const;
   std::size_t neighbour_pairs() const;
+  /// @brief The current neighbour list, for checks of one backend against another.
+  struct PairList {
+    std::vector<std::int64_t> row;      ///< n + 1: particle i's pairs are row[i] .. row[i + 1]
+    std::vector<std::int32_t> partner;  ///< per pair: j > i, ascending within a row
+    std::vector<double> spring;         ///< 3 per pair: tangential spring, m (empty: no friction)
+    std::vector<double> bx, by, bz;     ///< positions the list was last filtered at, m
+    std::vector<std::int64_t> triangle_row;  ///< n + 1 (empty without walls)
+    std::vector<std::int32_t> triangles;     ///< per particle: candidate wall triangles
+  };
+  PairList pair_list() const;
   /// Number of particle-particle pairs in contact in the last step.
   std::size_t contact_count() const;
   /// Per particle: its particle-particle pairs in contact in the last step (coordination).

@@ -20,3 +20,88 @@ DEMFEM_HD std::int64_t saturated_cell(double q) {
 }
 
 }  // namespace demfem::dem::phys
+
+namespace demfem::dem::phys {
+
+/// The uniform grid of a neighbour-list build (both backends): cells of edge h from `lo`,
+/// dim[0] x dim[1] x dim[2] of them, numbered x fastest.
+struct CellGrid {
+  double lo[3];
+  double h, inv_h;
+  std::int64_t dim[3];
+
+  /// The cell coordinate of x along axis d, clamped into the grid (floor, not truncation:
+  /// the same cell after the clamp; below 0 both give 0).
+  DEMFEM_HD std::int64_t coord(double x, int d) const {
+    const std::int64_t c = saturated_cell((x - lo[d]) * inv_h);
+    return c < 0 ? 0 : (c > dim[d] - 1 ? dim[d] - 1 : c);
+  }
+  DEMFEM_HD std::int64_t cell(double x, double y, double z) const {
+    return (coord(z, 2) * dim[1] + coord(y, 1)) * dim[0] + coord(x, 0);
+  }
+  DEMFEM_HD std::int64_t cells() const { return dim[0] * dim[1] * dim[2]; }
+};
+
+/// The grid of a build over particles in the box [lo, hi] (np of them, largest radius rmax):
+/// cells of 2 rmax + skin, at most 4 np + 4096 of them. A sparse cloud (a particle far from
+/// the rest) gets coarser cells instead of a grid over its whole extent. The count is formed
+/// in double: in integers the product of three axes of 10^6 or more cells (a particle 450 m
+/// from a bed of 0.2 mm cells) wrapped around, passed the bound, and the grid's allocation
+/// failed. An infinite extent (a particle gone to inf, which the blow-up guard reports after
+/// the advance) counts as none: its cell coordinate is clamped into the grid.
+DEMFEM_HD CellGrid cell_grid(const double lo[3], const double hi[3], std::int64_t np, double rmax,
+                             double skin) {
+  CellGrid g{};
+  double h = 2.0 * rmax + skin < 1e-12 ? 1e-12 : 2.0 * rmax + skin;  // std::max's order
+  const double bound = static_cast<double>(4 * np + 4096);
+  for (;;) {
+    double tot = 1.0;
+    for (int d = 0; d < 3; ++d) {
+      const double ext = std::isfinite(hi[d] - lo[d]) ? hi[d] - lo[d] : 0.0;
+      const double cells = std::floor(ext / h) + 1.0;
+      g.dim[d] = cells <= 4.0 * static_cast<double>(np) + 4096.0 ? static_cast<std::int64_t>(cells)
+                                                                 : std::int64_t{1} << 62;
+      tot *= cells;
+    }
+    if (tot <= bound) break;
+    h *= 1.26;  // a sparse cloud: coarser cells keep the grid small
+  }
+  for (int d = 0; d < 3; ++d) g.lo[d] = lo[d];
+  g.h = h;
+  g.inv_h = 1.0 / h;
+  return g;
+}
+
+/// Particles in cell order: cell c holds sorted[cstart[c] .. cstart[c + 1]), and sx, sy, sz,
+/// sr are their positions and radii in that order (contiguous per cell).
+struct CellOrder {
+  const std::int64_t* cstart;
+  const std::int32_t* sorted;
+  const double *sx, *sy, *sz, *sr;
+};
+
+/// The candidate partners j > i of particle i (at xi, yi, zi, radius ri) in the 27 cells
+/// around it: emit(j) for each j within ri + rj + skin, cell by cell (z, then y, then the
+/// three consecutive x cells of a row), in cell order within a cell. Both backends' builds.
+template <class Emit>
+DEMFEM_HD void for_each_candidate(const CellGrid& g, const CellOrder& o, std::int64_t i, double xi,
+                                  double yi, double zi, double ri, double skin, Emit&& emit) {
+  const std::int64_t cx = g.coord(xi, 0), cy = g.coord(yi, 1), cz = g.coord(zi, 2);
+  const std::int64_t z0 = cz > 0 ? cz - 1 : 0, z1 = cz + 1 < g.dim[2] ? cz + 1 : g.dim[2] - 1;
+  const std::int64_t y0 = cy > 0 ? cy - 1 : 0, y1 = cy + 1 < g.dim[1] ? cy + 1 : g.dim[1] - 1;
+  const std::int64_t x0 = cx > 0 ? cx - 1 : 0, x1 = cx + 1 < g.dim[0] ? cx + 1 : g.dim[0] - 1;
+  for (std::int64_t z = z0; z <= z1; ++z)
+    for (std::int64_t y = y0; y <= y1; ++y) {
+      const std::int64_t c0 = (z * g.dim[1] + y) * g.dim[0];
+      const std::int64_t k1 = o.cstart[c0 + x1 + 1];
+      for (std::int64_t k = o.cstart[c0 + x0]; k < k1; ++k) {
+        const std::int32_t j = o.sorted[k];
+        if (j <= i) continue;
+        const double dx = o.sx[k] - xi, dy = o.sy[k] - yi, dz = o.sz[k] - zi;
+        const double cut = ri + o.sr[k] + skin;
+        if (dx * dx + dy * dy + dz * dz < cut * cut) emit(j);
+      }
+    }
+}
+
+}  // namespace demfem::dem::phys
