@@ -64,7 +64,7 @@ std::optional<int> read_scene(const LaunchOptions& opt, CheckedRun& run) {
       overrides.push_back(scene::Override::parse(set));
       run.computed_sets.push_back(set);
       run.doc = scene::Document::load(opt.scene, overrides);
-      if (!opt.quiet) print_seat(*seat);
+      print_seat(*seat);  // as the prepare steps' lines: also with --quiet
     }
     run.sections = check_solver_sections(*run.doc, run.settings.run.seed);
   } catch (const scene::SceneError& e) {
