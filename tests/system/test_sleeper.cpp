@@ -211,8 +211,11 @@ void check_chain(const fs::path& dir, const Chain& c) {
     CHECK(is_png(out / png));
   }
 
-  // The sleeper starts above every rock under it (no overlap at the first step) and less
-  // than max_drop above them (it is lowered onto the bed, not dropped).
+  // The sleeper is seated from the bed's top (fem.mesh.seat, gap 4 mm): demfem run printed
+  // the highest rock top under its footprint and where the mesh's bottom went. It starts
+  // above every rock under it (no overlap at the first step: the under_sleeper sensor's
+  // narrower footprint finds no higher top) and less than max_drop above them (it is lowered
+  // onto the bed, not dropped).
   const auto under = read_csv(out / "sensor_under_sleeper.csv");
   const double top0 = column(under, "top")[0];
   const auto mon = read_csv(out / "fem_monitor.csv");
@@ -220,17 +223,17 @@ void check_chain(const fs::path& dir, const Chain& c) {
   std::vector<std::vector<double>> probes;
   for (const char* p : {"b035_uz", "b088_uz", "b160_uz", "b232_uz", "b285_uz"})
     probes.push_back(column(mon, p));
-  double z_bottom = 0.0;
-  {
-    std::ifstream in(kCases / (c.name + ".toml"));
-    std::string line;
-    std::regex re(R"(point = \[0\.35, 0\.5, ([0-9.]+)\])");
-    std::smatch m;
-    while (std::getline(in, line))
-      if (std::regex_search(line, m, re)) z_bottom = std::stod(m[1]);
-  }
-  REQUIRE(z_bottom > 0.0);
-  INFO("bed top under the sleeper " << top0 << " m, sleeper bottom " << z_bottom << " m");
+  std::smatch m;
+  const std::regex seat_line(
+      R"(fem\.mesh\.seat: the highest of the \d+ particles under the mesh \(its footprint )"
+      R"(widened by [0-9.e-]+ m\) reaches z = ([0-9.]+) m; the mesh moves by [-+0-9.]+ m )"
+      R"(\(its bottom from [0-9.]+ to ([0-9.]+) m, 0\.004 m above the bed\))");
+  REQUIRE(std::regex_search(r.out, m, seat_line));
+  const double seat_top = std::stod(m[1]), z_bottom = std::stod(m[2]);
+  INFO("bed top under the sleeper " << top0 << " m (sensor), " << seat_top
+                                    << " m (seat), sleeper bottom " << z_bottom << " m");
+  CHECK(z_bottom == Approx(seat_top + 0.004).margin(2e-6));
+  CHECK(seat_top >= top0 - 1e-6);
   CHECK(top0 < z_bottom);
   CHECK(z_bottom - top0 < c.max_drop);
 

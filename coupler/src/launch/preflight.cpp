@@ -1,4 +1,5 @@
 #include "launch/preflight.hpp"
+#include "launch/mesh_seat.hpp"
 
 #include <unistd.h>
 
@@ -17,6 +18,19 @@ fs::path self_dir() {
   std::error_code ec;
   const auto exe = fs::read_symlink("/proc/self/exe", ec);
   return ec ? fs::current_path() : exe.parent_path();
+}
+
+void print_seat(const MeshSeat& seat) {
+  if (!seat.computed) {
+    std::printf("demfem run: fem.mesh.seat: the bed's state is not made yet, so the seat is not "
+                "computed by this check (a run computes it)\n");
+    return;
+  }
+  std::printf("demfem run: fem.mesh.seat: the highest of the %lld particles under the mesh "
+              "(its footprint widened by %.4g m) reaches z = %.6f m; the mesh moves by %+.6f m "
+              "(its bottom from %.6f to %.6f m, %.4g m above the bed)\n",
+              static_cast<long long>(seat.particles), seat.margin, seat.bed_top, seat.dz,
+              seat.mesh_bottom, seat.mesh_bottom + seat.dz, seat.gap);
 }
 
 // The scene with its overrides, the settings, the [[post]] steps and the solver sections.
@@ -44,6 +58,14 @@ std::optional<int> read_scene(const LaunchOptions& opt, CheckedRun& run) {
     // this scene's particles are set up without it).
     if (const int c = run_prepare_scenes(*run.doc, run.bin, opt.quiet, opt.in_process, opt.check))
       return c;
+    if (const auto seat = resolve_mesh_seat(*run.doc, run.settings.run.seed)) {
+      // Every process reads the seat as fem.mesh.translate (the FEM cannot read the bed).
+      const std::string set = seat->override_text();
+      overrides.push_back(scene::Override::parse(set));
+      run.computed_sets.push_back(set);
+      run.doc = scene::Document::load(opt.scene, overrides);
+      print_seat(*seat);  // as the prepare steps' lines: also with --quiet
+    }
     run.sections = check_solver_sections(*run.doc, run.settings.run.seed);
   } catch (const scene::SceneError& e) {
     std::fprintf(stderr, "demfem run: scene error: %s\n", e.what());

@@ -8,6 +8,7 @@
 
 #include <filesystem>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "demfem/coupling/coupling_settings.hpp"
@@ -32,6 +33,9 @@ struct CheckedRun {
   std::optional<ExternalCommand> external_fem;  ///< fem.backend = "external"
   std::optional<ExternalCommand> external_dem;  ///< dem.backend = "external"
   std::optional<DebugKill> debug_kill;
+  /// KEY=VALUE overrides the launcher adds after the user's --set (fem.mesh.seat's
+  /// fem.mesh.translate), passed to every process like them
+  std::vector<std::string> computed_sets;
 };
 
 /// @brief Runs the checks into `run`. Returns the exit status to end with (0 after --check of

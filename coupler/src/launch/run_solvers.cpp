@@ -78,6 +78,7 @@ void RunSolvers::start_processes(const std::optional<ResumePoint>& resume, RunCo
   session_ = std::make_unique<protocol::CouplerSession>(coupler_options());
   std::vector<std::string> args = {"--scene", opt_.scene, "--segment", session_->segment_name()};
   for (const auto& s : opt_.sets) args.insert(args.end(), {"--set", s});
+  for (const auto& s : run_.computed_sets) args.insert(args.end(), {"--set", s});
   if (!opt_.output_dir.empty()) {
     args.push_back("--output-dir");
     args.push_back(opt_.output_dir);

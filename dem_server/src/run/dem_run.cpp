@@ -52,6 +52,10 @@ std::size_t DemRun::check_setup(const DemScene& scene, std::uint64_t seed) {
   return setup.setup_particles_;
 }
 
+std::unique_ptr<const DemRun> DemRun::setup(const DemScene& scene, std::uint64_t seed) {
+  return std::unique_ptr<const DemRun>(new DemRun(scene, {}, seed, 0.0, nullptr, true, true));
+}
+
 DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, std::uint64_t seed,
                double run_output_interval, std::ostream* log, bool defer_output, bool setup_only)
     : scene_(scene), output_dir_(output_dir), run_output_interval_(run_output_interval), log_(log) {

@@ -66,9 +66,29 @@ void check_cells(const Table& t, std::string_view key, const std::vector<double>
   }
 }
 
+/// fem.mesh.translate, m: the rigid shift of the whole model (zero when not given). A
+/// [fem.mesh.seat] is demfem run's to resolve (it reads the prepared DEM state, which the
+/// FEM cannot): the launcher passes its result on as translate, so a seat without one means
+/// a solver started by hand.
+std::array<double, 3> read_translation(const Table& mesh) {
+  const std::array<double, 3> zero{0.0, 0.0, 0.0};
+  if (mesh.has("seat")) {
+    mesh.skip("seat");
+    if (!mesh.has("translate"))
+      mesh.fail("seat", "is resolved by `demfem run` from the prepared DEM state ([dem.load]) "
+                        "into fem.mesh.translate; a solver started on its own needs "
+                        "fem.mesh.translate = [dx, dy, dz] instead");
+  }
+  const auto t = mesh.vec3("translate", zero);
+  for (double v : t)
+    if (!(std::abs(v) <= 1e6)) mesh.fail("translate", "must lie within [-1e6, 1e6] m");
+  return t;
+}
+
 /// The mesh, and the materials and sections of a .inp file when it has them.
-InpModel read_mesh(const Table& fem, bool& deck_loads) {
+InpModel read_mesh(const Table& fem, bool& deck_loads, std::array<double, 3>& translate) {
   const Table mesh = fem.required_table("mesh");
+  translate = read_translation(mesh);
   const int kinds = int(mesh.has("file")) + int(mesh.has("box")) + int(mesh.has("plate"));
   if (kinds != 1) {
     fem.fail("mesh", "needs exactly one of file = \"...inp\", box = {...} or plate = {...}");
@@ -478,6 +498,20 @@ void read_rigid(const Table& fem, FemScene& s) {
   r->finish();
 }
 
+/// fem.mesh.translate: every selector, surface, clamp and probe of the scene has chosen its
+/// nodes in the mesh file's coordinates; the model (nodes, probe points, the rigid body's
+/// reference point) then moves as one, so that a mesh placed by a computed offset
+/// (fem.mesh.seat) keeps the scene's selectors as written for the file.
+void translate_model(FemScene& s, const std::array<double, 3>& t) {
+  if (t[0] == 0.0 && t[1] == 0.0 && t[2] == 0.0) return;
+  for (auto& x : s.problem.mesh.nodes)
+    for (std::size_t k = 0; k < 3; ++k) x[k] += t[k];
+  for (auto& probe : s.monitor.probes)
+    for (std::size_t k = 0; k < 3; ++k) probe.point[k] += t[k];
+  if (s.rigid.has_reference_point)
+    for (std::size_t k = 0; k < 3; ++k) s.rigid.reference_point[k] += t[k];
+}
+
 }  // namespace
 
 const char* analysis_name(Analysis analysis) {
@@ -593,7 +627,8 @@ FemScene read_fem_scene(const Table& fem) {
   s.dt_location = fem.where("dt");
 
   bool deck_loads = true;
-  InpModel inp = read_mesh(fem, deck_loads);
+  std::array<double, 3> translate{};
+  InpModel inp = read_mesh(fem, deck_loads, translate);
   FemProblem& p = s.problem;
   p.mesh = std::move(inp.mesh);
   p.materials = inp.materials;
@@ -697,6 +732,7 @@ FemScene read_fem_scene(const Table& fem) {
   if (s.output.fields.empty()) {
     for (const char* k : kFemOutputFields) s.output.fields.emplace_back(k);
   }
+  translate_model(s, translate);
   check_model(fem, s, origin);
   if (s.analysis == Analysis::modal) check_mode_count(fem, s, modes_where);
   fem.finish();

@@ -74,6 +74,10 @@ class DemRun {
   /// no file). For a launcher that checks a whole scene before any process starts. Throws
   /// SceneError naming file, line and key. Returns the particle count of that set-up.
   static std::size_t check_setup(const DemScene& scene, std::uint64_t seed);
+  /// check_setup()'s set-up, kept for reading: the system as a run of the scene starts
+  /// (its [dem.load] state, lattices, insertions at t = 0), nothing run, no file. For a
+  /// launcher that places a structure on a prepared bed (fem.mesh.seat). Throws SceneError.
+  static std::unique_ptr<const DemRun> setup(const DemScene& scene, std::uint64_t seed);
   /// Particles the scene's set-up made (lattices and insertions at t = 0, before settling and
   /// removal). Saved in checkpoints: restore() refuses a checkpoint of a scene that made
   /// another number (a changed [[dem.lattice]] or [[dem.insert]]).
