@@ -14,6 +14,9 @@
   and the command that reproduces it. Each one found is a warning naming the page and line.
   Allowed for now (DATED_TEXT_ALLOWED): reliability.md, the sleeper section of cases.md,
   and architecture.md's dated note of the reorganisation.
+* The API pages (api_pages.py): `<!-- python-api: MODULE -->` lines become the Python SDK's
+  reference from its docstrings; Doxygen writes the C++ SDK's into the site's api/cpp/
+  before the links are checked. Either failing is a warning.
 """
 
 import html.parser
@@ -21,7 +24,11 @@ import logging
 import os
 import posixpath
 import re
+import sys
 from urllib.parse import unquote, urlsplit
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import api_pages  # noqa: E402  (beside this file, which MkDocs loads by path)
 
 log = logging.getLogger("mkdocs.hooks.demfem")
 
@@ -96,7 +103,15 @@ def dated_text(markdown, src_path):
     return found
 
 
+def _build_dir(config):
+    repo = os.path.dirname(os.path.abspath(config["docs_dir"]))
+    return os.environ.get("DEMFEM_BUILD_DIR") or os.path.join(repo, "build")
+
+
 def on_page_markdown(markdown, page, config, files):
+    markdown, errors = api_pages.python_api(markdown, _build_dir(config))
+    for e in errors:
+        log.warning(f"{page.file.src_path}: {e}")
     for number, what, text in dated_text(markdown, page.file.src_path):
         log.warning(f"{page.file.src_path}:{number}: {what} ('{text}') in a user page: move "
                     "the measurement's history to docs/reports/, keep the result and its command")
@@ -145,9 +160,14 @@ def _parse(path, cache):
 
 def on_post_build(config):
     site = config["site_dir"]
+    repo = os.path.dirname(os.path.abspath(config["docs_dir"]))
+    for e in api_pages.cpp_api(repo, site):
+        log.warning(e)
     cache, checked, broken = {}, 0, 0
     for dirpath, dirnames, filenames in os.walk(site):
-        dirnames[:] = [d for d in dirnames if d not in ("assets", "search")]
+        # Doxygen's pages (api/cpp) are its own; the links into them are checked
+        dirnames[:] = [d for d in dirnames if d not in ("assets", "search")
+                       and os.path.relpath(os.path.join(dirpath, d), site) != os.path.join("api", "cpp")]
         for name in filenames:
             if not name.endswith(".html") or name == "404.html":
                 continue

@@ -184,10 +184,14 @@ PYBIND11_MODULE(_protocol, m) {
   // A backend that refuses its scene exits as demfem's own solvers do (the run's code).
   m.attr("EXIT_BAD_INPUT") = demfem::kExitBadInput;
 
-  py::enum_<proto::Role>(m, "Role").value("dem", proto::Role::dem).value("fem", proto::Role::fem);
-  py::enum_<demfem::ForceMode>(m, "ForceMode")
-      .value("last_substep", demfem::ForceMode::last_substep)
-      .value("average", demfem::ForceMode::average);
+  py::enum_<proto::Role>(m, "Role", "Which side of the coupling a program serves")
+      .value("dem", proto::Role::dem, "the particles (dem.backend, dem.command)")
+      .value("fem", proto::Role::fem, "the structure (fem.backend, fem.command)");
+  py::enum_<demfem::ForceMode>(m, "ForceMode",
+                               "Which forces a DEM writes after a coupling step's substeps")
+      .value("last_substep", demfem::ForceMode::last_substep, "those of the last substep")
+      .value("average", demfem::ForceMode::average,
+             "their average over the substeps (coupling.force_averaging)");
 
   py::class_<proto::StepCommand>(m, "StepCommand", "What a Step message asks for")
       .def(py::init<>())
