@@ -80,9 +80,10 @@ SCENES = {
     "docs/tutorials/plank_rocks.toml": (None, []),
 }
 
-# Scenes that need a program built outside demfem's build: pictured only when it is given.
+# Scenes that need a program built outside demfem's build: pictured only when it is given
+# (--spring-bed PATH: the scene's own command with that program).
 NEEDS_PROGRAM = {"examples/cpp_spring_bed/static_ci.toml": "spring_bed (examples/cpp_spring_bed, "
-                 "built against the installed SDK: docs/backends.md)"}
+                 "built against the installed SDK: docs/backends.md; --spring-bed PATH)"}
 
 
 def picture_name(scene):
@@ -143,6 +144,8 @@ def main():
                     help="only these scenes (picture names, e.g. beam_fixed_ci, or paths)")
     ap.add_argument("--with-prepare", action="store_true",
                     help="also the scenes that load a prepared state (runs their prepare scenes)")
+    ap.add_argument("--spring-bed", default=None, metavar="PATH",
+                    help="the C++ example's program (examples/cpp_spring_bed, built out of tree)")
     ap.add_argument("--run-limit", type=float, default=900.0, metavar="S",
                     help="stop a short run after S seconds of wall time (its scene gets no picture)")
     args = ap.parse_args()
@@ -164,8 +167,13 @@ def main():
             print(f"{scene}: skipped (it loads a prepared state; --with-prepare runs its prepare scenes)")
             continue
         if scene in NEEDS_PROGRAM:
-            print(f"{scene}: skipped (needs {NEEDS_PROGRAM[scene]})")
-            continue
+            if not args.spring_bed:
+                print(f"{scene}: skipped (needs {NEEDS_PROGRAM[scene]})")
+                continue
+            with open(os.path.join(REPO, scene), "rb") as f:
+                command = tomllib.load(f)["fem"]["command"]
+            command = [os.path.abspath(args.spring_bed)] + command[1:]
+            sets.append("fem.command=[" + ", ".join(f'"{c}"' for c in command) + "]")
         out_dir = os.path.join(args.out, name)
         took = run_scene(demfem_run, os.path.join(args.build, "bin"), scene, out_dir, sets,
                          args.run_limit)
