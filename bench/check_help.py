@@ -1,10 +1,12 @@
 #!/usr/bin/python3
-"""ctest (issue 34, item 17): every benchmark in <build>/bench answers --help with its usage
-and exit status 0, running nothing and writing no JSON, and refuses an unknown option
-(exit status != 0) before running anything. The benchmarks are found at test time (every
-executable file in the folder), so a new one is covered without a list to keep.
+"""ctest: every benchmark in <build>/bench answers --help with its usage and a one-line
+description (what `./demfem bench list` shows) and exit status 0, running nothing and
+writing no JSON, and refuses an unknown option (exit status != 0) before running anything.
+The benchmarks are found at test time (every executable file in the folder), so a new one is
+covered without a list to keep.
 
-  check_help.py BUILD/bench
+  check_help.py BUILD/bench           the check
+  check_help.py --list BUILD/bench    each benchmark's name and description (bench list)
 """
 
 import os
@@ -38,6 +40,29 @@ def run(exe, args, cwd):
         return None
 
 
+# A description longer than this does not fit `bench list`'s line.
+DESCRIPTION_MAX = 140
+
+
+def description(help_text):
+    """The one-line description in a --help text: its first line outside the usage block (a
+    line opening with "usage:" and the indented or blank lines after it), as CLI11 prints it
+    first and argparse after the usage."""
+    lines = help_text.splitlines()
+    i = 0
+    while i < len(lines):
+        line = lines[i]
+        if line.lower().startswith("usage:"):
+            i += 1
+            while i < len(lines) and (not lines[i].strip() or lines[i][0].isspace()):
+                i += 1
+            continue
+        if line.strip():
+            return line.strip()
+        i += 1
+    return ""
+
+
 def check(exe):
     """Problems of one benchmark: [] when it behaves."""
     problems = []
@@ -51,6 +76,11 @@ def check(exe):
                 problems.append(f"--help exited {r.returncode}: {r.stderr.strip()[-300:]}")
             if "--json" not in r.stdout:
                 problems.append(f"--help printed no usage naming its options:\n{r.stdout[-300:]}")
+            text = description(r.stdout)
+            if not text or text.startswith("-") or len(text) > DESCRIPTION_MAX:
+                problems.append(f"--help opens with no one-line description (at most "
+                                f"{DESCRIPTION_MAX} characters, before or after the usage): "
+                                f"{text!r}")
         left = sorted(p.name for p in Path(tmp).iterdir())
         if left:
             problems.append(f"--help wrote {left} (it ran)")
@@ -64,10 +94,26 @@ def check(exe):
     return problems
 
 
+def list_benches(benches):
+    """`./demfem bench list`: each benchmark's name and the description its --help gives."""
+    width = max(len(exe.name) for exe in benches)
+    for exe in benches:
+        with tempfile.TemporaryDirectory(prefix="demfem-bench-list-") as tmp:
+            r = run(exe, ["--help"], tmp)
+        text = description(r.stdout) if r is not None and r.returncode == 0 else ""
+        print(f"  {exe.name:<{width}}  {text or '(no description: its --help fails)'}")
+    return 0
+
+
 def main(argv):
-    folder = Path(argv[1])
+    listing = len(argv) > 1 and argv[1] == "--list"
+    if listing:
+        argv = argv[1:]
+    folder = Path(argv[1]).resolve()
     benches = sorted(p for p in folder.iterdir()
                      if p.is_file() and os.access(p, os.X_OK))
+    if listing:
+        return list_benches(benches) if benches else 1
     if not benches:
         print(f"FAILED: no benchmark executables in {folder}")
         return 1

@@ -15,12 +15,11 @@ import argparse
 import os
 import sys
 
-import numpy as np
-
 from demfem_post.needs import need_or_exit
 
 # ParaView's Python: pvpython (Debian: python3-paraview), no display needed
 PARAVIEW = ("python3-paraview", "pvpython")
+np = need_or_exit("sheet_bed_profile.py", "numpy", *PARAVIEW)
 sm = need_or_exit("sheet_bed_profile.py", "paraview.servermanager", *PARAVIEW)
 pv = need_or_exit("sheet_bed_profile.py", "paraview.simple", *PARAVIEW)
 vtk_to_numpy = need_or_exit("sheet_bed_profile.py", "vtkmodules.util.numpy_support",

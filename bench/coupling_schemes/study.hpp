@@ -143,12 +143,12 @@ struct Options {
 };
 
 inline constexpr const char* kUsage =
+    "Work-precision, stability and concurrency of the coupling schemes, with real demfem_run runs\n"
     "usage: coupling_schemes [--json FILE] [--parts work,stability,concurrency,sheet]\n"
     "  [--problems beam_drop,beam_drop_elastic,plate_bed] [--repeat N] [--quick] [--work DIR]\n"
     "  [--schemes LIST] [--dts LIST] [--beam-dem-dts LIST] [--sheet-end S] [--sheet-dts LIST]\n"
     "  [--sheet-schemes LIST]\n"
-    "Work-precision, stability and concurrency of the coupling schemes (real demfem_run runs;\n"
-    "the header of bench/coupling_schemes/coupling_schemes.cpp says what each part does).\n";
+    "The header of bench/coupling_schemes/coupling_schemes.cpp says what each part does.\n";
 
 Options parse(int argc, char** argv);
 

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""sweep_overhead: what `demfem sweep` costs on top of its members.
+"""The overhead of `demfem sweep` on top of its members' own run times.
 
 N short members (the CI beam with a random bed, cases/beam_sweep_ci.toml: one load,
 N repetitions) run through `demfem sweep` (local pool, no collection) and, as the

@@ -9,6 +9,14 @@
 * After the build every internal link of every page is checked, anchors included (MkDocs 1.4
   checks only that a linked page exists): a link to a missing page or to a heading that is
   not there is a warning, so the strict build fails.
+* A user page (every page outside reports/) holds no commit hash, no load average and no
+  date: those belong to the measurement history in reports/, the user page keeps the result
+  and the command that reproduces it. Each one found is a warning naming the page and line.
+  Allowed for now (DATED_TEXT_ALLOWED): reliability.md, the sleeper section of cases.md,
+  and architecture.md's dated note of the reorganisation.
+* The API pages (api_pages.py): `<!-- python-api: MODULE -->` lines become the Python SDK's
+  reference from its docstrings; Doxygen writes the C++ SDK's into the site's api/cpp/
+  before the links are checked. Either failing is a warning.
 """
 
 import html.parser
@@ -16,13 +24,35 @@ import logging
 import os
 import posixpath
 import re
+import sys
 from urllib.parse import unquote, urlsplit
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import api_pages  # noqa: E402  (beside this file, which MkDocs loads by path)
 
 log = logging.getLogger("mkdocs.hooks.demfem")
 
 _FENCE = re.compile(r"^(```|~~~)")
 _INCLUDE = re.compile(r'^--8<-- "([^"]+)"\s*$')
 _LINK = re.compile(r"\[([^\]\n]*)\]\((\.\./[^)\s#]+)(#[^)\s]*)?\)")
+
+# Dated text: a commit hash (7 to 12 hex digits with a letter and a digit, or 40, not part of
+# a number, a path or a name such as a segment's), a load average ("load average 11",
+# "(load 10–13)", "load about 6)"; not "load 51 kg"), an ISO date.
+_DATED = [
+    ("a commit hash", re.compile(r"(?<![\w./-])(?=[0-9a-f]*[a-f])(?=[0-9a-f]*[0-9])"
+                                 r"(?:[0-9a-f]{40}|[0-9a-f]{7,12})(?![\w.])")),
+    ("a load average", re.compile(r"\bload averages?\b|\bload (?:about |of |≈ ?|~ ?)?\d+(?:\.\d+)?"
+                                  r"(?:\s*[–-]\s*\d+(?:\.\d+)?)?(?=\s*[),;]|\s*$)", re.I)),
+    ("a date", re.compile(r"\b20\d\d-[01]\d-[0-3]\d\b")),
+]
+# Pages or parts of pages whose dated text is still to move to reports/: a page's whole text
+# (None) or the sections (H2 headings) named, or the exact texts named.
+DATED_TEXT_ALLOWED = {
+    "reliability.md": None,
+    "cases.md": {"sections": ["## Timber sleeper on ballast (thesis ch. 6)"]},
+    "architecture.md": {"texts": ["2026-12-05"]},
+}
 
 
 def on_files(files, config):
@@ -52,7 +82,39 @@ def _rewrite_outside_links(line, page, config):
     return _LINK.sub(repl, line)
 
 
+def dated_text(markdown, src_path):
+    """[(line number, what, text)] of the dated text in a user page's Markdown."""
+    path = src_path.replace(os.sep, "/")
+    if path.startswith("reports/"):
+        return []
+    allowed = DATED_TEXT_ALLOWED.get(path, {})
+    if allowed is None:
+        return []
+    found, section = [], ""
+    for number, line in enumerate(markdown.split("\n"), 1):
+        if line.startswith("## "):
+            section = line.strip()
+        if section in allowed.get("sections", []):
+            continue
+        for what, pattern in _DATED:
+            for m in pattern.finditer(line):
+                if m.group(0) not in allowed.get("texts", []):
+                    found.append((number, what, m.group(0)))
+    return found
+
+
+def _build_dir(config):
+    repo = os.path.dirname(os.path.abspath(config["docs_dir"]))
+    return os.environ.get("DEMFEM_BUILD_DIR") or os.path.join(repo, "build")
+
+
 def on_page_markdown(markdown, page, config, files):
+    markdown, errors = api_pages.python_api(markdown, _build_dir(config))
+    for e in errors:
+        log.warning(f"{page.file.src_path}: {e}")
+    for number, what, text in dated_text(markdown, page.file.src_path):
+        log.warning(f"{page.file.src_path}:{number}: {what} ('{text}') in a user page: move "
+                    "the measurement's history to docs/reports/, keep the result and its command")
     repo = os.path.dirname(os.path.abspath(config["docs_dir"]))
     out, fenced = [], False
     for line in markdown.split("\n"):
@@ -98,9 +160,14 @@ def _parse(path, cache):
 
 def on_post_build(config):
     site = config["site_dir"]
+    repo = os.path.dirname(os.path.abspath(config["docs_dir"]))
+    for e in api_pages.cpp_api(repo, site):
+        log.warning(e)
     cache, checked, broken = {}, 0, 0
     for dirpath, dirnames, filenames in os.walk(site):
-        dirnames[:] = [d for d in dirnames if d not in ("assets", "search")]
+        # Doxygen's pages (api/cpp) are its own; the links into them are checked
+        dirnames[:] = [d for d in dirnames if d not in ("assets", "search")
+                       and os.path.relpath(os.path.join(dirpath, d), site) != os.path.join("api", "cpp")]
         for name in filenames:
             if not name.endswith(".html") or name == "404.html":
                 continue

@@ -14,6 +14,7 @@
 #include <atomic>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "demfem/protocol/protocol.hpp"
 
@@ -141,6 +142,33 @@ class PySolverBackend : public proto::SolverBackend {
   const std::atomic<bool>* cancel_ = nullptr;
 };
 
+/// InterfaceBuffers over memory of its own, for a backend stepped in-process without a coupled
+/// run (demfem.testing.BackendHarness): the layout of the bulk segment (reference mesh, then
+/// [buffer][positions, velocities, accelerations, forces, dem_positions][3n], as
+/// InterfaceBuffers::bind() and the coupler's in-process link lay it out), both buffers'
+/// positions and dem_positions at the reference, as the coupler's first mesh exchange leaves
+/// them. It also holds the cancel flag a harness raises (SolverBackend.cancelled).
+class OwnedInterfaceBuffers : public proto::InterfaceBuffers {
+ public:
+  explicit OwnedInterfaceBuffers(const demfem::InterfaceMesh& mesh)
+      : reference_(mesh.reference_positions),
+        triangles_(mesh.triangles),
+        arrays_(kBufferCount * 5 * 3 * mesh.node_count(), 0.0) {
+    bind(mesh.node_count(), mesh.triangle_count(), reference_.data(), triangles_.data(),
+         arrays_.data());
+    for (std::uint32_t b = 0; b < kBufferCount; ++b) {
+      std::copy(reference_.begin(), reference_.end(), positions(b).begin());
+      std::copy(reference_.begin(), reference_.end(), dem_positions(b).begin());
+    }
+  }
+  std::atomic<bool> cancel{false};
+
+ private:
+  std::vector<double> reference_;
+  std::vector<std::int32_t> triangles_;
+  std::vector<double> arrays_;
+};
+
 }  // namespace
 
 PYBIND11_MODULE(_protocol, m) {
@@ -156,10 +184,14 @@ PYBIND11_MODULE(_protocol, m) {
   // A backend that refuses its scene exits as demfem's own solvers do (the run's code).
   m.attr("EXIT_BAD_INPUT") = demfem::kExitBadInput;
 
-  py::enum_<proto::Role>(m, "Role").value("dem", proto::Role::dem).value("fem", proto::Role::fem);
-  py::enum_<demfem::ForceMode>(m, "ForceMode")
-      .value("last_substep", demfem::ForceMode::last_substep)
-      .value("average", demfem::ForceMode::average);
+  py::enum_<proto::Role>(m, "Role", "Which side of the coupling a program serves")
+      .value("dem", proto::Role::dem, "the particles (dem.backend, dem.command)")
+      .value("fem", proto::Role::fem, "the structure (fem.backend, fem.command)");
+  py::enum_<demfem::ForceMode>(m, "ForceMode",
+                               "Which forces a DEM writes after a coupling step's substeps")
+      .value("last_substep", demfem::ForceMode::last_substep, "those of the last substep")
+      .value("average", demfem::ForceMode::average,
+             "their average over the substeps (coupling.force_averaging)");
 
   py::class_<proto::StepCommand>(m, "StepCommand", "What a Step message asks for")
       .def(py::init<>())
@@ -255,6 +287,17 @@ PYBIND11_MODULE(_protocol, m) {
           py::arg("buffer"))
       .def("reference_mesh", &proto::InterfaceBuffers::reference_mesh);
 
+  py::class_<OwnedInterfaceBuffers, proto::InterfaceBuffers>(
+      m, "LocalInterfaceBuffers",
+      "InterfaceBuffers in the process's own memory, for a backend stepped without a coupled "
+      "run (demfem.testing.BackendHarness): both buffers' positions and dem_positions start at "
+      "the mesh's reference positions, every other array at zero")
+      .def(py::init<const demfem::InterfaceMesh&>(), py::arg("mesh"))
+      .def_property(
+          "cancel_requested", [](const OwnedInterfaceBuffers& b) { return b.cancel.load(); },
+          [](OwnedInterfaceBuffers& b, bool v) { b.cancel.store(v); },
+          "the flag a backend attached with attach_cancel_flag() sees as its `cancelled`");
+
   py::class_<proto::SolverBackend, PySolverBackend>(
       m, "SolverBackend",
       "Subclass it and implement name(), published_mesh(), on_mesh(mesh), step(cmd, buffers), "
@@ -268,6 +311,50 @@ PYBIND11_MODULE(_protocol, m) {
           },
           "True when a long step should be abandoned (a stop signal, or the coupler is gone): "
           "poll it and raise to stop");
+
+  // The backend's methods called through the C++ interface, as serve() calls them: the same
+  // checks of what they return (types, at most 8 real diagnostics, no complex numbers cast
+  // to real), the same error text. demfem.testing.BackendHarness steps a backend with them.
+  m.def(
+      "call_name", [](proto::SolverBackend& b) { return b.name(); }, py::arg("backend"),
+      "backend.name() as serve() calls it (for Hello)");
+  m.def(
+      "call_published_mesh", [](proto::SolverBackend& b) { return b.published_mesh(); },
+      py::arg("backend"), "backend.published_mesh() as serve() calls it: an InterfaceMesh or None");
+  m.def(
+      "call_on_mesh",
+      [](proto::SolverBackend& b, const demfem::InterfaceMesh& mesh) { b.on_mesh(mesh); },
+      py::arg("backend"), py::arg("mesh"), "backend.on_mesh(mesh) as serve() calls it");
+  m.def(
+      "call_step",
+      [](proto::SolverBackend& b, const proto::StepCommand& cmd, proto::InterfaceBuffers& buffers) {
+        return b.step(cmd, buffers).values;
+      },
+      py::arg("backend"), py::arg("cmd"), py::arg("buffers"),
+      "backend.step(cmd, buffers) as serve() calls it; returns the 8 StepDone diagnostics "
+      "(zeros after the ones the backend returned)");
+  m.def(
+      "call_write_checkpoint",
+      [](proto::SolverBackend& b, const std::string& path, std::int64_t step) {
+        b.write_checkpoint(path, step);
+      },
+      py::arg("backend"), py::arg("path"), py::arg("step"),
+      "backend.write_checkpoint(path, step) as serve() calls it");
+  m.def(
+      "call_restore_checkpoint",
+      [](proto::SolverBackend& b, const std::string& path, std::int64_t step) {
+        b.restore_checkpoint(path, step);
+      },
+      py::arg("backend"), py::arg("path"), py::arg("step"),
+      "backend.restore_checkpoint(path, step) as serve() calls it");
+  m.def(
+      "attach_cancel_flag",
+      [](proto::SolverBackend& b, OwnedInterfaceBuffers* buffers) {
+        b.set_cancel_flag(buffers != nullptr ? &buffers->cancel : nullptr);
+      },
+      py::arg("backend"), py::arg("buffers").none(true), py::keep_alive<1, 2>(),
+      "backend.cancelled follows buffers.cancel_requested from now on (None: detaches); the "
+      "backend keeps the buffers alive");
 
   m.def(
       "serve",

@@ -5,7 +5,8 @@ the pages say.
 usage: check_manual.py SOURCE_DIR BUILD_DIR [--skip-site]
 
 1. Builds the site (mkdocs.yml) with `mkdocs build --strict` into a scratch folder: a warning,
-   a page missing from the docs, a broken internal link or anchor (docs/_site/hooks.py) fails.
+   a page missing from the docs, a broken internal link or anchor (docs/_site/hooks.py) fails;
+   the API pages are there (the Python SDK's from BUILD_DIR/python, the C++ SDK's by Doxygen).
 2. Runs the ```sh blocks of the pages in PAGES (Getting started and the tutorials; tutorial 3's run is
    only checked, `--check`) in
    order, in a scratch folder that looks like the top of the source tree (its files linked,
@@ -56,11 +57,12 @@ def norm(line):
     return " ".join(line.split())
 
 
-def build_site(source, scratch):
+def build_site(source, build, scratch):
     site = os.path.join(scratch, "site")
+    # DEMFEM_BUILD_DIR: the Python SDK whose docstrings make docs/api/python.md
     r = subprocess.run(["/usr/bin/python3", "-m", "mkdocs", "build", "--strict",
                         "-f", os.path.join(source, "mkdocs.yml"), "-d", site],
-                       capture_output=True, text=True)
+                       capture_output=True, text=True, env=dict(os.environ, DEMFEM_BUILD_DIR=build))
     print(r.stdout + r.stderr, flush=True)
     if r.returncode != 0:
         fail(f"mkdocs build --strict failed (status {r.returncode})")
@@ -68,6 +70,15 @@ def build_site(source, scratch):
         fail("the site has no tutorials/first_run.html")
     elif "checked" not in r.stderr + r.stdout:
         fail("the link check of docs/_site/hooks.py did not run")
+    else:  # the API pages: the Python SDK's from its docstrings, the C++ SDK's by Doxygen
+        with open(os.path.join(site, "api", "python.html"), encoding="utf-8") as f:
+            python_api = f.read()
+        for name in ("demfem.testing.BackendHarness", "demfem.serve", "demfem.SolverBackend"):
+            if name not in python_api:
+                fail(f"api/python.html does not document {name}")
+        cpp = os.path.join(site, "api", "cpp", "classdemfem_1_1protocol_1_1SolverBackend.html")
+        if not os.path.isfile(cpp):
+            fail(f"Doxygen wrote no {cpp}")
 
 
 def run_pages(source, build, work):
@@ -153,7 +164,7 @@ def main():
     scratch = tempfile.mkdtemp(prefix="demfem_docs_")
     try:
         if "--skip-site" not in sys.argv:
-            build_site(source, scratch)
+            build_site(source, build, scratch)
         work = os.path.join(scratch, "tree")
         os.mkdir(work)
         run_pages(source, build, work)

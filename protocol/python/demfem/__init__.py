@@ -30,6 +30,10 @@ The launcher starts the backend as  fem.command (or dem.command) + --scene FILE 
 --output-dir DIR [--resume]  in the scene's folder, every path absolute (the checkpoint paths
 of write_checkpoint() and restore_checkpoint() too): parse_args() reads these, load_scene()
 reads the scene with the --set overrides, serve() runs the backend. docs/protocol.md.
+
+demfem.testing.BackendHarness steps a backend in-process, without a coupled run, for its unit
+tests. Install the package into any Python 3.11+ with `python3 -m pip install protocol/python`
+(docs/backends.md).
 """
 
 import argparse
