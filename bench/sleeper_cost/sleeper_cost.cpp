@@ -146,8 +146,8 @@ double median(std::vector<double> v) {
 
 int main(int argc, char** argv) {
   demfem::dem::ensure_omp_wait_policy(argv);  // first: it may re-execute the program
-  CLI::App app{"Sleeper cost: rock-steps per second of a settled bed of the thesis's ballast at "
-               "the load case's DEM steps, and the full load case's DEM wall time"};
+  CLI::App app{"Sleeper cost: rock-steps/s of a settled ballast bed per DEM step, frozen or not, "
+               "and the full load case's DEM wall time"};
   std::size_t rocks = 1000;
   int triangles = 30, threads = 2, repeat = 3;
   std::int64_t steps = 200;

@@ -169,6 +169,52 @@ class OwnedInterfaceBuffers : public proto::InterfaceBuffers {
   std::vector<double> arrays_;
 };
 
+// The backend's methods called through the C++ interface, as serve() calls them: the same
+// checks of what they return (types, at most 8 real diagnostics, no complex numbers cast
+// to real), the same error text. demfem.testing.BackendHarness steps a backend with them.
+void def_backend_calls(py::module_& m) {
+  m.def(
+      "call_name", [](proto::SolverBackend& b) { return b.name(); }, py::arg("backend"),
+      "backend.name() as serve() calls it (for Hello)");
+  m.def(
+      "call_published_mesh", [](proto::SolverBackend& b) { return b.published_mesh(); },
+      py::arg("backend"), "backend.published_mesh() as serve() calls it: an InterfaceMesh or None");
+  m.def(
+      "call_on_mesh",
+      [](proto::SolverBackend& b, const demfem::InterfaceMesh& mesh) { b.on_mesh(mesh); },
+      py::arg("backend"), py::arg("mesh"), "backend.on_mesh(mesh) as serve() calls it");
+  m.def(
+      "call_step",
+      [](proto::SolverBackend& b, const proto::StepCommand& cmd, proto::InterfaceBuffers& buffers) {
+        return b.step(cmd, buffers).values;
+      },
+      py::arg("backend"), py::arg("cmd"), py::arg("buffers"),
+      "backend.step(cmd, buffers) as serve() calls it; returns the 8 StepDone diagnostics "
+      "(zeros after the ones the backend returned)");
+  m.def(
+      "call_write_checkpoint",
+      [](proto::SolverBackend& b, const std::string& path, std::int64_t step) {
+        b.write_checkpoint(path, step);
+      },
+      py::arg("backend"), py::arg("path"), py::arg("step"),
+      "backend.write_checkpoint(path, step) as serve() calls it");
+  m.def(
+      "call_restore_checkpoint",
+      [](proto::SolverBackend& b, const std::string& path, std::int64_t step) {
+        b.restore_checkpoint(path, step);
+      },
+      py::arg("backend"), py::arg("path"), py::arg("step"),
+      "backend.restore_checkpoint(path, step) as serve() calls it");
+  m.def(
+      "attach_cancel_flag",
+      [](proto::SolverBackend& b, OwnedInterfaceBuffers* buffers) {
+        b.set_cancel_flag(buffers != nullptr ? &buffers->cancel : nullptr);
+      },
+      py::arg("backend"), py::arg("buffers").none(true), py::keep_alive<1, 2>(),
+      "backend.cancelled follows buffers.cancel_requested from now on (None: detaches); the "
+      "backend keeps the buffers alive");
+}
+
 }  // namespace
 
 PYBIND11_MODULE(_protocol, m) {
@@ -312,49 +358,7 @@ PYBIND11_MODULE(_protocol, m) {
           "True when a long step should be abandoned (a stop signal, or the coupler is gone): "
           "poll it and raise to stop");
 
-  // The backend's methods called through the C++ interface, as serve() calls them: the same
-  // checks of what they return (types, at most 8 real diagnostics, no complex numbers cast
-  // to real), the same error text. demfem.testing.BackendHarness steps a backend with them.
-  m.def(
-      "call_name", [](proto::SolverBackend& b) { return b.name(); }, py::arg("backend"),
-      "backend.name() as serve() calls it (for Hello)");
-  m.def(
-      "call_published_mesh", [](proto::SolverBackend& b) { return b.published_mesh(); },
-      py::arg("backend"), "backend.published_mesh() as serve() calls it: an InterfaceMesh or None");
-  m.def(
-      "call_on_mesh",
-      [](proto::SolverBackend& b, const demfem::InterfaceMesh& mesh) { b.on_mesh(mesh); },
-      py::arg("backend"), py::arg("mesh"), "backend.on_mesh(mesh) as serve() calls it");
-  m.def(
-      "call_step",
-      [](proto::SolverBackend& b, const proto::StepCommand& cmd, proto::InterfaceBuffers& buffers) {
-        return b.step(cmd, buffers).values;
-      },
-      py::arg("backend"), py::arg("cmd"), py::arg("buffers"),
-      "backend.step(cmd, buffers) as serve() calls it; returns the 8 StepDone diagnostics "
-      "(zeros after the ones the backend returned)");
-  m.def(
-      "call_write_checkpoint",
-      [](proto::SolverBackend& b, const std::string& path, std::int64_t step) {
-        b.write_checkpoint(path, step);
-      },
-      py::arg("backend"), py::arg("path"), py::arg("step"),
-      "backend.write_checkpoint(path, step) as serve() calls it");
-  m.def(
-      "call_restore_checkpoint",
-      [](proto::SolverBackend& b, const std::string& path, std::int64_t step) {
-        b.restore_checkpoint(path, step);
-      },
-      py::arg("backend"), py::arg("path"), py::arg("step"),
-      "backend.restore_checkpoint(path, step) as serve() calls it");
-  m.def(
-      "attach_cancel_flag",
-      [](proto::SolverBackend& b, OwnedInterfaceBuffers* buffers) {
-        b.set_cancel_flag(buffers != nullptr ? &buffers->cancel : nullptr);
-      },
-      py::arg("backend"), py::arg("buffers").none(true), py::keep_alive<1, 2>(),
-      "backend.cancelled follows buffers.cancel_requested from now on (None: detaches); the "
-      "backend keeps the buffers alive");
+  def_backend_calls(m);
 
   m.def(
       "serve",
