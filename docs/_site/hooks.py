@@ -12,7 +12,7 @@
 * A user page (every page outside reports/) holds no commit hash, no load average and no
   date: those belong to the measurement history in reports/, the user page keeps the result
   and the command that reproduces it. Each one found is a warning naming the page and line.
-  Allowed for now (DATED_TEXT_ALLOWED): the sleeper section of cases.md.
+  Allowed (DATED_TEXT_ALLOWED): none today.
 * The API pages (api_pages.py): `<!-- python-api: MODULE -->` lines become the Python SDK's
   reference from its docstrings; Doxygen writes the C++ SDK's into the site's api/cpp/
   before the links are checked. Either failing is a warning.
@@ -48,7 +48,6 @@ _DATED = [
 # Pages or parts of pages whose dated text is still to move to reports/: a page's whole text
 # (None) or the sections (H2 headings) named, or the exact texts named.
 DATED_TEXT_ALLOWED = {
-    "cases.md": {"sections": ["## Timber sleeper on ballast (thesis ch. 6)"]},
 }
 
 
