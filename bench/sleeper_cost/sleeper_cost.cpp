@@ -32,6 +32,7 @@
 #include <memory>
 
 #include "ballast_bed.hpp"
+#include "freeze_lowest.hpp"
 #include "bench_report.hpp"
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/dem/omp_wait.hpp"
@@ -40,6 +41,7 @@
 
 using namespace demfem::dem;
 using demfem::bench::Bed;
+using demfem::bench::freeze_lowest;
 using demfem::bench::make_bed;
 
 namespace {
@@ -113,17 +115,7 @@ Measured measure(const Bed& bed, const shapes::ShapeLibrary& lib,
     demfem::io::H5File f(state, demfem::io::H5File::Mode::read);
     sys.restore(f, "/bed");
   }
-  if (frozen > 0.0) {
-    std::vector<double> z = sys.particles().pz;
-    std::vector<double> sorted = z;
-    const auto k = static_cast<std::size_t>(frozen * static_cast<double>(z.size()));
-    std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(k),
-                     sorted.end());
-    const double cut = k < sorted.size() ? sorted[k] : 1e300;
-    std::vector<std::uint8_t> mask(z.size());
-    for (std::size_t i = 0; i < z.size(); ++i) mask[i] = z[i] < cut ? 1 : 0;
-    sys.freeze(mask);
-  }
+  freeze_lowest(sys, frozen);
   sys.advance(10);
   const auto t0 = std::chrono::steady_clock::now();
   sys.advance(steps);
