@@ -53,7 +53,12 @@ void DemSystem::Impl::rebuild() {
     }
   if (np == 0)
     for (int d = 0; d < 3; ++d) lo[d] = hi[d] = 0.0;
+  // a periodic direction's grid spans its period, in cells of at least h (its positions lie
+  // in [lo, lo + L): wrap_positions; a frozen particle outside is clamped into the edge cell)
+  for (int d = 0; d < 3; ++d)
+    if (pbox.period[d] > 0.0) lo[d] = pbox.lo[d], hi[d] = pbox.lo[d] + pbox.period[d];
   double h = std::max(2.0 * rmax + skin, 1e-12);
+  double hc[3];  // cell size per direction: h, or L / dim in a periodic direction
   // At most 4 np + 4096 cells: a sparse cloud (a particle far from the rest) gets coarser
   // cells instead of a grid over its whole extent. The count is formed in double: in integers
   // the product of three axes of 10^6 or more cells (a particle 450 m from a bed of 0.2 mm
@@ -65,7 +70,9 @@ void DemSystem::Impl::rebuild() {
       // an infinite extent (a particle gone to inf, which the blow-up guard reports after
       // the advance) counts as none: its cell coordinate is clamped into the grid
       const double ext = std::isfinite(hi[d] - lo[d]) ? hi[d] - lo[d] : 0.0;
-      const double cells = std::floor(ext / h) + 1.0;
+      const double L = pbox.period[d];
+      const double cells = L > 0.0 ? std::max(1.0, std::floor(L / h)) : std::floor(ext / h) + 1.0;
+      hc[d] = L > 0.0 ? L / cells : h;
       dim[d] = cells <= 4.0 * static_cast<double>(np) + 4096.0 ? static_cast<std::int64_t>(cells)
                                                                : std::int64_t{1} << 62;
       tot *= cells;
@@ -74,11 +81,11 @@ void DemSystem::Impl::rebuild() {
     h *= 1.26;  // a sparse cloud: coarser cells keep the grid small
   }
   const std::int64_t ncell = dim[0] * dim[1] * dim[2];
-  const double inv_h = 1.0 / h;
+  const double inv_h[3] = {1.0 / hc[0], 1.0 / hc[1], 1.0 / hc[2]};
   std::vector<std::int32_t> cell(np);
   auto cell_coord = [&](double x, int d) {
     // floor, not truncation: the same cell after the clamp (below 0 both give 0)
-    return std::clamp<std::int64_t>(phys::saturated_cell((x - lo[d]) * inv_h), 0, dim[d] - 1);
+    return std::clamp<std::int64_t>(phys::saturated_cell((x - lo[d]) * inv_h[d]), 0, dim[d] - 1);
   };
   for (std::size_t i = 0; i < np; ++i)
     cell[i] = static_cast<std::int32_t>((cell_coord(P[2][i], 2) * dim[1] + cell_coord(P[1][i], 1)) *
@@ -120,6 +127,41 @@ void DemSystem::Impl::rebuild() {
         }
       }
   };
+  // Periodic: the neighbour cells wrap in the periodic directions (each cell once where the
+  // period holds fewer than three), and each candidate is taken at its image nearest to i.
+  auto scan_periodic = [&](std::size_t i, auto&& emit) {
+    const double xi = P[0][i], yi = P[1][i], zi = P[2][i], ri = R[i];
+    std::int64_t near[3][3];
+    int count[3];
+    for (int d = 0; d < 3; ++d) {
+      const std::int64_t c = cell_coord(P[d][i], d);
+      count[d] = 0;
+      for (std::int64_t o = -1; o <= 1; ++o) {
+        std::int64_t q = c + o;
+        if (pbox.period[d] > 0.0)
+          q = (q + dim[d]) % dim[d];
+        else if (q < 0 || q >= dim[d])
+          continue;
+        bool seen = false;
+        for (int e = 0; e < count[d]; ++e) seen = seen || near[d][e] == q;
+        if (!seen) near[d][count[d]++] = q;
+      }
+    }
+    for (int a = 0; a < count[2]; ++a)
+      for (int b = 0; b < count[1]; ++b)
+        for (int e = 0; e < count[0]; ++e) {
+          const std::int64_t c = (near[2][a] * dim[1] + near[1][b]) * dim[0] + near[0][e];
+          for (std::int64_t k = cstart[c]; k < cstart[c + 1]; ++k) {
+            const std::size_t j = static_cast<std::size_t>(sorted[k]);
+            if (j <= i) continue;
+            const double dx = phys::image_branch(pbox, 0, xi, sx[k]);
+            const double dy = phys::image_branch(pbox, 1, yi, sy[k]);
+            const double dz = phys::image_branch(pbox, 2, zi, sz[k]);
+            const double cut = ri + sr[k] + skin;
+            if (dx * dx + dy * dy + dz * dz < cut * cut) emit(static_cast<std::int32_t>(j));
+          }
+        }
+  };
   // One scan: the particles in nt() contiguous chunks, each chunk's sorted rows appended to
   // its own buffer, then the buffers copied into place (the rows of a scan per particle,
   // for any thread count).
@@ -133,7 +175,10 @@ void DemSystem::Impl::rebuild() {
     buf.reserve(static_cast<std::size_t>(8 * (b1 - b0)));
     for (std::int64_t i = b0; i < b1; ++i) {
       const std::size_t start = buf.size();
-      scan(static_cast<std::size_t>(i), [&](std::int32_t j) { buf.push_back(j); });
+      if (periodic)
+        scan_periodic(static_cast<std::size_t>(i), [&](std::int32_t j) { buf.push_back(j); });
+      else
+        scan(static_cast<std::size_t>(i), [&](std::int32_t j) { buf.push_back(j); });
       std::sort(buf.begin() + static_cast<std::ptrdiff_t>(start), buf.end());
       nrow[i + 1] = static_cast<std::int64_t>(buf.size() - start);
     }
@@ -151,6 +196,26 @@ void DemSystem::Impl::rebuild() {
   out_pair = 0.0;
   adapt_inner_skin(true);
   // triangles: binned into the particle cells their AABB (grown by rmax + skin) touches
+  const WallGrid grid{{lo[0], lo[1], lo[2]},
+                      {hc[0], hc[1], hc[2]},
+                      {inv_h[0], inv_h[1], inv_h[2]},
+                      {dim[0], dim[1], dim[2]}};
+  bin_wall_triangles(grid, cell);
+  vbuild = vpos;
+  need_rebuild = false;
+  refilter();
+}
+
+void DemSystem::Impl::bin_wall_triangles(const WallGrid& g, const std::vector<std::int32_t>& cell) {
+  const std::size_t np = n();
+  const std::int64_t sn = static_cast<std::int64_t>(np);
+  const double* P[3] = {st.px.data(), st.py.data(), st.pz.data()};
+  const double* R = st.radius.data();
+  const double* lo = g.lo;
+  const std::int64_t* dim = g.dim;
+  const double* hc = g.size;
+  const std::int64_t ncell = dim[0] * dim[1] * dim[2];
+  auto cell_coord = [&](double x, int d) { return g.coord(x, d); };
   prow.assign(np + 1, 0);
   ptri.clear();
   const std::size_t ntri = tri_v.size() / 3;
@@ -168,7 +233,7 @@ void DemSystem::Impl::rebuild() {
         }
       bool out = false;
       for (int d = 0; d < 3; ++d) {
-        if (th[d] < lo[d] || tl[d] > lo[d] + dim[d] * h) out = true;
+        if (th[d] < lo[d] || tl[d] > lo[d] + dim[d] * hc[d]) out = true;
         box[k][d] = cell_coord(tl[d], d);
         box[k][3 + d] = cell_coord(th[d], d);
       }
@@ -221,9 +286,6 @@ void DemSystem::Impl::rebuild() {
         if (near(static_cast<std::size_t>(i), tbin[k])) ptri[o++] = tbin[k];
     }
   }
-  vbuild = vpos;
-  need_rebuild = false;
-  refilter();
 }
 
 void DemSystem::Impl::refilter() {
@@ -234,7 +296,12 @@ void DemSystem::Impl::refilter() {
   const double* R = st.radius.data();
   std::vector<std::int64_t> nrow(np + 1, 0);
   auto keep = [&](std::int64_t i, std::int32_t j) {
-    const double dx = P[0][j] - P[0][i], dy = P[1][j] - P[1][i], dz = P[2][j] - P[2][i];
+    double dx = P[0][j] - P[0][i], dy = P[1][j] - P[1][i], dz = P[2][j] - P[2][i];
+    if (periodic) {  // j at its image nearest to i
+      dx += phys::image_shift(pbox, 0, dx);
+      dy += phys::image_shift(pbox, 1, dy);
+      dz += phys::image_shift(pbox, 2, dz);
+    }
     const double cut = R[i] + R[j] + skin_in;
     return dx * dx + dy * dy + dz * dz < cut * cut;
   };
