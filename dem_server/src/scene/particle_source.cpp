@@ -16,7 +16,6 @@
 #include "demfem/dem/physics/geometry.hpp"
 #include "demfem/dem/physics/grid_cell.hpp"
 #include "demfem/dem/placement/state_check.hpp"
-#include "demfem/dem/placement/wall_clearance.hpp"
 #include "demfem/dem/scene/dem_scene.hpp"
 #include "demfem/io/file_hash.hpp"
 #include "demfem/io/h5_file.hpp"
@@ -854,16 +853,15 @@ std::size_t load_particles(const ParticleSource& s, DemSystem& system,
       for (std::size_t k = 0; k + 2 < w.vertices.size(); k += 3)
         for (int d = 0; d < 3; ++d)
           lo[d] = std::min(lo[d], w.vertices[k + d]), hi[d] = std::max(hi[d], w.vertices[k + d]);
-    std::vector<WallClearance::Wall> shapes;
-    if (s.outside == ParticleSource::Outside::crop)
-      for (const auto& w : walls) shapes.push_back({w.name, w.vertices, w.triangles});
-    const WallClearance clearance(shapes);
     for (std::size_t i = 0; i < n; ++i) {
       const double x[3] = {p.px[i], p.py[i], p.pz[i]};
       bool in = true;
       for (int d = 0; d < 3; ++d) in = in && x[d] >= lo[d] && x[d] <= hi[d];
-      if (in && s.outside == ParticleSource::Outside::crop)
-        in = !(clearance.overlap({x[0], x[1], x[2]}, p.radius[i]) > s.max_overlap * p.radius[i]);
+      // crop: in a tiled direction the whole bounding sphere (the cut goes through the bed;
+      // the floor, in a direction not tiled, carries the bed as it did the block)
+      for (int d = 0; d < 3 && s.outside == ParticleSource::Outside::crop; ++d)
+        if (s.tile[d] > 1)
+          in = in && x[d] - p.radius[i] >= lo[d] && x[d] + p.radius[i] <= hi[d];
       if (in) continue;
       ++outside;
       keep[i] = 0;
@@ -901,7 +899,7 @@ std::size_t load_particles(const ParticleSource& s, DemSystem& system,
     if (outside > 0)
       *log << "; " << outside << " outside the walls' bounding box "
            << (s.outside == ParticleSource::Outside::keep ? "kept" : "removed")
-           << (s.outside == ParticleSource::Outside::crop ? " (or reaching into a wall)" : "");
+           << (s.outside == ParticleSource::Outside::crop ? " (or crossing its faces)" : "");
     if (ov.unchecked < system.particle_count())
       *log << "; largest overlap " << ov.depth << " m (" << ov.fraction
            << " of the smaller radius) among " << ov.touching << " touching pairs"

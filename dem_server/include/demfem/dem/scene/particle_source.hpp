@@ -30,8 +30,9 @@ inline constexpr const char* kStateFileName = "dem_state.h5";
 struct ParticleSource {
   enum class Format : std::uint8_t { snapshot, state, csv };
   /// Centres outside the walls' bounding box: an error, removed, kept; crop: removed, and
-  /// so are particles whose bounding sphere overlaps a wall by more than max_overlap of its
-  /// radius (a tiled bed cut to its box, docs/dem.md "Periodic boundaries and tiled beds").
+  /// so are particles whose bounding sphere crosses a face of that box in a direction that
+  /// `tile` replicates (a tiled bed cut to its box, docs/dem.md "Periodic boundaries and tiled
+  /// beds").
   enum class Outside : std::uint8_t { error, remove, keep, crop };
   std::filesystem::path file;           ///< resolved path
   std::filesystem::path prepare_scene;  ///< `scene` key: the run that makes `file`; empty if none
