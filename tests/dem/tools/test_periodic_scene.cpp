@@ -220,7 +220,7 @@ TEST_CASE("A settled periodic bed has no seam", "[dem][periodic][bed]") {
   CHECK(z_lo > 3.0);  // a bed, not a gas
 }
 
-TEST_CASE("[dem.load] tile: a periodic block tiled, cropped to a box, run with unwrapped output",
+TEST_CASE("[dem.load] tile: a periodic block tiled and cropped to a box",
           "[scene][periodic][tile]") {
   const demfem::test::TempDir tmp("dem_periodic_tile_scene");
   // the block: the scene's insertion, a few steps, saved as a state
