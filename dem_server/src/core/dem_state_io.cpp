@@ -330,6 +330,31 @@ void DemSystem::save(io::H5File& f, const std::string& group) const {
   I.bodies.save(f, g);
   if (I.force_limited) f.write(g + "wall_drift", std::span<const double>(pack_drift(I)));
   if (!I.frozen.empty()) f.write(g + "frozen", std::span<const std::uint8_t>(I.frozen));
+  if (I.periodic) {
+    f.write(g + "image", std::span<const std::int64_t>(to64(I.image)));
+    const PeriodicRange& r = I.s.periodic;
+    const std::vector<double> range{double(r.on[0]), double(r.on[1]), double(r.on[2]),
+                                    r.lo[0],         r.lo[1],         r.lo[2],
+                                    r.hi[0],         r.hi[1],         r.hi[2]};
+    f.write(g + "periodic", std::span<const double>(range));
+  }
+}
+
+PeriodicRange read_state_periodic(const io::H5File& f, const std::string& group) {
+  PeriodicRange r;
+  const std::string name = group + "/periodic";
+  if (!f.exists(name)) return r;
+  const auto v = f.read_doubles(name);
+  if (v.size() != 9)
+    bad("read_state_periodic: " + f.path().string() + ":/" + name + " has " +
+        std::to_string(v.size()) + " values, not 9 (on, lo, hi per direction)");
+  for (int d = 0; d < 3; ++d) {
+    r.on[d] = v[d] != 0.0;
+    r.lo[d] = v[3 + d], r.hi[d] = v[6 + d];
+    if (r.on[d] && !(r.hi[d] > r.lo[d]))
+      bad("read_state_periodic: " + f.path().string() + ":/" + name + " has an empty range");
+  }
+  return r;
 }
 
 namespace {
@@ -364,6 +389,7 @@ void DemSystem::save_state(DemStateCopy& c) const {
   c.bodies = I.bodies.pack();
   c.drift = pack_drift(I);
   c.frozen = I.frozen;
+  c.image = I.image;
 }
 
 void DemSystem::restore_state(const DemStateCopy& c) {
@@ -394,6 +420,7 @@ void DemSystem::restore_state(const DemStateCopy& c) {
         "rigid bodies");
   unpack_drift(I, c.drift);
   I.frozen = c.frozen;
+  I.image = c.image;
   I.refresh_frozen();
   // As restore(): the list is rebuilt from the restored positions and springs.
   I.bx.clear(), I.by.clear(), I.bz.clear();
@@ -459,6 +486,16 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
     bad("restore: frozen in '" + group + "' of " + f.path().string() + " has " +
         std::to_string(I.frozen.size()) + " entries, not one per particle (" + std::to_string(n) +
         ")");
+  // periodic: the image counters as saved (a state saved without periods starts at zero)
+  I.image.clear();
+  if (I.periodic) {
+    if (f.exists(g + "image")) I.image = from64<std::int32_t>(f.read_int64(g + "image"));
+    if (I.image.empty()) I.image.assign(3 * n, 0);
+    if (I.image.size() != 3 * n)
+      bad("restore: image in '" + group + "' of " + f.path().string() + " has " +
+          std::to_string(I.image.size()) + " entries, not 3 per particle (" + std::to_string(n) +
+          ")");
+  }
   if (I.gpu && std::find(I.frozen.begin(), I.frozen.end(), std::uint8_t{1}) != I.frozen.end())
     bad("restore: '" + group + "' of " + f.path().string() +
         " holds frozen particles, which the CPU backend only holds (dem.backend = \"cpu\")");

@@ -53,9 +53,10 @@ struct PairKernelArgs {
   double* pt;     // 3 per pair (Friction)
   double* pr;     // 3 per pair (Rolling)
   double* rhist;  // 3 per pair (Rolling): rolling-torque history
+  const phys::PeriodicBox* box;  // Periodic: the periods (j at its image nearest to i)
 };
 
-template <bool Friction, bool Rolling, bool Uniform>
+template <bool Friction, bool Rolling, bool Uniform, bool Periodic = false>
 [[gnu::always_inline]] inline OverlapMax pair_loop(const PairKernelArgs& a, std::int64_t begin,
                                                    std::int64_t end) {
   double mo = 0.0, mr = 0.0;
@@ -68,6 +69,7 @@ template <bool Friction, bool Rolling, bool Uniform>
   double* pr = a.pr;
   double* rhist = a.rhist;
   const double dt = a.dt;
+  const phys::PeriodicBox* box = a.box;
 #pragma omp simd reduction(max : mo, mr)
   for (std::int64_t p = begin; p < end; ++p) {
     const std::int32_t i = pi[p], j = pj[p];
@@ -79,7 +81,8 @@ template <bool Friction, bool Rolling, bool Uniform>
     if constexpr (Rolling) rh = Vec3{rhist[3 * p], rhist[3 * p + 1], rhist[3 * p + 2]};
     phys::ContactResult r;
     double delta;
-    phys::sphere_sphere_select<Friction, Rolling>(view, i, j, c, dt, sh, rh, r, delta);
+    phys::sphere_sphere_select<Friction, Rolling, Periodic>(view, i, j, c, dt, sh, rh, r, delta,
+                                                            box);
     mo = mo > delta ? mo : delta;
     const double rel = phys::relative_overlap(delta, view.radius[i], view.radius[j]);
     mr = mr > rel ? mr : rel;
@@ -96,24 +99,32 @@ template <bool Friction, bool Rolling, bool Uniform>
   return OverlapMax{mo, mr};
 }
 
-#define DEMFEM_PAIR_KERNEL(F, R, U)                                                   \
-  DEMFEM_CLONES OverlapMax pair_kernel_##F##R##U(const PairKernelArgs& a, std::int64_t b, \
-                                                 std::int64_t e) {                        \
-    return pair_loop<F != 0, R != 0, U != 0>(a, b, e);                                \
+#define DEMFEM_PAIR_KERNEL(F, R, U, P)                                                   \
+  DEMFEM_CLONES OverlapMax pair_kernel_##F##R##U##P(const PairKernelArgs& a, std::int64_t b, \
+                                                    std::int64_t e) {                        \
+    return pair_loop<F != 0, R != 0, U != 0, P != 0>(a, b, e);                               \
   }
-DEMFEM_PAIR_KERNEL(0, 0, 0)
-DEMFEM_PAIR_KERNEL(0, 0, 1)
-DEMFEM_PAIR_KERNEL(1, 0, 0)
-DEMFEM_PAIR_KERNEL(1, 0, 1)
-DEMFEM_PAIR_KERNEL(1, 1, 0)
-DEMFEM_PAIR_KERNEL(1, 1, 1)
+DEMFEM_PAIR_KERNEL(0, 0, 0, 0)
+DEMFEM_PAIR_KERNEL(0, 0, 1, 0)
+DEMFEM_PAIR_KERNEL(1, 0, 0, 0)
+DEMFEM_PAIR_KERNEL(1, 0, 1, 0)
+DEMFEM_PAIR_KERNEL(1, 1, 0, 0)
+DEMFEM_PAIR_KERNEL(1, 1, 1, 0)
+// periodic systems (one material table lookup per pair: no uniform variant)
+DEMFEM_PAIR_KERNEL(0, 0, 0, 1)
+DEMFEM_PAIR_KERNEL(1, 0, 0, 1)
+DEMFEM_PAIR_KERNEL(1, 1, 0, 1)
 #undef DEMFEM_PAIR_KERNEL
 
 using PairKernel = OverlapMax (*)(const PairKernelArgs&, std::int64_t, std::int64_t);
-PairKernel pick_pair_kernel(bool friction, bool rolling, bool uniform) {
-  if (!friction) return uniform ? pair_kernel_001 : pair_kernel_000;
-  if (!rolling) return uniform ? pair_kernel_101 : pair_kernel_100;
-  return uniform ? pair_kernel_111 : pair_kernel_110;
+PairKernel pick_pair_kernel(bool friction, bool rolling, bool uniform, bool periodic) {
+  if (periodic) {
+    if (!friction) return pair_kernel_0001;
+    return rolling ? pair_kernel_1101 : pair_kernel_1001;
+  }
+  if (!friction) return uniform ? pair_kernel_0010 : pair_kernel_0000;
+  if (!rolling) return uniform ? pair_kernel_1010 : pair_kernel_1000;
+  return uniform ? pair_kernel_1110 : pair_kernel_1100;
 }
 
 }  // namespace
@@ -136,7 +147,11 @@ void DemSystem::Impl::forces_and_kick() {
   a.pt = slots.torque.data();
   a.pr = slots.rolling_torque.data();
   a.rhist = slots.rolling_history.data();
-  const PairKernel kern = pick_pair_kernel(Friction, Friction && rolling, uniform_mat >= 0);
+  a.box = periodic ? &pbox : nullptr;
+  // a periodic system's kernels look the pair constants up per pair (a.pc the whole table)
+  if (periodic) a.pc = pc.data();
+  const PairKernel kern =
+      pick_pair_kernel(Friction, Friction && rolling, uniform_mat >= 0, periodic);
   detail::PolyParticles pp{};
   detail::PolyPairs pa{};
   if constexpr (Poly) {
@@ -171,6 +186,7 @@ void DemSystem::Impl::forces_and_kick() {
                            proofs.separation_left.data(),
                            proofs.core_motion.data()};
     if (!frozen_idx.empty()) pa.frozen = frozen.data();
+    if (periodic) pa.box = &pbox;
   }
 
   const double g[3] = {s.gravity[0], s.gravity[1], s.gravity[2]};
@@ -409,6 +425,7 @@ void DemSystem::Impl::step(bool last, ForceMode mode, std::int64_t substeps) {
   const double t0 = omp_get_wtime();
   const double disp = kick_drift<Friction>();
   if (!frozen_idx.empty()) hold_frozen();
+  if (periodic && wrap_positions() && !tri_v.empty()) need_rebuild = true;
   if (!bodies.empty()) bodies.kick_drift(s.dt);
   t += s.dt;
   flex_tau += s.dt;

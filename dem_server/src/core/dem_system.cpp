@@ -64,6 +64,15 @@ void validate(const DemSettings& s) {
   if (!(s.skin >= 0.0) || !std::isfinite(s.skin))
     bad("settings.skin = " + std::to_string(s.skin) + " must be >= 0 m");
   if (s.threads < 0) bad("settings.threads = " + std::to_string(s.threads) + " must be >= 0");
+  for (int d = 0; d < 3; ++d) {
+    const auto& p = s.periodic;
+    if (p.on[d] && !(std::isfinite(p.lo[d]) && std::isfinite(p.hi[d]) && p.hi[d] > p.lo[d]))
+      bad(std::string("settings.periodic: the range in ") + "xyz"[d] +
+          " must be finite with hi > lo");
+  }
+  if (s.periodic.any() && s.backend == DemBackendKind::cuda)
+    bad("periodic boundaries are run by the CPU backend only (backend = 'cpu'); the CUDA "
+        "backend's device list has no periodic images yet");
 }
 }  // namespace
 
@@ -122,6 +131,15 @@ DemSystem::DemSystem(DemSettings settings) : impl_(std::make_unique<Impl>()) {
   impl_->s = std::move(settings);
   impl_->threads = impl_->s.threads > 0 ? impl_->s.threads : omp_get_max_threads();
   impl_->setup_pairs();
+  if (impl_->s.periodic.any()) {
+    impl_->periodic = true;
+    for (int d = 0; d < 3; ++d) {
+      if (!impl_->s.periodic.on[d]) continue;
+      impl_->pbox.period[d] = impl_->s.periodic.period(d);
+      impl_->pbox.half[d] = 0.5 * impl_->pbox.period[d];
+      impl_->pbox.lo[d] = impl_->s.periodic.lo[d];
+    }
+  }
   if (impl_->s.backend == DemBackendKind::cuda) {
     if (!cuda_available())
       throw std::runtime_error(
@@ -233,6 +251,7 @@ std::size_t DemSystem::add_particles(std::span<const ParticleInit> particles) {
       I.wb.resize(3 * kMaxWallContacts * n), I.wtri.resize(kMaxWallContacts * n);
   I.wcount.resize(n, 0);
   if (!I.frozen.empty()) I.frozen.resize(n, 0);
+  if (I.periodic) I.image.resize(3 * n, 0);
   // keep the pair rows of the old particles (new ones have none yet)
   if (!I.row.empty()) I.row.resize(n + 1, I.row.back());
   I.bx.clear();
@@ -301,6 +320,7 @@ void DemSystem::remove_particles(std::span<const std::uint8_t> keep) {
       compact(I.wb, 3 * kMaxWallContacts), compact(I.wtri, kMaxWallContacts);
   compact(I.wcount, 1);
   if (!I.frozen.empty()) compact(I.frozen, 1);
+  if (!I.image.empty()) compact(I.image, 3);
   I.refresh_frozen();
   I.bx.clear();
   I.refresh_particle_derived();
@@ -328,6 +348,7 @@ void DemSystem::advance(std::int64_t substeps, ForceMode mode) {
     std::fill(I.flex_force.begin(), I.flex_force.end(), 0.0);
     I.flex_max_ov = 0.0;
   }
+  if (I.periodic) I.check_periods();
   for (std::int64_t k = 0; k < substeps; ++k) {
     I.check_cancel(k, substeps);
     const bool last = k + 1 == substeps;

@@ -2,8 +2,9 @@
 // detection, walls and the CPU (OpenMP) backend. Private to src/core; its member functions
 // live by concern in dem_system.cpp (setup, particles), neighbour_list.cpp (grid build,
 // refilter, skin), dem_step.cpp (force pass and integration), dem_walls.cpp (wall store,
-// wall kinematics and loads), dem_gpu_bridge.cpp (the CUDA backend's host side) and
-// dem_state_io.cpp (save / restore). The physics (contact law, integrator, triangle
+// wall kinematics and loads), dem_gpu_bridge.cpp (the CUDA backend's host side),
+// dem_periodic.cpp (periodic boundaries: the wrap, tiling) and dem_state_io.cpp (save /
+// restore). The physics (contact law, integrator, triangle
 // geometry, the step integrator) comes from include/demfem/dem/physics/*.hpp, shared with
 // the CUDA backend.
 //
@@ -37,7 +38,9 @@
 #include "dem_cuda_backend.hpp"
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/dem/physics/contact.hpp"
+#include "demfem/dem/physics/grid_cell.hpp"
 #include "demfem/dem/physics/pair.hpp"
+#include "demfem/dem/physics/periodic_image.hpp"
 #include "demfem/dem/physics/wall_contact.hpp"
 #include "demfem/dem/physics/wall_motion.hpp"
 #include "pair_slots.hpp"
@@ -89,6 +92,23 @@ struct DemSystem::Impl {
   std::vector<double> frozen_hold;
   void refresh_frozen();
   void hold_frozen();
+
+  // Periodic boundaries (dem_periodic.cpp, physics/periodic_image.hpp): the periods, and per
+  // particle 3 image counters (empty when not periodic). A system without periodic
+  // directions runs none of their code (its bits and speed are those of before).
+  bool periodic = false;
+  phys::PeriodicBox pbox;
+  std::vector<std::int32_t> image;
+  // After the drift: every particle that is not frozen and has left [lo, lo + L) in a
+  // periodic direction comes back in at the other side (its list position bx with it, so
+  // that its displacement since the list update is not a period). Every step, so that the
+  // positions, and hence the bits, do not depend on when the list is rebuilt. Returns
+  // whether some particle wrapped: its candidate wall triangles, binned where it was, are
+  // then stale (walls are not wrapped), and the step rebuilds the list.
+  bool wrap_positions();
+  // Throws std::invalid_argument when a period is below the least one (least_period()).
+  void check_periods() const;
+  double least_period() const { return 2.0 * (2.0 * rmax + skin); }
 
   ParticleState st;
   std::vector<double> tx, ty, tz;  // torque of the last step
@@ -275,6 +295,10 @@ struct DemSystem::Impl {
   // ---------------------------------------------------------------------------------------
   // Neighbour list: uniform grid by counting sort, pairs within r_i + r_j + skin.
   void rebuild();
+  // The cell grid of a rebuild: its low corner, cell sizes and counts per direction.
+  // The wall triangles near each particle (prow, ptri): binned into the cells of the
+  // rebuild's grid (`cell`: each particle's) that their box grown by rmax + skin touches.
+  void bin_wall_triangles(const phys::CellGrid& grid, const std::vector<std::int32_t>& cell);
 
   // The pair list proper: the candidates of the last build closer than r_i + r_j + skin_in
   // now. Springs are carried over from the previous list (merge of sorted rows).

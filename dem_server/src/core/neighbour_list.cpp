@@ -54,7 +54,13 @@ void DemSystem::Impl::rebuild() {
     }
   if (np == 0)
     for (int d = 0; d < 3; ++d) lo[d] = hi[d] = 0.0;
-  const phys::CellGrid grid = phys::cell_grid(lo, hi, static_cast<std::int64_t>(np), rmax, skin);
+  // a periodic direction's grid spans its period, in cells of at least 2 rmax + skin (its
+  // positions lie in [lo, lo + L): wrap_positions; a frozen particle outside is clamped into
+  // the edge cell)
+  for (int d = 0; d < 3; ++d)
+    if (pbox.period[d] > 0.0) lo[d] = pbox.lo[d], hi[d] = pbox.lo[d] + pbox.period[d];
+  const phys::CellGrid grid =
+      phys::cell_grid(lo, hi, static_cast<std::int64_t>(np), rmax, skin, pbox.period);
   const std::int64_t ncell = grid.cells();
   const std::int64_t* dim = grid.dim;
   std::vector<std::int32_t> cell(np);
@@ -84,6 +90,41 @@ void DemSystem::Impl::rebuild() {
     phys::for_each_candidate(grid, order, static_cast<std::int64_t>(i), P[0][i], P[1][i], P[2][i],
                              R[i], skin, emit);
   };
+  // Periodic: the neighbour cells wrap in the periodic directions (each cell once where the
+  // period holds fewer than three), and each candidate is taken at its image nearest to i.
+  auto scan_periodic = [&](std::size_t i, auto&& emit) {
+    const double xi = P[0][i], yi = P[1][i], zi = P[2][i], ri = R[i];
+    std::int64_t near[3][3];
+    int count[3];
+    for (int d = 0; d < 3; ++d) {
+      const std::int64_t c = grid.coord(P[d][i], d);
+      count[d] = 0;
+      for (std::int64_t o = -1; o <= 1; ++o) {
+        std::int64_t q = c + o;
+        if (pbox.period[d] > 0.0)
+          q = (q + dim[d]) % dim[d];
+        else if (q < 0 || q >= dim[d])
+          continue;
+        bool seen = false;
+        for (int e = 0; e < count[d]; ++e) seen = seen || near[d][e] == q;
+        if (!seen) near[d][count[d]++] = q;
+      }
+    }
+    for (int a = 0; a < count[2]; ++a)
+      for (int b = 0; b < count[1]; ++b)
+        for (int e = 0; e < count[0]; ++e) {
+          const std::int64_t c = (near[2][a] * dim[1] + near[1][b]) * dim[0] + near[0][e];
+          for (std::int64_t k = cstart[c]; k < cstart[c + 1]; ++k) {
+            const std::size_t j = static_cast<std::size_t>(sorted[k]);
+            if (j <= i) continue;
+            const double dx = phys::image_branch(pbox, 0, xi, sx[k]);
+            const double dy = phys::image_branch(pbox, 1, yi, sy[k]);
+            const double dz = phys::image_branch(pbox, 2, zi, sz[k]);
+            const double cut = ri + sr[k] + skin;
+            if (dx * dx + dy * dy + dz * dz < cut * cut) emit(static_cast<std::int32_t>(j));
+          }
+        }
+  };
   // One scan: the particles in nt() contiguous chunks, each chunk's sorted rows appended to
   // its own buffer, then the buffers copied into place (the rows of a scan per particle,
   // for any thread count).
@@ -97,7 +138,10 @@ void DemSystem::Impl::rebuild() {
     buf.reserve(static_cast<std::size_t>(8 * (b1 - b0)));
     for (std::int64_t i = b0; i < b1; ++i) {
       const std::size_t start = buf.size();
-      scan(static_cast<std::size_t>(i), [&](std::int32_t j) { buf.push_back(j); });
+      if (periodic)
+        scan_periodic(static_cast<std::size_t>(i), [&](std::int32_t j) { buf.push_back(j); });
+      else
+        scan(static_cast<std::size_t>(i), [&](std::int32_t j) { buf.push_back(j); });
       std::sort(buf.begin() + static_cast<std::ptrdiff_t>(start), buf.end());
       nrow[i + 1] = static_cast<std::int64_t>(buf.size() - start);
     }
@@ -115,6 +159,20 @@ void DemSystem::Impl::rebuild() {
   out_pair = 0.0;
   adapt_inner_skin(true);
   // triangles: binned into the particle cells their AABB (grown by rmax + skin) touches
+  bin_wall_triangles(grid, cell);
+  vbuild = vpos;
+  need_rebuild = false;
+  refilter();
+}
+
+void DemSystem::Impl::bin_wall_triangles(const phys::CellGrid& grid,
+                                          const std::vector<std::int32_t>& cell) {
+  const std::size_t np = n();
+  const std::int64_t sn = static_cast<std::int64_t>(np);
+  const double* P[3] = {st.px.data(), st.py.data(), st.pz.data()};
+  const double* R = st.radius.data();
+  const std::int64_t* dim = grid.dim;
+  const std::int64_t ncell = grid.cells();
   prow.assign(np + 1, 0);
   ptri.clear();
   const std::size_t ntri = tri_v.size() / 3;
@@ -165,9 +223,6 @@ void DemSystem::Impl::rebuild() {
         if (near(static_cast<std::size_t>(i), tbin[k])) ptri[o++] = tbin[k];
     }
   }
-  vbuild = vpos;
-  need_rebuild = false;
-  refilter();
 }
 
 void DemSystem::Impl::refilter() {
@@ -178,7 +233,12 @@ void DemSystem::Impl::refilter() {
   const double* R = st.radius.data();
   std::vector<std::int64_t> nrow(np + 1, 0);
   auto keep = [&](std::int64_t i, std::int32_t j) {
-    const double dx = P[0][j] - P[0][i], dy = P[1][j] - P[1][i], dz = P[2][j] - P[2][i];
+    double dx = P[0][j] - P[0][i], dy = P[1][j] - P[1][i], dz = P[2][j] - P[2][i];
+    if (periodic) {  // j at its image nearest to i
+      dx += phys::image_shift(pbox, 0, dx);
+      dy += phys::image_shift(pbox, 1, dy);
+      dz += phys::image_shift(pbox, 2, dz);
+    }
     const double cut = R[i] + R[j] + skin_in;
     return dx * dx + dy * dy + dz * dz < cut * cut;
   };

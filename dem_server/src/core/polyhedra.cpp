@@ -47,7 +47,7 @@ OverlapMax pair_range(const PolyParticles& p, const PolyPairs& a, std::int64_t b
     Vec3 force, ti, tj;
     double slack = -1.0;
     const double delta = phys::mixed_pair<Friction>(p, i, j, c, a.dt, a.rolling, sh, rh, axis,
-                                                    a.pfeat + 6 * k, force, ti, tj, &slack);
+                                                    a.pfeat + 6 * k, force, ti, tj, &slack, a.box);
     a.pslack[k] = slack;
     if (delta > 0.0) {
       mo = mo > delta ? mo : delta;

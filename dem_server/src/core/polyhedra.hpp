@@ -46,6 +46,8 @@ struct PolyPairs {
   /// Per particle, or null: a pair of two frozen particles (DemSystem::freeze) is not
   /// computed (zero force and torques in its slots, its spring kept).
   const std::uint8_t* frozen = nullptr;
+  /// Periodic systems: the periods (each pair's j at its image nearest to i), else null.
+  const phys::PeriodicBox* box = nullptr;
 };
 
 /// The rotation matrices of the polyhedra (9 per particle, rotation(q); spheres untouched),

@@ -229,6 +229,30 @@ std::vector<ParticleInit> insert_random(
     grid.add(existing->px[i], existing->py[i], existing->pz[i], existing->radius[i]);
   }
 
+  // Periodic directions: a region spanning the period draws centres over all of it, and a
+  // place must be free of the particles' images one period away (images[] lists the shifts
+  // to try, 0 first; a spanning region lies within the grid's padding of both ends).
+  std::array<double, 3> lo = q.region.lo, hi = q.region.hi, inset{1.0, 1.0, 1.0};
+  std::vector<std::array<double, 3>> images{{0.0, 0.0, 0.0}};
+  for (int k = 0; k < 3; ++k) {
+    const double L = q.period[k];
+    if (!(L > 0.0)) continue;
+    if (lo[k] <= q.period_lo[k] && hi[k] >= q.period_lo[k] + L) {
+      lo[k] = q.period_lo[k], hi[k] = q.period_lo[k] + L, inset[k] = 0.0;
+    }
+    const std::size_t m = images.size();
+    for (std::size_t e = 0; e < m; ++e)
+      for (double s : {-L, L}) {
+        auto shifted = images[e];
+        shifted[k] = s;
+        images.push_back(shifted);
+      }
+  }
+  auto overlaps = [&](double x, double y, double z, double r) {
+    for (const auto& s : images)
+      if (grid.overlaps(x + s[0], y + s[1], z + s[2], r)) return true;
+    return false;
+  };
   Rng rng(q.seed);
   std::vector<ParticleInit> out;
   double placed_mass = 0.0;
@@ -248,10 +272,10 @@ std::vector<ParticleInit> insert_random(
     }
     bool ok = false;
     for (std::int64_t a = 0; a < q.max_attempts && !ok; ++a) {
-      const double x = rng.uniform(q.region.lo[0] + r, q.region.hi[0] - r);
-      const double y = rng.uniform(q.region.lo[1] + r, q.region.hi[1] - r);
-      const double z = rng.uniform(q.region.lo[2] + r, q.region.hi[2] - r);
-      if (grid.overlaps(x, y, z, r) || (blocked && blocked(x, y, z, r))) continue;
+      const double x = rng.uniform(lo[0] + inset[0] * r, hi[0] - inset[0] * r);
+      const double y = rng.uniform(lo[1] + inset[1] * r, hi[1] - inset[1] * r);
+      const double z = rng.uniform(lo[2] + inset[2] * r, hi[2] - inset[2] * r);
+      if (overlaps(x, y, z, r) || (blocked && blocked(x, y, z, r))) continue;
       grid.add(x, y, z, r);
       ParticleInit p;
       p.position = {x, y, z};

@@ -171,6 +171,7 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
   if (scene_.freeze) next_freeze_ = scene_.freeze->time;
   pour();  // every insertion once at t = 0
   setup_particles_ = system_->particle_count();
+  check_periods();
   if (system_->particle_count() > 0) {
     const double tr = system_->rayleigh_time_step();
     const double dt = scene_.settings.dt;
@@ -316,6 +317,10 @@ void DemRun::pour() {
           }
         }
       }
+      for (int d = 0; d < 3; ++d) {  // the seam: images of the particles on the other side
+        q.period[d] = scene_.settings.periodic.period(d);
+        q.period_lo[d] = scene_.settings.periodic.lo[d];
+      }
       auto blocked = [&walls](double x, double y, double z, double r) {
         return walls.overlap({x, y, z}, r) > 1e-9 * r;
       };
@@ -398,9 +403,35 @@ double DemRun::output_clock() const {
   return static_cast<double>(system_->step_count()) * scene_.settings.dt;
 }
 
+void DemRun::check_periods() const {
+  const PeriodicRange& r = scene_.settings.periodic;
+  const double least = system_->least_period();
+  for (int d = 0; d < 3; ++d) {
+    if (!r.on[d] || r.period(d) >= least) continue;
+    std::ostringstream m;
+    m << scene_.periodic_where[d] << ": the period " << r.period(d)
+      << " m is shorter than twice the neighbour list's cutoff, 2 (2 r_max + skin) = " << least
+      << " m, for the particles of this scene (a pair would meet two images of the other); "
+      << "use a range of at least " << least << " m";
+    throw SceneError(m.str());
+  }
+}
+
 void DemRun::write_snapshot(double label) {
   if (!output_) return;
-  output_->write(system_->particles(), ids_, label, system_->time());
+  const std::span<const std::int32_t> image = system_->images();
+  if (scene_.output_unwrapped && !image.empty()) {
+    // periodic: x + n L, the path each particle took (docs/scene_dem.md, [dem.output])
+    ParticleState p = system_->particles();
+    std::vector<double>* x[3] = {&p.px, &p.py, &p.pz};
+    for (int d = 0; d < 3; ++d) {
+      const double L = scene_.settings.periodic.period(d);
+      for (std::size_t i = 0; L > 0.0 && i < p.size(); ++i) (*x[d])[i] += image[3 * i + d] * L;
+    }
+    output_->write(p, ids_, label, system_->time());
+  } else {
+    output_->write(system_->particles(), ids_, label, system_->time());
+  }
   if (wall_output_) {
     std::vector<std::vector<double>> now(wall_shapes_.size());
     std::vector<WallOutput::Pose> poses(wall_shapes_.size());

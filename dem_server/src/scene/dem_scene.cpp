@@ -149,6 +149,7 @@ void read_output(const Table& dem, DemScene& s) {
     s.output_particles = o->boolean("particles", true);
     s.output_walls = o->boolean("walls", true);
     s.output_state = o->boolean("state", false);
+    s.output_unwrapped = o->choice("positions", "wrapped", {"wrapped", "unwrapped"}) == "unwrapped";
     o->finish();
   }
 }
@@ -161,7 +162,9 @@ DemScene read_dem_scene(const Table& dem) {
   s.overrides = dem.overrides();
   read_settings(dem, s);
   const std::vector<std::uint8_t> given = read_materials(dem, s.settings);
+  read_periodic(dem, s);
   s.walls = read_walls(dem, s.settings.materials);
+  check_periodic_walls(s);
   read_shapes(dem, s);
   const FillKeys fills = read_fills(dem, s);
   if (dem.has("interface_material")) {

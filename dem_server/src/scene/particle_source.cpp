@@ -617,10 +617,21 @@ ParticleSource read_particle_source(const Table& t, const std::vector<Material>&
       t.fail("shift", "cannot be used with history = true (the walls of the state stay put)");
   }
   s.max_overlap = t.number("max_overlap", 0.05, Range::positive());
-  const std::string outside = t.choice("outside", "error", {"error", "remove", "keep"});
+  const std::string outside = t.choice("outside", "error", {"error", "remove", "keep", "crop"});
   s.outside = outside == "error"    ? ParticleSource::Outside::error
               : outside == "remove" ? ParticleSource::Outside::remove
+              : outside == "crop"   ? ParticleSource::Outside::crop
                                     : ParticleSource::Outside::keep;
+  if (t.has("tile")) {
+    const auto k = t.numbers("tile", 3, Range::closed(1.0, 1000.0));
+    for (int d = 0; d < 3; ++d) {
+      if (k[d] != std::floor(k[d])) t.fail("tile", "copies must be whole numbers in [1, 1000]");
+      s.tile[d] = static_cast<int>(k[d]);
+    }
+    if (!is_state)
+      t.fail("tile", "needs a state file of a periodic block (format = \"state\")");
+    s.tile_where = t.where("tile");
+  }
   t.finish();
   return s;
 }
@@ -802,6 +813,14 @@ std::size_t load_particles(const ParticleSource& s, DemSystem& system,
       }
       origin_line = std::move(l.line);
     }
+    if (s.tile != std::array<int, 3>{1, 1, 1}) {
+      io::H5File f(s.file, io::H5File::Mode::read);
+      try {
+        system.tile(read_state_periodic(f, s.group), s.tile, s.velocities);
+      } catch (const std::invalid_argument& e) {
+        throw SceneError(s.tile_where + ": " + s.file.string() + ": " + e.what());
+      }
+    }
   } catch (const io::H5Error& e) {
     throw SceneError(s.where + ": " + e.what());
   }
@@ -838,6 +857,11 @@ std::size_t load_particles(const ParticleSource& s, DemSystem& system,
       const double x[3] = {p.px[i], p.py[i], p.pz[i]};
       bool in = true;
       for (int d = 0; d < 3; ++d) in = in && x[d] >= lo[d] && x[d] <= hi[d];
+      // crop: in a tiled direction the whole bounding sphere (the cut goes through the bed;
+      // the floor, in a direction not tiled, carries the bed as it did the block)
+      for (int d = 0; d < 3 && s.outside == ParticleSource::Outside::crop; ++d)
+        if (s.tile[d] > 1)
+          in = in && x[d] - p.radius[i] >= lo[d] && x[d] + p.radius[i] <= hi[d];
       if (in) continue;
       ++outside;
       keep[i] = 0;
@@ -851,7 +875,9 @@ std::size_t load_particles(const ParticleSource& s, DemSystem& system,
       }
     }
   }
-  if (outside > 0 && s.outside == ParticleSource::Outside::remove) system.remove_particles(keep);
+  if (outside > 0 && (s.outside == ParticleSource::Outside::remove ||
+                      s.outside == ParticleSource::Outside::crop))
+    system.remove_particles(keep);
 
   const OverlapReport ov = largest_overlap(system.particles(), walls);
   if (ov.fraction > s.max_overlap) {
@@ -872,7 +898,8 @@ std::size_t load_particles(const ParticleSource& s, DemSystem& system,
          << (s.history && s.keep_time ? " (time kept)" : "");
     if (outside > 0)
       *log << "; " << outside << " outside the walls' bounding box "
-           << (s.outside == ParticleSource::Outside::remove ? "removed" : "kept");
+           << (s.outside == ParticleSource::Outside::keep ? "kept" : "removed")
+           << (s.outside == ParticleSource::Outside::crop ? " (or crossing its faces)" : "");
     if (ov.unchecked < system.particle_count())
       *log << "; largest overlap " << ov.depth << " m (" << ov.fraction
            << " of the smaller radius) among " << ov.touching << " touching pairs"

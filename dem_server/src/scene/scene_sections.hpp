@@ -34,6 +34,11 @@ struct FillKeys {
 /// s.shapes read already), then the particle budget (scene_fills.cpp).
 FillKeys read_fills(const scene::Table& dem, DemScene& s);
 
+/// [dem.periodic] into s.settings.periodic and s.periodic_where (scene_periodic.cpp).
+void read_periodic(const scene::Table& dem, DemScene& s);
+/// Refuses a box wall with faces inside a periodic range (scene_periodic.cpp).
+void check_periodic_walls(const DemScene& s);
+
 /// [[dem.sensors]]; a wall_force sensor names one of `walls` (scene_sensors.cpp).
 std::vector<SensorSpec> read_sensors(const scene::Table& dem, const std::vector<WallSpec>& walls);
 

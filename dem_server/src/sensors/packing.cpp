@@ -5,6 +5,7 @@
 #include <limits>
 #include <numbers>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "demfem/dem/physics/rigid_body.hpp"
@@ -29,6 +30,18 @@ PackingResult packing_in_box(const DemSystem& system, const std::array<double, 3
   for (int k = 0; k < 3; ++k) {
     if (!(hi[k] > lo[k])) throw std::invalid_argument("packing box: hi must exceed lo");
   }
+  // Periodic directions: a centre counts at its image nearest the box's middle, so that a box
+  // across the seam holds the particles of both sides (it may not be longer than the period).
+  const PeriodicRange& periodic = system.settings().periodic;
+  for (int k = 0; k < 3; ++k)
+    if (periodic.on[k] && hi[k] - lo[k] > periodic.period(k))
+      throw std::invalid_argument(std::string("packing box: longer than the period in ") +
+                                  "xyz"[k]);
+  auto image = [&](double x, int k) {
+    if (!periodic.on[k]) return x;
+    const double L = periodic.period(k);
+    return x - L * std::round((x - 0.5 * (lo[k] + hi[k])) / L);
+  };
   const ParticleState& p = system.particles();
   const std::vector<std::int32_t> contacts = system.contact_counts();
   PackingResult r;
@@ -36,9 +49,8 @@ PackingResult packing_in_box(const DemSystem& system, const std::array<double, 3
   double volume = 0.0;
   std::int64_t contact_sum = 0;
   for (std::size_t i = 0; i < p.size(); ++i) {
-    if (p.px[i] < lo[0] || p.px[i] > hi[0] || p.py[i] < lo[1] || p.py[i] > hi[1] ||
-        p.pz[i] < lo[2] || p.pz[i] > hi[2])
-      continue;
+    const double x = image(p.px[i], 0), y = image(p.py[i], 1), z = image(p.pz[i], 2);
+    if (x < lo[0] || x > hi[0] || y < lo[1] || y > hi[1] || z < lo[2] || z > hi[2]) continue;
     ++r.particles;
     contact_sum += contacts[i];
     if (p.shape[i] == static_cast<std::uint8_t>(ParticleShape::polyhedron)) {

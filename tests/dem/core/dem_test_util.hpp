@@ -42,6 +42,18 @@ inline WallMesh plane_mesh(double side, int n, double tilt = 0.0, std::int32_t m
   return w;
 }
 
+/// A floor z = 0 of two triangles over [-1, 1]^2 m (normal +z) whose shared edge is the line
+/// x + y = 0: a region with x + y > 0 lies on one triangle (the wall contact history is keyed
+/// by the triangle, so copies of a periodic block keep theirs).
+inline WallMesh two_triangle_floor(std::int32_t material = 1) {
+  WallMesh w;
+  w.name = "floor";
+  w.material = material;
+  w.vertices = {-1, -1, 0, 1, -1, 0, 1, 1, 0, -1, 1, 0};
+  w.triangles = {0, 1, 3, 1, 2, 3};
+  return w;
+}
+
 inline ParticleInit sphere(std::array<double, 3> x, double r, std::array<double, 3> v = {},
                            std::array<double, 3> w = {}) {
   ParticleInit p;

@@ -55,6 +55,16 @@ DemBackendKind dem_backend_from_name(const std::string& name);
 /// The scene's name of a backend: "cpu" or "cuda".
 const char* dem_backend_name(DemBackendKind kind);
 
+/// @brief The periodic directions of a system and their ranges: a particle that leaves
+/// [lo, hi) in a periodic direction comes back in at the other side, and pairs interact
+/// across the seam. hi - lo must be at least DemSystem::least_period().
+struct PeriodicRange {
+  std::array<bool, 3> on{};  ///< x, y, z periodic
+  std::array<double, 3> lo{}, hi{};  ///< m, where on
+  bool any() const { return on[0] || on[1] || on[2]; }
+  double period(int d) const { return on[d] ? hi[d] - lo[d] : 0.0; }
+};
+
 /// @brief Global settings of a DEM system.
 struct DemSettings {
   double dt = 1e-5;                            ///< s
@@ -72,6 +82,8 @@ struct DemSettings {
   bool track_orientation = false;
   DemBackendKind backend = DemBackendKind::cpu;
   int threads = 0;  ///< CPU threads; 0 = OpenMP default
+  /// Periodic boundaries (docs/dem.md, "Periodic boundaries and tiled beds"; CPU backend).
+  PeriodicRange periodic;
 };
 
 /// @brief Shape of a particle: a sphere, or a dilated convex polyhedron (thesis §2.1.1: a
@@ -215,6 +227,7 @@ struct DemStateCopy {
   std::vector<double> bodies;  ///< rigid mesh bodies ([dem.walls.body]), 19 per body
   std::vector<double> drift;   ///< force-limited walls: drift time and drifting (0/1), 2 per wall
   std::vector<std::uint8_t> frozen;  ///< DemSystem::frozen()
+  std::vector<std::int32_t> image;   ///< DemSystem::images()
 };
 
 /// @brief A DEM system of particles, walls and (optionally) the flexible coupled mesh.
@@ -286,6 +299,29 @@ class DemSystem {
   void set_cancel_flag(const std::atomic<bool>* flag);
   double time() const;
   std::int64_t step_count() const;
+
+  /// Periodic systems: per particle 3 image counters (x, y, z): how many periods it has
+  /// gone round in each direction since it was added; its unwrapped position is x + n L.
+  /// Empty when the system is not periodic.
+  std::span<const std::int32_t> images() const;
+  /// Least period a periodic direction accepts with the particles and skin of now, m: twice
+  /// the neighbour list's cutoff, 2 (2 r_max + skin), so that a pair that can touch has one
+  /// image only. advance() throws std::invalid_argument below it.
+  double least_period() const;
+  /// Tiles a periodic block: the particles, which form a block periodic over the ranges of
+  /// `block`, are replicated copies[d] times along each of its periodic directions d (1 in
+  /// the others): copy (a, b, c) of particle i becomes particle i + n (a + copies[0] (b +
+  /// copies[1] c)) at x + (a Lx, b Ly, c Lz) (copy 0 keeps the indices). The contact history
+  /// of every pair goes with it: block pair (i, j), j met at image shift s, becomes in copy c
+  /// the pair of c's i with (c + s)'s j, so a pair across the block's seam becomes a pair
+  /// between neighbouring copies, and the tiled bed's forces are the block's per copy. Where
+  /// this system is periodic its range must be the tiled one, [lo, lo + copies L); where it
+  /// is not, the pairs across the tiled bed's outer faces are dropped. Velocities are kept or
+  /// zeroed; the last forces, wall contact slots and frozen flags are copied; image counters
+  /// start at zero. Throws std::invalid_argument for a copy count < 1, copies in a direction
+  /// the block is not periodic in, a system range that is not the tiled one, or a block
+  /// period below least_period().
+  void tile(const PeriodicRange& block, const std::array<int, 3>& copies, bool keep_velocities);
 
   /// Smallest radius that a contact's overlap is measured against: a sphere's radius, a
   /// polyhedron's dilation radius (its cores intersect when the overlap exceeds r_i + r_j), m.
@@ -379,6 +415,10 @@ class DemSystem {
 /// order (a particle's shape_id indexes it); empty when the state has none. Throws
 /// std::invalid_argument when the table is inconsistent.
 std::vector<PolyhedronShape> read_state_shapes(const io::H5File& file, const std::string& group);
+
+/// The periodic ranges a saved DEM state (DemSystem::save) was made with, in group `group`
+/// (none periodic for a state without periods).
+PeriodicRange read_state_periodic(const io::H5File& file, const std::string& group);
 
 /// @brief True when this build has the CUDA backend and a CUDA device is present.
 bool cuda_available();

@@ -23,17 +23,18 @@ DEMFEM_HD std::int64_t saturated_cell(double q) {
 
 namespace demfem::dem::phys {
 
-/// The uniform grid of a neighbour-list build (both backends): cells of edge h from `lo`,
-/// dim[0] x dim[1] x dim[2] of them, numbered x fastest.
+/// The grid of a neighbour-list build (both backends): dim[0] x dim[1] x dim[2] cells from
+/// `lo`, of edge h[d] along axis d, numbered x fastest. The edge is the same along every axis
+/// except a periodic one, whose cells divide its period exactly.
 struct CellGrid {
   double lo[3];
-  double h, inv_h;
+  double h[3], inv_h[3];
   std::int64_t dim[3];
 
   /// The cell coordinate of x along axis d, clamped into the grid (floor, not truncation:
   /// the same cell after the clamp; below 0 both give 0).
   DEMFEM_HD std::int64_t coord(double x, int d) const {
-    const std::int64_t c = saturated_cell((x - lo[d]) * inv_h);
+    const std::int64_t c = saturated_cell((x - lo[d]) * inv_h[d]);
     return c < 0 ? 0 : (c > dim[d] - 1 ? dim[d] - 1 : c);
   }
   DEMFEM_HD std::int64_t cell(double x, double y, double z) const {
@@ -49,16 +50,22 @@ struct CellGrid {
 /// from a bed of 0.2 mm cells) wrapped around, passed the bound, and the grid's allocation
 /// failed. An infinite extent (a particle gone to inf, which the blow-up guard reports after
 /// the advance) counts as none: its cell coordinate is clamped into the grid.
+/// `period` (null: none): an axis with period[d] > 0 is periodic, [lo, hi) is then its whole
+/// period, divided into the most cells of at least that edge (at least one).
 DEMFEM_HD CellGrid cell_grid(const double lo[3], const double hi[3], std::int64_t np, double rmax,
-                             double skin) {
+                             double skin, const double* period = nullptr) {
   CellGrid g{};
   double h = 2.0 * rmax + skin < 1e-12 ? 1e-12 : 2.0 * rmax + skin;  // std::max's order
   const double bound = static_cast<double>(4 * np + 4096);
+  double edge[3];
   for (;;) {
     double tot = 1.0;
     for (int d = 0; d < 3; ++d) {
+      const double L = period != nullptr ? period[d] : 0.0;
       const double ext = std::isfinite(hi[d] - lo[d]) ? hi[d] - lo[d] : 0.0;
-      const double cells = std::floor(ext / h) + 1.0;
+      const double q = std::floor(L / h);
+      const double cells = L > 0.0 ? (q < 1.0 ? 1.0 : q) : std::floor(ext / h) + 1.0;
+      edge[d] = L > 0.0 ? L / cells : h;
       g.dim[d] = cells <= 4.0 * static_cast<double>(np) + 4096.0 ? static_cast<std::int64_t>(cells)
                                                                  : std::int64_t{1} << 62;
       tot *= cells;
@@ -66,9 +73,11 @@ DEMFEM_HD CellGrid cell_grid(const double lo[3], const double hi[3], std::int64_
     if (tot <= bound) break;
     h *= 1.26;  // a sparse cloud: coarser cells keep the grid small
   }
-  for (int d = 0; d < 3; ++d) g.lo[d] = lo[d];
-  g.h = h;
-  g.inv_h = 1.0 / h;
+  for (int d = 0; d < 3; ++d) {
+    g.lo[d] = lo[d];
+    g.h[d] = edge[d];
+    g.inv_h[d] = 1.0 / edge[d];
+  }
   return g;
 }
 

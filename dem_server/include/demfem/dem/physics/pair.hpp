@@ -4,6 +4,7 @@
 // contact law of contact.hpp. Called by both backends over their SoA arrays.
 
 #include "demfem/dem/physics/contact.hpp"
+#include "demfem/dem/physics/periodic_image.hpp"
 
 namespace demfem::dem::phys {
 
@@ -18,11 +19,17 @@ struct ParticleView {
 /// i = r_i n × F_t, on j = r_j n × F_t) and the rolling torque on i; `shear` and `roll` (the
 /// rolling-torque history, used when Friction and Rolling) are updated; `delta` is the
 /// overlap. Without contact `out`, `shear` and `roll` are zero and `delta` is 0.
-template <bool Friction, bool Rolling = true>
+/// Periodic: j is taken at its image nearest to i (periodic_image.hpp; `box` not null).
+template <bool Friction, bool Rolling = true, bool Periodic = false>
 DEMFEM_HD bool sphere_sphere_select(const ParticleView& p, int i, int j, const PairConstants& c,
                                     double dt, Vec3& shear, Vec3& roll, ContactResult& out,
-                                    double& delta) {
-  const double dx = p.px[j] - p.px[i], dy = p.py[j] - p.py[i], dz = p.pz[j] - p.pz[i];
+                                    double& delta, const PeriodicBox* box = nullptr) {
+  double dx = p.px[j] - p.px[i], dy = p.py[j] - p.py[i], dz = p.pz[j] - p.pz[i];
+  if constexpr (Periodic) {
+    dx += image_shift(*box, 0, dx);
+    dy += image_shift(*box, 1, dy);
+    dz += image_shift(*box, 2, dz);
+  }
   const double ri = p.radius[i], rj = p.radius[j];
   const double rs = ri + rj;
   const double d2 = dx * dx + dy * dy + dz * dz;

@@ -321,15 +321,21 @@ DEMFEM_HD BodyState particle_body(const PolyView& v, int i, const Core& c) {
 /// contact). `slack` (may be null) gets a distance by which the pair is proven apart, less a
 /// margin for rounding (the gap of the bounding spheres, or dilated_pair's), else -1: while
 /// the two bodies move by less in sum, this function gives no contact and changes no cache.
+/// Periodic (`box` not null): j is taken at its image nearest to i (periodic_image.hpp).
 template <bool Friction>
 DEMFEM_HD double mixed_pair(const PolyView& v, int i, int j, const PairConstants& c, double dt,
                             bool rolling, Vec3& shear, Vec3& rhist, Vec3& axis, int* feat,
-                            Vec3& force, Vec3& ti, Vec3& tj, double* slack = nullptr) {
+                            Vec3& force, Vec3& ti, Vec3& tj, double* slack = nullptr,
+                            const PeriodicBox* box = nullptr) {
   double delta = 0.0;
   force = ti = tj = Vec3{0, 0, 0};
   if (v.shape_id[i] < 0 && v.shape_id[j] < 0) {
     ContactResult r;
-    if (rolling)
+    if (box != nullptr && rolling)
+      sphere_sphere_select<Friction, true, true>(v.p, i, j, c, dt, shear, rhist, r, delta, box);
+    else if (box != nullptr)
+      sphere_sphere_select<Friction, false, true>(v.p, i, j, c, dt, shear, rhist, r, delta, box);
+    else if (rolling)
       sphere_sphere_select<Friction, true>(v.p, i, j, c, dt, shear, rhist, r, delta);
     else
       sphere_sphere_select<Friction, false>(v.p, i, j, c, dt, shear, rhist, r, delta);
@@ -338,22 +344,31 @@ DEMFEM_HD double mixed_pair(const PolyView& v, int i, int j, const PairConstants
     tj = v.p.radius[j] * r.torque - 1.0 * r.roll;
     return delta;
   }
-  const double dx = v.p.px[j] - v.p.px[i], dy = v.p.py[j] - v.p.py[i], dz = v.p.pz[j] - v.p.pz[i];
+  double dx = v.p.px[j] - v.p.px[i], dy = v.p.py[j] - v.p.py[i], dz = v.p.pz[j] - v.p.pz[i];
+  Vec3 xj{v.p.px[j], v.p.py[j], v.p.pz[j]};  // j's image nearest to i
+  if (box != nullptr) {
+    const Vec3 s{image_shift(*box, 0, dx), image_shift(*box, 1, dy), image_shift(*box, 2, dz)};
+    xj = xj + s;
+    dx += s.x, dy += s.y, dz += s.z;
+  }
   const double rs = v.p.radius[i] + v.p.radius[j];
   // rounding of the proofs below (positions, support points): far below 1e-9 of the scale
   const double eps = 1e-9 * (rs + std::abs(v.p.px[i]) + std::abs(v.p.py[i]) + std::abs(v.p.pz[i]) +
-                             std::abs(v.p.px[j]) + std::abs(v.p.py[j]) + std::abs(v.p.pz[j]));
+                             std::abs(xj.x) + std::abs(xj.y) + std::abs(xj.z));
   const double d2 = dx * dx + dy * dy + dz * dz;
   if (!(d2 < rs * rs)) {
     shear = Vec3{0, 0, 0};
     if (slack != nullptr) *slack = std::sqrt(d2) - rs - eps;
     return 0.0;
   }
-  const Core ci = particle_core(v, i), cj = particle_core(v, j);
+  const Core ci = particle_core(v, i);
+  Core cj = particle_core(v, j);
+  BodyState bj = particle_body(v, j, cj);
+  cj.x = xj, bj.x = xj;
   DilatedResult r;
   if (dilated_pair<Friction>(ci, particle_contact_radius(v, i), particle_body(v, i, ci), cj,
-                             particle_contact_radius(v, j), particle_body(v, j, cj), c, dt, shear,
-                             axis, feat, r, slack)) {
+                             particle_contact_radius(v, j), bj, c, dt, shear, axis, feat, r,
+                             slack)) {
     force = r.force, ti = r.torque_i, tj = r.torque_j, delta = r.delta;
   }
   if (slack != nullptr && *slack >= 0.0) *slack -= eps;

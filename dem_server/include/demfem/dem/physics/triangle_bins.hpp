@@ -25,7 +25,7 @@ DEMFEM_HD bool triangle_cell_box(const CellGrid& g, const double* vpos, const st
   bool out = false;
   std::int64_t b[6];
   for (int d = 0; d < 3; ++d) {
-    if (th[d] < g.lo[d] || tl[d] > g.lo[d] + static_cast<double>(g.dim[d]) * g.h) out = true;
+    if (th[d] < g.lo[d] || tl[d] > g.lo[d] + static_cast<double>(g.dim[d]) * g.h[d]) out = true;
     b[d] = g.coord(tl[d], d);
     b[3 + d] = g.coord(th[d], d);
   }

@@ -56,6 +56,12 @@ struct RandomInsertion {
   /// the particles' real masses.
   const shapes::ShapeLibrary* library = nullptr;
   std::int32_t shape_base = 0;
+  /// The scene's periods (DemSettings::periodic), m: 0 where a direction is not periodic. In
+  /// a periodic direction a particle must not overlap the images of the others either (one
+  /// period away across the seam), and a region that spans the whole period [period_lo,
+  /// period_lo + L) places centres anywhere in it (a particle may lie across the seam).
+  std::array<double, 3> period{};
+  std::array<double, 3> period_lo{};
 };
 
 /// @brief Solid fraction above which random sequential insertion is refused up front. Random
@@ -102,6 +108,12 @@ struct LatticeFill {
   std::int64_t max_count = 0;  ///< 0 = as many as fit
   const shapes::ShapeLibrary* library = nullptr;
   std::int32_t shape_base = 0;
+  /// The scene's periods (DemSettings::periodic), m: 0 where a direction is not periodic. In
+  /// a periodic direction a particle must not overlap the images of the others either (one
+  /// period away across the seam), and a region that spans the whole period [period_lo,
+  /// period_lo + L) places centres anywhere in it (a particle may lie across the seam).
+  std::array<double, 3> period{};
+  std::array<double, 3> period_lo{};
 };
 
 /// @brief How many spheres a lattice fill places (in double: a typo can ask for more than

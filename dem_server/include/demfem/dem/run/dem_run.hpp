@@ -164,6 +164,8 @@ class DemRun {
   /// The DEM clock for output: step count x dt (not the running sum of dt).
   double output_clock() const;
   void write_snapshot(double label);
+  /// A period of the scene shorter than DemSystem::least_period(): SceneError naming its key.
+  void check_periods() const;
 
   void add(std::span<const ParticleInit> particles);
   void start_output(bool resume);

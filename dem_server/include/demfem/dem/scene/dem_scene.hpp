@@ -115,6 +115,10 @@ struct DemScene {
   bool output_particles = true;
   bool output_walls = true;              ///< [dem.output] walls: with the particle snapshots
   bool output_state = false;             ///< [dem.output] state: write dem_state.h5 at the end
+  /// [dem.output] positions = "unwrapped": periodic scenes write x + n L (n: the particle's
+  /// image counter), so that ParaView shows the bed as it moved, not folded into the period
+  bool output_unwrapped = false;
+  std::array<std::string, 3> periodic_where;  ///< file:line: key 'dem.periodic.x' (y, z)
   std::optional<ParticleSource> load;    ///< [dem.load]: particles from a file, loaded first
   std::optional<FreezeSpec> freeze;      ///< [dem.freeze] (enabled)
   std::int32_t interface_material = -1;  ///< -1: not given

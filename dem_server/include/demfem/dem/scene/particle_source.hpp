@@ -29,7 +29,11 @@ inline constexpr const char* kStateFileName = "dem_state.h5";
 /// @brief One [dem.load] table.
 struct ParticleSource {
   enum class Format : std::uint8_t { snapshot, state, csv };
-  enum class Outside : std::uint8_t { error, remove, keep };
+  /// Centres outside the walls' bounding box: an error, removed, kept; crop: removed, and
+  /// so are particles whose bounding sphere crosses a face of that box in a direction that
+  /// `tile` replicates (a tiled bed cut to its box, docs/dem.md "Periodic boundaries and tiled
+  /// beds").
+  enum class Outside : std::uint8_t { error, remove, keep, crop };
   std::filesystem::path file;           ///< resolved path
   std::filesystem::path prepare_scene;  ///< `scene` key: the run that makes `file`; empty if none
   /// Overrides the prepare scene runs with: `set`, then this run's overrides whose keys
@@ -46,6 +50,10 @@ struct ParticleSource {
   std::array<double, 3> shift{};           ///< m, added to every position
   double max_overlap = 0.05;               ///< refuse above this fraction of the smaller radius
   Outside outside = Outside::error;        ///< centres outside the walls' bounding box
+  /// State of a periodic block: copies along its periodic directions (DemSystem::tile),
+  /// before the checks and the `outside` rule; 1 1 1 = as it is.
+  std::array<int, 3> tile{1, 1, 1};
+  std::string tile_where;  ///< "file:line: key 'dem.load.tile'"
   std::string where;                       ///< "file:line: key 'dem.load.file'" (or .scene)
 };
 

@@ -29,8 +29,10 @@ double particle_top(const DemSystem& system, std::size_t i);
 
 /// @brief Packing of the particles whose centre lies in the box [lo, hi]. The solid fraction
 /// of centre-in-box counting errs at the box faces by about a particle size over the box
-/// size: choose a box of several particle sizes, away from walls. Throws
-/// std::invalid_argument for a box with hi <= lo in some coordinate.
+/// size: choose a box of several particle sizes, away from walls. In a periodic direction a
+/// centre counts at its image nearest the box's middle (a box across the seam holds both
+/// sides; a contact across the seam counts, the pair list has it). Throws
+/// std::invalid_argument for a box with hi <= lo in some coordinate, or longer than a period.
 PackingResult packing_in_box(const DemSystem& system, const std::array<double, 3>& lo,
                              const std::array<double, 3>& hi);
 
