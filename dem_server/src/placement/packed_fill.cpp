@@ -43,14 +43,17 @@ PackedBed packed_fill(const PackedFill& q) {
   if (!(q.gap_factor >= 1.0)) throw InsertionError("a packed fill needs a gap factor >= 1");
   Rng rng(q.seed);
   auto items = draw(q, rng);
-  // Largest first: each row and layer then holds spheres of about one size, so few rows are
-  // sized for one large rock among small ones.
-  std::stable_sort(items.begin(), items.end(),
-                   [](const Drawn& a, const Drawn& b) { return a.radius > b.radius; });
+  // rows: largest first, each row and layer then holds spheres of about one size, so few rows
+  // are sized for one large rock among small ones; mixed: as drawn, not graded by size
+  if (q.method == PackedFill::Method::rows) {
+    std::stable_sort(items.begin(), items.end(),
+                     [](const Drawn& a, const Drawn& b) { return a.radius > b.radius; });
+  }
   const double lx = q.region.hi[0] - q.region.lo[0];
   const double ly = q.region.hi[1] - q.region.lo[1];
   const double lz = q.region.hi[2] - q.region.lo[2];
-  const double largest = 2.0 * items.front().radius;
+  double largest = 0.0;
+  for (const auto& it : items) largest = std::max(largest, 2.0 * it.radius);
   if (largest > lx || largest > ly) {
     std::ostringstream m;
     m << "the largest bounding diameter drawn, " << largest << " m, exceeds the region "
@@ -99,7 +102,7 @@ PackedBed packed_fill(const PackedFill& q) {
   if (fitting >= 0) {
     std::ostringstream m;
     m << "cannot pack " << q.count << " particles in " << q.region.describe() << ": packed "
-      << "largest first in rows and layers they need " << bed.height << " m of height, the "
+      << "in rows and layers they need " << bed.height << " m of height, the "
       << "region has " << lz << " m; " << fitting << " fit (raise hi z or lower the count)";
     throw InsertionError(m.str());
   }

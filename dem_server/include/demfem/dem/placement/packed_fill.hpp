@@ -17,8 +17,11 @@ namespace demfem::dem {
 struct PackedFill {
   /// How the bounding spheres are arranged. `rows`: sorted largest first, placed along x in
   /// rows, rows along y in a layer, layers along z; a row is as deep as its largest sphere and
-  /// a layer as tall as its largest (the benches' make_bed, whose bits this method keeps).
-  enum class Method { rows };
+  /// a layer as tall as its largest (the benches' make_bed, whose bits this method keeps); the
+  /// bed starts graded, the largest at the bottom. `mixed`: the same rows and layers in the
+  /// order drawn, so that each depth holds the whole distribution, as a poured bed does (rows
+  /// sized for their largest: a lower bounding-sphere fraction).
+  enum class Method { rows, mixed };
   Box region;
   SizeDistribution sizes;
   std::int64_t count = 0;      ///< particles, > 0
