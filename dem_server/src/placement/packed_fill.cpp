@@ -44,10 +44,21 @@ PackedBed packed_fill(const PackedFill& q) {
   Rng rng(q.seed);
   auto items = draw(q, rng);
   // rows: largest first, each row and layer then holds spheres of about one size, so few rows
-  // are sized for one large rock among small ones; mixed: as drawn, not graded by size
+  // are sized for one large rock among small ones; mixed: as drawn, not graded by size;
+  // layers: largest first within runs of about one layer, graded over a layer only
+  auto larger = [](const Drawn& a, const Drawn& b) { return a.radius > b.radius; };
   if (q.method == PackedFill::Method::rows) {
-    std::stable_sort(items.begin(), items.end(),
-                     [](const Drawn& a, const Drawn& b) { return a.radius > b.radius; });
+    std::stable_sort(items.begin(), items.end(), larger);
+  } else if (q.method == PackedFill::Method::layers) {
+    double steps = 0.0;
+    for (const auto& it : items) steps += 2.0 * it.radius * q.gap_factor;
+    const double mean_step = steps / static_cast<double>(items.size());
+    const double area = (q.region.hi[0] - q.region.lo[0]) * (q.region.hi[1] - q.region.lo[1]);
+    const auto run = std::max<std::size_t>(1, std::size_t(area / (mean_step * mean_step)));
+    for (std::size_t a = 0; a < items.size(); a += run) {
+      const auto b = std::min(items.size(), a + run);
+      std::stable_sort(items.begin() + long(a), items.begin() + long(b), larger);
+    }
   }
   const double lx = q.region.hi[0] - q.region.lo[0];
   const double ly = q.region.hi[1] - q.region.lo[1];

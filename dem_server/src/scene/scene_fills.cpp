@@ -176,8 +176,10 @@ PackSpec read_pack(const Table& k, const DemScene& s, FillKeys& keys) {
   q.count = k.integer("count", 1, INT64_MAX);
   // 1: bounding spheres touching; up to 2 leaves a gap as wide as a particle
   q.gap_factor = k.number("gap_factor", 1.001, Range::closed(1.0, 2.0));
-  q.method = k.choice("method", "mixed", {"mixed", "rows"}) == "rows" ? PackedFill::Method::rows
-                                                                      : PackedFill::Method::mixed;
+  const std::string method = k.choice("method", "mixed", {"mixed", "layers", "rows"});
+  q.method = method == "rows"     ? PackedFill::Method::rows
+             : method == "layers" ? PackedFill::Method::layers
+                                  : PackedFill::Method::mixed;
   q.velocity = k.vec3("velocity", std::array<double, 3>{0, 0, 0});
   if (k.has("seed")) {
     q.seed = static_cast<std::uint64_t>(k.integer("seed", 0, INT64_MAX));

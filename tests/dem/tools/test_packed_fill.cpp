@@ -149,6 +149,15 @@ TEST_CASE("packed_fill: the count, inside the region, no overlaps, the same bits
     CHECK(mean_radius(bed.particles, 0, 200) > 1.2 * mean_radius(bed.particles, 200, 400));
     CHECK(mixed.bounding_fraction < bed.bounding_fraction);
     CHECK(mixed.bounding_fraction > 0.2);
+    // layers: graded within runs of about a layer only, between mixed and rows in density
+    m.method = PackedFill::Method::layers;
+    const PackedBed layers = packed_fill(m);
+    REQUIRE(layers.particles.size() == 400);
+    CHECK(first_overlap(layers.particles) == "none");
+    CHECK(std::abs(mean_radius(layers.particles, 0, 200) -
+                   mean_radius(layers.particles, 200, 400)) < 0.1 * low);
+    CHECK(layers.bounding_fraction > mixed.bounding_fraction);
+    CHECK(layers.bounding_fraction < bed.bounding_fraction);
   }
 }
 

@@ -20,8 +20,10 @@ struct PackedFill {
   /// a layer as tall as its largest (the benches' make_bed, whose bits this method keeps); the
   /// bed starts graded, the largest at the bottom. `mixed`: the same rows and layers in the
   /// order drawn, so that each depth holds the whole distribution, as a poured bed does (rows
-  /// sized for their largest: a lower bounding-sphere fraction).
-  enum class Method { rows, mixed };
+  /// sized for their largest: a lower bounding-sphere fraction). `layers`: the order drawn,
+  /// sorted largest first within each run of about one layer's worth (the region's x-y area
+  /// over the mean step squared): rows of like sizes, graded within a layer, not the bed.
+  enum class Method { rows, mixed, layers };
   Box region;
   SizeDistribution sizes;
   std::int64_t count = 0;      ///< particles, > 0
