@@ -40,8 +40,8 @@ void DemRun::place_packs(const WallClearance& walls, std::uint64_t seed) {
       const double depth = walls.overlap(p.position, p.radius, &wall);
       if (depth > 1e-9 * p.radius) {
         std::ostringstream m;
-        m << entry.where << ": " << particle(p) << " overlaps wall '" << walls.name(wall)
-          << "' by " << depth << " m: the pack region reaches into or through the walls; move "
+        m << entry.where << ": " << particle(p) << " overlaps wall '" << walls.name(wall) << "' by "
+          << depth << " m: the pack region reaches into or through the walls; move "
           << "'lo' and 'hi' inside them";
         throw SceneError(m.str());
       }
@@ -59,8 +59,7 @@ void DemRun::place_packs(const WallClearance& walls, std::uint64_t seed) {
     }
     if (log_) {
       *log_ << "dem: [[dem.pack]] " << i << ": " << placed.size() << " particles packed "
-            << bed.height << " m high, bounding-sphere fraction " << bed.bounding_fraction
-            << "\n";
+            << bed.height << " m high, bounding-sphere fraction " << bed.bounding_fraction << "\n";
     }
     add(placed);
   }

@@ -1,5 +1,5 @@
-// [[dem.lattice]], [[dem.insert]] and [[dem.pack]]: the particle fills of a scene, read in the order of
-// the scene, and the up-front check that the particles they ask for can be held.
+// [[dem.lattice]], [[dem.insert]] and [[dem.pack]]: the particle fills of a scene, read in the
+// order of the scene, and the up-front check that the particles they ask for can be held.
 
 #include <algorithm>
 #include <cmath>

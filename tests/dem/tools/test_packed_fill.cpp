@@ -2,8 +2,8 @@
 // bounding spheres in rows and layers; its count, containment, overlaps, bits per seed, bad
 // input naming file, line and key, and a packed rock layer settling as a poured one does.
 
-#include <catch2/catch.hpp>
 #include <algorithm>
+#include <catch2/catch.hpp>
 #include <cmath>
 #include <sstream>
 
@@ -165,8 +165,7 @@ TEST_CASE("packed_fill: a count the region cannot hold is refused, naming what f
           "[placement][pack]") {
   PackedFill q = ballast_spheres(400);
   q.region.hi[2] = 0.2;
-  const std::string m =
-      demfem::test::error_of<InsertionError>([&] { packed_fill(q); });
+  const std::string m = demfem::test::error_of<InsertionError>([&] { packed_fill(q); });
   CHECK_THAT(m, Catch::Contains("cannot pack 400 particles"));
   CHECK_THAT(m, Catch::Contains("fit (raise hi z or lower the count)"));
   q = ballast_spheres(10);
@@ -203,8 +202,7 @@ TEST_CASE("[[dem.pack]]: rocks packed in a box, seeded from run.seed", "[scene][
   CHECK(other.system().particles().qx != p.qx);
 }
 
-TEST_CASE("[[dem.pack]]: bad input names file, line, key and the accepted range",
-          "[scene][pack]") {
+TEST_CASE("[[dem.pack]]: bad input names file, line, key and the accepted range", "[scene][pack]") {
   const int pack_line = line_of(kPackedRocks, "count = 200");
   const std::string at = "pack.toml:" + std::to_string(pack_line);
   SECTION("gap factor out of range") {
@@ -222,14 +220,16 @@ TEST_CASE("[[dem.pack]]: bad input names file, line, key and the accepted range"
                Catch::Contains("dem.pack[0].count"));
   }
   SECTION("more rocks than the region holds") {
-    const auto t = replace(kPackedRocks, "hi = [0.5, 0.5, 1.0]\ncount", "hi = [0.5, 0.5, 0.1]\ncount");
+    const auto t =
+        replace(kPackedRocks, "hi = [0.5, 0.5, 1.0]\ncount", "hi = [0.5, 0.5, 0.1]\ncount");
     const auto m = error_of(t);
     CHECK_THAT(m, Catch::Contains(at));
     CHECK_THAT(m, Catch::Contains("dem.pack[0].count"));
     CHECK_THAT(m, Catch::Contains("cannot pack 200 particles"));
   }
   SECTION("a region through a wall") {
-    const auto t = replace(kPackedRocks, "lo = [0.0, 0.0, 0.0]\nhi = [0.5", "lo = [-0.05, 0.0, 0.0]\nhi = [0.5");
+    const auto t = replace(kPackedRocks, "lo = [0.0, 0.0, 0.0]\nhi = [0.5",
+                           "lo = [-0.05, 0.0, 0.0]\nhi = [0.5");
     const auto m = error_of(t);
     CHECK_THAT(m, Catch::Contains(at));
     CHECK_THAT(m, Catch::Contains("overlaps wall 'box'"));
@@ -305,7 +305,8 @@ shape = "ballast"
 lo = [0.0, 0.0, 0.0]
 hi = [0.3, 0.3, 1.5]
 count = 150
-)" + sizes, 3.0);
+)" + sizes,
+                                3.0);
   const Settled packed = settle(base + R"(
 [[dem.pack]]
 material = "rock"
@@ -314,7 +315,8 @@ lo = [0.0, 0.0, 0.0]
 hi = [0.3, 0.3, 1.5]
 count = 150
 method = "rows"
-)" + sizes, 3.0);
+)" + sizes,
+                                3.0);
   INFO("poured: settled at " << poured.time << " s, solid fraction "
                              << poured.packing.solid_fraction << ", coordination "
                              << poured.packing.coordination << ", top " << poured.packing.top

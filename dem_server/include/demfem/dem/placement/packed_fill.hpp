@@ -26,9 +26,9 @@ struct PackedFill {
   enum class Method { rows, mixed, layers };
   Box region;
   SizeDistribution sizes;
-  std::int64_t count = 0;      ///< particles, > 0
-  double gap_factor = 1.001;   ///< centre step = gap_factor x bounding diameter, >= 1
-  std::uint64_t seed = 1;      ///< Rng seed of the shapes, sizes and orientations
+  std::int64_t count = 0;     ///< particles, > 0
+  double gap_factor = 1.001;  ///< centre step = gap_factor x bounding diameter, >= 1
+  std::uint64_t seed = 1;     ///< Rng seed of the shapes, sizes and orientations
   std::int32_t material = 0;
   std::array<double, 3> velocity{};
   Method method = Method::rows;
