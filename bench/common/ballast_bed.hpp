@@ -7,11 +7,14 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
+#include <limits>
 #include <string>
 #include <vector>
 
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/dem/placement/insertion.hpp"
+#include "demfem/dem/placement/packed_fill.hpp"
 #include "demfem/dem/shapes/shape_library.hpp"
 
 namespace demfem::bench {
@@ -51,62 +54,39 @@ inline const SizeDistribution kSizes = SizeDistribution::normal(0.04, 0.01, 0.02
 
 // Rocks (library given) or spheres (library null): shapes and sizes drawn as a random
 // insertion would (library sample, the ballast distribution), then packed densely by their
-// bounding spheres, largest first, in rows along x and layers, over a footprint of about
-// `aspect` times the packed height (default 2): the bed then falls little and settles in a
-// fraction of a second (random insertion at a safe bounding-sphere fraction left the rocks a
-// metre to fall).
+// bounding spheres, largest first, in rows along x and layers (dem::packed_fill, the scene's
+// [[dem.pack]]), over a footprint of about `aspect` times the packed height (default 2): the
+// bed then falls little and settles in a fraction of a second (random insertion at a safe
+// bounding-sphere fraction left the rocks a metre to fall).
 inline Bed make_bed(std::size_t n, const shapes::ShapeLibrary* lib, std::int32_t shape_base,
                     std::uint64_t seed = 11, double aspect = 2.0) {
-  Bed bed;
-  Rng rng(seed);
-  struct Item {
-    double r, size;
-    std::int32_t shape;
-  };
-  std::vector<Item> items;
-  for (std::size_t k = 0; k < n; ++k) {
-    if (lib) {
-      const auto s = lib->sample(rng, kSizes);
-      items.push_back({s.bounding_radius, s.scale, static_cast<std::int32_t>(s.shape)});
-    } else {
-      const double d = kSizes.sample(rng);
-      items.push_back({0.5 * d, d, -1});
-    }
+  // The footprint comes from the bounding cubes' volume, drawn as packed_fill draws (the
+  // same stream, so the same sizes) and summed largest first, as the bits have always been.
+  std::vector<double> radii;
+  {
+    Rng rng(seed);
+    for (std::size_t k = 0; k < n; ++k)
+      radii.push_back(lib ? lib->sample(rng, kSizes).bounding_radius : 0.5 * kSizes.sample(rng));
   }
-  std::stable_sort(items.begin(), items.end(),
-                   [](const Item& a, const Item& b) { return a.r > b.r; });
+  std::sort(radii.begin(), radii.end(), std::greater<>());
   double vol = 0.0;
-  for (const auto& it : items) vol += 8.0 * it.r * it.r * it.r;
+  for (const double r : radii) vol += 8.0 * r * r * r;
   const double side = std::cbrt(aspect * vol) + 0.1;  // footprint: about aspect x height
+  dem::PackedFill q;
+  q.region.lo = {0.0, 0.0, 1e-3};
+  q.region.hi = {side, side, std::numeric_limits<double>::infinity()};
+  q.sizes = kSizes;
+  q.count = static_cast<std::int64_t>(n);
+  q.gap_factor = 1.0001;
+  q.seed = seed;
+  q.material = 0;
+  q.library = lib;
+  q.shape_base = shape_base;
+  auto packed = dem::packed_fill(q);
+  Bed bed;
   bed.lx = bed.ly = side;
-  double x = 0.0, y = 0.0, z = 0.0, row = 0.0, layer = 0.0;
-  for (const auto& it : items) {
-    if (x + 2.0 * it.r > side) {  // next row
-      x = 0.0;
-      y += row;
-      row = 0.0;
-    }
-    if (y + 2.0 * it.r > side) {  // next layer
-      y = 0.0;
-      z += layer;
-      layer = 0.0;
-    }
-    ParticleInit p;
-    p.position = {x + it.r, y + it.r, z + it.r + 1e-3};
-    p.material = 0;
-    p.radius = it.r;
-    if (lib) {
-      p.shape = ParticleShape::polyhedron;
-      p.shape_id = shape_base + it.shape;
-      p.scale = it.size;
-      p.orientation = dem::random_orientation(rng);
-    }
-    bed.particles.push_back(p);
-    x += 2.0 * it.r * 1.0001;
-    row = std::max(row, 2.0 * it.r * 1.0001);
-    layer = std::max(layer, 2.0 * it.r * 1.0001);
-  }
-  bed.walls = box_walls(side, side, z + layer + 0.2);
+  bed.particles = std::move(packed.particles);
+  bed.walls = box_walls(side, side, packed.height + 0.2);
   return bed;
 }
 

@@ -166,6 +166,7 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
     }
     add(spheres);
   }
+  place_packs(walls, seed);
   seed_ = seed;
   repeats_.assign(scene_.inserts.size(), 0);
   if (scene_.freeze) next_freeze_ = scene_.freeze->time;

@@ -1,5 +1,5 @@
-// [[dem.lattice]] and [[dem.insert]]: the particle fills of a scene, read in the order of
-// the scene, and the up-front check that the particles they ask for can be held.
+// [[dem.lattice]], [[dem.insert]] and [[dem.pack]]: the particle fills of a scene, read in the
+// order of the scene, and the up-front check that the particles they ask for can be held.
 
 #include <algorithm>
 #include <cmath>
@@ -164,6 +164,33 @@ InsertSpec read_insert(const Table& r, const DemScene& s, FillKeys& keys) {
   return is;
 }
 
+PackSpec read_pack(const Table& k, const DemScene& s, FillKeys& keys) {
+  PackSpec ps;
+  ps.where = k.where("count");
+  auto& q = ps.request;
+  q.material = material_index(k, "material", s.settings.materials);
+  particle_density(k, q.material, s.settings.materials, keys);
+  q.region.lo = k.vec3("lo");
+  q.region.hi = checked_hi(k, q.region.lo);
+  q.sizes = read_distribution(k.required_table("distribution"));
+  q.count = k.integer("count", 1, INT64_MAX);
+  // 1: bounding spheres touching; up to 2 leaves a gap as wide as a particle
+  q.gap_factor = k.number("gap_factor", 1.001, Range::closed(1.0, 2.0));
+  const std::string method = k.choice("method", "mixed", {"mixed", "layers", "rows"});
+  q.method = method == "rows"     ? PackedFill::Method::rows
+             : method == "layers" ? PackedFill::Method::layers
+                                  : PackedFill::Method::mixed;
+  q.velocity = k.vec3("velocity", std::array<double, 3>{0, 0, 0});
+  if (k.has("seed")) {
+    q.seed = static_cast<std::uint64_t>(k.integer("seed", 0, INT64_MAX));
+    ps.has_seed = true;
+  }
+  ps.shape = shape_index(k, s.shapes);
+  keys.size_keys.push_back(ps.where);
+  k.finish();
+  return ps;
+}
+
 double repetitions(const InsertSpec& in) {
   return in.every > 0 ? std::floor(in.until / in.every + 1e-9) + 1.0 : 1.0;
 }
@@ -193,6 +220,7 @@ void check_particle_budget(const DemScene& s, const std::vector<std::string>& ke
     }
   }
   for (const auto& in : s.inserts) counts.push_back(expected_count(in.request) * repetitions(in));
+  for (const auto& p : s.packs) counts.push_back(static_cast<double>(p.request.count));
   double total = 0.0;
   std::size_t largest = 0;
   for (std::size_t i = 0; i < counts.size(); ++i) {
@@ -222,6 +250,7 @@ FillKeys read_fills(const Table& dem, DemScene& s) {
   keys.particle_materials.assign(s.settings.materials.size(), 0);
   for (const auto& l : dem.tables("lattice")) s.lattices.push_back(read_lattice(l, s, keys));
   for (const auto& r : dem.tables("insert")) s.inserts.push_back(read_insert(r, s, keys));
+  for (const auto& k : dem.tables("pack")) s.packs.push_back(read_pack(k, s, keys));
   check_particle_budget(s, keys.size_keys);
   return keys;
 }
@@ -252,6 +281,7 @@ double estimated_particle_count(const DemScene& s) {
   double total = 0.0;
   for (const auto& l : s.lattices) total += lattice_count(l.request);
   for (const auto& in : s.inserts) total += expected_count(in.request) * repetitions(in);
+  for (const auto& p : s.packs) total += static_cast<double>(p.request.count);
   return total;
 }
 

@@ -25,12 +25,13 @@ std::array<double, 3> checked_hi(const scene::Table& t, const std::array<double,
 std::vector<WallSpec> read_walls(const scene::Table& dem, const std::vector<Material>& materials);
 
 /// What read_fills finds besides the entries: the materials particles are made of (every pair
-/// they meet must be given), and per lattice then per insertion the key that sets its size.
+/// they meet must be given), and per lattice, then per insertion, then per pack the key that sets its size.
 struct FillKeys {
   std::vector<std::uint8_t> particle_materials;  ///< 1 per material that particles use
   std::vector<std::string> size_keys;
 };
-/// [[dem.lattice]] and [[dem.insert]] into s.lattices and s.inserts (s.settings.materials and
+/// [[dem.lattice]], [[dem.insert]] and [[dem.pack]] into s.lattices, s.inserts and s.packs
+/// (s.settings.materials and
 /// s.shapes read already), then the particle budget (scene_fills.cpp).
 FillKeys read_fills(const scene::Table& dem, DemScene& s);
 

@@ -168,6 +168,9 @@ class DemRun {
   void check_periods() const;
 
   void add(std::span<const ParticleInit> particles);
+  /// [[dem.pack]] entries, in order (seeds from `seed` unless given), checked against the
+  /// walls and the particles already placed (dem_run_pack.cpp).
+  void place_packs(const WallClearance& walls, std::uint64_t seed);
   void start_output(bool resume);
 
   /// Per [[dem.shapes]] entry its library and the engine id of its first shape.

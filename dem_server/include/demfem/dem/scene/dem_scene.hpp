@@ -12,6 +12,7 @@
 
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/dem/placement/insertion.hpp"
+#include "demfem/dem/placement/packed_fill.hpp"
 #include "demfem/dem/scene/particle_source.hpp"
 #include "demfem/dem/sensors/sensors.hpp"
 #include "demfem/scene/scene_reader.hpp"
@@ -77,6 +78,18 @@ struct LatticeSpec {
   std::string where;
 };
 
+/// @brief One [[dem.pack]] entry.
+struct PackSpec {
+  PackedFill request;
+  std::int32_t shape = -1;  ///< index into DemScene::shapes, -1 = spheres
+  bool has_seed = false;    ///< false: seed = run seed + kPackSeedOffset + entry index
+  std::string where;
+};
+
+/// @brief Default seed of pack entry i: run.seed + kPackSeedOffset + i (a prime offset apart
+/// from the lattices' and the insertions' streams).
+inline constexpr std::uint64_t kPackSeedOffset = 700001;
+
 /// @brief Default seed of lattice entry i: run.seed + kLatticeSeedOffset + i (a prime offset,
 /// so no lattice shares the stream of an insertion: those are run.seed + i + 1000003 k).
 inline constexpr std::uint64_t kLatticeSeedOffset = 500009;
@@ -107,6 +120,7 @@ struct DemScene {
   std::vector<ShapeSpec> shapes;
   std::vector<LatticeSpec> lattices;
   std::vector<InsertSpec> inserts;
+  std::vector<PackSpec> packs;  ///< [[dem.pack]], placed after the lattices
   double settle_time = 0.0;               ///< s of settling after insertion (before remove_above)
   std::optional<double> remove_above;     ///< m
   bool remove_by_top = false;             ///< remove_by = "top": the particle's highest point
