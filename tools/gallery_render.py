@@ -5,13 +5,17 @@ the run's last output time, seen from the front and a little above. Whatever of 
 the folder has is drawn. Run with ParaView's own Python (Debian: python3-paraview), which
 needs an X server (xvfb-run gives it one); tools/gallery_pictures.py runs it for every scene:
 
-    xvfb-run -a pvbatch tools/gallery_render.py OUT_DIR PICTURE.png [TITLE]
+usage: xvfb-run -a pvbatch tools/gallery_render.py OUT_DIR PICTURE.png [TITLE]
 """
 
 import os
 import sys
 
-from demfem_post.needs import need_or_exit
+if __name__ == "__main__" and any(a in ("-h", "--help") for a in sys.argv[1:]):
+    print(__doc__.strip())  # before ParaView is needed: --help answers with any Python
+    sys.exit(0)
+
+from demfem_post.needs import need_or_exit  # noqa: E402 (after the --help answer)
 
 pv = need_or_exit("gallery_render.py", "paraview.simple", "python3-paraview", "pvbatch")
 
