@@ -1,10 +1,13 @@
 // Dilated polyhedra in DemSystem (CPU): the sphere limit, resting contacts on walls counted
 // once, restitution, a free body, the incline, determinism and save/restore.
 
+#include <hdf5.h>
+
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <limits>
 #include <random>
 #include <sstream>
 #include <string>
@@ -14,6 +17,7 @@
 #include "demfem/dem/physics/rigid_body.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem_test/temp_dir.hpp"
+#include "../../reliability/hdf5_patch.hpp"
 #include "poly_test_util.hpp"
 
 using namespace demfem::dem;
@@ -492,6 +496,15 @@ std::string first_difference(const ParticleState& a, const ParticleState& b) {
   return "none";
 }
 
+// A dataset removed from a saved state (a state written before it was saved).
+void delete_dataset(const std::filesystem::path& file, const std::string& name) {
+  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  REQUIRE(f >= 0);
+  const herr_t e = H5Ldelete(f, name.c_str(), H5P_DEFAULT);
+  H5Fclose(f);
+  REQUIRE(e >= 0);
+}
+
 // A cloud of rounded boxes turned at random, without walls or gravity, converging (-40 1/s
 // towards its centre) so that box pairs come into contact and apart throughout: 6^3 boxes.
 DemSystem box_cloud() {
@@ -554,6 +567,82 @@ TEST_CASE("Polyhedra: a restored cloud of turned boxes continues bitwise (narrow
        << first_difference(ref.particles(), third.particles()));
   CHECK(same_state(ref.particles(), third.particles()));
   CHECK(ref.kinetic_energy() == third.kinetic_energy());
+}
+
+TEST_CASE("Polyhedra: a state with forged narrow-phase caches is refused naming the dataset",
+          "[dem][poly][restart]") {
+  // A restored state is hostile input: a pair's closest features index the vertices of its
+  // cores (GJK's warm start), its axis proves separations. Each forged value is refused before
+  // any step reads it, naming file:/dem/<dataset> and the accepted range; a state written
+  // before the caches were saved (neither dataset) restores with cold caches.
+  const demfem::test::TempDir tmp("dem_poly_cache_forged");
+  const auto file = tmp.path / "state.h5";
+  DemSystem sys = box_cloud();
+  sys.advance(600);
+  {
+    demfem::io::H5File h5(file, demfem::io::H5File::Mode::create);
+    sys.save(h5, "/dem");
+  }
+  std::size_t touching = 0;  // a saved pair whose features are set (its feature 0)
+  {
+    demfem::io::H5File h5(file, demfem::io::H5File::Mode::read);
+    const auto feat = h5.read_int64("/dem/features");
+    REQUIRE(h5.read_doubles("/dem/sepaxis").size() * 2 == feat.size());
+    while (touching < feat.size() / 6 && feat[6 * touching] < 0) ++touching;
+    REQUIRE(touching < feat.size() / 6);
+  }
+  auto restore = [&](const std::filesystem::path& f) {
+    DemSystem fresh = box_cloud();
+    demfem::io::H5File h5(f, demfem::io::H5File::Mode::read);
+    fresh.restore(h5, "dem");  // as [dem.load] and checkpoints name it: file:/dem/<dataset>
+    fresh.advance(1);
+  };
+  CHECK_NOTHROW(restore(file));
+  const auto forged = tmp.path / "forged.h5";
+  auto forge = [&] {
+    std::filesystem::remove(forged);
+    std::filesystem::copy_file(file, forged);
+  };
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const std::size_t f0 = 6 * touching, a0 = 3 * touching;
+  // a box core has 8 vertices: features -1 .. 7
+  for (std::int64_t v : {std::int64_t{8}, std::int64_t{-2}, std::int64_t{1000000000}}) {
+    CAPTURE(v);
+    for (std::size_t m : {std::size_t{0}, std::size_t{5}}) {
+      forge();
+      demfem::test::overwrite_int64(forged, "/dem/features", f0 + m, v);
+      CHECK_THROWS_WITH(restore(forged), Catch::Contains(forged.string() + ":/dem/features[" +
+                                                         std::to_string(f0 + m) + "]") &&
+                                             Catch::Contains("-1 .. 7"));
+    }
+  }
+  for (double a : {nan, 2.0, 1e300}) {
+    CAPTURE(a);
+    forge();
+    demfem::test::overwrite_doubles(forged, "/dem/sepaxis", a0 + 1, a);
+    CHECK_THROWS_WITH(restore(forged), Catch::Contains(forged.string() + ":/dem/sepaxis[") &&
+                                           Catch::Contains("accepted 0 or 1 +- 1e-6"));
+  }
+  // lengths: one dataset of another state's pairs, or one of the two missing
+  forge();
+  delete_dataset(forged, "/dem/features");
+  CHECK_THROWS_WITH(restore(forged), Catch::Contains(forged.string() + ":/dem/features") &&
+                                         Catch::Contains("is missing"));
+  forge();
+  delete_dataset(forged, "/dem/features");
+  delete_dataset(forged, "/dem/sepaxis");
+  {
+    demfem::io::H5File h5(forged, demfem::io::H5File::Mode::append);
+    h5.write("/dem/features", std::span<const std::int64_t>(std::vector<std::int64_t>(6, -1)));
+    h5.write("/dem/sepaxis", std::span<const double>(std::vector<double>(3, 0.0)));
+  }
+  CHECK_THROWS_WITH(restore(forged), Catch::Contains(forged.string() + ":/dem/sepaxis") &&
+                                         Catch::Contains("not 3 per pair of nbr"));
+  // a state written before the caches were saved
+  forge();
+  delete_dataset(forged, "/dem/features");
+  delete_dataset(forged, "/dem/sepaxis");
+  CHECK_NOTHROW(restore(forged));
 }
 
 TEST_CASE("Polyhedra: the pair pass's separation proofs change no result",
