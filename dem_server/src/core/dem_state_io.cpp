@@ -184,33 +184,58 @@ namespace {
 // within the skin, which depend on when the list was last built or refiltered, and a
 // restarted process refilters with its own adaptive skin) are not state: two runs that agree
 // in every particle and contact write the same arrays.
+// Systems with polyhedra also keep the pairs whose narrow-phase caches are warm, with the
+// caches of every kept pair ("sepaxis", "features"): the narrow phase of a pair starts from
+// them (GJK's simplex, the axis's support pair), and a cold start can round a contact
+// otherwise, so a restored run without them parts from the uninterrupted one at round-off.
+// Which non-touching pairs hold an axis depends on the list's history (as their springs do
+// not): two runs equal in every particle and contact may then write different pairs.
 struct PairsWithSprings {
   std::vector<std::int64_t> row, nbr;
   std::vector<double> shear, rhist;
+  bool caches = false;             ///< the system has polyhedra: axis and feat are written
+  std::vector<double> axis;        ///< 3 per kept pair
+  std::vector<std::int64_t> feat;  ///< 6 per kept pair
 };
 template <class ImplT>  // DemSystem::Impl (a private type: deduced)
 PairsWithSprings pairs_with_springs(const ImplT& I) {
   PairsWithSprings out;
   const std::size_t n = I.row.empty() ? 0 : I.row.size() - 1;
   out.row.assign(I.row.empty() ? 0 : n + 1, 0);
-  // without friction no pair has a spring (and no shear array): no pair is state
-  if (I.slots.shear.size() != 3 * I.nbr.size()) return out;
-  const bool rolling = I.slots.rolling_history.size() == I.slots.shear.size();
+  // without friction no pair has a spring (and no shear array): without polyhedra no pair is
+  // state
+  const bool friction = I.slots.shear.size() == 3 * I.nbr.size();
+  out.caches = I.poly && I.slots.separating_axis.size() == 3 * I.nbr.size() &&
+               I.slots.closest_features.size() == 6 * I.nbr.size();
+  if (!friction && !out.caches) return out;
+  const bool rolling = friction && I.slots.rolling_history.size() == I.slots.shear.size();
   std::vector<std::pair<std::int32_t, std::size_t>> kept;  // (j, pair index)
   auto spring = [](const std::vector<double>& h, std::size_t k) {
     return h[3 * k] != 0.0 || h[3 * k + 1] != 0.0 || h[3 * k + 2] != 0.0;
+  };
+  // a pair whose caches are not cold: features set (it touched at its last pass) or an axis
+  // (it was proven apart along it, or touched)
+  auto warm = [&](std::size_t k) {
+    if (!out.caches) return false;
+    const double* a = I.slots.separating_axis.data() + 3 * k;
+    return I.slots.closest_features[6 * k] >= 0 || a[0] != 0.0 || a[1] != 0.0 || a[2] != 0.0;
   };
   for (std::size_t i = 0; i < n; ++i) {
     kept.clear();
     for (auto k = static_cast<std::size_t>(I.row[i]); k < static_cast<std::size_t>(I.row[i + 1]);
          ++k)
-      if (spring(I.slots.shear, k) || (rolling && spring(I.slots.rolling_history, k)))
+      if ((friction && spring(I.slots.shear, k)) ||
+          (rolling && spring(I.slots.rolling_history, k)) || warm(k))
         kept.emplace_back(I.nbr[k], k);
     std::sort(kept.begin(), kept.end());
     for (const auto& [j, k] : kept) {
       out.nbr.push_back(j);
-      out.shear.insert(out.shear.end(), I.slots.shear.begin() + std::ptrdiff_t(3 * k),
-                       I.slots.shear.begin() + std::ptrdiff_t(3 * k + 3));
+      // a frictionless system's kept pairs get zero springs (restore checks 3 per pair)
+      for (int d = 0; d < 3; ++d) out.shear.push_back(friction ? I.slots.shear[3 * k + d] : 0.0);
+      if (out.caches) {
+        for (int d = 0; d < 3; ++d) out.axis.push_back(I.slots.separating_axis[3 * k + d]);
+        for (int d = 0; d < 6; ++d) out.feat.push_back(I.slots.closest_features[6 * k + d]);
+      }
       if (rolling)
         out.rhist.insert(out.rhist.end(), I.slots.rolling_history.begin() + std::ptrdiff_t(3 * k),
                          I.slots.rolling_history.begin() + std::ptrdiff_t(3 * k + 3));
@@ -299,6 +324,64 @@ void check_state_indices(const ImplT& I, std::size_t nverts, const std::string& 
 }
 }  // namespace
 
+namespace {
+// The narrow-phase caches of the restored pairs ("sepaxis", "features": pairs_with_springs),
+// checked before any step reads them: a feature indexes a core's vertices (GJK's warm start,
+// narrow_phase.hpp gjk_distance: even entries the vertices of i, odd ones those of j; a sphere
+// is a point core of one vertex), and an axis is a unit vector or zero (convex_contact proves
+// a separation along it). A state written before the caches were saved has neither: the
+// caches start cold (as a list rebuilt from scratch).
+template <class ImplT>
+void restore_pair_caches(ImplT& I, const io::H5File& f, const std::string& g) {
+  const std::string at = f.path().string() + ":/" + g;
+  auto refuse = [&](const std::string& dataset, const std::string& what) {
+    bad("restore: " + at + dataset + " " + what);
+  };
+  I.slots.separating_axis.clear(), I.slots.closest_features.clear();
+  const bool has_axis = f.exists(g + "sepaxis"), has_feat = f.exists(g + "features");
+  if (!has_axis && !has_feat) return;
+  if (has_axis != has_feat)
+    refuse(has_axis ? "features" : "sepaxis", "is missing (saved with " +
+                                                  std::string(has_axis ? "sepaxis" : "features") +
+                                                  ": the narrow-phase caches come together)");
+  const auto axis = f.read_doubles(g + "sepaxis");
+  const auto feat = f.read_int64(g + "features");
+  const std::size_t np = I.nbr.size(), n = I.st.px.size();
+  if (axis.size() != 3 * np)
+    refuse("sepaxis", "has " + std::to_string(axis.size()) + " values, not 3 per pair of nbr (" +
+                          std::to_string(3 * np) + ")");
+  if (feat.size() != 6 * np)
+    refuse("features", "has " + std::to_string(feat.size()) + " values, not 6 per pair of nbr (" +
+                           std::to_string(6 * np) + ")");
+  auto vertices = [&](std::size_t i) -> std::int64_t {  // of particle i's core
+    const std::int32_t id = I.st.shape_id[i];
+    return id < 0 ? 1 : static_cast<std::int64_t>(I.shapes.shape(id).vertices.size() / 3);
+  };
+  for (std::size_t i = 0; i < n; ++i)
+    for (auto k = static_cast<std::size_t>(I.row[i]); k < static_cast<std::size_t>(I.row[i + 1]);
+         ++k) {
+      const double* a = axis.data() + 3 * k;
+      const double a2 = a[0] * a[0] + a[1] * a[1] + a[2] * a[2];
+      if (!std::isfinite(a2) || !(a2 == 0.0 || std::abs(a2 - 1.0) < 1e-6))
+        refuse("sepaxis[" + std::to_string(3 * k) + " .. " + std::to_string(3 * k + 2) + "]",
+               "(pair " + std::to_string(k) + ") is not a unit axis or zero (|a|^2 = " +
+                   std::to_string(a2) + ", accepted 0 or 1 +- 1e-6)");
+      const std::size_t j = static_cast<std::size_t>(I.nbr[k]);
+      for (int m = 0; m < 6; ++m) {
+        const std::size_t owner = m % 2 == 0 ? i : j;
+        const std::int64_t nv = vertices(owner), v = feat[6 * k + m];
+        if (v < -1 || v >= nv)
+          refuse("features[" + std::to_string(6 * k + m) + "]",
+                 "= " + std::to_string(v) + " (pair " + std::to_string(k) +
+                     ", a vertex of particle " + std::to_string(owner) + ") is not in -1 .. " +
+                     std::to_string(nv - 1) + " (-1: none, else a vertex of its core)");
+      }
+    }
+  I.slots.separating_axis = axis;
+  I.slots.closest_features = from64<std::int32_t>(feat);
+}
+}  // namespace
+
 void DemSystem::save(io::H5File& f, const std::string& group) const {
   const auto& I = *impl_;
   const auto& st = I.st;
@@ -325,6 +408,10 @@ void DemSystem::save(io::H5File& f, const std::string& group) const {
   save_shapes(I.shapes, f, g);
   f.write(g + "row", std::span<const std::int64_t>(pairs.row));
   f.write(g + "nbr", std::span<const std::int64_t>(pairs.nbr));
+  if (pairs.caches) {
+    f.write(g + "sepaxis", std::span<const double>(pairs.axis));
+    f.write(g + "features", std::span<const std::int64_t>(pairs.feat));
+  }
   f.write(g + "wkey", std::span<const std::int64_t>(I.wkey));
   f.write(g + "wcount", std::span<const std::uint8_t>(I.wcount));
   I.bodies.save(f, g);
@@ -384,6 +471,10 @@ void DemSystem::save_state(DemStateCopy& c) const {
   }
   c.row.assign(I.row.begin(), I.row.end());
   c.nbr.assign(I.nbr.begin(), I.nbr.end());
+  // the narrow phase's warm starts, in the order of nbr as the springs (the rebuild after
+  // restore_state() carries both over)
+  c.axis = I.slots.separating_axis;
+  c.features = I.slots.closest_features;
   c.wkey.assign(I.wkey.begin(), I.wkey.end());
   c.wcount.assign(I.wcount.begin(), I.wcount.end());
   c.bodies = I.bodies.pack();
@@ -412,6 +503,8 @@ void DemSystem::restore_state(const DemStateCopy& c) {
   }
   I.row.assign(c.row.begin(), c.row.end());
   I.nbr.assign(c.nbr.begin(), c.nbr.end());
+  I.slots.separating_axis = c.axis;
+  I.slots.closest_features = c.features;
   I.wkey.assign(c.wkey.begin(), c.wkey.end());
   I.wcount.assign(c.wcount.begin(), c.wcount.end());
   if (!I.bodies.unpack(c.bodies))
@@ -521,6 +614,7 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
             (st.shape[i] == static_cast<std::uint8_t>(ParticleShape::polyhedron)))
       bad("restore: particle " + std::to_string(i) + " in '" + group + "' of " + f.path().string() +
           " refers to a shape the state does not hold");
+  restore_pair_caches(I, f, g);  // indexes the shapes of the particles checked above
   // the orientation update keeps unit quaternions unit (physics/integrator.hpp), it does not
   // normalise arbitrary ones
   if (st.qw.size() == n && st.qx.size() == n && st.qy.size() == n && st.qz.size() == n)

@@ -22,7 +22,8 @@ struct PairSlots {
   std::vector<double> torque;
   std::vector<double> torque_j;        ///< systems with polyhedra: the torque on j, N m
   std::vector<double> rolling_torque;  ///< rolling-resistance torque on i, N m (on j: minus it)
-  // the narrow phase's caches (systems with polyhedra)
+  // the narrow phase's caches (systems with polyhedra; saved with the state: "sepaxis",
+  // "features", as a restored run must start each pair's narrow phase where it left off)
   std::vector<double> separating_axis;         ///< unit axis i -> j, or zero
   std::vector<std::int32_t> closest_features;  ///< 6 per pair: GJK warm start
 };

@@ -1,16 +1,23 @@
 // Dilated polyhedra in DemSystem (CPU): the sphere limit, resting contacts on walls counted
 // once, restitution, a free body, the incline, determinism and save/restore.
 
+#include <hdf5.h>
+
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <limits>
 #include <random>
+#include <sstream>
+#include <string>
 
 #include "dem_test_util.hpp"
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/dem/physics/rigid_body.hpp"
 #include "demfem/io/h5_file.hpp"
+#include "demfem_test/temp_dir.hpp"
+#include "../../reliability/hdf5_patch.hpp"
 #include "poly_test_util.hpp"
 
 using namespace demfem::dem;
@@ -467,6 +474,175 @@ TEST_CASE("Polyhedra: save/restore mid-run continues bitwise identically", "[dem
         0);
   CHECK(ref.kinetic_energy() == second.kinetic_energy());
   std::filesystem::remove_all(dir);
+}
+
+namespace {
+// The first value in which two states differ ("vx[17]: a vs b"), for the failure message.
+std::string first_difference(const ParticleState& a, const ParticleState& b) {
+  const std::pair<const char*, const std::vector<double>*> arrays[][2] = {
+      {{"px", &a.px}, {"px", &b.px}}, {{"py", &a.py}, {"py", &b.py}},
+      {{"pz", &a.pz}, {"pz", &b.pz}}, {{"vx", &a.vx}, {"vx", &b.vx}},
+      {{"vy", &a.vy}, {"vy", &b.vy}}, {{"vz", &a.vz}, {"vz", &b.vz}},
+      {{"wx", &a.wx}, {"wx", &b.wx}}, {{"wy", &a.wy}, {"wy", &b.wy}},
+      {{"wz", &a.wz}, {"wz", &b.wz}}};
+  for (const auto& [x, y] : arrays)
+    for (std::size_t i = 0; i < std::min(x.second->size(), y.second->size()); ++i)
+      if (std::memcmp(&(*x.second)[i], &(*y.second)[i], sizeof(double)) != 0) {
+        std::ostringstream o;
+        o.precision(17);
+        o << x.first << "[" << i << "]: " << (*x.second)[i] << " vs " << (*y.second)[i];
+        return o.str();
+      }
+  return "none";
+}
+
+// A dataset removed from a saved state (a state written before it was saved).
+void delete_dataset(const std::filesystem::path& file, const std::string& name) {
+  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  REQUIRE(f >= 0);
+  const herr_t e = H5Ldelete(f, name.c_str(), H5P_DEFAULT);
+  H5Fclose(f);
+  REQUIRE(e >= 0);
+}
+
+// A cloud of rounded boxes turned at random, without walls or gravity, converging (-40 1/s
+// towards its centre) so that box pairs come into contact and apart throughout: 6^3 boxes.
+DemSystem box_cloud() {
+  auto s = two_material_settings(kE, kNu, kRho, 0.4, 0.5, 1e-5);
+  s.gravity = {0, 0, 0};
+  DemSystem sys(s);
+  sys.add_shape(box_shape(0.0019, 0.0016, 0.0013, 0.0004));
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<ParticleInit> p;
+  for (int k = 0; k < 6; ++k)
+    for (int j = 0; j < 6; ++j)
+      for (int i = 0; i < 6; ++i) {
+        const std::array<double, 3> x{0.0066 * (i - 2.5), 0.0066 * (j - 2.5), 0.0066 * (k - 2.5)};
+        const std::array<double, 3> v{-40 * x[0] + 0.1 * u(rng), -40 * x[1] + 0.1 * u(rng),
+                                      -40 * x[2] + 0.1 * u(rng)};
+        p.push_back(poly(0, x, random_quaternion(rng), v, {20 * u(rng), 20 * u(rng), 20 * u(rng)}));
+      }
+  sys.add_particles(p);
+  return sys;
+}
+}  // namespace
+
+TEST_CASE("Polyhedra: a restored cloud of turned boxes continues bitwise (narrow-phase caches)",
+          "[dem][poly][restart]") {
+  // Reference: the uninterrupted run. Tolerance: none (bitwise). The narrow phase of a box
+  // pair is warm-started from the pair's caches of the step before (separating axis, GJK's
+  // closest features); a restored run that started it cold could round a contact otherwise.
+  const demfem::test::TempDir tmp("dem_poly_cache_restart");
+  const auto file = tmp.path / "state.h5";
+  DemSystem ref = box_cloud();
+  ref.advance(1200);
+  DemSystem first = box_cloud();
+  first.advance(600);
+  REQUIRE(first.contact_count() > 50);
+  {
+    demfem::io::H5File h5(file, demfem::io::H5File::Mode::create);
+    first.save(h5, "/dem");
+  }
+  DemSystem second = box_cloud();
+  {
+    demfem::io::H5File h5(file, demfem::io::H5File::Mode::read);
+    second.restore(h5, "/dem");
+  }
+  second.advance(600);
+  CHECK(ref.contact_count() > 50);
+  INFO("restored from the file: first difference "
+       << first_difference(ref.particles(), second.particles()));
+  CHECK(same_state(ref.particles(), second.particles()));
+  CHECK(ref.kinetic_energy() == second.kinetic_energy());
+  // the in-memory save point (implicit coupling): restored after 300 steps more
+  DemSystem third = box_cloud();
+  third.advance(600);
+  DemStateCopy copy;
+  third.save_state(copy);
+  third.advance(300);
+  third.restore_state(copy);
+  third.advance(600);
+  INFO("restored from memory: first difference "
+       << first_difference(ref.particles(), third.particles()));
+  CHECK(same_state(ref.particles(), third.particles()));
+  CHECK(ref.kinetic_energy() == third.kinetic_energy());
+}
+
+TEST_CASE("Polyhedra: a state with forged narrow-phase caches is refused naming the dataset",
+          "[dem][poly][restart]") {
+  // A restored state is hostile input: a pair's closest features index the vertices of its
+  // cores (GJK's warm start), its axis proves separations. Each forged value is refused before
+  // any step reads it, naming file:/dem/<dataset> and the accepted range; a state written
+  // before the caches were saved (neither dataset) restores with cold caches.
+  const demfem::test::TempDir tmp("dem_poly_cache_forged");
+  const auto file = tmp.path / "state.h5";
+  DemSystem sys = box_cloud();
+  sys.advance(600);
+  {
+    demfem::io::H5File h5(file, demfem::io::H5File::Mode::create);
+    sys.save(h5, "/dem");
+  }
+  std::size_t touching = 0;  // a saved pair whose features are set (its feature 0)
+  {
+    demfem::io::H5File h5(file, demfem::io::H5File::Mode::read);
+    const auto feat = h5.read_int64("/dem/features");
+    REQUIRE(h5.read_doubles("/dem/sepaxis").size() * 2 == feat.size());
+    while (touching < feat.size() / 6 && feat[6 * touching] < 0) ++touching;
+    REQUIRE(touching < feat.size() / 6);
+  }
+  auto restore = [&](const std::filesystem::path& f) {
+    DemSystem fresh = box_cloud();
+    demfem::io::H5File h5(f, demfem::io::H5File::Mode::read);
+    fresh.restore(h5, "dem");  // as [dem.load] and checkpoints name it: file:/dem/<dataset>
+    fresh.advance(1);
+  };
+  CHECK_NOTHROW(restore(file));
+  const auto forged = tmp.path / "forged.h5";
+  auto forge = [&] {
+    std::filesystem::remove(forged);
+    std::filesystem::copy_file(file, forged);
+  };
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const std::size_t f0 = 6 * touching, a0 = 3 * touching;
+  // a box core has 8 vertices: features -1 .. 7
+  for (std::int64_t v : {std::int64_t{8}, std::int64_t{-2}, std::int64_t{1000000000}}) {
+    CAPTURE(v);
+    for (std::size_t m : {std::size_t{0}, std::size_t{5}}) {
+      forge();
+      demfem::test::overwrite_int64(forged, "/dem/features", f0 + m, v);
+      CHECK_THROWS_WITH(restore(forged), Catch::Contains(forged.string() + ":/dem/features[" +
+                                                         std::to_string(f0 + m) + "]") &&
+                                             Catch::Contains("-1 .. 7"));
+    }
+  }
+  for (double a : {nan, 2.0, 1e300}) {
+    CAPTURE(a);
+    forge();
+    demfem::test::overwrite_doubles(forged, "/dem/sepaxis", a0 + 1, a);
+    CHECK_THROWS_WITH(restore(forged), Catch::Contains(forged.string() + ":/dem/sepaxis[") &&
+                                           Catch::Contains("accepted 0 or 1 +- 1e-6"));
+  }
+  // lengths: one dataset of another state's pairs, or one of the two missing
+  forge();
+  delete_dataset(forged, "/dem/features");
+  CHECK_THROWS_WITH(restore(forged), Catch::Contains(forged.string() + ":/dem/features") &&
+                                         Catch::Contains("is missing"));
+  forge();
+  delete_dataset(forged, "/dem/features");
+  delete_dataset(forged, "/dem/sepaxis");
+  {
+    demfem::io::H5File h5(forged, demfem::io::H5File::Mode::append);
+    h5.write("/dem/features", std::span<const std::int64_t>(std::vector<std::int64_t>(6, -1)));
+    h5.write("/dem/sepaxis", std::span<const double>(std::vector<double>(3, 0.0)));
+  }
+  CHECK_THROWS_WITH(restore(forged), Catch::Contains(forged.string() + ":/dem/sepaxis") &&
+                                         Catch::Contains("not 3 per pair of nbr"));
+  // a state written before the caches were saved
+  forge();
+  delete_dataset(forged, "/dem/features");
+  delete_dataset(forged, "/dem/sepaxis");
+  CHECK_NOTHROW(restore(forged));
 }
 
 TEST_CASE("Polyhedra: the pair pass's separation proofs change no result",

@@ -223,6 +223,8 @@ struct DemStateCopy {
   std::vector<std::vector<double>> arrays;  ///< the state arrays of save(), constant ones left out
   std::vector<std::int64_t> row, wkey;
   std::vector<std::int32_t> nbr;
+  std::vector<double> axis;            ///< polyhedra: the narrow phase's axis cache, 3 per pair
+  std::vector<std::int32_t> features;  ///< polyhedra: its closest features, 6 per pair
   std::vector<std::uint8_t> wcount;
   std::vector<double> bodies;  ///< rigid mesh bodies ([dem.walls.body]), 19 per body
   std::vector<double> drift;   ///< force-limited walls: drift time and drifting (0/1), 2 per wall
