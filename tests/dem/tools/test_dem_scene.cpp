@@ -9,6 +9,7 @@
 
 #include "demfem/dem/run/dem_run.hpp"
 #include "demfem/dem/shapes/geometry/stl_reader.hpp"
+#include "demfem_test/dem_scene_text.hpp"
 #include "demfem_test/error_of.hpp"
 #include "demfem_test/temp_dir.hpp"
 
@@ -82,26 +83,18 @@ interval = 0.005
 )";
 
 DemScene parse(const std::string& text, const std::string& name = "scene.toml") {
-  Document d = Document::parse(text, name);
-  demfem::scene::read_run_settings(d);
-  return read_dem_scene(d.root().required_table("dem"));
+  return demfem::test::parse_dem_scene(text, name);
 }
 
 std::string error_of(const std::string& text) {
   return demfem::test::error_of<SceneError>([&] { parse(text); }, "(no error)");
 }
 
-std::string replace(std::string s, const std::string& from, const std::string& to) {
-  const auto p = s.find(from);
-  REQUIRE(p != std::string::npos);
-  return s.replace(p, from.size(), to);
+std::string replace(const std::string& s, const std::string& from, const std::string& to) {
+  return demfem::test::replace_first(s, from, to);
 }
 
-/// Line (1-based) of the first occurrence of `what` in kBase after `replace`.
-int line_of(const std::string& text, const std::string& what) {
-  const auto p = text.find(what);
-  return 1 + int(std::count(text.begin(), text.begin() + long(p), '\n'));
-}
+using demfem::test::line_of;
 
 }  // namespace
 

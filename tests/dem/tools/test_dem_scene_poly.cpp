@@ -15,6 +15,7 @@
 #include "demfem/io/h5_file.hpp"
 #include "demfem_test/box_scene.hpp"
 #include "demfem_test/cube_shape.hpp"
+#include "demfem_test/dem_scene_text.hpp"
 #include "demfem_test/error_of.hpp"
 #include "demfem_test/temp_dir.hpp"
 
@@ -48,22 +49,13 @@ seed = 3
 distribution = { kind = "normal", mean = 0.04, stddev = 0.01, d_min = 0.02, d_max = 0.06 }
 )";
 
-std::string replace(std::string s, const std::string& from, const std::string& to) {
-  const auto p = s.find(from);
-  REQUIRE(p != std::string::npos);
-  return s.replace(p, from.size(), to);
+std::string replace(const std::string& s, const std::string& from, const std::string& to) {
+  return demfem::test::replace_first(s, from, to);
 }
 
-int line_of(const std::string& text, const std::string& what) {
-  const auto p = text.find(what);
-  return 1 + int(std::count(text.begin(), text.begin() + long(p), '\n'));
-}
+using demfem::test::line_of;
 
-DemScene parse(const std::string& text) {
-  Document d = Document::parse(text, "rocks.toml");
-  demfem::scene::read_run_settings(d);
-  return read_dem_scene(d.root().required_table("dem"));
-}
+DemScene parse(const std::string& text) { return demfem::test::parse_dem_scene(text, "rocks.toml"); }
 
 // The message of building the scene (reading, then DemRun), or "(no error)".
 std::string error_of(const std::string& text) {

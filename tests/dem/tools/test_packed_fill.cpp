@@ -11,6 +11,7 @@
 #include "demfem/dem/run/dem_run.hpp"
 #include "demfem/dem/sensors/packing.hpp"
 #include "demfem_test/box_scene.hpp"
+#include "demfem_test/dem_scene_text.hpp"
 #include "demfem_test/error_of.hpp"
 
 using namespace demfem::dem;
@@ -63,22 +64,13 @@ count = 200
 distribution = { kind = "normal", mean = 0.04, stddev = 0.01, d_min = 0.02, d_max = 0.06 }
 )";
 
-std::string replace(std::string s, const std::string& from, const std::string& to) {
-  const auto p = s.find(from);
-  REQUIRE(p != std::string::npos);
-  return s.replace(p, from.size(), to);
+std::string replace(const std::string& s, const std::string& from, const std::string& to) {
+  return demfem::test::replace_first(s, from, to);
 }
 
-int line_of(const std::string& text, const std::string& what) {
-  const auto p = text.find(what);
-  return 1 + int(std::count(text.begin(), text.begin() + long(p), '\n'));
-}
+using demfem::test::line_of;
 
-DemScene parse(const std::string& text) {
-  Document d = Document::parse(text, "pack.toml");
-  demfem::scene::read_run_settings(d);
-  return read_dem_scene(d.root().required_table("dem"));
-}
+DemScene parse(const std::string& text) { return demfem::test::parse_dem_scene(text, "pack.toml"); }
 
 std::string error_of(const std::string& text) {
   return demfem::test::error_of<SceneError>(

@@ -19,6 +19,7 @@
 #include "demfem/dem/sensors/packing.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem/scene/scene_reader.hpp"
+#include "demfem_test/dem_scene_text.hpp"
 #include "demfem_test/error_of.hpp"
 #include "demfem_test/temp_dir.hpp"
 
@@ -78,16 +79,10 @@ seed = 5
 distribution = { kind = "uniform", d_min = 0.002, d_max = 0.003 }
 )";
 
-DemScene parse(const std::string& text) {
-  Document d = Document::parse(text, "periodic.toml");
-  demfem::scene::read_run_settings(d);
-  return read_dem_scene(d.root().required_table("dem"));
-}
+DemScene parse(const std::string& text) { return demfem::test::parse_dem_scene(text, "periodic.toml"); }
 
-std::string replace(std::string s, const std::string& from, const std::string& to) {
-  const auto p = s.find(from);
-  REQUIRE(p != std::string::npos);
-  return s.replace(p, from.size(), to);
+std::string replace(const std::string& s, const std::string& from, const std::string& to) {
+  return demfem::test::replace_first(s, from, to);
 }
 
 std::string run_error(const std::string& text) {
