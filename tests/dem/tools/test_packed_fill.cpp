@@ -43,7 +43,8 @@ std::string first_overlap(const std::vector<ParticleInit>& p) {
   return "none";
 }
 
-const std::string kPackedRocks = demfem::test::rock_box("[0.5, 0.5, 1.0]").text() + R"(
+// Six random rocks of 10 triangles, sieve-sized, dilated by 10 % of their size.
+const std::string kBallastShapes = R"(
 [[dem.shapes]]
 name = "ballast"
 kind = "random_rock"
@@ -54,7 +55,10 @@ flatness = 0.8
 seed = 5
 size = "sieve"
 dilation = 0.1
+)";
 
+const std::string kPackedRocks =
+    demfem::test::rock_box("[0.5, 0.5, 1.0]").text() + kBallastShapes + R"(
 [[dem.pack]]
 material = "rock"
 shape = "ballast"
@@ -275,18 +279,7 @@ TEST_CASE("[[dem.pack]]: a packed rock layer settles sooner, as dense as a poure
   auto box = demfem::test::rock_box("[0.3, 0.3, 1.6]");
   box.grain_youngs = "1e9";
   std::string base = replace(box.text(), "dt = 1e-5", "dt = 2e-5");  // 0.2 of Rayleigh's
-  base += R"(
-[[dem.shapes]]
-name = "ballast"
-kind = "random_rock"
-count = 6
-triangles = 10
-elongation = 0.8
-flatness = 0.8
-seed = 5
-size = "sieve"
-dilation = 0.1
-)";
+  base += kBallastShapes;
   const std::string sizes =
       "distribution = { kind = \"normal\", mean = 0.04, stddev = 0.01, d_min = 0.02, "
       "d_max = 0.06 }\n";
