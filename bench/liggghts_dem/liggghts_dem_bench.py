@@ -32,7 +32,6 @@ import csv
 import json
 import math
 import os
-import shlex
 import statistics
 import subprocess
 import sys
@@ -44,6 +43,8 @@ BINARY = Path("@PROJECT_BINARY_DIR@")
 if str(SOURCE).startswith("@"):  # run from the source tree
     SOURCE = Path(__file__).resolve().parents[2]
     BINARY = SOURCE / "build"
+sys.path.insert(0, str(SOURCE / "bench" / "common"))
+import bench_meta  # noqa: E402 (the machine and commit beside the figures)
 DEMFEM_RUN = BINARY / "bin" / "demfem_run"
 LIGGGHTS_DEM = BINARY / "bin" / "liggghts_dem"
 # Open MPI as root, more ranks than free cores, and ranks that yield while they wait.
@@ -204,21 +205,7 @@ def write_scenes(folder, points, end_time):
             common + LIGGGHTS.format(ranks=ranks, program=LIGGGHTS_DEM))
 
 
-def sh(cmd):
-    return subprocess.run(cmd, shell=True, capture_output=True, text=True).stdout.strip()
 
-
-def machine():
-    cpu = sh("grep -m1 'model name' /proc/cpuinfo | cut -d: -f2").strip() or "unknown CPU"
-    return f"{cpu}, {os.cpu_count()} hardware threads, load {os.getloadavg()[0]:.2f}"
-
-
-def commit():
-    c = sh(f"git -C {shlex.quote(str(SOURCE))} rev-parse --short HEAD 2>/dev/null")
-    if not c:
-        return "unknown"
-    dirty = sh(f"git -C {shlex.quote(str(SOURCE))} status --porcelain --untracked-files=no")
-    return c + ("-dirty" if dirty else "")
 
 
 def run_variant(folder, name, k):
@@ -283,7 +270,8 @@ def main(argv):
     mass = len(points) * DENSITY * math.pi / 6 * DIAMETER ** 3
     info = {"spheres": len(points), "mass_kg": mass, "coupling_steps": rows[0]["steps"],
             "n_D": 5, "triangles": 680, "goal": "adapter_share < 0.05"}
-    print(f"# liggghts_dem  ({machine()}, commit {commit()})")
+    machine, commit = bench_meta.machine(with_load=True), bench_meta.commit(SOURCE)
+    print(f"# liggghts_dem  ({machine}, commit {commit})")
     for k, v in info.items():
         print(f"#   {k} = {v:.4g}" if isinstance(v, float) else f"#   {k} = {v}")
     cols = ["wall_dem_ms", "loop_us", "run_fixed_us", "set_up_us", "mesh_update_us",
@@ -296,8 +284,8 @@ def main(argv):
             print("  ".join([name.ljust(14), stat.ljust(6)] + cells))
     if a.json:
         Path(a.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(a.json).write_text(json.dumps({"benchmark": "liggghts_dem", "machine": machine(),
-                                            "commit": commit(), "info": info,
+        Path(a.json).write_text(json.dumps({"benchmark": "liggghts_dem", "machine": machine,
+                                            "commit": commit, "info": info,
                                             "summary": summary, "rows": rows}, indent=2) + "\n")
         print(f"# wrote {a.json}")
     return 0

@@ -30,26 +30,13 @@ BINARY = Path("@PROJECT_BINARY_DIR@")
 if str(SOURCE).startswith("@"):  # run from the source tree
     SOURCE = Path(__file__).resolve().parents[2]
     BINARY = SOURCE / "build"
+sys.path.insert(0, str(SOURCE / "bench" / "common"))
+import bench_meta  # noqa: E402 (the machine and commit beside the figures)
 DEMFEM_RUN = BINARY / "bin" / "demfem_run"
 SCENE = SOURCE / "cases" / "beam_sweep_ci.toml"
 
 
-def sh(cmd):
-    return subprocess.run(cmd, shell=True, capture_output=True, text=True).stdout.strip()
 
-
-def machine():
-    cpu = sh("grep -m1 'model name' /proc/cpuinfo | cut -d: -f2").strip() or "unknown CPU"
-    gpu = sh("nvidia-smi --query-gpu=name --format=csv,noheader 2>/dev/null")
-    return f"{cpu}, {os.cpu_count()} hardware threads" + (f", GPU {gpu}" if gpu else "")
-
-
-def commit():
-    c = sh(f"git -C {shlex.quote(str(SOURCE))} rev-parse --short HEAD 2>/dev/null")
-    if not c:
-        return "unknown"
-    dirty = sh(f"git -C {shlex.quote(str(SOURCE))} status --porcelain --untracked-files=no")
-    return c + ("-dirty" if dirty else "")
 
 
 def sweep_file(tmp, members, end_time):
@@ -132,7 +119,8 @@ def main(argv):
     info = {"scene": str(SCENE), "end_time": a.end_time, "goal": "ratio <= 1.2",
             "ratio_median": statistics.median(ratios), "ratio_best": min(ratios),
             "sweep_over_xargs_median": statistics.median(r["sweep_over_xargs"] for r in rows)}
-    print(f"# sweep_overhead  ({machine()}, commit {commit()})")
+    machine, commit = bench_meta.machine(with_gpu=True), bench_meta.commit(SOURCE)
+    print(f"# sweep_overhead  ({machine}, commit {commit})")
     for k, v in info.items():
         print(f"#   {k} = {v:.4g}" if isinstance(v, float) else f"#   {k} = {v}")
     widths = [max(len(c), 10) for c in cols]
@@ -142,8 +130,8 @@ def main(argv):
                         for c, w in zip(cols, widths)))
     if a.json:
         Path(a.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(a.json).write_text(json.dumps({"benchmark": "sweep_overhead", "machine": machine(),
-                                            "commit": commit(), "info": info, "rows": rows},
+        Path(a.json).write_text(json.dumps({"benchmark": "sweep_overhead", "machine": machine,
+                                            "commit": commit, "info": info, "rows": rows},
                                            indent=2) + "\n")
         print(f"# wrote {a.json}")
     return 0
