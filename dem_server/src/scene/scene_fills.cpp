@@ -58,6 +58,14 @@ SizeDistribution read_distribution(const Table& d) {
 }
 
 // The density of a particle material (which must have one); notes that particles use it.
+// An entry's own `seed` in [0, 2^63 - 1], when it has one (its draws then do not follow
+// run.seed): true and `seed` set, else false and `seed` untouched.
+bool read_seed(const Table& t, std::uint64_t& seed) {
+  if (!t.has("seed")) return false;
+  seed = static_cast<std::uint64_t>(t.integer("seed", 0, INT64_MAX));
+  return true;
+}
+
 double particle_density(const Table& t, std::int32_t m, const std::vector<Material>& materials,
                         FillKeys& keys) {
   if (!(materials[m].density > 0)) {
@@ -121,10 +129,7 @@ LatticeSpec read_lattice(const Table& l, const DemScene& s, FillKeys& keys) {
       << 1.2 * q.diameter << " m";
     l.fail("jitter", m.str());
   }
-  if (l.has("seed")) {
-    q.seed = static_cast<std::uint64_t>(l.integer("seed", 0, INT64_MAX));
-    ls.has_seed = true;
-  }
+  ls.has_seed = read_seed(l, q.seed);
   q.velocity = l.vec3("velocity", std::array<double, 3>{0, 0, 0});
   q.max_count = l.integer("max_count", 0, 0, INT64_MAX);
   ls.shape = shape_index(l, s.shapes);
@@ -155,10 +160,7 @@ InsertSpec read_insert(const Table& r, const DemScene& s, FillKeys& keys) {
   } else if (r.has("until")) {
     r.fail("until", "needs 'every' > 0 (a repeated insertion)");
   }
-  if (r.has("seed")) {
-    q.seed = static_cast<std::uint64_t>(r.integer("seed", 0, INT64_MAX));
-    is.has_seed = true;
-  }
+  is.has_seed = read_seed(r, q.seed);
   keys.size_keys.push_back(r.where(has_count ? "count" : "mass"));
   r.finish();
   return is;
@@ -181,10 +183,7 @@ PackSpec read_pack(const Table& k, const DemScene& s, FillKeys& keys) {
              : method == "layers" ? PackedFill::Method::layers
                                   : PackedFill::Method::mixed;
   q.velocity = k.vec3("velocity", std::array<double, 3>{0, 0, 0});
-  if (k.has("seed")) {
-    q.seed = static_cast<std::uint64_t>(k.integer("seed", 0, INT64_MAX));
-    ps.has_seed = true;
-  }
+  ps.has_seed = read_seed(k, q.seed);
   ps.shape = shape_index(k, s.shapes);
   keys.size_keys.push_back(ps.where);
   k.finish();
