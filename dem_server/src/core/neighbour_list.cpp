@@ -62,7 +62,6 @@ void DemSystem::Impl::rebuild() {
   const phys::CellGrid grid =
       phys::cell_grid(lo, hi, static_cast<std::int64_t>(np), rmax, skin, pbox.period);
   const std::int64_t ncell = grid.cells();
-  const std::int64_t* dim = grid.dim;
   std::vector<std::int32_t> cell(np);
   for (std::size_t i = 0; i < np; ++i)
     cell[i] = static_cast<std::int32_t>(grid.cell(P[0][i], P[1][i], P[2][i]));
@@ -90,40 +89,9 @@ void DemSystem::Impl::rebuild() {
     phys::for_each_candidate(grid, order, static_cast<std::int64_t>(i), P[0][i], P[1][i], P[2][i],
                              R[i], skin, emit);
   };
-  // Periodic: the neighbour cells wrap in the periodic directions (each cell once where the
-  // period holds fewer than three), and each candidate is taken at its image nearest to i.
   auto scan_periodic = [&](std::size_t i, auto&& emit) {
-    const double xi = P[0][i], yi = P[1][i], zi = P[2][i], ri = R[i];
-    std::int64_t near[3][3];
-    int count[3];
-    for (int d = 0; d < 3; ++d) {
-      const std::int64_t c = grid.coord(P[d][i], d);
-      count[d] = 0;
-      for (std::int64_t o = -1; o <= 1; ++o) {
-        std::int64_t q = c + o;
-        if (pbox.period[d] > 0.0)
-          q = (q + dim[d]) % dim[d];
-        else if (q < 0 || q >= dim[d])
-          continue;
-        bool seen = false;
-        for (int e = 0; e < count[d]; ++e) seen = seen || near[d][e] == q;
-        if (!seen) near[d][count[d]++] = q;
-      }
-    }
-    for (int a = 0; a < count[2]; ++a)
-      for (int b = 0; b < count[1]; ++b)
-        for (int e = 0; e < count[0]; ++e) {
-          const std::int64_t c = (near[2][a] * dim[1] + near[1][b]) * dim[0] + near[0][e];
-          for (std::int64_t k = cstart[c]; k < cstart[c + 1]; ++k) {
-            const std::size_t j = static_cast<std::size_t>(sorted[k]);
-            if (j <= i) continue;
-            const double dx = phys::image_branch(pbox, 0, xi, sx[k]);
-            const double dy = phys::image_branch(pbox, 1, yi, sy[k]);
-            const double dz = phys::image_branch(pbox, 2, zi, sz[k]);
-            const double cut = ri + sr[k] + skin;
-            if (dx * dx + dy * dy + dz * dz < cut * cut) emit(static_cast<std::int32_t>(j));
-          }
-        }
+    phys::for_each_periodic_candidate(grid, order, pbox, static_cast<std::int64_t>(i), P[0][i],
+                                      P[1][i], P[2][i], R[i], skin, emit);
   };
   // One scan: the particles in nt() contiguous chunks, each chunk's sorted rows appended to
   // its own buffer, then the buffers copied into place (the rows of a scan per particle,

@@ -8,6 +8,7 @@
 #include <cstdint>
 
 #include "demfem/dem/physics/hd.hpp"
+#include "demfem/dem/physics/periodic_image.hpp"
 
 namespace demfem::dem::phys {
 
@@ -111,6 +112,48 @@ DEMFEM_HD void for_each_candidate(const CellGrid& g, const CellOrder& o, std::in
         if (dx * dx + dy * dy + dz * dz < cut * cut) emit(j);
       }
     }
+}
+
+/// for_each_candidate in a grid with periodic axes (b.period[d] > 0): the neighbour cells wrap
+/// there (each cell once where the period holds fewer than three), and each candidate is taken
+/// at its image nearest to i. The emission order differs from for_each_candidate's; callers
+/// sort each row.
+template <class Emit>
+DEMFEM_HD void for_each_periodic_candidate(const CellGrid& g, const CellOrder& o,
+                                           const PeriodicBox& b, std::int64_t i, double xi,
+                                           double yi, double zi, double ri, double skin,
+                                           Emit&& emit) {
+  const double x[3] = {xi, yi, zi};
+  std::int64_t near[3][3];
+  int count[3];
+  for (int d = 0; d < 3; ++d) {
+    const std::int64_t c = g.coord(x[d], d);
+    count[d] = 0;
+    for (std::int64_t off = -1; off <= 1; ++off) {
+      std::int64_t q = c + off;
+      if (b.period[d] > 0.0)
+        q = (q + g.dim[d]) % g.dim[d];
+      else if (q < 0 || q >= g.dim[d])
+        continue;
+      bool seen = false;
+      for (int e = 0; e < count[d]; ++e) seen = seen || near[d][e] == q;
+      if (!seen) near[d][count[d]++] = q;
+    }
+  }
+  for (int a = 0; a < count[2]; ++a)
+    for (int bb = 0; bb < count[1]; ++bb)
+      for (int e = 0; e < count[0]; ++e) {
+        const std::int64_t c = (near[2][a] * g.dim[1] + near[1][bb]) * g.dim[0] + near[0][e];
+        for (std::int64_t k = o.cstart[c]; k < o.cstart[c + 1]; ++k) {
+          const std::int32_t j = o.sorted[k];
+          if (j <= i) continue;
+          const double dx = image_branch(b, 0, xi, o.sx[k]);
+          const double dy = image_branch(b, 1, yi, o.sy[k]);
+          const double dz = image_branch(b, 2, zi, o.sz[k]);
+          const double cut = ri + o.sr[k] + skin;
+          if (dx * dx + dy * dy + dz * dz < cut * cut) emit(j);
+        }
+      }
 }
 
 }  // namespace demfem::dem::phys
