@@ -219,6 +219,7 @@ InterfaceMesh RemoteLink::start() {
       if (!has(r)) continue;
       current = r;
       session_.wait_hello(r, pids_[index(r)]);
+      if (on_hello_) on_hello_(r, session_.peer(r).pid);
     }
     if (has(Role::fem) && expected_fem_nodes_ &&
         session_.peer(Role::fem).node_count != *expected_fem_nodes_) {

@@ -282,6 +282,10 @@ def case_rankdeath(demfem_run, source, program, tmp):
     job = f".{victim[1]:x}."  # Open MPI's vader_segment.<host>.<job id, hex>.<local rank>
     left = [f for f in os.listdir("/dev/shm") if f.startswith("vader_segment") and job in f]
     check(victim[1] != 0 and not left, f"Open MPI shared-memory files left: {left}")
+    # What the launcher removed after the job (mpirun's clean-up races with its exit).
+    for line in text.splitlines():
+        if "removed /dev/shm/" in line:
+            print(line)
     print(f"rank 1 (pid {victim[0]}) killed: exit {p.returncode}, nothing left in /dev/shm")
 
 

@@ -103,6 +103,18 @@ void RunSolvers::start_processes(const std::optional<ResumePoint>& resume, RunCo
   if (fem_proc_) fem_pid = fem_proc_->pid();
   auto remote_link = std::make_unique<RemoteLink>(*session_, dem_pid, fem_pid);
   describe_processes(*remote_link, resume);
+  if (dem_proc_ && run_.external_dem) {
+    // An external DEM may be an MPI job: its shared-memory files go once it has ended
+    // (mpi_job_files.hpp says why the launcher does it).
+    remote_link->on_hello([this](Role role, pid_t pid) {
+      if (role == Role::dem) dem_mpi_jobs_.note_rank(pid);
+    });
+    dem_proc_->set_after_end([this] {
+      for (const auto& name : dem_mpi_jobs_.remove_left())
+        std::fprintf(stderr, "demfem run: removed /dev/shm/%s, left by the ended MPI job of %s\n",
+                     name.c_str(), dem_program_.c_str());
+    });
+  }
   link_ = std::move(remote_link);
   // A solver that died is started again and attached to the same segment; the run then
   // rolls back to the last committed checkpoint (CouplingRun).
@@ -149,6 +161,7 @@ void RunSolvers::restart(Role role) {
   std::printf("demfem run: started %s (pid %d)\n", program(role).c_str(), static_cast<int>(pid));
   std::fflush(stdout);
   session_->wait_hello(role, pid);
+  if (role == Role::dem && run_.external_dem) dem_mpi_jobs_.note_rank(session_->peer(role).pid);
   try {
     session_->reattach(role);
   } catch (const protocol::PeerDied&) {

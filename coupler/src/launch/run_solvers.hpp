@@ -17,6 +17,7 @@
 #include "launch/launch_options.hpp"
 #include "launch/preflight.hpp"
 #include "launch/resume_point.hpp"
+#include "launch/mpi_job_files.hpp"
 #include "launch/supervisor.hpp"
 
 namespace demfem::coupling::launch {
@@ -63,6 +64,8 @@ class RunSolvers {
   const CheckedRun& run_;
   std::optional<DebugKill> debug_kill_;
   std::unique_ptr<protocol::CouplerSession> session_;
+  // Before the processes: their hooks remove these files when they end, also in ~RunSolvers.
+  MpiJobFiles dem_mpi_jobs_;  // the MPI jobs of an external DEM (one per start)
   std::unique_ptr<SolverProcess> dem_proc_, fem_proc_;
   std::unique_ptr<SolverLink> link_;
   std::string fem_program_ = "fem_server";  // how messages name the FEM process

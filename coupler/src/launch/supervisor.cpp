@@ -153,6 +153,7 @@ void SolverProcess::reaped(int status) {
     g_children[slot_].store(0);
     slot_ = -1;
   }
+  if (after_end_) after_end_();
 }
 
 bool SolverProcess::running() {

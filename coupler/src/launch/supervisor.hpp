@@ -8,6 +8,7 @@
 #include <atomic>
 #include <chrono>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <utility>
@@ -61,6 +62,9 @@ class SolverProcess {
   int stop(std::chrono::milliseconds grace);
   /// Exit code once ended.
   std::optional<int> exit_code() const { return exit_code_; }
+  /// Called each time the process has ended and been reaped (on every path: a crash seen by
+  /// running(), stop(), the destructor), e.g. to remove what its job left behind.
+  void set_after_end(std::function<void()> hook) { after_end_ = std::move(hook); }
 
  private:
   void reaped(int status);
@@ -73,6 +77,7 @@ class SolverProcess {
   int slot_ = -1;
   bool own_session_ = false;
   std::optional<int> exit_code_;
+  std::function<void()> after_end_;
 };
 
 /// @brief Process-wide stop request from SIGINT/SIGTERM/SIGHUP/SIGPIPE.

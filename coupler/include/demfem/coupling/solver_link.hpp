@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <exception>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -138,6 +139,10 @@ class RemoteLink final : public SolverLink {
     expected_fem_nodes_ = nodes;
     expected_fem_what_ = std::move(what);
   }
+  /// Called in start() after each solver's Hello with the pid the Hello gave (the solver
+  /// process itself, or rank 0 of an MPI job that mpirun started): the launcher notes an
+  /// MPI job there to clean up after it (launch/mpi_job_files.hpp).
+  void on_hello(std::function<void(Role, pid_t)> hook) { on_hello_ = std::move(hook); }
 
   bool has(Role role) const override;
   InterfaceMesh start() override;
@@ -157,6 +162,7 @@ class RemoteLink final : public SolverLink {
   std::string descriptions_[protocol::kRoleCount];
   std::optional<std::size_t> expected_fem_nodes_;
   std::string expected_fem_what_;
+  std::function<void(Role, pid_t)> on_hello_;
 };
 
 }  // namespace demfem::coupling
