@@ -147,6 +147,11 @@ void RunSolvers::describe_processes(RemoteLink& link, const std::optional<Resume
 
 void RunSolvers::restart(Role role) {
   SolverProcess* p = process(role);
+  // A wrapper that started the solver (mpirun: the Hello came from rank 0, another pid) is
+  // ending its job itself when a rank died (the other ranks, its shared-memory files):
+  // killed at once, it would leave them. It gets a moment to finish first.
+  const pid_t hello_pid = session_->peer(role).pid;
+  if (hello_pid > 0 && hello_pid != p->pid()) p->wait_for(std::chrono::milliseconds(3000));
   // The protocol gave it up (gone, or heartbeat stale: stopped or hung): a hung process
   // would never answer again, so it is killed rather than asked to leave.
   p->signal(SIGKILL);
