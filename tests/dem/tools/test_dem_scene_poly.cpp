@@ -17,6 +17,7 @@
 #include "demfem_test/cube_shape.hpp"
 #include "demfem_test/dem_scene_text.hpp"
 #include "demfem_test/error_of.hpp"
+#include "demfem_test/rock_fill.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 using namespace demfem::dem;
@@ -26,28 +27,10 @@ using demfem::test::TempDir;
 
 namespace {
 
-const std::string kRocks = demfem::test::rock_box("[0.3, 0.3, 1.0]").text() + R"(
-
-[[dem.shapes]]
-name = "ballast"
-kind = "random_rock"
-count = 6
-triangles = 10
-elongation = 0.8
-flatness = 0.7
-seed = 5
-size = "sieve"
-dilation = 0.1
-
-[[dem.insert]]
-material = "rock"
-shape = "ballast"
-lo = [0.0, 0.0, 0.0]
-hi = [0.3, 0.3, 1.0]
-count = 60
-seed = 3
-distribution = { kind = "normal", mean = 0.04, stddev = 0.01, d_min = 0.02, d_max = 0.06 }
-)";
+// Six random rocks (sieve-sized, dilated by 10 % of their size), 60 of them inserted.
+const std::string kRocks = demfem::test::rock_box("[0.3, 0.3, 1.0]").text() +
+                           demfem::test::sieved_rocks("0.7").text() +
+                           demfem::test::RockFill("[0.3, 0.3, 1.0]", "60", "3").text();
 
 std::string replace(const std::string& s, const std::string& from, const std::string& to) {
   return demfem::test::replace_first(s, from, to);
