@@ -41,6 +41,7 @@
 #include "ballast_bed.hpp"
 #include "freeze_lowest.hpp"
 #include "bench_report.hpp"
+#include "median.hpp"
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/dem/omp_wait.hpp"
 #include "demfem/dem/placement/insertion.hpp"
@@ -368,11 +369,8 @@ int main(int argc, char** argv) {
       for (std::size_t c = 0; c < runs.size(); ++c) {
         auto& rs = done[c];
         if (rs.empty()) continue;
-        std::sort(rs.begin(), rs.end(),
-                  [](const Result& a, const Result& b) { return a.rate > b.rate; });
+        const double median = demfem::bench::sort_fastest_first(rs);
         const std::size_t m = rs.size();
-        const double median =
-            m % 2 == 1 ? rs[m / 2].rate : 0.5 * (rs[m / 2 - 1].rate + rs[m / 2].rate);
         const Result& r = rs.front();
         const auto key = std::make_pair(runs[c].first, runs[c].second);
         if (!rock && runs[c].frozen == 0.0) sphere_rate[key] = r.rate;
