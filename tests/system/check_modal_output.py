@@ -14,11 +14,10 @@ import csv
 import json
 import math
 import os
-import subprocess
 import sys
 import tempfile
 
-from pv_checks import SKIP, Checks, offscreen_env, pvpython_or_none, run_demfem
+from pv_checks import SKIP, Checks, inspect_output, pvpython_or_none, run_demfem
 
 
 def main():
@@ -35,14 +34,9 @@ def main():
             return 1
         with open(os.path.join(out, "fem_modes.csv")) as f:
             rows = list(csv.DictReader(f))
-        env = offscreen_env()
-        r = subprocess.run([pvpython, os.path.join(source, "tools", "inspect_output.py"), out,
-                            "--steps", "all", "--values", "200"], capture_output=True, text=True,
-                           timeout=300, env=env)
-        if r.returncode != 0:
-            print("inspect_output.py failed:", r.returncode, r.stdout[-2000:], r.stderr[-4000:])
+        seen = inspect_output(pvpython, source, out, 200)
+        if seen is None:
             return 1
-        seen = json.loads(r.stdout[r.stdout.find("{"):])
 
     n = 12
     freqs = [float(row["frequency"]) for row in rows]

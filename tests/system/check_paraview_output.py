@@ -16,17 +16,12 @@ is not installed (or DEMFEM_PVPYTHON names none).
 import json
 import math
 import os
-import subprocess
 import sys
 import tempfile
 
-from pv_checks import SKIP, Checks, offscreen_env, pvpython_or_none, run_demfem
+from pv_checks import SKIP, Checks, close, inspect_output, pvpython_or_none, run_demfem
 
 check = Checks()
-
-
-def close(a, b, rel):
-    return abs(a - b) <= rel * max(abs(a), abs(b), 1e-300)
 
 
 def main():
@@ -35,19 +30,13 @@ def main():
     if pvpython is None:
         return SKIP
     scene = os.path.join(source, "tests", "system", "paraview_output.toml")
-    tool = os.path.join(source, "tools", "inspect_output.py")
     with tempfile.TemporaryDirectory() as d:
         out = os.path.join(d, "out")
         if run_demfem(demfem_run, scene, out, "--quiet") is None:
             return 1
-        env = offscreen_env()
-        r = subprocess.run([pvpython, tool, out, "--steps", "all", "--values", "20"], capture_output=True,
-                           text=True, timeout=300, env=env)
-        if r.returncode != 0:
-            print("inspect_output.py failed:", r.returncode, r.stdout[-2000:], r.stderr[-4000:])
+        seen = inspect_output(pvpython, source, out, 20)
+        if seen is None:
             return 1
-        start = r.stdout.find("{")
-        seen = json.loads(r.stdout[start:])
         files = sorted(os.listdir(out))
     print(json.dumps({k: {"reader": v["reader"], "times": v["times"]} for k, v in seen.items()}))
 

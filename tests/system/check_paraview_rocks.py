@@ -17,13 +17,11 @@ surfaces into unnamed pieces of one data set) and checks:
 Usage: check_paraview_rocks.py DEMFEM_RUN SOURCE_DIR. Exit 77 (ctest: skipped) without pvpython.
 """
 
-import json
 import os
-import subprocess
 import sys
 import tempfile
 
-from pv_checks import SKIP, Checks, offscreen_env, pvpython_or_none, run_demfem
+from pv_checks import SKIP, Checks, pvpython_json, pvpython_or_none, run_demfem
 
 check = Checks()
 
@@ -42,13 +40,9 @@ def main():
         out = os.path.join(d, "out")
         if run_demfem(demfem_run, scene, out, "--quiet") is None:
             return 1
-        env = offscreen_env()
-        r = subprocess.run([pvpython, probe, out], capture_output=True, text=True, timeout=300,
-                           env=env)
-        if r.returncode != 0:
-            print("paraview_rocks_probe.py failed:", r.returncode, r.stdout[-2000:], r.stderr[-4000:])
+        seen = pvpython_json(pvpython, probe, out)
+        if seen is None:
             return 1
-        seen = json.loads(r.stdout[r.stdout.find("{"):])
 
     # --- rocks and spheres -------------------------------------------------------------------
     p = seen.get("particles.xdmf")

@@ -20,19 +20,13 @@ Usage: check_static_output.py DEMFEM_RUN SOURCE_DIR. Exit 77 (ctest: skipped) wi
 """
 
 import csv
-import json
 import math
 import os
 import re
-import subprocess
 import sys
 import tempfile
 
-from pv_checks import SKIP, Checks, offscreen_env, pvpython_or_none, run_demfem
-
-
-def close(a, b, rel):
-    return abs(a - b) <= rel * max(abs(a), abs(b), 1e-300)
+from pv_checks import SKIP, Checks, close, inspect_output, pvpython_or_none, run_demfem
 
 
 def main():
@@ -52,14 +46,9 @@ def main():
             series = list(csv.DictReader(f))
         with open(os.path.join(out, "beam_check.csv")) as f:
             beam = next(csv.DictReader(f))
-        env = offscreen_env()
-        r = subprocess.run([pvpython, os.path.join(source, "tools", "inspect_output.py"), out,
-                            "--steps", "all", "--values", "1000"], capture_output=True,
-                           text=True, timeout=300, env=env)
-        if r.returncode != 0:
-            print("inspect_output.py failed:", r.returncode, r.stdout[-2000:], r.stderr[-4000:])
+        seen = inspect_output(pvpython, source, out, 1000)
+        if seen is None:
             return 1
-        seen = json.loads(r.stdout[r.stdout.find("{"):])
 
     # What the run printed: the settle time, the force sum, the coupled deflection.
     m = re.search(r"the DEM settled at t = (\S+) s .*\(sum (\S+) N along z\)", printed)

@@ -1,6 +1,8 @@
 """What the tests/system checks that open demfem's output with ParaView's own reader share:
 finding ParaView's interpreter (or skipping, ctest's SKIP_RETURN_CODE 77, where it is not
-installed) and collecting the failed checks into one report and exit status."""
+installed), running a script under it offscreen for the JSON it prints, and collecting the
+failed checks into one report and exit status."""
+import json
 import os
 import shutil
 import subprocess
@@ -34,6 +36,31 @@ def offscreen_env():
     env = dict(os.environ)
     env.pop("DISPLAY", None)
     return env
+
+
+def pvpython_json(pvpython, script, *args):
+    """SCRIPT ARGS... under pvpython, offscreen: the JSON object it prints (after whatever
+    ParaView prints first), or None (with the script's exit status and output's end printed)
+    when it failed."""
+    r = subprocess.run([pvpython, script, *args], capture_output=True, text=True, timeout=300,
+                       env=offscreen_env())
+    if r.returncode != 0:
+        print(f"{os.path.basename(script)} failed:", r.returncode, r.stdout[-2000:],
+              r.stderr[-4000:])
+        return None
+    return json.loads(r.stdout[r.stdout.find("{"):])
+
+
+def inspect_output(pvpython, source, out, values):
+    """What ParaView's readers see of the run folder OUT: tools/inspect_output.py OUT --steps
+    all --values VALUES (VALUES values of each array); None when it failed."""
+    return pvpython_json(pvpython, os.path.join(source, "tools", "inspect_output.py"), out,
+                         "--steps", "all", "--values", str(values))
+
+
+def close(a, b, rel):
+    """a and b agree to `rel` of the larger (both 0 agree)."""
+    return abs(a - b) <= rel * max(abs(a), abs(b), 1e-300)
 
 
 class Checks:
