@@ -351,12 +351,11 @@ int main(int argc, char** argv) {
       auto& rs = done[c];
       if (rs.empty()) continue;
       const double median = demfem::bench::sort_fastest_first(rs);
-      const std::size_t m = rs.size();
       const Result& r = rs.front();
       rep.add_row({static_cast<long long>(spec.n), label, settled_s, ke_ratio, runs[c].first,
                    static_cast<long long>(runs[c].second), r.contacts, r.pairs, r.steps_per_build,
-                   r.steps_per_refilter, r.rate, r.cpu_rate, static_cast<long long>(m), median,
-                   r.det, r.force, r.integ});
+                   r.steps_per_refilter, r.rate, r.cpu_rate, static_cast<long long>(rs.size()),
+                   median, r.det, r.force, r.integ});
     }
     if (!cache) std::filesystem::remove(state);
   }

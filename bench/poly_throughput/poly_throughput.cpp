@@ -370,7 +370,6 @@ int main(int argc, char** argv) {
         auto& rs = done[c];
         if (rs.empty()) continue;
         const double median = demfem::bench::sort_fastest_first(rs);
-        const std::size_t m = rs.size();
         const Result& r = rs.front();
         const auto key = std::make_pair(runs[c].first, runs[c].second);
         if (!rock && runs[c].frozen == 0.0) sphere_rate[key] = r.rate;
@@ -379,8 +378,8 @@ int main(int argc, char** argv) {
                                  : 1.0;
         rep.add_row({static_cast<long long>(n), kind, runs[c].law, settled, ke, runs[c].first,
                      static_cast<long long>(runs[c].second), runs[c].frozen, r.contacts, r.pairs,
-                     r.rate, r.cpu_rate, static_cast<long long>(m), median, ratio, r.bytes, r.det,
-                     r.force, r.integ});
+                     r.rate, r.cpu_rate, static_cast<long long>(rs.size()), median, ratio, r.bytes,
+                     r.det, r.force, r.integ});
       }
       if (!cache) std::filesystem::remove(state);
     }
