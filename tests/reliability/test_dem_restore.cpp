@@ -17,6 +17,7 @@
 #include "demfem/dem/run/dem_run.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem/scene/scene_reader.hpp"
+#include "demfem_test/dem_material_text.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 namespace fs = std::filesystem;
@@ -33,9 +34,8 @@ dem::DemScene scene_with_plane(double plane_z) {
   std::ostringstream t;
   t.precision(17);
   t << "[dem]\ndt = 1e-4\ngravity = [0.0, 0.0, -9.81]\n"
-    << "[[dem.materials]]\nname = \"soft\"\nyoungs_modulus = 1e7\npoisson_ratio = 0.3\n"
-    << "density = 7800.0\n"
-    << "[[dem.pairs]]\na = \"soft\"\nb = \"soft\"\nfriction = 0.0\nrestitution = 0.5\n"
+    << demfem::test::dem_material("soft", "1e7", "7800.0")
+    << demfem::test::dem_pair("soft", "soft", "0.0", "0.5")
     << "[[dem.lattice]]\nmaterial = \"soft\"\nlo = [0.0, 0.0, 0.0]\nhi = [0.1, 0.03, 0.03]\n"
     << "diameter = 0.024\nspacing = 0.05\n"
     << "[[dem.sensors]]\nname = \"flow\"\nkind = \"mass_flow\"\ninterval = 0.01\n"
@@ -143,9 +143,8 @@ TEST_CASE("a DEM checkpoint of a scene that made other particles is refused on r
   // Twice the lattice's length in x: more spheres at set-up.
   std::ostringstream t;
   t << "[dem]\ndt = 1e-4\n"
-    << "[[dem.materials]]\nname = \"soft\"\nyoungs_modulus = 1e7\npoisson_ratio = 0.3\n"
-    << "density = 7800.0\n"
-    << "[[dem.pairs]]\na = \"soft\"\nb = \"soft\"\nfriction = 0.0\nrestitution = 0.5\n"
+    << demfem::test::dem_material("soft", "1e7", "7800.0")
+    << demfem::test::dem_pair("soft", "soft", "0.0", "0.5")
     << "[[dem.lattice]]\nmaterial = \"soft\"\nlo = [0.0, 0.0, 0.0]\nhi = [0.2, 0.03, 0.03]\n"
     << "diameter = 0.024\nspacing = 0.05\n"
     << "[[dem.sensors]]\nname = \"flow\"\nkind = \"mass_flow\"\ninterval = 0.01\n"
