@@ -149,12 +149,7 @@ TEST_CASE("A box on a ridge is pushed once, along the ridge normal", "[dem][poly
   const double rd = 0.0005, delta = 2e-6;
   DemSystem sys(two_material_settings(kE, kNu, kRho, 0.5, 0.0, 1e-9));
   sys.add_shape(box_shape(0.004, 0.003, 0.002, rd));
-  WallMesh w;
-  w.material = 1;
-  w.vertices = {-0.01, 0,     0,     0.01,  0,    0,     -0.01, -0.01, -0.01,
-                0.01,  -0.01, -0.01, -0.01, 0.01, -0.01, 0.01,  0.01,  -0.01};
-  w.triangles = {0, 2, 3, 0, 3, 1, 0, 1, 5, 0, 5, 4};
-  sys.add_wall(w);
+  sys.add_wall(roof_mesh());
   const std::vector<ParticleInit> p = {poly(0, {0.001, 0.0, 0.002 + rd - delta})};
   sys.add_particles(p);
   sys.advance(1);

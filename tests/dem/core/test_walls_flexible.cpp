@@ -49,12 +49,7 @@ TEST_CASE("A sphere at a convex edge is pushed once, along the edge normal", "[d
   // ridge at distance r - delta touches only the edge: Hertz force of overlap delta along
   // +z. Reference: eq. 2.6 with R = r; tolerance 1e-9 relative.
   DemSystem sys(two_material_settings(kE, kNu, kRho, 0.5, 0.0, 1e-8));
-  WallMesh w;
-  w.material = 1;
-  w.vertices = {-0.01, 0,     0,     0.01,  0,    0,     -0.01, -0.01, -0.01,
-                0.01,  -0.01, -0.01, -0.01, 0.01, -0.01, 0.01,  0.01,  -0.01};
-  w.triangles = {0, 2, 3, 0, 3, 1, 0, 1, 5, 0, 5, 4};
-  sys.add_wall(w);
+  sys.add_wall(roof_mesh());
   const double r = 0.002, delta = 1e-5;
   const std::vector<ParticleInit> p = {sphere({0.001, 0, r - delta}, r)};
   sys.add_particles(p);

@@ -241,17 +241,7 @@ TEST_CASE("polyhedra are written as triangle surfaces beside the particles' poin
   // centre, where n_v is the vertex's mean normal (a cube corner: (1, 1, 1)/sqrt(3)); the
   // index is a spatial collection of the points grid and a Triangle grid. Tolerance 1e-12.
   TempDir dir;
-  DemSettings st;
-  st.dt = 1e-5;
-  st.materials = {{"rock", 1e8, 0.3, 2600.0}};
-  st.pairs = {MaterialPair{0.5, 0.5, 0.0}};
-  DemSystem sys(st);
-  sys.add_shape(demfem::test::cube_shape());
-  const ParticleInit p = demfem::test::tilted_cube(0);
-  ParticleInit s2;
-  s2.radius = 0.01;
-  s2.position = {0, 0, 0};
-  sys.add_particles(std::vector<ParticleInit>{p, s2});
+  DemSystem sys = demfem::test::cube_and_sphere({"rock", 1e8, 0.3, 2600.0}, {0, 0, 0});
   ParticleOutput out(dir.path);
   out.set_shapes({sys.shape(0)});
   const std::vector<std::int64_t> ids{7, 8};
