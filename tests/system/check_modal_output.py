@@ -15,26 +15,16 @@ import json
 import math
 import os
 import sys
-import tempfile
 
-from pv_checks import SKIP, Checks, inspect_output, pvpython_or_none, run_demfem
+from pv_checks import Checks, inspect_output, scene_run
 
 
 def main():
-    demfem_run, source = sys.argv[1], sys.argv[2]
-    pvpython = pvpython_or_none()
-    if pvpython is None:
-        return SKIP
     check = Checks()
-
-    with tempfile.TemporaryDirectory() as d:
-        out = os.path.join(d, "out")
-        if run_demfem(demfem_run, os.path.join(source, "cases", "beam_modes.toml"), out,
-                      "--quiet") is None:
-            return 1
-        with open(os.path.join(out, "fem_modes.csv")) as f:
+    with scene_run("cases/beam_modes.toml", "--quiet") as c:
+        with open(os.path.join(c.out, "fem_modes.csv")) as f:
             rows = list(csv.DictReader(f))
-        seen = inspect_output(pvpython, source, out, 200)
+        seen = inspect_output(c.pvpython, c.source, c.out, 200)
         if seen is None:
             return 1
 

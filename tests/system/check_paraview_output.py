@@ -17,27 +17,18 @@ import json
 import math
 import os
 import sys
-import tempfile
 
-from pv_checks import SKIP, Checks, close, inspect_output, pvpython_or_none, run_demfem
+from pv_checks import Checks, close, inspect_output, scene_run
 
 check = Checks()
 
 
 def main():
-    demfem_run, source = sys.argv[1], sys.argv[2]
-    pvpython = pvpython_or_none()
-    if pvpython is None:
-        return SKIP
-    scene = os.path.join(source, "tests", "system", "paraview_output.toml")
-    with tempfile.TemporaryDirectory() as d:
-        out = os.path.join(d, "out")
-        if run_demfem(demfem_run, scene, out, "--quiet") is None:
-            return 1
-        seen = inspect_output(pvpython, source, out, 20)
+    with scene_run("tests/system/paraview_output.toml", "--quiet") as c:
+        seen = inspect_output(c.pvpython, c.source, c.out, 20)
         if seen is None:
             return 1
-        files = sorted(os.listdir(out))
+        files = sorted(os.listdir(c.out))
     print(json.dumps({k: {"reader": v["reader"], "times": v["times"]} for k, v in seen.items()}))
 
     requested = [0.0, 0.0005, 0.001, 0.0015, 0.002]

@@ -19,9 +19,8 @@ Usage: check_paraview_rocks.py DEMFEM_RUN SOURCE_DIR. Exit 77 (ctest: skipped) w
 
 import os
 import sys
-import tempfile
 
-from pv_checks import SKIP, Checks, pvpython_json, pvpython_or_none, run_demfem
+from pv_checks import Checks, pvpython_json, scene_run
 
 check = Checks()
 
@@ -30,17 +29,9 @@ FIELDS = {"id": 1, "material": 1, "radius": 1, "mass": 1, "velocity": 3, "angula
 
 
 def main():
-    demfem_run, source = sys.argv[1], sys.argv[2]
-    pvpython = pvpython_or_none()
-    if pvpython is None:
-        return SKIP
-    scene = os.path.join(source, "tests", "system", "paraview_rocks.toml")
-    probe = os.path.join(source, "tests", "system", "paraview_rocks_probe.py")
-    with tempfile.TemporaryDirectory() as d:
-        out = os.path.join(d, "out")
-        if run_demfem(demfem_run, scene, out, "--quiet") is None:
-            return 1
-        seen = pvpython_json(pvpython, probe, out)
+    with scene_run("tests/system/paraview_rocks.toml", "--quiet") as c:
+        probe = os.path.join(c.source, "tests", "system", "paraview_rocks_probe.py")
+        seen = pvpython_json(c.pvpython, probe, c.out)
         if seen is None:
             return 1
 

@@ -24,29 +24,19 @@ import math
 import os
 import re
 import sys
-import tempfile
 
-from pv_checks import SKIP, Checks, close, inspect_output, pvpython_or_none, run_demfem
+from pv_checks import Checks, close, inspect_output, scene_run
 
 
 def main():
-    demfem_run, source = sys.argv[1], sys.argv[2]
-    pvpython = pvpython_or_none()
-    if pvpython is None:
-        return SKIP
     check = Checks()
-
-    with tempfile.TemporaryDirectory() as d:
-        out = os.path.join(d, "out")
-        r = run_demfem(demfem_run, os.path.join(source, "cases", "beam_fixed_ci.toml"), out)
-        if r is None:
-            return 1
-        printed = r.stdout
-        with open(os.path.join(out, "fem_series.csv")) as f:
+    with scene_run("cases/beam_fixed_ci.toml") as c:
+        printed = c.run.stdout
+        with open(os.path.join(c.out, "fem_series.csv")) as f:
             series = list(csv.DictReader(f))
-        with open(os.path.join(out, "beam_check.csv")) as f:
+        with open(os.path.join(c.out, "beam_check.csv")) as f:
             beam = next(csv.DictReader(f))
-        seen = inspect_output(pvpython, source, out, 1000)
+        seen = inspect_output(c.pvpython, c.source, c.out, 1000)
         if seen is None:
             return 1
 

@@ -1,11 +1,16 @@
 """What the tests/system checks that open demfem's output with ParaView's own reader share:
 finding ParaView's interpreter (or skipping, ctest's SKIP_RETURN_CODE 77, where it is not
-installed), running a script under it offscreen for the JSON it prints, and collecting the
-failed checks into one report and exit status."""
+installed), running the check's scene into a fresh folder, running a script under pvpython
+offscreen for the JSON it prints, and collecting the failed checks into one report and exit
+status."""
+import contextlib
 import json
 import os
 import shutil
 import subprocess
+import sys
+import tempfile
+from types import SimpleNamespace
 
 SKIP = 77  # ctest: skipped
 
@@ -29,6 +34,24 @@ def run_demfem(demfem_run, scene, out, *extra):
         print("demfem_run failed:", r.returncode, r.stdout[-3000:], r.stderr[-3000:])
         return None
     return r
+
+
+@contextlib.contextmanager
+def scene_run(scene, *extra):
+    """The start every check shares (usage: CHECK.py DEMFEM_RUN SOURCE_DIR): demfem_run runs
+    SCENE (relative to SOURCE_DIR) with EXTRA into a fresh folder, which lasts as long as the
+    `with`. Yields .pvpython, .source, .out (the run folder) and .run (the finished process).
+    Exits 77 (skipped) without pvpython, 1 when the run failed."""
+    demfem_run, source = sys.argv[1], sys.argv[2]
+    pvpython = pvpython_or_none()
+    if pvpython is None:
+        sys.exit(SKIP)
+    with tempfile.TemporaryDirectory() as d:
+        out = os.path.join(d, "out")
+        r = run_demfem(demfem_run, os.path.join(source, scene), out, *extra)
+        if r is None:
+            sys.exit(1)
+        yield SimpleNamespace(pvpython=pvpython, source=source, out=out, run=r)
 
 
 def offscreen_env():
