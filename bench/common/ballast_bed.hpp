@@ -36,6 +36,7 @@ inline WallMesh quad(std::array<double, 3> a, std::array<double, 3> b, std::arra
   return w;
 }
 
+// Floor and four side walls of the box [0, lx] x [0, ly] x [0, h] (open top).
 inline std::vector<WallMesh> box_walls(double lx, double ly, double h) {
   return {quad({0, 0, 0}, {lx, 0, 0}, {lx, ly, 0}, {0, ly, 0}, "floor"),
           quad({0, 0, 0}, {0, ly, 0}, {0, ly, h}, {0, 0, h}, "x0"),
@@ -47,7 +48,7 @@ inline std::vector<WallMesh> box_walls(double lx, double ly, double h) {
 struct Bed {
   std::vector<ParticleInit> particles;
   std::vector<WallMesh> walls;
-  double lx = 0, ly = 0;
+  double lx = 0, ly = 0;  // box footprint [0, lx] x [0, ly], floor at z = 0
 };
 
 inline const SizeDistribution kSizes = SizeDistribution::normal(0.04, 0.01, 0.02, 0.08);

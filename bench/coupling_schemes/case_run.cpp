@@ -50,13 +50,6 @@ int spawn_and_wait(const std::vector<std::string>& args, const fs::path& log,
 
 }  // namespace
 
-double median(std::vector<double> v) {
-  if (v.empty()) return NAN;
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 std::vector<std::vector<std::string>> read_csv(const fs::path& p) {
   return io::read_csv_cells(p);
 }

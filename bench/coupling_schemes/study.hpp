@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "bench_report.hpp"
+#include "median.hpp"
 
 namespace demfem::bench::coupling_study {
 
@@ -93,7 +94,6 @@ struct RunResult {
   std::string error_text;
 };
 
-double median(std::vector<double> v);
 std::vector<std::vector<std::string>> read_csv(const fs::path& p);
 /// One demfem_run run of `scene` into `out` (case_run.cpp says what `fields` and the flags do).
 RunResult run(const Problem& pb, const fs::path& scene, const fs::path& out,

@@ -29,7 +29,9 @@
 #include <random>
 #include <unordered_map>
 
+#include "ballast_bed.hpp"
 #include "bench_report.hpp"
+#include "median.hpp"
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/dem/omp_wait.hpp"
 #include "demfem/dem/placement/insertion.hpp"
@@ -57,30 +59,10 @@ DemSettings settings(int threads, const std::string& backend, double restitution
   return s;
 }
 
-WallMesh quad(std::array<double, 3> a, std::array<double, 3> b, std::array<double, 3> c,
-              std::array<double, 3> d, const std::string& name) {
-  WallMesh w;
-  w.name = name;
-  w.material = 1;
-  for (const auto& p : {a, b, c, d}) w.vertices.insert(w.vertices.end(), p.begin(), p.end());
-  w.triangles = {0, 1, 2, 0, 2, 3};
-  return w;
-}
-
-// Floor and four side walls of the box [0, lx] x [0, ly] x [0, h] (open top).
-std::vector<WallMesh> box_walls(double lx, double ly, double h) {
-  return {quad({0, 0, 0}, {lx, 0, 0}, {lx, ly, 0}, {0, ly, 0}, "floor"),
-          quad({0, 0, 0}, {0, ly, 0}, {0, ly, h}, {0, 0, h}, "x0"),
-          quad({lx, 0, 0}, {lx, 0, h}, {lx, ly, h}, {lx, ly, 0}, "x1"),
-          quad({0, 0, 0}, {0, 0, h}, {lx, 0, h}, {lx, 0, 0}, "y0"),
-          quad({0, ly, 0}, {lx, ly, 0}, {lx, ly, h}, {0, ly, h}, "y1")};
-}
-
-struct Bed {
-  std::vector<ParticleInit> particles;
-  std::vector<WallMesh> walls;
-  double lx = 0, ly = 0;  // box footprint [0, lx] x [0, ly], floor at z = 0
-};
+// The box of triangle-mesh walls (floor + 4 sides, open top) and the bed in it, as the
+// polyhedron benches build them.
+using demfem::bench::Bed;
+using demfem::bench::box_walls;
 
 Bed make_bed(const BedSpec& b) {
   Bed bed;
@@ -368,16 +350,12 @@ int main(int argc, char** argv) {
     for (std::size_t c = 0; c < runs.size(); ++c) {
       auto& rs = done[c];
       if (rs.empty()) continue;
-      std::sort(rs.begin(), rs.end(),
-                [](const Result& a, const Result& b) { return a.rate > b.rate; });
-      const std::size_t m = rs.size();
-      const double median =
-          m % 2 == 1 ? rs[m / 2].rate : 0.5 * (rs[m / 2 - 1].rate + rs[m / 2].rate);
+      const double median = demfem::bench::sort_fastest_first(rs);
       const Result& r = rs.front();
       rep.add_row({static_cast<long long>(spec.n), label, settled_s, ke_ratio, runs[c].first,
                    static_cast<long long>(runs[c].second), r.contacts, r.pairs, r.steps_per_build,
-                   r.steps_per_refilter, r.rate, r.cpu_rate, static_cast<long long>(m), median,
-                   r.det, r.force, r.integ});
+                   r.steps_per_refilter, r.rate, r.cpu_rate, static_cast<long long>(rs.size()),
+                   median, r.det, r.force, r.integ});
     }
     if (!cache) std::filesystem::remove(state);
   }

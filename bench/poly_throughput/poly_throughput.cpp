@@ -41,6 +41,7 @@
 #include "ballast_bed.hpp"
 #include "freeze_lowest.hpp"
 #include "bench_report.hpp"
+#include "median.hpp"
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/dem/omp_wait.hpp"
 #include "demfem/dem/placement/insertion.hpp"
@@ -368,11 +369,7 @@ int main(int argc, char** argv) {
       for (std::size_t c = 0; c < runs.size(); ++c) {
         auto& rs = done[c];
         if (rs.empty()) continue;
-        std::sort(rs.begin(), rs.end(),
-                  [](const Result& a, const Result& b) { return a.rate > b.rate; });
-        const std::size_t m = rs.size();
-        const double median =
-            m % 2 == 1 ? rs[m / 2].rate : 0.5 * (rs[m / 2 - 1].rate + rs[m / 2].rate);
+        const double median = demfem::bench::sort_fastest_first(rs);
         const Result& r = rs.front();
         const auto key = std::make_pair(runs[c].first, runs[c].second);
         if (!rock && runs[c].frozen == 0.0) sphere_rate[key] = r.rate;
@@ -381,8 +378,8 @@ int main(int argc, char** argv) {
                                  : 1.0;
         rep.add_row({static_cast<long long>(n), kind, runs[c].law, settled, ke, runs[c].first,
                      static_cast<long long>(runs[c].second), runs[c].frozen, r.contacts, r.pairs,
-                     r.rate, r.cpu_rate, static_cast<long long>(m), median, ratio, r.bytes, r.det,
-                     r.force, r.integ});
+                     r.rate, r.cpu_rate, static_cast<long long>(rs.size()), median, ratio, r.bytes,
+                     r.det, r.force, r.integ});
       }
       if (!cache) std::filesystem::remove(state);
     }

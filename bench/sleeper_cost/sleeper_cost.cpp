@@ -34,6 +34,7 @@
 #include "ballast_bed.hpp"
 #include "freeze_lowest.hpp"
 #include "bench_report.hpp"
+#include "median.hpp"
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/dem/omp_wait.hpp"
 #include "demfem/dem/shapes/shape_library.hpp"
@@ -126,12 +127,6 @@ Measured measure(const Bed& bed, const shapes::ShapeLibrary& lib,
                static_cast<double>(sys.particle_count());
   m.ke_after = relative_ke(sys);
   return m;
-}
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 }  // namespace
@@ -230,7 +225,7 @@ int main(int argc, char** argv) {
   }
   for (const auto& c : configs) {
     const double best = *std::max_element(c.rates.begin(), c.rates.end());
-    const double mid = median(c.rates);
+    const double mid = demfem::bench::median(c.rates);
     const double hours = full_rocks * (load_time / c.dt) / mid / 3600.0;
     rep.add_row({static_cast<long long>(rocks), c.dt, c.dt / s.rayleigh, c.frozen, c.last.contacts,
                  best, mid, static_cast<long long>(c.rates.size()), c.last.ke_after, hours});

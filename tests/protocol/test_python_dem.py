@@ -20,40 +20,18 @@ examples/python_dem_spheres/spheres.py (dem.backend = "external") beside fem_ser
 Usage: test_python_dem.py CASE DEMFEM_RUN SOURCE_DIR. Nothing may be left in /dev/shm.
 """
 
-import csv
 import json
 import os
 import re
-import shutil
-import subprocess
 import sys
-import tempfile
 
-failures = []
-ENV = None
-
-
-def check(ok, what):
-    if not ok:
-        failures.append(what)
-    return ok
+import coupled_checks as checks  # beside this file
+from coupled_checks import check, rows
 
 
 def run(demfem_run, scene, out, *extra):
-    where = ["--output-dir", out] if out else []
-    r = subprocess.run([demfem_run, scene, *where, "--quiet", *extra],
-                       capture_output=True, text=True, timeout=400, env=ENV)
-    for seg in re.findall(r"segment /(demfem-[0-9a-f]+)", r.stdout):
-        check(not os.path.exists("/dev/shm/" + seg), f"segment {seg} left in /dev/shm")
-    for pid in re.findall(r"\(pid ([0-9]+)\)", r.stdout):  # every process it started
-        check(not os.path.exists(f"/proc/{pid}") or "zombie" in open(f"/proc/{pid}/status").read()
-              .lower(), f"process {pid} left running")
-    return r
-
-
-def rows(out):
-    with open(os.path.join(out, "coupling.csv")) as f:
-        return list(csv.DictReader(f))
+    return checks.run(demfem_run, scene, out, *extra, env=checks.ENV,
+                              timeout=400)
 
 
 def scene_of(source):
@@ -203,16 +181,5 @@ CASES = {"coupled": case_coupled, "restart": case_restart, "badinput": case_badi
          "faults": case_faults}
 
 
-def main():
-    global ENV
-    case, demfem_run, source = sys.argv[1], sys.argv[2], os.path.abspath(sys.argv[3])
-    ENV = dict(os.environ, DEMFEM_EXAMPLES=os.path.join(source, "examples/python_dem_spheres"))
-    with tempfile.TemporaryDirectory() as d:
-        CASES[case](demfem_run, source, d)
-    for f in failures:
-        print("FAILED:", f)
-    return 1 if failures else 0
-
-
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(checks.main(CASES, "examples/python_dem_spheres"))

@@ -25,38 +25,13 @@ the minimal Python backend examples/python_spring_plate/spring_plate.py (fem.bac
 Usage: test_python_sdk.py CASE DEMFEM_RUN SOURCE_DIR. Nothing may be left in /dev/shm.
 """
 
-import csv
 import os
 import re
-import subprocess
 import sys
-import tempfile
 import time
 
-failures = []
-
-
-def check(ok, what):
-    if not ok:
-        failures.append(what)
-    return ok
-
-
-def run(demfem_run, scene, out, *extra, env=None, cwd=None):
-    where = ["--output-dir", out] if out else []
-    r = subprocess.run([demfem_run, scene, *where, "--quiet", *extra],
-                       capture_output=True, text=True, timeout=300, env=env, cwd=cwd)
-    for seg in re.findall(r"segment /(demfem-[0-9a-f]+)", r.stdout):
-        check(not os.path.exists("/dev/shm/" + seg), f"segment {seg} left in /dev/shm")
-    for pid in re.findall(r"\(pid ([0-9]+)\)", r.stdout):  # every process it started
-        check(not os.path.exists(f"/proc/{pid}") or "zombie" in open(f"/proc/{pid}/status").read()
-              .lower(), f"process {pid} left running")
-    return r
-
-
-def rows(out):
-    with open(os.path.join(out, "coupling.csv")) as f:
-        return list(csv.DictReader(f))
+import coupled_checks as checks  # beside this file
+from coupled_checks import check, rows, run
 
 
 def case_static(demfem_run, source, d):
@@ -100,7 +75,7 @@ def case_handshake(demfem_run, source, d):
     }
     for fault, (code, text) in expect.items():
         r = run(demfem_run, scene, os.path.join(d, fault), "--set",
-                f'fem.command=["{{python}}", "{faulty}", "--fault", "{fault}"]', env=ENV)
+                f'fem.command=["{{python}}", "{faulty}", "--fault", "{fault}"]', env=checks.ENV)
         msg = r.stderr.strip().splitlines()
         named = [m for m in msg if "external FEM backend" in m and "misbehaving_backend.py" in m]
         print(f"{fault}: exit {r.returncode}: {named[-1][:300] if named else msg[-1:]}")
@@ -108,7 +83,7 @@ def case_handshake(demfem_run, source, d):
         check(any(text in m for m in named), f"{fault}: no message naming the backend with '{text}'")
         check(re.search(r"pid [0-9]+", " ".join(named)) is not None, f"{fault}: pid not named")
     r = run(demfem_run, scene, os.path.join(d, "raise"), "--set",
-            f'fem.command=["{{python}}", "{faulty}", "--fault", "raise-in-mesh"]', env=ENV)
+            f'fem.command=["{{python}}", "{faulty}", "--fault", "raise-in-mesh"]', env=checks.ENV)
     check("ValueError: the mesh file is broken" in r.stderr, "the Python exception text is lost")
 
 
@@ -117,17 +92,17 @@ def case_interface(demfem_run, source, d):
     faulty = os.path.join(source, "tests/protocol/python/misbehaving_backend.py")
     cmd = f'fem.command=["{{python}}", "{faulty}", "--fault", "other-size-on-resume"]'
     out = os.path.join(d, "a")
-    r = run(demfem_run, scene, out, "--set", cmd, env=ENV)
+    r = run(demfem_run, scene, out, "--set", cmd, env=checks.ENV)
     if not check(r.returncode == 0, f"first run failed: {r.stderr[-1500:]}"):
         return
-    r = run(demfem_run, scene, out, "--set", cmd, "--resume", env=ENV)
+    r = run(demfem_run, scene, out, "--set", cmd, "--resume", env=checks.ENV)
     line = [m for m in r.stderr.splitlines() if "reports an interface of 33 nodes" in m]
     print(f"resume: exit {r.returncode}: {line[-1][:300] if line else r.stderr[-300:]}")
     check(r.returncode == 2, f"resume with another interface: exit {r.returncode}, expected 2")
     check(bool(line) and "external FEM backend" in line[-1] and "has 63" in line[-1],
           "resume: the refusal does not name the backend and both sizes")
     r = run(demfem_run, scene, os.path.join(d, "b"), "--set", cmd, "--debug-kill", "fem:15",
-            env=ENV)
+            env=checks.ENV)
     line = [m for m in r.stderr.splitlines() if "was refused" in m]
     print(f"restart: exit {r.returncode}: {line[-1][:300] if line else r.stderr[-300:]}")
     check(r.returncode == 1, f"restart with another interface: exit {r.returncode}, expected 1")
@@ -139,7 +114,7 @@ def case_version(demfem_run, source, d):
     scene = os.path.join(source, "examples/python_spring_plate/static_ci.toml")
     other = os.path.join(source, "tests/protocol/python/other_version_backend.py")
     r = run(demfem_run, scene, os.path.join(d, "v"), "--set",
-            f'fem.command=["{{python}}", "{other}"]', env=ENV)
+            f'fem.command=["{{python}}", "{other}"]', env=checks.ENV)
     line = [m for m in r.stderr.splitlines() if "protocol version mismatch" in m
             and "external FEM backend" in m]
     print(f"version: exit {r.returncode}: {line[-1][:300] if line else r.stderr[-600:]}")
@@ -184,7 +159,7 @@ def case_hang(demfem_run, source, d):
         t0 = time.monotonic()
         r = run(demfem_run, scene, out, "--set", "checkpoint.reply_timeout=2", "--set",
                 "checkpoint.max_retries=2", "--set",
-                f'fem.command=["{{python}}", "{faulty}", "--fault", "{fault}"]', env=ENV)
+                f'fem.command=["{{python}}", "{faulty}", "--fault", "{fault}"]', env=checks.ENV)
         secs = time.monotonic() - t0
         restarts = len(re.findall(r"FEM solver failed \(.*no reply within reply_timeout "
                                   r"\(2000 ms\).*\); restart [12] of 2", r.stderr))
@@ -211,7 +186,8 @@ def case_hang(demfem_run, source, d):
     t0 = time.monotonic()
     r = run(demfem_run, scene, os.path.join(d, "mesh"), "--hello-timeout", "5", "--set",
             "checkpoint.reply_timeout=2", "--set", "checkpoint.max_retries=2", "--set",
-            f'fem.command=["{{python}}", "{faulty}", "--fault", "hang-in-mesh-on-resume"]', env=ENV)
+            f'fem.command=["{{python}}", "{faulty}", "--fault", "hang-in-mesh-on-resume"]',
+            env=checks.ENV)
     secs = time.monotonic() - t0
     print(f"hang-in-mesh-on-resume: exit {r.returncode} after {secs:.1f} s")
     check(r.returncode == 4, f"hang in the handshake: exit {r.returncode}: {r.stderr[-2000:]}")
@@ -234,7 +210,7 @@ def case_kinematics(demfem_run, source, d):
     for (fault, scheme), (code, texts) in expect.items():
         r = run(demfem_run, scene, os.path.join(d, fault + scheme), "--set",
                 f'coupling.scheme="{scheme}"', "--set",
-                f'fem.command=["{{python}}", "{faulty}", "--fault", "{fault}"]', env=ENV)
+                f'fem.command=["{{python}}", "{faulty}", "--fault", "{fault}"]', env=checks.ENV)
         last = r.stderr.strip().splitlines()[-3:]
         print(f"{fault} ({scheme}): exit {r.returncode}: {' | '.join(last)[:400]}")
         check(r.returncode == code, f"{fault} ({scheme}): exit {r.returncode}, expected {code}")
@@ -249,7 +225,7 @@ def case_kinematics(demfem_run, source, d):
     # A NaN node in the published mesh: refused at the handshake, naming the FEM and the node
     # (the DEM used to fail on it in step 0, blamed with exit 1).
     r = run(demfem_run, scene, os.path.join(d, "nan-mesh"), "--set",
-            f'fem.command=["{{python}}", "{faulty}", "--fault", "nan-mesh"]', env=ENV)
+            f'fem.command=["{{python}}", "{faulty}", "--fault", "nan-mesh"]', env=checks.ENV)
     line = [m for m in r.stderr.splitlines() if "published an interface mesh" in m]
     print(f"nan-mesh: exit {r.returncode}: {line[-1][:300] if line else r.stderr[-300:]}")
     check(r.returncode == 1, f"nan-mesh: exit {r.returncode}, expected 1")
@@ -285,19 +261,5 @@ def case_elsewhere(demfem_run, source, d):
 CASES = {"static": case_static, "restart": case_restart, "handshake": case_handshake,
          "interface": case_interface, "version": case_version, "hang": case_hang,
          "kinematics": case_kinematics, "elsewhere": case_elsewhere}
-ENV = None
-
-
-def main():
-    global ENV
-    case, demfem_run, source = sys.argv[1], sys.argv[2], os.path.abspath(sys.argv[3])
-    ENV = dict(os.environ, DEMFEM_EXAMPLES=os.path.join(source, "examples/python_spring_plate"))
-    with tempfile.TemporaryDirectory() as d:
-        CASES[case](demfem_run, source, d)
-    for f in failures:
-        print("FAILED:", f)
-    return 1 if failures else 0
-
-
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(checks.main(CASES, "examples/python_spring_plate"))

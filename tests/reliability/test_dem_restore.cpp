@@ -17,6 +17,7 @@
 #include "demfem/dem/run/dem_run.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem/scene/scene_reader.hpp"
+#include "demfem_test/dem_material_text.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 namespace fs = std::filesystem;
@@ -27,22 +28,29 @@ namespace {
 using demfem::test::read_text;
 using demfem::test::TempDir;
 
-// Two soft spheres apart from each other in free fall; a kinetic-energy sensor and a mass-flow
-// plane `drop` metres below their centres, both sampled every 10 ms.
-dem::DemScene scene_with_plane(double plane_z) {
+// Soft spheres 50 mm apart on a lattice of [0, 0, 0] .. [lattice_x, 0.03, 0.03] m (0.1 m: two
+// of them), in free fall under `gravity` lines of [dem]; a kinetic-energy sensor and a
+// mass-flow plane at z = `plane_z`, both sampled every 10 ms. Read as the file `name`.
+dem::DemScene soft_spheres(double plane_z, const std::string& lattice_x,
+                           const std::string& gravity, const std::string& name) {
   std::ostringstream t;
   t.precision(17);
-  t << "[dem]\ndt = 1e-4\ngravity = [0.0, 0.0, -9.81]\n"
-    << "[[dem.materials]]\nname = \"soft\"\nyoungs_modulus = 1e7\npoisson_ratio = 0.3\n"
-    << "density = 7800.0\n"
-    << "[[dem.pairs]]\na = \"soft\"\nb = \"soft\"\nfriction = 0.0\nrestitution = 0.5\n"
-    << "[[dem.lattice]]\nmaterial = \"soft\"\nlo = [0.0, 0.0, 0.0]\nhi = [0.1, 0.03, 0.03]\n"
+  t << "[dem]\ndt = 1e-4\n" << gravity << demfem::test::dem_material("soft", "1e7", "7800.0")
+    << demfem::test::dem_pair("soft", "soft", "0.0", "0.5")
+    << "[[dem.lattice]]\nmaterial = \"soft\"\nlo = [0.0, 0.0, 0.0]\nhi = [" << lattice_x
+    << ", 0.03, 0.03]\n"
     << "diameter = 0.024\nspacing = 0.05\n"
     << "[[dem.sensors]]\nname = \"flow\"\nkind = \"mass_flow\"\ninterval = 0.01\n"
     << "point = [0.0, 0.0, " << plane_z << "]\ndirection = [0.0, 0.0, -1.0]\n"
     << "[[dem.sensors]]\nname = \"ke\"\nkind = \"kinetic_energy\"\ninterval = 0.01\n";
-  const auto doc = scene::Document::parse(t.str(), "restore_test.toml");
+  const auto doc = scene::Document::parse(t.str(), name);
   return dem::read_dem_scene(*doc.root().table("dem"));
+}
+
+// Two soft spheres apart from each other in free fall; a kinetic-energy sensor and a mass-flow
+// plane at z = `plane_z` below their centres, both sampled every 10 ms.
+dem::DemScene scene_with_plane(double plane_z) {
+  return soft_spheres(plane_z, "0.1", "gravity = [0.0, 0.0, -9.81]\n", "restore_test.toml");
 }
 
 }  // namespace
@@ -141,18 +149,7 @@ TEST_CASE("a DEM checkpoint of a scene that made other particles is refused on r
     h5.close();
   }
   // Twice the lattice's length in x: more spheres at set-up.
-  std::ostringstream t;
-  t << "[dem]\ndt = 1e-4\n"
-    << "[[dem.materials]]\nname = \"soft\"\nyoungs_modulus = 1e7\npoisson_ratio = 0.3\n"
-    << "density = 7800.0\n"
-    << "[[dem.pairs]]\na = \"soft\"\nb = \"soft\"\nfriction = 0.0\nrestitution = 0.5\n"
-    << "[[dem.lattice]]\nmaterial = \"soft\"\nlo = [0.0, 0.0, 0.0]\nhi = [0.2, 0.03, 0.03]\n"
-    << "diameter = 0.024\nspacing = 0.05\n"
-    << "[[dem.sensors]]\nname = \"flow\"\nkind = \"mass_flow\"\ninterval = 0.01\n"
-    << "point = [0.0, 0.0, -1.0]\ndirection = [0.0, 0.0, -1.0]\n"
-    << "[[dem.sensors]]\nname = \"ke\"\nkind = \"kinetic_energy\"\ninterval = 0.01\n";
-  const auto doc = scene::Document::parse(t.str(), "bigger.toml");
-  const dem::DemScene bigger = dem::read_dem_scene(*doc.root().table("dem"));
+  const dem::DemScene bigger = soft_spheres(-1.0, "0.2", "", "bigger.toml");
   dem::DemRun run(bigger, d.path, 1, 0.0, nullptr, true);
   REQUIRE(run.setup_particles() == 4);
   io::H5File h5(cp, io::H5File::Mode::read);

@@ -16,6 +16,7 @@
 #include "demfem/io/h5_file.hpp"
 #include "demfem/scene/scene_reader.hpp"
 #include "demfem_test/box_scene.hpp"
+#include "demfem_test/rock_fill.hpp"
 #include "hdf5_patch.hpp"
 #include "hostile_run.hpp"
 
@@ -226,12 +227,9 @@ TEST_CASE("a particle file that is not what it says is refused (exit 2), not abo
   {
     INFO("a state of rocks with a scale <= 0, loaded with history = false");
     const std::string head = demfem::test::rock_box("[0.3, 0.3, 0.6]").text();
-    const std::string rocks =
-        "\n[[dem.shapes]]\nname = \"ballast\"\nkind = \"random_rock\"\ncount = 3\n"
-        "triangles = 10\nseed = 5\n\n[[dem.insert]]\nmaterial = \"rock\"\nshape = \"ballast\"\n"
-        "lo = [0.0, 0.0, 0.0]\nhi = [0.3, 0.3, 0.3]\ncount = 10\nseed = 3\n"
-        "distribution = { kind = \"normal\", mean = 0.04, stddev = 0.01, d_min = 0.02, "
-        "d_max = 0.06 }\n\n[dem.output]\nstate = true\n";
+    const std::string rocks = demfem::test::RandomRockShapes("ballast", "3").text() +
+                              demfem::test::RockFill("[0.3, 0.3, 0.3]", "10", "3").text() +
+                              "\n[dem.output]\nstate = true\n";
     const fs::path fill = write(d.path / "fill.toml", head + rocks);
     const Ended made = run(d.path, {fill.string(), "--output-dir", (d.path / "out/f").string()});
     INFO(made.out << made.err);

@@ -17,6 +17,7 @@
 #include "demfem/io/h5_file.hpp"
 #include "hdf5_patch.hpp"
 #include "demfem_test/box_scene.hpp"
+#include "demfem_test/dem_material_text.hpp"
 #include "hostile_run.hpp"
 
 using namespace hostile;  // NOLINT: the shared helpers of hostile_run.hpp
@@ -217,21 +218,14 @@ TEST_CASE("an unstable DEM exits with status 3 as a blow-up") {
   // Issue 19, defect 8: DEM instability exited 1. 32 spheres hit a plane at 300 m/s with
   // dem.dt at 0.8 of the Rayleigh time step: they sink through each other and the wall.
   TempDir d;
-  std::ofstream(d.path / "unstable.toml") << R"([run]
+  std::ofstream(d.path / "unstable.toml") << std::string(R"([run]
 end_time = 0.002
 [dem]
 dt = 2.4e-5
-[[dem.materials]]
-name = "sphere"
-youngs_modulus = 210e9
-poisson_ratio = 0.3
-density = 44037.0
-[[dem.pairs]]
-a = "sphere"
-b = "sphere"
-friction = 0.0
-restitution = 0.1
-[[dem.walls]]
+)") +
+    demfem::test::dem_material("sphere", "210e9", "44037.0") +
+    demfem::test::dem_pair("sphere", "sphere", "0.0", "0.1") +
+    R"([[dem.walls]]
 plane = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0], size = 1.0 }
 material = "sphere"
 [[dem.lattice]]

@@ -14,35 +14,19 @@ import csv
 import json
 import math
 import os
-import subprocess
 import sys
-import tempfile
 
-from pv_checks import SKIP, Checks, offscreen_env, pvpython_or_none, run_demfem
+from pv_checks import Checks, inspect_output, scene_run
 
 
 def main():
-    demfem_run, source = sys.argv[1], sys.argv[2]
-    pvpython = pvpython_or_none()
-    if pvpython is None:
-        return SKIP
     check = Checks()
-
-    with tempfile.TemporaryDirectory() as d:
-        out = os.path.join(d, "out")
-        if run_demfem(demfem_run, os.path.join(source, "cases", "beam_modes.toml"), out,
-                      "--quiet") is None:
-            return 1
-        with open(os.path.join(out, "fem_modes.csv")) as f:
+    with scene_run("cases/beam_modes.toml", "--quiet") as c:
+        with open(os.path.join(c.out, "fem_modes.csv")) as f:
             rows = list(csv.DictReader(f))
-        env = offscreen_env()
-        r = subprocess.run([pvpython, os.path.join(source, "tools", "inspect_output.py"), out,
-                            "--steps", "all", "--values", "200"], capture_output=True, text=True,
-                           timeout=300, env=env)
-        if r.returncode != 0:
-            print("inspect_output.py failed:", r.returncode, r.stdout[-2000:], r.stderr[-4000:])
+        seen = inspect_output(c.pvpython, c.source, c.out, 200)
+        if seen is None:
             return 1
-        seen = json.loads(r.stdout[r.stdout.find("{"):])
 
     n = 12
     freqs = [float(row["frequency"]) for row in rows]

@@ -16,39 +16,30 @@ is not installed (or DEMFEM_PVPYTHON names none).
 import json
 import math
 import os
-import subprocess
 import sys
-import tempfile
 
-from pv_checks import SKIP, Checks, offscreen_env, pvpython_or_none, run_demfem
+from pv_checks import Checks, close, inspect_output, scene_run
 
 check = Checks()
 
 
-def close(a, b, rel):
-    return abs(a - b) <= rel * max(abs(a), abs(b), 1e-300)
+def opened(seen, stem, requested):
+    """ParaView's view of STEM.xdmf: opened by its Xdmf3 reader at the `requested` output
+    times; None (a failed check) when it was not opened."""
+    x = seen.get(stem + ".xdmf")
+    if not check(x is not None, f"{stem}.xdmf not opened"):
+        return None
+    check(x["reader"].startswith("Xdmf3Reader"), f"{stem}: reader {x['reader']}")
+    check(x["times"] == requested, f"{stem}: times {x['times']}, requested {requested}")
+    return x
 
 
 def main():
-    demfem_run, source = sys.argv[1], sys.argv[2]
-    pvpython = pvpython_or_none()
-    if pvpython is None:
-        return SKIP
-    scene = os.path.join(source, "tests", "system", "paraview_output.toml")
-    tool = os.path.join(source, "tools", "inspect_output.py")
-    with tempfile.TemporaryDirectory() as d:
-        out = os.path.join(d, "out")
-        if run_demfem(demfem_run, scene, out, "--quiet") is None:
+    with scene_run("tests/system/paraview_output.toml", "--quiet") as run:
+        seen = inspect_output(run.pvpython, run.source, run.out, 20)
+        if seen is None:
             return 1
-        env = offscreen_env()
-        r = subprocess.run([pvpython, tool, out, "--steps", "all", "--values", "20"], capture_output=True,
-                           text=True, timeout=300, env=env)
-        if r.returncode != 0:
-            print("inspect_output.py failed:", r.returncode, r.stdout[-2000:], r.stderr[-4000:])
-            return 1
-        start = r.stdout.find("{")
-        seen = json.loads(r.stdout[start:])
-        files = sorted(os.listdir(out))
+        files = sorted(os.listdir(run.out))
     print(json.dumps({k: {"reader": v["reader"], "times": v["times"]} for k, v in seen.items()}))
 
     requested = [0.0, 0.0005, 0.001, 0.0015, 0.002]
@@ -60,10 +51,8 @@ def main():
               f"{[f for f in files if f.startswith(stem + '_0')]}")
 
     # --- particles -------------------------------------------------------------------------
-    p = seen.get("particles.xdmf")
-    if check(p is not None, "particles.xdmf not opened"):
-        check(p["reader"].startswith("Xdmf3Reader"), f"particles: reader {p['reader']}")
-        check(p["times"] == requested, f"particles: times {p['times']}, requested {requested}")
+    p = opened(seen, "particles", requested)
+    if p is not None:
         n = 164  # 41 x 4 x 1 spheres of 24 mm at 1.001 d spacing on the 1 m x 0.1 m beam
         mass = 7800.0 * math.pi / 6.0 * 0.024 ** 3
         expected = {"velocity": 3, "angular_velocity": 3, "radius": 1, "mass": 1,
@@ -97,10 +86,8 @@ def main():
             check(v0["min"] == 0.0 and v0["max"] == 0.0, "particles t=0: not at rest")
 
     # --- walls -----------------------------------------------------------------------------
-    w = seen.get("walls.xdmf")
-    if check(w is not None, "walls.xdmf not opened"):
-        check(w["reader"].startswith("Xdmf3Reader"), f"walls: reader {w['reader']}")
-        check(w["times"] == requested, f"walls: times {w['times']}, requested {requested}")
+    w = opened(seen, "walls", requested)
+    if w is not None:
         for step in w["steps"]:
             t = step["time"]
             # the floor: a square of two triangles (VTK_TRIANGLE = 5), z = -0.5 m
@@ -116,10 +103,8 @@ def main():
                       f"walls t={t}: force on the untouched floor {force['min']}..{force['max']}")
 
     # --- FEM -------------------------------------------------------------------------------
-    f = seen.get("fem.xdmf")
-    if check(f is not None, "fem.xdmf not opened"):
-        check(f["reader"].startswith("Xdmf3Reader"), f"fem: reader {f['reader']}")
-        check(f["times"] == requested, f"fem: times {f['times']}, requested {requested}")
+    f = opened(seen, "fem", requested)
+    if f is not None:
         if p is not None:
             check(f["times"] == p["times"], "fem and particle times differ: ParaView's "
                   f"animation would have {len(set(f['times']) | set(p['times']))} frames")
@@ -167,10 +152,8 @@ def main():
                       f"max_principal_strain {b}")
 
     # --- coupling.xdmf: the interface at the same output times ----------------------------
-    c = seen.get("coupling.xdmf")
-    if check(c is not None, "coupling.xdmf not opened"):
-        check(c["reader"].startswith("Xdmf3Reader"), f"coupling: reader {c['reader']}")
-        check(c["times"] == requested, f"coupling: times {c['times']}, requested {requested}")
+    c = opened(seen, "coupling", requested)
+    if c is not None:
         for step in c["steps"]:
             t = step["time"]
             check(step["cell_types"] == [5] and step["cells"] > 0,

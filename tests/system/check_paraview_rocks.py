@@ -17,13 +17,10 @@ surfaces into unnamed pieces of one data set) and checks:
 Usage: check_paraview_rocks.py DEMFEM_RUN SOURCE_DIR. Exit 77 (ctest: skipped) without pvpython.
 """
 
-import json
 import os
-import subprocess
 import sys
-import tempfile
 
-from pv_checks import SKIP, Checks, offscreen_env, pvpython_or_none, run_demfem
+from pv_checks import Checks, pvpython_json, scene_run
 
 check = Checks()
 
@@ -32,23 +29,11 @@ FIELDS = {"id": 1, "material": 1, "radius": 1, "mass": 1, "velocity": 3, "angula
 
 
 def main():
-    demfem_run, source = sys.argv[1], sys.argv[2]
-    pvpython = pvpython_or_none()
-    if pvpython is None:
-        return SKIP
-    scene = os.path.join(source, "tests", "system", "paraview_rocks.toml")
-    probe = os.path.join(source, "tests", "system", "paraview_rocks_probe.py")
-    with tempfile.TemporaryDirectory() as d:
-        out = os.path.join(d, "out")
-        if run_demfem(demfem_run, scene, out, "--quiet") is None:
+    with scene_run("tests/system/paraview_rocks.toml", "--quiet") as c:
+        probe = os.path.join(c.source, "tests", "system", "paraview_rocks_probe.py")
+        seen = pvpython_json(c.pvpython, probe, c.out)
+        if seen is None:
             return 1
-        env = offscreen_env()
-        r = subprocess.run([pvpython, probe, out], capture_output=True, text=True, timeout=300,
-                           env=env)
-        if r.returncode != 0:
-            print("paraview_rocks_probe.py failed:", r.returncode, r.stdout[-2000:], r.stderr[-4000:])
-            return 1
-        seen = json.loads(r.stdout[r.stdout.find("{"):])
 
     # --- rocks and spheres -------------------------------------------------------------------
     p = seen.get("particles.xdmf")

@@ -20,46 +20,25 @@ Usage: check_static_output.py DEMFEM_RUN SOURCE_DIR. Exit 77 (ctest: skipped) wi
 """
 
 import csv
-import json
 import math
 import os
 import re
-import subprocess
 import sys
-import tempfile
 
-from pv_checks import SKIP, Checks, offscreen_env, pvpython_or_none, run_demfem
-
-
-def close(a, b, rel):
-    return abs(a - b) <= rel * max(abs(a), abs(b), 1e-300)
+from pv_checks import Checks, close, inspect_output, scene_run
 
 
 def main():
-    demfem_run, source = sys.argv[1], sys.argv[2]
-    pvpython = pvpython_or_none()
-    if pvpython is None:
-        return SKIP
     check = Checks()
-
-    with tempfile.TemporaryDirectory() as d:
-        out = os.path.join(d, "out")
-        r = run_demfem(demfem_run, os.path.join(source, "cases", "beam_fixed_ci.toml"), out)
-        if r is None:
-            return 1
-        printed = r.stdout
-        with open(os.path.join(out, "fem_series.csv")) as f:
+    with scene_run("cases/beam_fixed_ci.toml") as c:
+        printed = c.run.stdout
+        with open(os.path.join(c.out, "fem_series.csv")) as f:
             series = list(csv.DictReader(f))
-        with open(os.path.join(out, "beam_check.csv")) as f:
+        with open(os.path.join(c.out, "beam_check.csv")) as f:
             beam = next(csv.DictReader(f))
-        env = offscreen_env()
-        r = subprocess.run([pvpython, os.path.join(source, "tools", "inspect_output.py"), out,
-                            "--steps", "all", "--values", "1000"], capture_output=True,
-                           text=True, timeout=300, env=env)
-        if r.returncode != 0:
-            print("inspect_output.py failed:", r.returncode, r.stdout[-2000:], r.stderr[-4000:])
+        seen = inspect_output(c.pvpython, c.source, c.out, 1000)
+        if seen is None:
             return 1
-        seen = json.loads(r.stdout[r.stdout.find("{"):])
 
     # What the run printed: the settle time, the force sum, the coupled deflection.
     m = re.search(r"the DEM settled at t = (\S+) s .*\(sum (\S+) N along z\)", printed)

@@ -15,6 +15,7 @@
 #include "demfem_test/box_scene.hpp"
 #include "demfem_test/demfem_run.hpp"
 #include "demfem_test/run_output.hpp"
+#include "demfem_test/steel_strip.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 namespace fs = std::filesystem;
@@ -264,26 +265,8 @@ TEST_CASE("fem_static_check: the time-mean of a damped oscillation is the static
   // amplitude is below 1e-3 of the static value, so the time-mean displacement equals the
   // static solution under the mean load to about 1e-3 (the bound of K <u> = <F> - M [u'] / T).
   TempDir d("static_check");
-  std::ofstream(d / "strip.toml") << R"(
-[run]
-end_time = 0.4
-[fem]
-analysis = "dynamic"
-dt = 1e-4
-[fem.mesh.plate]
-size = [0.1, 0.02]
-cells = [10, 2]
-[[fem.materials]]
-name = "steel"
-youngs_modulus = 1.85e11
-poisson_ratio = 0.3
-density = 7850.0
-[[fem.sections]]
-material = "steel"
-thickness = 0.001
-[[fem.clamps]]
-nodes = "x <= 0"
-[[fem.nodal_loads]]
+  const std::string strip = demfem::test::steel_strip_fem("analysis = \"dynamic\"\n");
+  std::ofstream(d / "strip.toml") << "\n[run]\nend_time = 0.4\n" + strip + R"([[fem.nodal_loads]]
 nodes = "x >= 0.1"
 force = [0.0, 0.0, -0.1]
 [fem.damping]

@@ -57,7 +57,6 @@ SizeDistribution read_distribution(const Table& d) {
   return s;
 }
 
-// The density of a particle material (which must have one); notes that particles use it.
 // An entry's own `seed` in [0, 2^63 - 1], when it has one (its draws then do not follow
 // run.seed): true and `seed` set, else false and `seed` untouched.
 bool read_seed(const Table& t, std::uint64_t& seed) {
@@ -66,6 +65,7 @@ bool read_seed(const Table& t, std::uint64_t& seed) {
   return true;
 }
 
+// The density of a particle material (which must have one); notes that particles use it.
 double particle_density(const Table& t, std::int32_t m, const std::vector<Material>& materials,
                         FillKeys& keys) {
   if (!(materials[m].density > 0)) {
@@ -90,14 +90,24 @@ std::int32_t shape_index(const Table& t, const std::vector<ShapeSpec>& shapes) {
              (list.empty() ? std::string(" (none is defined)") : " (defined: " + list + ")"));
 }
 
+// What a lattice, an insertion and a pack read alike, in this order (the first bad key is
+// the one an error names): the particle material into `q.material` and the region lo .. hi
+// into `q.region`. Returns the material's density.
+template <class FillRequest>
+double read_material_and_region(const Table& t, const DemScene& s, FillKeys& keys,
+                                FillRequest& q) {
+  q.material = material_index(t, "material", s.settings.materials);
+  const double density = particle_density(t, q.material, s.settings.materials, keys);
+  q.region.lo = t.vec3("lo");
+  q.region.hi = checked_hi(t, q.region.lo);
+  return density;
+}
+
 LatticeSpec read_lattice(const Table& l, const DemScene& s, FillKeys& keys) {
   LatticeSpec ls;
   ls.where = l.where("lo");
   auto& q = ls.request;
-  q.material = material_index(l, "material", s.settings.materials);
-  particle_density(l, q.material, s.settings.materials, keys);
-  q.region.lo = l.vec3("lo");
-  q.region.hi = checked_hi(l, q.region.lo);
+  read_material_and_region(l, s, keys, q);
   if (!l.has("diameter") && !l.has("distribution")) {
     l.fail_missing("diameter", "or 'distribution'");
   }
@@ -141,10 +151,7 @@ InsertSpec read_insert(const Table& r, const DemScene& s, FillKeys& keys) {
   InsertSpec is;
   is.where = r.where("lo");
   auto& q = is.request;
-  q.material = material_index(r, "material", s.settings.materials);
-  q.density = particle_density(r, q.material, s.settings.materials, keys);
-  q.region.lo = r.vec3("lo");
-  q.region.hi = checked_hi(r, q.region.lo);
+  q.density = read_material_and_region(r, s, keys, q);
   q.sizes = read_distribution(r.required_table("distribution"));
   const bool has_count = r.has("count"), has_mass = r.has("mass");
   if (has_count == has_mass) r.fail("count", "give exactly one of 'count' and 'mass'");
@@ -170,10 +177,7 @@ PackSpec read_pack(const Table& k, const DemScene& s, FillKeys& keys) {
   PackSpec ps;
   ps.where = k.where("count");
   auto& q = ps.request;
-  q.material = material_index(k, "material", s.settings.materials);
-  particle_density(k, q.material, s.settings.materials, keys);
-  q.region.lo = k.vec3("lo");
-  q.region.hi = checked_hi(k, q.region.lo);
+  read_material_and_region(k, s, keys, q);
   q.sizes = read_distribution(k.required_table("distribution"));
   q.count = k.integer("count", 1, INT64_MAX);
   // 1: bounding spheres touching; up to 2 leaves a gap as wide as a particle

@@ -42,6 +42,37 @@ inline WallMesh plane_mesh(double side, int n, double tilt = 0.0, std::int32_t m
   return w;
 }
 
+/// The surface of `m` as an interface mesh: what set_flexible_mesh takes to make it the
+/// flexible wall that the coupler moves (at its reference place until kinematics arrive).
+inline demfem::InterfaceMesh interface_mesh_of(const WallMesh& m) {
+  demfem::InterfaceMesh im;
+  im.reference_positions = m.vertices;
+  im.triangles = m.triangles;
+  return im;
+}
+
+/// `m` as a rigid wall, or with `flexible` as the flexible mesh of material 1: the tests
+/// that ask both to give the same contact forces.
+inline void add_rigid_or_flexible(DemSystem& sys, const WallMesh& m, bool flexible) {
+  if (flexible) {
+    sys.set_flexible_mesh(interface_mesh_of(m), 1);
+  } else {
+    sys.add_wall(m);
+  }
+}
+
+/// A roof of two faces, each two triangles over x in [-0.01, 0.01] m, falling from the ridge
+/// y = 0, z = 0 to z = -0.01 at y = -0.01 and y = 0.01 (90 degrees between the faces): a
+/// convex edge, material 1.
+inline WallMesh roof_mesh() {
+  WallMesh w;
+  w.material = 1;
+  w.vertices = {-0.01, 0,     0,     0.01,  0,    0,     -0.01, -0.01, -0.01,
+                0.01,  -0.01, -0.01, -0.01, 0.01, -0.01, 0.01,  0.01,  -0.01};
+  w.triangles = {0, 2, 3, 0, 3, 1, 0, 1, 5, 0, 5, 4};
+  return w;
+}
+
 /// A floor z = 0 of two triangles over [-1, 1]^2 m (normal +z) whose shared edge is the line
 /// x + y = 0: a region with x + y > 0 lies on one triangle (the wall contact history is keyed
 /// by the triangle, so copies of a periodic block keep theirs).

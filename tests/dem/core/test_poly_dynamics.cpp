@@ -113,15 +113,7 @@ TEST_CASE("A cube resting on a mesh feels one Hertz force, wherever it lies", "[
   auto resting = [&](double x, double y, bool flexible, double angle) {
     DemSystem sys(two_material_settings(kE, kNu, kRho, 0.5, 0.5, 1e-9));
     sys.add_shape(box);
-    const WallMesh m = plane_mesh(0.04, 2);
-    if (flexible) {
-      demfem::InterfaceMesh im;
-      im.reference_positions = m.vertices;
-      im.triangles = m.triangles;
-      sys.set_flexible_mesh(im, 1);
-    } else {
-      sys.add_wall(m);
-    }
+    add_rigid_or_flexible(sys, plane_mesh(0.04, 2), flexible);
     const std::vector<ParticleInit> p = {
         poly(0, {x, y, 0.002 + rd - delta}, about(0, 0, 1, angle))};
     sys.add_particles(p);
@@ -157,12 +149,7 @@ TEST_CASE("A box on a ridge is pushed once, along the ridge normal", "[dem][poly
   const double rd = 0.0005, delta = 2e-6;
   DemSystem sys(two_material_settings(kE, kNu, kRho, 0.5, 0.0, 1e-9));
   sys.add_shape(box_shape(0.004, 0.003, 0.002, rd));
-  WallMesh w;
-  w.material = 1;
-  w.vertices = {-0.01, 0,     0,     0.01,  0,    0,     -0.01, -0.01, -0.01,
-                0.01,  -0.01, -0.01, -0.01, 0.01, -0.01, 0.01,  0.01,  -0.01};
-  w.triangles = {0, 2, 3, 0, 3, 1, 0, 1, 5, 0, 5, 4};
-  sys.add_wall(w);
+  sys.add_wall(roof_mesh());
   const std::vector<ParticleInit> p = {poly(0, {0.001, 0.0, 0.002 + rd - delta})};
   sys.add_particles(p);
   sys.advance(1);
@@ -674,10 +661,7 @@ TEST_CASE("A rock on the flexible mesh: node forces sum to the contact forces",
   DemSystem sys(two_material_settings(kE, kNu, kRho, 0.5, 0.3, 1e-9));
   std::mt19937_64 rng(9);
   sys.add_shape(random_rock(rng, 12, 0.003, 0.002, 0.0015, 0.0005));
-  const WallMesh m = plane_mesh(0.04, 4);
-  demfem::InterfaceMesh im;
-  im.reference_positions = m.vertices;
-  im.triangles = m.triangles;
+  const demfem::InterfaceMesh im = interface_mesh_of(plane_mesh(0.04, 4));
   sys.set_flexible_mesh(im, 1);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   std::vector<ParticleInit> p;

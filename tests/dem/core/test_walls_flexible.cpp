@@ -18,15 +18,7 @@ constexpr double kE = 1e8, kNu = 0.3, kRho = 2500.0;
 // Force on a resting sphere (overlap delta) above the point (x, y) of a 2 x 2-cell plane.
 double resting_force(double x, double y, double delta, bool flexible = false) {
   DemSystem sys(two_material_settings(kE, kNu, kRho, 0.5, 0.5, 1e-8));
-  const WallMesh m = plane_mesh(0.02, 2);
-  if (flexible) {
-    demfem::InterfaceMesh im;
-    im.reference_positions = m.vertices;
-    im.triangles = m.triangles;
-    sys.set_flexible_mesh(im, 1);
-  } else {
-    sys.add_wall(m);
-  }
+  add_rigid_or_flexible(sys, plane_mesh(0.02, 2), flexible);
   const double r = 0.002;
   const std::vector<ParticleInit> p = {sphere({x, y, r - delta}, r)};
   sys.add_particles(p);
@@ -57,12 +49,7 @@ TEST_CASE("A sphere at a convex edge is pushed once, along the edge normal", "[d
   // ridge at distance r - delta touches only the edge: Hertz force of overlap delta along
   // +z. Reference: eq. 2.6 with R = r; tolerance 1e-9 relative.
   DemSystem sys(two_material_settings(kE, kNu, kRho, 0.5, 0.0, 1e-8));
-  WallMesh w;
-  w.material = 1;
-  w.vertices = {-0.01, 0,     0,     0.01,  0,    0,     -0.01, -0.01, -0.01,
-                0.01,  -0.01, -0.01, -0.01, 0.01, -0.01, 0.01,  0.01,  -0.01};
-  w.triangles = {0, 2, 3, 0, 3, 1, 0, 1, 5, 0, 5, 4};
-  sys.add_wall(w);
+  sys.add_wall(roof_mesh());
   const double r = 0.002, delta = 1e-5;
   const std::vector<ParticleInit> p = {sphere({0.001, 0, r - delta}, r)};
   sys.add_particles(p);
@@ -80,10 +67,7 @@ TEST_CASE("Flexible mesh: barycentric forces sum to the contact forces", "[dem][
   // The barycentric split preserves both exactly for contacts on faces (contact point =
   // sum b_k x_k); tolerance 1e-12 relative to the total force.
   DemSystem sys(two_material_settings(kE, kNu, kRho, 0.5, 0.3, 1e-8));
-  const WallMesh m = plane_mesh(0.04, 4);
-  demfem::InterfaceMesh im;
-  im.reference_positions = m.vertices;
-  im.triangles = m.triangles;
+  const demfem::InterfaceMesh im = interface_mesh_of(plane_mesh(0.04, 4));
   sys.set_flexible_mesh(im, 1);
   std::vector<ParticleInit> p;
   const double r = 0.001;
@@ -129,10 +113,7 @@ TEST_CASE("Flexible mesh follows its kinematics and pushes particles", "[dem][fl
   auto s = two_material_settings(kE, kNu, kRho, 0.4, 0.3, 1e-6);
   s.gravity = {0, 0, -9.81};
   DemSystem sys(s);
-  const WallMesh m = plane_mesh(0.02, 2);
-  demfem::InterfaceMesh im;
-  im.reference_positions = m.vertices;
-  im.triangles = m.triangles;
+  const demfem::InterfaceMesh im = interface_mesh_of(plane_mesh(0.02, 2));
   sys.set_flexible_mesh(im, 1);
   const double r = 0.002;
   const std::vector<ParticleInit> p = {sphere({0.001, 0.002, r}, r)};

@@ -6,10 +6,24 @@
 #include <array>
 #include <cmath>
 #include <random>
+#include <vector>
 
 #include "demfem/dem/shapes/convex_polyhedron.hpp"
 
 namespace demfem::dem::shapes::test {
+
+/// `n` points drawn uniformly from the box centre ± half (each point's x, y, z in that order
+/// from `gen`): the cloud the tests take random hulls of.
+inline std::vector<Vec3> random_points(std::mt19937_64& gen, std::size_t n, const Vec3& half,
+                                       const Vec3& centre = {0.0, 0.0, 0.0}) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<Vec3> p(n);
+  for (Vec3& x : p) {
+    const double ux = u(gen), uy = u(gen), uz = u(gen);
+    x = {centre[0] + half[0] * ux, centre[1] + half[1] * uy, centre[2] + half[2] * uz};
+  }
+  return p;
+}
 
 /// Squared distance from p to triangle abc (Ericson, Real-Time Collision Detection, 5.1.5).
 inline double point_triangle_distance2(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {

@@ -12,6 +12,7 @@
 
 #include "demfem/dem/shapes/convex_polyhedron.hpp"
 #include "demfem_test/error_of.hpp"
+#include "shape_test_util.hpp"
 
 using namespace demfem::dem::shapes;
 using demfem::test::error_of;
@@ -99,9 +100,7 @@ TEST_CASE("points on faces, edges and inside a cube are not hull vertices", "[sh
 
 TEST_CASE("the hull of random points contains them all and uses only input points", "[shapes]") {
   std::mt19937_64 gen(5);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  std::vector<Vec3> p(500);
-  for (Vec3& x : p) x = {u(gen), 0.5 * u(gen), 0.25 * u(gen)};
+  const std::vector<Vec3> p = test::random_points(gen, 500, {1.0, 0.5, 0.25});
   const ConvexPolyhedron k = ConvexPolyhedron::hull(p, "random points");
   check_invariants(k);
   // Triangulated hull with every vertex extreme: 2V - 4 triangles.

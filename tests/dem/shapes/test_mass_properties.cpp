@@ -179,10 +179,7 @@ TEST_CASE("rounded box against its closed form from the 27 pieces", "[shapes][ma
 
 TEST_CASE("mass properties follow rigid motions of the core", "[shapes][mass]") {
   std::mt19937_64 gen(11);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  std::vector<Vec3> p(40);
-  for (Vec3& x : p) x = {u(gen), 0.7 * u(gen), 0.4 * u(gen)};
-  const auto k = ConvexPolyhedron::hull(p, "random");
+  const auto k = ConvexPolyhedron::hull(test::random_points(gen, 40, {1.0, 0.7, 0.4}), "random");
   const Mat3 rot = rotation(0.3, -1.1, 2.0);
   const Vec3 t{5, -3, 2};
   const auto moved = k.transformed(rot, t);
@@ -243,10 +240,8 @@ TEST_CASE("dilated random hull against stratified Monte Carlo", "[shapes][mass]"
   // distances) integrated by stratified Monte Carlo, 48^3 cells x 2 samples. Tolerance:
   // 5 standard errors estimated from the sample pairs (the library's result is exact).
   std::mt19937_64 gen(3);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  std::vector<Vec3> p(12);
-  for (Vec3& x : p) x = {u(gen), 0.6 * u(gen), 0.4 * u(gen)};
-  const auto k = ConvexPolyhedron::hull(p, "random 12");
+  const auto k =
+      ConvexPolyhedron::hull(test::random_points(gen, 12, {1.0, 0.6, 0.4}), "random 12");
   const double r = 0.3;  // large, so that wedges and sectors are 20-40 % of the volume
   const auto m = dilated_mass_properties(k, r);
   Vec3 lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};

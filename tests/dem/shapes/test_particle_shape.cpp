@@ -10,6 +10,7 @@
 
 #include "demfem/dem/shapes/shapes.hpp"
 #include "demfem_test/error_of.hpp"
+#include "shape_test_util.hpp"
 
 using namespace demfem::dem::shapes;
 using demfem::test::error_of;
@@ -19,10 +20,9 @@ namespace {
 
 ConvexPolyhedron random_hull(std::uint64_t seed, int n) {
   std::mt19937_64 gen(seed);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  std::vector<Vec3> p(static_cast<std::size_t>(n));
-  for (Vec3& x : p) x = {3 + u(gen), 0.6 * u(gen) - 1, 0.4 * u(gen)};
-  return ConvexPolyhedron::hull(p, "random hull");
+  return ConvexPolyhedron::hull(
+      test::random_points(gen, static_cast<std::size_t>(n), {1.0, 0.6, 0.4}, {3.0, -1.0, 0.0}),
+      "random hull");
 }
 
 }  // namespace

@@ -16,6 +16,7 @@
 #include "demfem/dem/shapes/mass_properties.hpp"
 #include "demfem/dem/shapes/random_rock.hpp"
 #include "demfem/dem/shapes/sieve_size.hpp"
+#include "shape_test_util.hpp"
 
 using namespace demfem::dem::shapes;
 
@@ -96,11 +97,10 @@ TEST_CASE("sieve size of boxes lies between the minimum width and min(I, (I+S)/s
 
 TEST_CASE("sieve size of random hulls beats a dense random search", "[shapes][sieve]") {
   std::mt19937_64 gen(9);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
   for (int trial = 0; trial < 5; ++trial) {
-    std::vector<Vec3> p(8 + 4 * trial);
-    for (Vec3& x : p) x = {u(gen), 0.7 * u(gen), 0.5 * u(gen)};
-    const auto k = ConvexPolyhedron::hull(p, "random");
+    const auto k = ConvexPolyhedron::hull(
+        test::random_points(gen, static_cast<std::size_t>(8 + 4 * trial), {1.0, 0.7, 0.5}),
+        "random");
     const double fit = sieve_size(k).size;
     // A random search of 10^5 rotations finds the minimum to O(1e-2) relative; the
     // optimiser must not be worse than it (up to round-off).

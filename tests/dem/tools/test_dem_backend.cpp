@@ -8,6 +8,7 @@
 #include <cmath>
 
 #include "demfem/dem/dem_backend.hpp"
+#include "demfem_test/dem_material_text.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 using namespace demfem;
@@ -16,7 +17,7 @@ using demfem::test::TempDir;
 
 namespace {
 
-const char* kScene = R"(
+const std::string kScene = std::string(R"(
 [run]
 end_time = 1.0
 
@@ -25,29 +26,10 @@ dt = 2e-5
 threads = 1
 interface_material = "sheet"
 
-[[dem.materials]]
-name = "grain"
-youngs_modulus = 1e7
-poisson_ratio = 0.3
-density = 1000.0
-
-[[dem.materials]]
-name = "sheet"
-youngs_modulus = 2e11
-poisson_ratio = 0.3
-
-[[dem.pairs]]
-a = "grain"
-b = "grain"
-friction = 0.5
-restitution = 0.3
-
-[[dem.pairs]]
-a = "grain"
-b = "sheet"
-friction = 0.5
-restitution = 0.3
-
+)") +
+    // grain (E, density), sheet (E), both pairs: friction, restitution
+    demfem::test::grain_and_wall("grain", "1e7", "1000.0", "sheet", "2e11", "0.5", "0.3") +
+    R"(
 [[dem.lattice]]
 material = "grain"
 lo = [-0.0152, -0.0152, 0.0005]

@@ -12,6 +12,7 @@
 #include "demfem/dem/run/dem_run.hpp"
 #include "demfem/dem/run/wall_output.hpp"
 #include "demfem/io/h5_file.hpp"
+#include "demfem_test/dem_material_text.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 using namespace demfem::dem;
@@ -110,22 +111,15 @@ TEST_CASE("particle snapshots re-read from HDF5 and indexed in XDMF", "[output]"
 namespace {
 
 // 12 spheres falling freely (no walls), dt = 2e-6 s.
-const char* kFalling = R"([run]
+const std::string kFalling = std::string(R"([run]
 end_time = 0.002
 [dem]
 dt = 2e-6
 threads = 1
-[[dem.materials]]
-name = "steel"
-youngs_modulus = 2e11
-poisson_ratio = 0.3
-density = 7800.0
-[[dem.pairs]]
-a = "steel"
-b = "steel"
-friction = 0.3
-restitution = 0.5
-[[dem.lattice]]
+)") +
+    demfem::test::dem_material("steel", "2e11", "7800.0") +
+    demfem::test::dem_pair("steel", "steel", "0.3", "0.5") +
+    R"([[dem.lattice]]
 material = "steel"
 lo = [0.0, 0.0, 0.0]
 hi = [0.03, 0.02, 0.01]

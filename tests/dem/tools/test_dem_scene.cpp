@@ -9,6 +9,7 @@
 
 #include "demfem/dem/run/dem_run.hpp"
 #include "demfem/dem/shapes/geometry/stl_reader.hpp"
+#include "demfem_test/dem_material_text.hpp"
 #include "demfem_test/dem_scene_text.hpp"
 #include "demfem_test/error_of.hpp"
 #include "demfem_test/temp_dir.hpp"
@@ -20,7 +21,7 @@ using demfem::test::TempDir;
 
 namespace {
 
-const char* kBase = R"(
+const std::string kBase = std::string(R"(
 [run]
 end_time = 0.01
 
@@ -29,30 +30,12 @@ dt = 2e-6
 gravity = [0.0, 0.0, -9.81]
 threads = 1
 
-[[dem.materials]]
-name = "wheat"
-youngs_modulus = 1e8
-poisson_ratio = 0.3
-density = 1242.0
-
-[[dem.materials]]
-name = "steel"
-youngs_modulus = 1.85e11
-poisson_ratio = 0.3
-
-[[dem.pairs]]
-a = "wheat"
-b = "wheat"
-friction = 0.17
-restitution = 0.4
-
-[[dem.pairs]]
-a = "wheat"
-b = "steel"
-friction = 0.22
-restitution = 0.4
-rolling_friction = 0.01
-
+)") +
+    demfem::test::dem_material("wheat", "1e8", "1242.0") +
+    demfem::test::dem_material("steel", "1.85e11") +
+    demfem::test::dem_pair("wheat", "wheat", "0.17", "0.4") +
+    demfem::test::dem_pair("wheat", "steel", "0.22", "0.4", "rolling_friction = 0.01\n") +
+    R"(
 [[dem.walls]]
 name = "floor"
 material = "steel"

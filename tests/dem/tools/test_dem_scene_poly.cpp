@@ -17,6 +17,7 @@
 #include "demfem_test/cube_shape.hpp"
 #include "demfem_test/dem_scene_text.hpp"
 #include "demfem_test/error_of.hpp"
+#include "demfem_test/rock_fill.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 using namespace demfem::dem;
@@ -26,28 +27,10 @@ using demfem::test::TempDir;
 
 namespace {
 
-const std::string kRocks = demfem::test::rock_box("[0.3, 0.3, 1.0]").text() + R"(
-
-[[dem.shapes]]
-name = "ballast"
-kind = "random_rock"
-count = 6
-triangles = 10
-elongation = 0.8
-flatness = 0.7
-seed = 5
-size = "sieve"
-dilation = 0.1
-
-[[dem.insert]]
-material = "rock"
-shape = "ballast"
-lo = [0.0, 0.0, 0.0]
-hi = [0.3, 0.3, 1.0]
-count = 60
-seed = 3
-distribution = { kind = "normal", mean = 0.04, stddev = 0.01, d_min = 0.02, d_max = 0.06 }
-)";
+// Six random rocks (sieve-sized, dilated by 10 % of their size), 60 of them inserted.
+const std::string kRocks = demfem::test::rock_box("[0.3, 0.3, 1.0]").text() +
+                           demfem::test::sieved_rocks("0.7").text() +
+                           demfem::test::RockFill("[0.3, 0.3, 1.0]", "60", "3").text();
 
 std::string replace(const std::string& s, const std::string& from, const std::string& to) {
   return demfem::test::replace_first(s, from, to);
@@ -258,17 +241,7 @@ TEST_CASE("polyhedra are written as triangle surfaces beside the particles' poin
   // centre, where n_v is the vertex's mean normal (a cube corner: (1, 1, 1)/sqrt(3)); the
   // index is a spatial collection of the points grid and a Triangle grid. Tolerance 1e-12.
   TempDir dir;
-  DemSettings st;
-  st.dt = 1e-5;
-  st.materials = {{"rock", 1e8, 0.3, 2600.0}};
-  st.pairs = {MaterialPair{0.5, 0.5, 0.0}};
-  DemSystem sys(st);
-  sys.add_shape(demfem::test::cube_shape());
-  const ParticleInit p = demfem::test::tilted_cube(0);
-  ParticleInit s2;
-  s2.radius = 0.01;
-  s2.position = {0, 0, 0};
-  sys.add_particles(std::vector<ParticleInit>{p, s2});
+  DemSystem sys = demfem::test::cube_and_sphere({"rock", 1e8, 0.3, 2600.0}, {0, 0, 0});
   ParticleOutput out(dir.path);
   out.set_shapes({sys.shape(0)});
   const std::vector<std::int64_t> ids{7, 8};

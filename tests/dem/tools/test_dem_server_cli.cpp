@@ -10,6 +10,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "demfem_test/dem_material_text.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 using demfem::test::TempDir;
@@ -47,7 +48,7 @@ Result run(const std::string& args, const TempDir& dir) {
   return r;
 }
 
-const char* kScene = R"([run]
+const std::string kScene = std::string(R"([run]
 end_time = 0.01
 output_interval = 0.005
 
@@ -55,18 +56,10 @@ output_interval = 0.005
 dt = 1e-5
 threads = 1
 
-[[dem.materials]]
-name = "grain"
-youngs_modulus = 1e7
-poisson_ratio = 0.3
-density = 1000.0
-
-[[dem.pairs]]
-a = "grain"
-b = "grain"
-friction = 0.5
-restitution = 0.5
-
+)") +
+    demfem::test::dem_material("grain", "1e7", "1000.0") +
+    demfem::test::dem_pair("grain", "grain", "0.5", "0.5") +
+    R"(
 [[dem.walls]]
 name = "floor"
 material = "grain"

@@ -13,6 +13,7 @@
 #include "demfem_test/box_scene.hpp"
 #include "demfem_test/dem_scene_text.hpp"
 #include "demfem_test/error_of.hpp"
+#include "demfem_test/rock_fill.hpp"
 
 using namespace demfem::dem;
 using demfem::scene::Document;
@@ -44,29 +45,17 @@ std::string first_overlap(const std::vector<ParticleInit>& p) {
 }
 
 // Six random rocks of 10 triangles, sieve-sized, dilated by 10 % of their size.
-const std::string kBallastShapes = R"(
-[[dem.shapes]]
-name = "ballast"
-kind = "random_rock"
-count = 6
-triangles = 10
-elongation = 0.8
-flatness = 0.8
-seed = 5
-size = "sieve"
-dilation = 0.1
-)";
+const std::string kBallastShapes = demfem::test::sieved_rocks("0.8").text();
 
-const std::string kPackedRocks =
-    demfem::test::rock_box("[0.5, 0.5, 1.0]").text() + kBallastShapes + R"(
-[[dem.pack]]
-material = "rock"
-shape = "ballast"
-lo = [0.0, 0.0, 0.0]
-hi = [0.5, 0.5, 1.0]
-count = 200
-distribution = { kind = "normal", mean = 0.04, stddev = 0.01, d_min = 0.02, d_max = 0.06 }
-)";
+// A [[dem.pack]] of the rocks in [0, 0, 0] .. `hi`, seeded from run.seed.
+demfem::test::RockFill packed_rocks(std::string hi, std::string count) {
+  demfem::test::RockFill f(std::move(hi), std::move(count));
+  f.table = "dem.pack";
+  return f;
+}
+
+const std::string kPackedRocks = demfem::test::rock_box("[0.5, 0.5, 1.0]").text() +
+                                 kBallastShapes + packed_rocks("[0.5, 0.5, 1.0]", "200").text();
 
 std::string replace(const std::string& s, const std::string& from, const std::string& to) {
   return demfem::test::replace_first(s, from, to);
@@ -280,28 +269,11 @@ TEST_CASE("[[dem.pack]]: a packed rock layer settles sooner, as dense as a poure
   box.grain_youngs = "1e9";
   std::string base = replace(box.text(), "dt = 1e-5", "dt = 2e-5");  // 0.2 of Rayleigh's
   base += kBallastShapes;
-  const std::string sizes =
-      "distribution = { kind = \"normal\", mean = 0.04, stddev = 0.01, d_min = 0.02, "
-      "d_max = 0.06 }\n";
-  const Settled poured = settle(base + R"(
-[[dem.insert]]
-material = "rock"
-shape = "ballast"
-lo = [0.0, 0.0, 0.0]
-hi = [0.3, 0.3, 1.5]
-count = 150
-)" + sizes,
-                                3.0);
-  const Settled packed = settle(base + R"(
-[[dem.pack]]
-material = "rock"
-shape = "ballast"
-lo = [0.0, 0.0, 0.0]
-hi = [0.3, 0.3, 1.5]
-count = 150
-method = "rows"
-)" + sizes,
-                                3.0);
+  const Settled poured =
+      settle(base + demfem::test::RockFill("[0.3, 0.3, 1.5]", "150").text(), 3.0);
+  demfem::test::RockFill rows = packed_rocks("[0.3, 0.3, 1.5]", "150");
+  rows.extra = "method = \"rows\"\n";
+  const Settled packed = settle(base + rows.text(), 3.0);
   INFO("poured: settled at " << poured.time << " s, solid fraction "
                              << poured.packing.solid_fraction << ", coordination "
                              << poured.packing.coordination << ", top " << poured.packing.top

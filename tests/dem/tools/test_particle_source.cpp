@@ -13,6 +13,7 @@
 #include "demfem/io/h5_file.hpp"
 #include "demfem_test/box_scene.hpp"
 #include "demfem_test/error_of.hpp"
+#include "demfem_test/rock_fill.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 using namespace demfem::dem;
@@ -352,24 +353,16 @@ TEST_CASE("dem.load: a prepare scene with overrides ('set', 'pass')", "[dem][loa
 // must not apply; the state restores its shape table and the continuation is exact.
 TEST_CASE("dem.load: a state of rocks continues bit for bit", "[dem][load][poly]") {
   TempDir dir("load_rocks");
-  const std::string shapes = R"(
-[[dem.shapes]]
-name = "rock"
-kind = "random_rock"
-count = 4
-triangles = 30
-elongation = 0.8
-flatness = 0.8
-
-[[dem.insert]]
-material = "wheat"
-shape = "rock"
-lo = [0.0, 0.0, 0.0]
-hi = [0.04, 0.04, 0.1]
-count = 40
-seed = 5
-distribution = { kind = "uniform", d_min = 0.006, d_max = 0.009 }
-)";
+  // Four rocks of 30 triangles (seeded from run.seed), 40 of wheat's density inserted.
+  demfem::test::RandomRockShapes rock("rock", "4", "30");
+  rock.elongation = "0.8";
+  rock.flatness = "0.8";
+  rock.seed = "";
+  demfem::test::RockFill wheat_rocks("[0.04, 0.04, 0.1]", "40", "5");
+  wheat_rocks.material = "wheat";
+  wheat_rocks.shape = "rock";
+  wheat_rocks.distribution = "{ kind = \"uniform\", d_min = 0.006, d_max = 0.009 }";
+  const std::string shapes = rock.text() + wheat_rocks.text();
   const std::string fill = std::string(kHead) + shapes + "[dem.output]\nstate = true\n";
   const Scene a = scene_file(dir, "fill.toml", fill);
   DemRun whole(a.dem, {}, 1, 0.0, nullptr);
@@ -400,24 +393,9 @@ distribution = { kind = "uniform", d_min = 0.006, d_max = 0.009 }
 TEST_CASE("dem.load: a state of polyhedra, with and without history", "[dem][load][poly]") {
   TempDir dir("load_poly");
   const std::string head = demfem::test::rock_box("[0.3, 0.3, 0.6]").text();
-  const std::string rocks = R"(
-[[dem.shapes]]
-name = "ballast"
-kind = "random_rock"
-count = 6
-triangles = 10
-seed = 5
-[[dem.insert]]
-material = "rock"
-shape = "ballast"
-lo = [0.0, 0.0, 0.0]
-hi = [0.3, 0.3, 0.3]
-count = 30
-seed = 3
-distribution = { kind = "normal", mean = 0.04, stddev = 0.01, d_min = 0.02, d_max = 0.06 }
-[dem.output]
-state = true
-)";
+  const std::string rocks = demfem::test::RandomRockShapes().text() +
+                            demfem::test::RockFill("[0.3, 0.3, 0.3]", "30", "3").text() +
+                            "[dem.output]\nstate = true\n";
   const Scene a = scene_file(dir, "fill.toml", head + rocks);
   DemRun whole(a.dem, {}, 1, 0.0, nullptr);
   whole.system().advance(20000);  // 0.2 s: the rocks have landed and touch

@@ -19,6 +19,7 @@
 #include "demfem/dem/sensors/packing.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem/scene/scene_reader.hpp"
+#include "demfem_test/dem_material_text.hpp"
 #include "demfem_test/dem_scene_text.hpp"
 #include "demfem_test/error_of.hpp"
 #include "demfem_test/temp_dir.hpp"
@@ -30,7 +31,7 @@ using demfem::scene::SceneError;
 
 namespace {
 
-const char* kPeriodic = R"(
+const std::string kPeriodic = std::string(R"(
 [run]
 end_time = 0.001
 
@@ -42,29 +43,10 @@ threads = 1
 x = [0.0, 0.04]
 y = [0.0, 0.03]
 
-[[dem.materials]]
-name = "glass"
-youngs_modulus = 1e8
-poisson_ratio = 0.3
-density = 2500.0
-
-[[dem.materials]]
-name = "steel"
-youngs_modulus = 1e8
-poisson_ratio = 0.3
-
-[[dem.pairs]]
-a = "glass"
-b = "glass"
-friction = 0.3
-restitution = 0.5
-
-[[dem.pairs]]
-a = "glass"
-b = "steel"
-friction = 0.3
-restitution = 0.5
-
+)") +
+    // glass (E, density), steel (E), both pairs: friction, restitution
+    demfem::test::grain_and_wall("glass", "1e8", "2500.0", "steel", "1e8", "0.3", "0.5") +
+    R"(
 [[dem.walls]]
 name = "floor"
 material = "steel"

@@ -15,6 +15,7 @@
 #include "demfem/dem/shapes/mesh_body.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem/scene/scene_reader.hpp"
+#include "demfem_test/dem_material_text.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 using namespace demfem;
@@ -269,32 +270,16 @@ TEST_CASE("rigid bodies are refused with a reason: bad mass, prescribed motion",
 
 TEST_CASE("scene: [dem.walls.body] keys and their errors", "[rigid_body][scene]") {
   auto parse_body = [&](const std::string& body) {
-    const std::string text = R"(
+    const std::string text = std::string(R"(
 [run]
 end_time = 0.01
 [dem]
 dt = 1e-5
 gravity = [0, 0, -9.81]
-[[dem.materials]]
-name = "grain"
-youngs_modulus = 1e7
-poisson_ratio = 0.3
-density = 2000
-[[dem.materials]]
-name = "steel"
-youngs_modulus = 1e7
-poisson_ratio = 0.3
-[[dem.pairs]]
-a = "grain"
-b = "grain"
-friction = 0.5
-restitution = 0.5
-[[dem.pairs]]
-a = "grain"
-b = "steel"
-friction = 0.5
-restitution = 0.5
-[[dem.walls]]
+)") +
+    // grain (E, density), steel (E), both pairs: friction, restitution
+    demfem::test::grain_and_wall("grain", "1e7", "2000", "steel", "1e7", "0.5", "0.5") +
+    R"([[dem.walls]]
 name = "cell"
 material = "steel"
 box = { lo = [0, 0, 0], hi = [0.22, 0.22, 0.1] }

@@ -107,17 +107,7 @@ TEST_CASE("angle of repose: a polyhedron's top is its highest surface point", "[
   // by 0.6 rad about x: its highest core vertex is 0.3 (sin 0.6 + cos 0.6) above the centre,
   // so its top is z + 0.05 (0.3 (sin 0.6 + cos 0.6) + 0.2); a sphere's stays z + r. The
   // bounding sphere (radius 0.05 (0.3 √3 + 0.2)) would put it higher. Tolerance 1e-12 m.
-  DemSettings st;
-  st.dt = 1e-5;
-  st.materials = {{"m", 1e7, 0.3, 1000.0}};
-  st.pairs = {MaterialPair{0.5, 0.5, 0.0}};
-  DemSystem sys(st);
-  sys.add_shape(demfem::test::cube_shape());
-  const ParticleInit p = demfem::test::tilted_cube(0);
-  ParticleInit s;
-  s.radius = 0.01;
-  s.position = {0, 0, 0.5};
-  sys.add_particles(std::vector<ParticleInit>{p, s});
+  DemSystem sys = demfem::test::cube_and_sphere({"m", 1e7, 0.3, 1000.0}, {0, 0, 0.5});
   const std::vector<double> tops = particle_tops(sys);
   REQUIRE(tops.size() == 2);
   CHECK(std::abs(tops[0] - (3.0 + 0.05 * (0.3 * (std::sin(0.6) + std::cos(0.6)) + 0.2))) < 1e-12);

@@ -14,6 +14,7 @@
 #include "demfem/fem/fem_solver.hpp"
 #include "demfem/io/h5_file.hpp"
 #include "demfem_test/error_of.hpp"
+#include "demfem_test/steel_strip.hpp"
 #include "demfem_test/temp_dir.hpp"
 
 using namespace demfem;
@@ -23,23 +24,7 @@ using demfem::test::TempDir;
 
 namespace {
 
-const char* kStrip = R"(
-[fem]
-dt = 1e-4
-[fem.mesh.plate]
-size = [0.1, 0.02]
-cells = [10, 2]
-[[fem.materials]]
-name = "steel"
-youngs_modulus = 1.85e11
-poisson_ratio = 0.3
-density = 7850.0
-[[fem.sections]]
-material = "steel"
-thickness = 0.001
-[[fem.clamps]]
-nodes = "x <= 0"
-[fem.monitor]
+const std::string kStrip = test::steel_strip_fem() + R"([fem.monitor]
 interval = 5e-4
 mean_window = [0.001, 0.003]
 [[fem.monitor.probes]]

@@ -8,6 +8,8 @@
 #include <string>
 #include <utility>
 
+#include "demfem_test/dem_material_text.hpp"
+
 namespace demfem::test {
 
 struct BoxScene {
@@ -26,14 +28,10 @@ struct BoxScene {
     std::string t = "\n";
     if (!end_time.empty()) t += "[run]\nend_time = " + end_time + "\n\n";
     t += "[dem]\ndt = 1e-5\nthreads = 1\n\n";
-    t += "[[dem.materials]]\nname = \"" + grain + "\"\nyoungs_modulus = " + grain_youngs +
-         "\npoisson_ratio = 0.3\ndensity = " + grain_density + "\n\n";
-    t += "[[dem.materials]]\nname = \"steel\"\nyoungs_modulus = " + steel_youngs +
-         "\npoisson_ratio = 0.3\n\n";
-    t += "[[dem.pairs]]\na = \"" + grain + "\"\nb = \"" + grain +
-         "\"\nfriction = " + grain_friction + "\nrestitution = " + grain_restitution + "\n\n";
-    t += "[[dem.pairs]]\na = \"" + grain + "\"\nb = \"steel\"\nfriction = " + wall_friction +
-         "\nrestitution = " + wall_restitution + "\n\n";
+    t += dem_material(grain, grain_youngs, grain_density) + "\n";
+    t += dem_material("steel", steel_youngs) + "\n";
+    t += dem_pair(grain, grain, grain_friction, grain_restitution) + "\n";
+    t += dem_pair(grain, "steel", wall_friction, wall_restitution) + "\n";
     t +=
         "[[dem.walls]]\nname = \"box\"\nmaterial = \"steel\"\nbox = { lo = [0.0, 0.0, 0.0], hi = " +
         box_hi + ", open_top = true }\n";
