@@ -64,9 +64,9 @@ auto double_arrays(ImplT& I) {
                                                        {"shear", &I.slots.shear},
                                                        {"rhist", &I.slots.rolling_history},
                                                        {"wroll", &I.wroll},
-                                                       {"bx", &I.bx},
-                                                       {"by", &I.by},
-                                                       {"bz", &I.bz},
+                                                       {"bx", &I.list.update_x},
+                                                       {"by", &I.list.update_y},
+                                                       {"bz", &I.list.update_z},
                                                        {"wshear", &I.wshear},
                                                        {"vpos", &I.vpos},
                                                        {"vbuild", &I.vbuild},
@@ -200,13 +200,13 @@ struct PairsWithSprings {
 template <class ImplT>  // DemSystem::Impl (a private type: deduced)
 PairsWithSprings pairs_with_springs(const ImplT& I) {
   PairsWithSprings out;
-  const std::size_t n = I.row.empty() ? 0 : I.row.size() - 1;
-  out.row.assign(I.row.empty() ? 0 : n + 1, 0);
+  const std::size_t n = I.list.row.empty() ? 0 : I.list.row.size() - 1;
+  out.row.assign(I.list.row.empty() ? 0 : n + 1, 0);
   // without friction no pair has a spring (and no shear array): without polyhedra no pair is
   // state
-  const bool friction = I.slots.shear.size() == 3 * I.nbr.size();
-  out.caches = I.poly && I.slots.separating_axis.size() == 3 * I.nbr.size() &&
-               I.slots.closest_features.size() == 6 * I.nbr.size();
+  const bool friction = I.slots.shear.size() == 3 * I.list.partner.size();
+  out.caches = I.poly && I.slots.separating_axis.size() == 3 * I.list.partner.size() &&
+               I.slots.closest_features.size() == 6 * I.list.partner.size();
   if (!friction && !out.caches) return out;
   const bool rolling = friction && I.slots.rolling_history.size() == I.slots.shear.size();
   std::vector<std::pair<std::int32_t, std::size_t>> kept;  // (j, pair index)
@@ -222,11 +222,11 @@ PairsWithSprings pairs_with_springs(const ImplT& I) {
   };
   for (std::size_t i = 0; i < n; ++i) {
     kept.clear();
-    for (auto k = static_cast<std::size_t>(I.row[i]); k < static_cast<std::size_t>(I.row[i + 1]);
-         ++k)
+    for (auto k = static_cast<std::size_t>(I.list.row[i]);
+         k < static_cast<std::size_t>(I.list.row[i + 1]); ++k)
       if ((friction && spring(I.slots.shear, k)) ||
           (rolling && spring(I.slots.rolling_history, k)) || warm(k))
-        kept.emplace_back(I.nbr[k], k);
+        kept.emplace_back(I.list.partner[k], k);
     std::sort(kept.begin(), kept.end());
     for (const auto& [j, k] : kept) {
       out.nbr.push_back(j);
@@ -276,18 +276,21 @@ void check_state_indices(const ImplT& I, std::size_t nverts, const std::string& 
   per_particle("material", st.material.size());
   per_particle("shape", st.shape.size());
   // the list's build positions: all three or none (a state saved before the first build)
-  for (const auto* v : {&I.bx, &I.by, &I.bz}) per_particle("bx/by/bz", v->size(), true);
-  if (I.bx.size() != I.by.size() || I.bx.size() != I.bz.size())
-    refuse("bx/by/bz", "have " + std::to_string(I.bx.size()) + ", " + std::to_string(I.by.size()) +
-                           " and " + std::to_string(I.bz.size()) +
+  for (const auto* v : {&I.list.update_x, &I.list.update_y, &I.list.update_z})
+    per_particle("bx/by/bz", v->size(), true);
+  if (I.list.update_x.size() != I.list.update_y.size() ||
+      I.list.update_x.size() != I.list.update_z.size())
+    refuse("bx/by/bz", "have " + std::to_string(I.list.update_x.size()) + ", " +
+                           std::to_string(I.list.update_y.size()) + " and " +
+                           std::to_string(I.list.update_z.size()) +
                            " values: all three one per particle, or all three empty");
   if (I.vpos.size() != nverts)
     refuse("vpos", "has " + std::to_string(I.vpos.size() / 3) + " wall vertices, this system " +
                        std::to_string(nverts / 3) + " (the state of other walls)");
   // the pair rows: a prefix sum over the particles, each row's partners j > i ascending (the
   // order of the list's merge in refilter)
-  const auto& row = I.row;
-  const auto& nbr = I.nbr;
+  const auto& row = I.list.row;
+  const auto& nbr = I.list.partner;
   if (row.size() != n + 1)
     refuse("row", "has " + std::to_string(row.size()) + " values, not particles + 1 (" +
                       std::to_string(n + 1) + ")");
@@ -346,7 +349,7 @@ void restore_pair_caches(ImplT& I, const io::H5File& f, const std::string& g) {
                                                   ": the narrow-phase caches come together)");
   const auto axis = f.read_doubles(g + "sepaxis");
   const auto feat = f.read_int64(g + "features");
-  const std::size_t np = I.nbr.size(), n = I.st.px.size();
+  const std::size_t np = I.list.partner.size(), n = I.st.px.size();
   if (axis.size() != 3 * np)
     refuse("sepaxis", "has " + std::to_string(axis.size()) + " values, not 3 per pair of nbr (" +
                           std::to_string(3 * np) + ")");
@@ -358,15 +361,15 @@ void restore_pair_caches(ImplT& I, const io::H5File& f, const std::string& g) {
     return id < 0 ? 1 : static_cast<std::int64_t>(I.shapes.shape(id).vertices.size() / 3);
   };
   for (std::size_t i = 0; i < n; ++i)
-    for (auto k = static_cast<std::size_t>(I.row[i]); k < static_cast<std::size_t>(I.row[i + 1]);
-         ++k) {
+    for (auto k = static_cast<std::size_t>(I.list.row[i]);
+         k < static_cast<std::size_t>(I.list.row[i + 1]); ++k) {
       const double* a = axis.data() + 3 * k;
       const double a2 = a[0] * a[0] + a[1] * a[1] + a[2] * a[2];
       if (!std::isfinite(a2) || !(a2 == 0.0 || std::abs(a2 - 1.0) < 1e-6))
         refuse("sepaxis[" + std::to_string(3 * k) + " .. " + std::to_string(3 * k + 2) + "]",
                "(pair " + std::to_string(k) + ") is not a unit axis or zero (|a|^2 = " +
                    std::to_string(a2) + ", accepted 0 or 1 +- 1e-6)");
-      const std::size_t j = static_cast<std::size_t>(I.nbr[k]);
+      const std::size_t j = static_cast<std::size_t>(I.list.partner[k]);
       for (int m = 0; m < 6; ++m) {
         const std::size_t owner = m % 2 == 0 ? i : j;
         const std::int64_t nv = vertices(owner), v = feat[6 * k + m];
@@ -469,8 +472,8 @@ void DemSystem::save_state(DemStateCopy& c) const {
     if (constant_within_step(arrays[k].first)) continue;
     c.arrays[k].assign(arrays[k].second->begin(), arrays[k].second->end());
   }
-  c.row.assign(I.row.begin(), I.row.end());
-  c.nbr.assign(I.nbr.begin(), I.nbr.end());
+  c.row.assign(I.list.row.begin(), I.list.row.end());
+  c.nbr.assign(I.list.partner.begin(), I.list.partner.end());
   // the narrow phase's warm starts, in the order of nbr as the springs (the rebuild after
   // restore_state() carries both over)
   c.axis = I.slots.separating_axis;
@@ -501,8 +504,8 @@ void DemSystem::restore_state(const DemStateCopy& c) {
     if (constant_within_step(arrays[k].first)) continue;
     arrays[k].second->assign(c.arrays[k].begin(), c.arrays[k].end());
   }
-  I.row.assign(c.row.begin(), c.row.end());
-  I.nbr.assign(c.nbr.begin(), c.nbr.end());
+  I.list.row.assign(c.row.begin(), c.row.end());
+  I.list.partner.assign(c.nbr.begin(), c.nbr.end());
   I.slots.separating_axis = c.axis;
   I.slots.closest_features = c.features;
   I.wkey.assign(c.wkey.begin(), c.wkey.end());
@@ -516,9 +519,9 @@ void DemSystem::restore_state(const DemStateCopy& c) {
   I.image = c.image;
   I.refresh_frozen();
   // As restore(): the list is rebuilt from the restored positions and springs.
-  I.bx.clear(), I.by.clear(), I.bz.clear();
+  I.list.update_x.clear(), I.list.update_y.clear(), I.list.update_z.clear();
   I.refresh_particle_derived();
-  I.need_rebuild = true;
+  I.list.must_build = true;
 }
 
 void DemSystem::restore(const io::H5File& f, const std::string& group) {
@@ -552,8 +555,8 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   restore_shapes(I.shapes, f, g);
   st.material = from64<std::int32_t>(f.read_int64(g + "material"));
   st.shape = f.read_uint8(g + "shape");
-  I.row = f.read_int64(g + "row");
-  I.nbr = from64<std::int32_t>(f.read_int64(g + "nbr"));
+  I.list.row = f.read_int64(g + "row");
+  I.list.partner = from64<std::int32_t>(f.read_int64(g + "nbr"));
   I.wkey = f.read_int64(g + "wkey");
   I.wcount = f.read_uint8(g + "wcount");
   try {
@@ -561,7 +564,7 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   } catch (const std::invalid_argument& e) {
     bad(std::string("restore: ") + e.what());
   }
-  if (I.row.empty()) I.row.assign(st.px.size() + 1, 0);  // saved before the first step
+  if (I.list.row.empty()) I.list.row.assign(st.px.size() + 1, 0);  // saved before the first step
   check_state_indices(I, nverts, f.path().string() + ":/" + g);
   // force-limited walls: their drift as saved (a state of another scene's walls, or of one
   // without such walls, leaves them at their start)
@@ -635,18 +638,19 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   if (!I.rolling) {
     I.slots.rolling_history.clear(), I.wroll.clear();
   } else {
-    if (I.slots.rolling_history.empty()) I.slots.rolling_history.assign(3 * I.nbr.size(), 0.0);
+    if (I.slots.rolling_history.empty())
+      I.slots.rolling_history.assign(3 * I.list.partner.size(), 0.0);
     if (I.wroll.empty()) I.wroll.assign(3 * kMaxWallContacts * n, 0.0);
-    if (I.slots.rolling_history.size() != 3 * I.nbr.size() ||
+    if (I.slots.rolling_history.size() != 3 * I.list.partner.size() ||
         I.wroll.size() != 3 * kMaxWallContacts * n)
       bad("restore: rolling history sizes in '" + group + "' of " + f.path().string() +
           " do not match the pair list and particles");
   }
   if (I.wcount.size() != n || I.wkey.size() != kMaxWallContacts * n ||
-      I.wshear.size() != 3 * kMaxWallContacts * n || I.row.size() != n + 1)
+      I.wshear.size() != 3 * kMaxWallContacts * n || I.list.row.size() != n + 1)
     bad("restore: inconsistent array sizes in '" + group + "' of " + f.path().string());
   I.refresh_frozen();  // held at their saved poses
-  I.need_rebuild = true;
+  I.list.must_build = true;
 }
 
 void DemSystem::reset_clock() {

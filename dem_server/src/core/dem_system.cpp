@@ -114,7 +114,7 @@ void DemSystem::Impl::setup_pairs() {
 void DemSystem::Impl::refresh_particle_derived() {
   rmax = 0.0;
   for (double r : st.radius) rmax = std::max(rmax, r);
-  skin = s.skin > 0.0 ? s.skin : 0.2 * rmax;
+  list.skin = s.skin > 0.0 ? s.skin : 0.2 * rmax;
   orientation = s.track_orientation;
   poly_count = 0;
   for (std::uint8_t shape : st.shape)
@@ -122,7 +122,10 @@ void DemSystem::Impl::refresh_particle_derived() {
   poly = poly_count > 0;
   orientation = orientation || poly;
   // The CUDA backend checks the list against the whole skin on the device: one level.
-  skin_in = gpu != nullptr ? skin : (s.list_skin > 0.0 ? s.list_skin : kInnerSkin) * skin;
+  list.inner_skin =
+      gpu != nullptr
+          ? list.skin
+          : (s.list_skin > 0.0 ? s.list_skin : detail::NeighbourList::kInnerSkin) * list.skin;
 }
 
 // =========================================================================================
@@ -253,10 +256,10 @@ std::size_t DemSystem::add_particles(std::span<const ParticleInit> particles) {
   if (!I.frozen.empty()) I.frozen.resize(n, 0);
   if (I.periodic) I.image.resize(3 * n, 0);
   // keep the pair rows of the old particles (new ones have none yet)
-  if (!I.row.empty()) I.row.resize(n + 1, I.row.back());
-  I.bx.clear();
+  if (!I.list.row.empty()) I.list.row.resize(n + 1, I.list.row.back());
+  I.list.update_x.clear();
   I.refresh_particle_derived();
-  I.need_rebuild = true;
+  I.list.must_build = true;
   return first;
 }
 
@@ -280,16 +283,16 @@ void DemSystem::remove_particles(std::span<const std::uint8_t> keep) {
     v.resize(stride * o);
   };
   // pair rows: renumber, drop pairs with a removed particle (order i < j is kept)
-  if (I.row.size() == n + 1) {
+  if (I.list.row.size() == n + 1) {
     std::vector<std::int64_t> nrow(static_cast<std::size_t>(m) + 1, 0);
     std::vector<std::int32_t> nnbr;
     std::vector<double> nsh, nrh, nax;
     std::vector<std::int32_t> nft;
     for (std::size_t i = 0; i < n; ++i) {
       if (!keep[i]) continue;
-      for (std::int64_t p = I.row[i]; p < I.row[i + 1]; ++p) {
-        if (map[I.nbr[p]] < 0) continue;
-        nnbr.push_back(map[I.nbr[p]]);
+      for (std::int64_t p = I.list.row[i]; p < I.list.row[i + 1]; ++p) {
+        if (map[I.list.partner[p]] < 0) continue;
+        nnbr.push_back(map[I.list.partner[p]]);
         if (!I.slots.shear.empty())
           for (int d = 0; d < 3; ++d) nsh.push_back(I.slots.shear[3 * p + d]);
         if (!I.slots.rolling_history.empty())
@@ -301,7 +304,8 @@ void DemSystem::remove_particles(std::span<const std::uint8_t> keep) {
       }
       nrow[map[i] + 1] = static_cast<std::int64_t>(nnbr.size());
     }
-    I.row.swap(nrow), I.nbr.swap(nnbr), I.slots.shear.swap(nsh), I.slots.rolling_history.swap(nrh);
+    I.list.row.swap(nrow), I.list.partner.swap(nnbr), I.slots.shear.swap(nsh),
+        I.slots.rolling_history.swap(nrh);
     I.slots.separating_axis.swap(nax);
     I.slots.closest_features.swap(nft);
   }
@@ -322,9 +326,9 @@ void DemSystem::remove_particles(std::span<const std::uint8_t> keep) {
   if (!I.frozen.empty()) compact(I.frozen, 1);
   if (!I.image.empty()) compact(I.image, 3);
   I.refresh_frozen();
-  I.bx.clear();
+  I.list.update_x.clear();
   I.refresh_particle_derived();
-  I.need_rebuild = true;
+  I.list.must_build = true;
 }
 
 const ParticleState& DemSystem::particles() const {
@@ -462,18 +466,20 @@ DemSystem::Timings DemSystem::timings() const {
 
 // Internal diagnostics for the benchmark and tests (declared in dem_system.hpp).
 std::int64_t DemSystem::neighbour_rebuilds() const {
-  return impl_->rebuilds;
+  return impl_->list.builds;
 }
 std::int64_t DemSystem::neighbour_refilters() const {
-  return impl_->refilters;
+  return impl_->list.refilters;
 }
 std::size_t DemSystem::neighbour_pairs() const {
-  return impl_->nbr.size();
+  return impl_->list.pairs();
 }
 
 DemSystem::PairList DemSystem::pair_list() const {
   const Impl& I = *impl_;
-  return PairList{I.row, I.nbr, I.slots.shear, I.bx, I.by, I.bz, I.prow, I.ptri};
+  const detail::NeighbourList& L = I.list;
+  return PairList{L.row,      L.partner,  I.slots.shear, L.update_x,
+                  L.update_y, L.update_z, I.prow,        I.ptri};
 }
 
 std::size_t DemSystem::contact_count() const {
@@ -486,13 +492,14 @@ std::size_t DemSystem::contact_count() const {
 std::vector<std::int32_t> DemSystem::contact_counts() const {
   const auto& I = *impl_;
   std::vector<std::int32_t> n(I.st.size(), 0);
-  for (std::size_t i = 0; i + 1 < I.row.size() && i < n.size(); ++i) {
-    for (auto k = I.row[i]; k < I.row[i + 1]; ++k) {
+  const auto& row = I.list.row;
+  for (std::size_t i = 0; i + 1 < row.size() && i < n.size(); ++i) {
+    for (auto k = row[i]; k < row[i + 1]; ++k) {
       const auto p = static_cast<std::size_t>(3 * k);
       if (p + 2 < I.slots.force.size() &&
           (I.slots.force[p] != 0.0 || I.slots.force[p + 1] != 0.0 || I.slots.force[p + 2] != 0.0)) {
         ++n[i];
-        ++n[static_cast<std::size_t>(I.nbr[static_cast<std::size_t>(k)])];
+        ++n[static_cast<std::size_t>(I.list.partner[static_cast<std::size_t>(k)])];
       }
     }
   }
@@ -505,19 +512,22 @@ std::size_t DemSystem::state_bytes() const {
   std::size_t b = 0;
   auto add = [&b](const auto& v) { b += v.size() * sizeof(v[0]); };
   for (const auto* v :
-       {&st.px,     &st.py,   &st.pz,      &st.vx,    &st.vy, &st.vz, &st.wx, &st.wy,
-        &st.wz,     &st.qw,   &st.qx,      &st.qy,    &st.qz, &st.fx, &st.fy, &st.fz,
-        &st.radius, &st.mass, &st.inertia, &st.scale, &st.ix, &st.iy, &st.iz, &I.tx,
-        &I.ty,      &I.tz,    &I.bx,       &I.by,     &I.bz})
+       {&st.px,      &st.py,    &st.pz,           &st.vx,           &st.vy,          &st.vz,
+        &st.wx,      &st.wy,    &st.wz,           &st.qw,           &st.qx,          &st.qy,
+        &st.qz,      &st.fx,    &st.fy,           &st.fz,           &st.radius,      &st.mass,
+        &st.inertia, &st.scale, &st.ix,           &st.iy,           &st.iz,          &I.tx,
+        &I.ty,       &I.tz,     &I.list.update_x, &I.list.update_y, &I.list.update_z})
     add(*v);
   add(st.material), add(st.shape), add(st.shape_id);
-  add(I.row), add(I.nbr), add(I.pown), add(I.trow), add(I.tpair), add(I.tsrc);
-  add(I.gather_row), add(I.gather_pair), add(I.gather_sign), add(I.slots.shear),
+  const auto& L = I.list;
+  add(L.row), add(L.partner), add(L.owner), add(L.transposed_row), add(L.transposed_pair),
+      add(L.transposed_owner);
+  add(L.gather_row), add(L.gather_pair), add(L.gather_sign), add(I.slots.shear),
       add(I.slots.rolling_history);
   add(I.slots.force), add(I.slots.torque), add(I.slots.rolling_torque), add(I.slots.torque_j),
       add(I.slots.separating_axis), add(I.slots.closest_features), add(I.proofs.rotation),
-      add(I.proofs.separation_left), add(I.proofs.core_motion), add(I.proofs.position), add(I.orow),
-      add(I.onbr);
+      add(I.proofs.separation_left), add(I.proofs.core_motion), add(I.proofs.position),
+      add(L.candidate_row), add(L.candidate_partner);
   add(I.prow), add(I.ptri), add(I.wkey), add(I.wshear), add(I.wroll), add(I.wf), add(I.wp);
   add(I.wb), add(I.wtri), add(I.wcount);
   const auto& a = I.shapes.arrays();

@@ -15,7 +15,7 @@
 //   3. pair list: refiltered from the grid build's candidates when the two largest
 //      displacements since the last update may have closed the list skin, built from the
 //      grid when the candidates may no longer hold every pair that can touch (two levels,
-//      see Impl::orow and step())
+//      see neighbour_list.hpp and step())
 //   4. per particle i (parallel): forces of the pairs (i, j > i) of its CSR row, written to
 //      per-pair slots
 //   5. per particle (parallel): own-row slots + transposed pair slots (fixed order) + walls +
@@ -43,6 +43,7 @@
 #include "demfem/dem/physics/periodic_image.hpp"
 #include "demfem/dem/physics/wall_contact.hpp"
 #include "demfem/dem/physics/wall_motion.hpp"
+#include "neighbour_list.hpp"
 #include "pair_slots.hpp"
 #include "polyhedra.hpp"
 #include "rigid_mesh_bodies.hpp"
@@ -62,13 +63,6 @@ inline constexpr int kMaxWallContacts = phys::kMaxWallContacts;
 }  // namespace detail
 
 struct DemSystem::Impl {
-  // Skin of the pair list as a fraction of the build skin (see orow), and its range when it
-  // adapts. On the settled 20,000-sphere bed (dem_throughput) 0.1 keeps 2.6 list pairs per
-  // particle (the whole skin: 3.6) and refilters every ~25 steps: +15 % particle-steps per
-  // second (best of 8 runs; 0.05: 2.5 pairs, no further gain). In a fast flow a thin skin
-  // would refilter every step or two, so the skin grows there (adapt_inner_skin()).
-  static constexpr double kInnerSkin = 0.1, kInnerSkinMax = 0.5;
-
   DemSettings s;
   int threads = 1;
   std::size_t nmat = 0;
@@ -108,7 +102,7 @@ struct DemSystem::Impl {
   bool wrap_positions();
   // Throws std::invalid_argument when a period is below the least one (least_period()).
   void check_periods() const;
-  double least_period() const { return 2.0 * (2.0 * rmax + skin); }
+  double least_period() const { return 2.0 * (2.0 * rmax + list.skin); }
 
   ParticleState st;
   std::vector<double> tx, ty, tz;  // torque of the last step
@@ -121,54 +115,22 @@ struct DemSystem::Impl {
                       std::to_string(of) + " steps (a stop was requested)");
     }
   }
-  double rmax = 0.0;
-  double skin = 0.0;
+  double rmax = 0.0;  // the largest bounding radius, m
 
-  // Neighbour list: CSR rows of pairs (i, j > i), j ascending; transposed index per j.
-  bool need_rebuild = true;
-  std::vector<std::int64_t> row;    // n + 1
-  std::vector<std::int32_t> nbr;    // j of each pair
-  std::vector<std::int32_t> pown;   // i of each pair (flat pair loop)
-  std::vector<std::int64_t> trow;   // n + 1
-  std::vector<std::int64_t> tpair;  // pair index, grouped by j, i ascending
-  std::vector<std::int32_t> tsrc;   // i of each transposed entry
-  // One loop per particle in the gather instead of two (own row, transposed): the exit of a
-  // short loop of varying length is mispredicted about once per particle.
-  std::vector<std::int64_t> gather_row;   // n + 1
-  std::vector<std::int64_t> gather_pair;  // pair of each entry
-  std::vector<double> gather_sign;        // +1 own row (force on i), -1 transposed (force on j)
-  detail::PairSlots slots;                // per pair of the list: springs, forces, caches
-  std::vector<double> bx, by, bz;         // positions at the last refilter
-  // Two-level list: a build from the cell grid keeps the candidate pairs within
-  // r_i + r_j + skin (orow, onbr, same layout as row, nbr); the list proper holds those
-  // within r_i + r_j + skin_in and is refiltered from them when some particle has moved
-  // skin_in / 2. A settled bed's particles jitter, so a list with a thin skin would need a
-  // grid build every few tens of steps; the refilter is a pass over the candidates.
-  std::vector<std::int64_t> orow;
-  std::vector<std::int32_t> onbr;
-  double skin_in = 0.0;
-  double out_disp = 0.0;  // bound of the largest displacement since the build, refilters summed
-  double out_pair = 0.0;  // bound of d_i + d_j of any pair since the build, refilters summed
-  std::int64_t refilters = 0;
-  std::int64_t steps_at_update = -1;  // step of the last build or refilter
-
-  // The list's skin adapts at each list update (build or refilter) to the steps since the
-  // previous one, u:
-  //  * u < 10 (a flow): skin_in grows by 1.5; beyond kInnerSkinMax x skin the list goes to one
-  //    level (skin_in = skin). In a flow the build budget skin - skin_in (for d_i + d_j),
-  //    checked against the summed refilter intervals, runs out about twice as fast as the
-  //    whole skin (measured with the rule of twice the largest displacement: 96 builds and
-  //    31 refilters against 53 builds in 1500 steps of 4096 falling spheres, 10 % slower). A
-  //    refilter that may not grow the skin (the build budget) asks for a build;
-  //  * u > 40 (a settled bed): skin_in shrinks by 1.5, to kInnerSkin x skin at least;
-  //  * one level: a build more than 100 steps after the last goes back to two levels.
-  // It depends on step counts only, and the list's non-touching pairs do not change the
-  // result, so it keeps the bits. Returns false when a refilter must be a build instead.
-  bool adapt_inner_skin(bool build, double pbuild = 0.0);
+  // The neighbour list (neighbour_list.hpp) and the per-pair slots of its pairs.
+  detail::NeighbourList list;
+  detail::PairSlots slots;  // per pair of the list: springs, forces, caches
+  // The particles as the list reads them.
+  detail::ListParticles list_particles() const {
+    return {
+        st.px.data(), st.py.data(), st.pz.data(), st.radius.data(), static_cast<std::int64_t>(n()),
+        pbox,         periodic,     nt()};
+  }
+  // The list's skin is fixed (settings.list_skin) or one level (the device's list).
+  bool fixed_inner_skin() const { return gpu != nullptr || s.list_skin > 0.0; }
   double max_ov = 0.0;
   double adv_max_ov = 0.0;   // largest overlap over the steps of the last advance()
   double adv_max_rel = 0.0;  // and against each contact's own radii (phys::relative_overlap)
-  std::int64_t rebuilds = 0;
 
   // Walls: all triangles (rigid walls first, then the flexible mesh) in one store.
   struct Wall {
@@ -293,19 +255,17 @@ struct DemSystem::Impl {
   double wall_displacement() const;
 
   // ---------------------------------------------------------------------------------------
-  // Neighbour list: uniform grid by counting sort, pairs within r_i + r_j + skin.
+  // The list's grid build (NeighbourList::build), the wall triangles binned into its grid,
+  // then the refilter.
   void rebuild();
-  // The cell grid of a rebuild: its low corner, cell sizes and counts per direction.
   // The wall triangles near each particle (prow, ptri): binned into the cells of the
-  // rebuild's grid (`cell`: each particle's) that their box grown by rmax + skin touches.
+  // list's grid that their box grown by rmax + skin touches.
   void bin_wall_triangles(const phys::CellGrid& grid, const std::vector<std::int32_t>& cell);
-
-  // The pair list proper: the candidates of the last build closer than r_i + r_j + skin_in
-  // now. Springs are carried over from the previous list (merge of sorted rows).
+  // The list proper refiltered from the candidates (NeighbourList::refilter), then indexed.
   void refilter();
-  // The indices derived from the pair list (row, nbr): the owner of each pair, the transpose,
-  // the gather list, the per-pair force slots. refilter() and the CUDA backend's adoption of
-  // a list built on the device call it.
+  // The indices derived from the pair list (NeighbourList::index), the per-pair force slots
+  // sized to it, the uniform material. refilter() and the CUDA backend's adoption of a list
+  // built on the device call it.
   void index_list();
 
   // ---------------------------------------------------------------------------------------
@@ -337,12 +297,6 @@ struct DemSystem::Impl {
   double poly_kick_drift();
 
   phys::WallView wall_view();
-
-  // Sum of the two largest displacements since the last list update (bx): bounds d_i + d_j
-  // of every pair. Per-thread top two, combined in thread order (max is exact: any order
-  // gives the same value).
-  std::vector<std::array<double, 2>> top_two;  // per thread (member: no allocation per call)
-  double two_largest_displacements();
 
   // Half kick + drift; returns the largest displacement since the last list update. The
   // orientation is advanced in a second loop: with only small rotations in this step (the

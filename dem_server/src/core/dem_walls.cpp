@@ -3,6 +3,7 @@
 // loads the particles put on them.
 
 #include "dem_system_impl.hpp"
+#include "demfem/dem/physics/triangle_bins.hpp"
 
 #include <algorithm>
 #include <array>
@@ -88,7 +89,7 @@ void DemSystem::Impl::build_wall_store() {
   drift_time.resize(walls.size(), 0.0);  // walls added later start at rest
   drift_rate.resize(walls.size(), 1.0);
   walls_dirty = false;
-  need_rebuild = true;
+  list.must_build = true;
 }
 
 void DemSystem::Impl::update_walls(double tt, double tau) {
@@ -158,6 +159,66 @@ double DemSystem::Impl::wall_displacement() const {
     m2 = std::max(m2, dx * dx + dy * dy + dz * dz);
   }
   return std::sqrt(m2);
+}
+
+void DemSystem::Impl::bin_wall_triangles(const phys::CellGrid& grid,
+                                         const std::vector<std::int32_t>& cell) {
+  const std::size_t np = n();
+  const std::int64_t sn = static_cast<std::int64_t>(np);
+  const double* P[3] = {st.px.data(), st.py.data(), st.pz.data()};
+  const double* R = st.radius.data();
+  const std::int64_t* dim = grid.dim;
+  const std::int64_t ncell = grid.cells();
+  prow.assign(np + 1, 0);
+  ptri.clear();
+  const std::size_t ntri = tri_v.size() / 3;
+  if (ntri > 0 && np > 0) {
+    const double grow = rmax + list.skin;
+    std::vector<std::int64_t> tcount(ncell + 1, 0);
+    std::vector<std::array<std::int64_t, 6>> box(ntri);
+    for (std::size_t k = 0; k < ntri; ++k) {
+      if (!phys::triangle_cell_box(grid, vpos.data(), tri_v.data() + 3 * k, grow, box[k].data()))
+        box[k][0] = -1;
+      else
+        for (std::int64_t z = box[k][2]; z <= box[k][5]; ++z)
+          for (std::int64_t y = box[k][1]; y <= box[k][4]; ++y)
+            for (std::int64_t x = box[k][0]; x <= box[k][3]; ++x)
+              ++tcount[(z * dim[1] + y) * dim[0] + x + 1];
+    }
+    for (std::int64_t c = 0; c < ncell; ++c) tcount[c + 1] += tcount[c];
+    std::vector<std::int32_t> tbin(static_cast<std::size_t>(tcount[ncell]));
+    {
+      std::vector<std::int64_t> fill(tcount.begin(), tcount.end() - 1);
+      for (std::size_t k = 0; k < ntri; ++k) {
+        if (box[k][0] < 0) continue;
+        for (std::int64_t z = box[k][2]; z <= box[k][5]; ++z)
+          for (std::int64_t y = box[k][1]; y <= box[k][4]; ++y)
+            for (std::int64_t x = box[k][0]; x <= box[k][3]; ++x)
+              tbin[fill[(z * dim[1] + y) * dim[0] + x]++] = static_cast<std::int32_t>(k);
+      }
+    }
+    auto near = [&](std::size_t i, std::int32_t k) {
+      return phys::near_triangle(Vec3{P[0][i], P[1][i], P[2][i]}, R[i], list.skin, vpos.data(),
+                                 tri_v.data() + 3 * k);
+    };
+#pragma omp parallel for num_threads(nt()) schedule(static)
+    for (std::int64_t i = 0; i < sn; ++i) {
+      const std::int32_t c = cell[i];
+      std::int64_t cnt = 0;
+      for (std::int64_t k = tcount[c]; k < tcount[c + 1]; ++k)
+        if (near(static_cast<std::size_t>(i), tbin[k])) ++cnt;
+      prow[i + 1] = cnt;
+    }
+    for (std::size_t i = 0; i < np; ++i) prow[i + 1] += prow[i];
+    ptri.resize(static_cast<std::size_t>(prow[np]));
+#pragma omp parallel for num_threads(nt()) schedule(static)
+    for (std::int64_t i = 0; i < sn; ++i) {
+      const std::int32_t c = cell[i];
+      std::int64_t o = prow[i];
+      for (std::int64_t k = tcount[c]; k < tcount[c + 1]; ++k)
+        if (near(static_cast<std::size_t>(i), tbin[k])) ptri[o++] = tbin[k];
+    }
+  }
 }
 
 void DemSystem::Impl::wall_reduce(bool last, ForceMode mode, std::int64_t substeps) {
