@@ -32,11 +32,12 @@ GpuHostView DemSystem::Impl::gpu_view() {
   v.tx = tx.data(), v.ty = ty.data(), v.tz = tz.data();
   v.radius = st.radius.data(), v.mass = st.mass.data(), v.inertia = st.inertia.data();
   v.material = st.material.data();
-  v.npairs = nbr.size();
-  v.row = row.data(), v.trow = trow.data(), v.tpair = tpair.data(), v.nbr = nbr.data();
+  v.npairs = list.pairs();
+  v.row = list.row.data(), v.trow = list.transposed_row.data();
+  v.tpair = list.transposed_pair.data(), v.nbr = list.partner.data();
   v.shear = slots.shear.data();
   v.rhist = rolling ? slots.rolling_history.data() : nullptr;
-  v.bx = bx.data(), v.by = by.data(), v.bz = bz.data();
+  v.bx = list.update_x.data(), v.by = list.update_y.data(), v.bz = list.update_z.data();
   v.pc = pc.data();
   v.nmat = nmat;
   v.dt = s.dt;
@@ -85,10 +86,12 @@ void DemSystem::Impl::adopt_device_list() {
   std::size_t npairs = 0, nptri = 0;
   cuda_list_sizes(gpu, &npairs, &nptri);
   const std::size_t np = n();
-  row.resize(np + 1), nbr.resize(npairs), bx.resize(np), by.resize(np), bz.resize(np);
+  auto& L = list;
+  L.row.resize(np + 1), L.partner.resize(npairs);
+  L.update_x.resize(np), L.update_y.resize(np), L.update_z.resize(np);
   GpuListDownload dl;
-  dl.row = row.data(), dl.nbr = nbr.data(), dl.bx = bx.data(), dl.by = by.data();
-  dl.bz = bz.data();
+  dl.row = L.row.data(), dl.nbr = L.partner.data(), dl.bx = L.update_x.data();
+  dl.by = L.update_y.data(), dl.bz = L.update_z.data();
   if (!tri_v.empty()) {
     prow.resize(np + 1), ptri.resize(nptri);
     dl.prow = prow.data(), dl.ptri = ptri.data();
@@ -96,16 +99,17 @@ void DemSystem::Impl::adopt_device_list() {
   }
   cuda_download_lists(gpu, dl);
   if (!tri_v.empty() && !walls_moving) vbuild = vpos;
-  orow = row, onbr = nbr;  // one level: the candidates are the list
+  L.candidate_row = L.row,
+  L.candidate_partner = L.partner;  // one level: the candidates are the list
   index_list();
   // the histories come with the state (cuda_download_state), sized as refilter() sizes them
   slots.shear.assign(friction ? 3 * npairs : 0, 0.0);
   slots.rolling_history.assign(rolling ? 3 * npairs : 0, 0.0);
   slots.separating_axis.assign(poly ? 3 * npairs : 0, 0.0);
   slots.closest_features.assign(poly ? 6 * npairs : 0, -1);
-  out_disp = 0.0, out_pair = 0.0;
-  steps_at_update = steps;
-  need_rebuild = false;
+  L.build_disp = 0.0, L.build_pair_disp = 0.0;
+  L.steps_at_update = steps;
+  L.must_build = false;
 }
 
 void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
@@ -120,7 +124,7 @@ void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
                : step<false>(k + 1 == substeps, mode, substeps);
     return;
   }
-  if (need_rebuild || row.size() != n() + 1 || bx.size() != n()) rebuild();
+  if (list.must_build || list.row.size() != n() + 1 || !list.has_update_positions(n())) rebuild();
   if (walls_moving) gpu_wall_kinematics();
   auto view = [&] {
     GpuHostView v = gpu_view();
@@ -134,15 +138,15 @@ void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
   double tdet = 0.0;
   bool built_on_device = false;
   while (left > 0) {
-    const std::int64_t done = cuda_run_steps(gpu, left, skin, t, flex_tau, cancel);
+    const std::int64_t done = cuda_run_steps(gpu, left, list.skin, t, flex_tau, cancel);
     for (std::int64_t k = 0; k < done; ++k) t += s.dt, flex_tau += s.dt;  // the device's sums
     steps += done;
     left -= done;
     check_cancel(substeps - left, substeps);
     if (left > 0) {  // drift of the next step done, forces wait for the new list
       const double r0 = omp_get_wtime();
-      cuda_build_lists(gpu, skin, rmax);  // on the device, from the device's positions
-      ++rebuilds, ++refilters;            // one level: a build is its own refilter
+      cuda_build_lists(gpu, list.skin, rmax);  // on the device, from the device's positions
+      ++list.builds, ++list.refilters;         // one level: a build is its own refilter
       built_on_device = true;
       tdet += omp_get_wtime() - r0;
       cuda_finish_step(gpu);
