@@ -165,6 +165,7 @@ void DemSystem::tile(const PeriodicRange& block, const std::array<int, 3>& copie
   // last step's forces and torques (the first half kick uses them), wall contact slots
   ParticleState& S = I.st;
   const auto K = static_cast<std::size_t>(kMaxWallContacts);
+  detail::WallContactSlots& wc = I.wall_contacts;
   for (std::int64_t k = n; k < total; ++k) {
     const std::int64_t i = k % n;
     S.qw[k] = S.qw[i], S.qx[k] = S.qx[i], S.qy[k] = S.qy[i], S.qz[k] = S.qz[i];
@@ -172,11 +173,12 @@ void DemSystem::tile(const PeriodicRange& block, const std::array<int, 3>& copie
     I.tx[k] = I.tx[i], I.ty[k] = I.ty[i], I.tz[k] = I.tz[i];
     S.vx[k] = S.vx[i], S.vy[k] = S.vy[i], S.vz[k] = S.vz[i];
     S.wx[k] = S.wx[i], S.wy[k] = S.wy[i], S.wz[k] = S.wz[i];
-    I.wcount[k] = I.wcount[i];
-    std::copy_n(I.wkey.begin() + K * i, K, I.wkey.begin() + K * k);
-    std::copy_n(I.wshear.begin() + 3 * K * i, 3 * K, I.wshear.begin() + 3 * K * k);
-    if (!I.wroll.empty())
-      std::copy_n(I.wroll.begin() + 3 * K * i, 3 * K, I.wroll.begin() + 3 * K * k);
+    wc.count[k] = wc.count[i];
+    std::copy_n(wc.key.begin() + K * i, K, wc.key.begin() + K * k);
+    std::copy_n(wc.shear.begin() + 3 * K * i, 3 * K, wc.shear.begin() + 3 * K * k);
+    if (!wc.rolling_history.empty())
+      std::copy_n(wc.rolling_history.begin() + 3 * K * i, 3 * K,
+                  wc.rolling_history.begin() + 3 * K * k);
     if (!I.frozen.empty()) I.frozen[k] = I.frozen[i];
   }
   if (!keep_velocities)

@@ -63,11 +63,11 @@ auto double_arrays(ImplT& I) {
                                                        {"tz", &I.tz},
                                                        {"shear", &I.slots.shear},
                                                        {"rhist", &I.slots.rolling_history},
-                                                       {"wroll", &I.wroll},
+                                                       {"wroll", &I.wall_contacts.rolling_history},
                                                        {"bx", &I.list.update_x},
                                                        {"by", &I.list.update_y},
                                                        {"bz", &I.list.update_z},
-                                                       {"wshear", &I.wshear},
+                                                       {"wshear", &I.wall_contacts.shear},
                                                        {"vpos", &I.vpos},
                                                        {"vbuild", &I.vbuild},
                                                        {"flex_x", &I.flex_x},
@@ -318,12 +318,12 @@ void check_state_indices(const ImplT& I, std::size_t nverts, const std::string& 
     refuse("shear", "has " + std::to_string(I.slots.shear.size()) +
                         " values, not 3 per pair of nbr (" + std::to_string(3 * nbr.size()) + ")");
   const bool walls = !I.tri_wall.empty();
-  for (std::size_t i = 0; i < I.wcount.size(); ++i)
-    if (I.wcount[i] > (walls ? kMaxWallContacts : 0))
-      refuse(entry("wcount", i), "= " + std::to_string(int(I.wcount[i])) +
+  for (std::size_t i = 0; i < I.wall_contacts.count.size(); ++i)
+    if (I.wall_contacts.count[i] > (walls ? kMaxWallContacts : 0))
+      refuse(entry("wcount", i), "= " + std::to_string(int(I.wall_contacts.count[i])) +
                                      " wall contacts, accepted 0 .. " +
-                           std::to_string(walls ? kMaxWallContacts : 0) +
-                           (walls ? "" : " (this system has no wall triangles)"));
+                                     std::to_string(walls ? kMaxWallContacts : 0) +
+                                     (walls ? "" : " (this system has no wall triangles)"));
 }
 }  // namespace
 
@@ -415,8 +415,8 @@ void DemSystem::save(io::H5File& f, const std::string& group) const {
     f.write(g + "sepaxis", std::span<const double>(pairs.axis));
     f.write(g + "features", std::span<const std::int64_t>(pairs.feat));
   }
-  f.write(g + "wkey", std::span<const std::int64_t>(I.wkey));
-  f.write(g + "wcount", std::span<const std::uint8_t>(I.wcount));
+  f.write(g + "wkey", std::span<const std::int64_t>(I.wall_contacts.key));
+  f.write(g + "wcount", std::span<const std::uint8_t>(I.wall_contacts.count));
   I.bodies.save(f, g);
   if (I.force_limited) f.write(g + "wall_drift", std::span<const double>(pack_drift(I)));
   if (!I.frozen.empty()) f.write(g + "frozen", std::span<const std::uint8_t>(I.frozen));
@@ -478,8 +478,8 @@ void DemSystem::save_state(DemStateCopy& c) const {
   // restore_state() carries both over)
   c.axis = I.slots.separating_axis;
   c.features = I.slots.closest_features;
-  c.wkey.assign(I.wkey.begin(), I.wkey.end());
-  c.wcount.assign(I.wcount.begin(), I.wcount.end());
+  c.wkey.assign(I.wall_contacts.key.begin(), I.wall_contacts.key.end());
+  c.wcount.assign(I.wall_contacts.count.begin(), I.wall_contacts.count.end());
   c.bodies = I.bodies.pack();
   c.drift = pack_drift(I);
   c.frozen = I.frozen;
@@ -508,8 +508,8 @@ void DemSystem::restore_state(const DemStateCopy& c) {
   I.list.partner.assign(c.nbr.begin(), c.nbr.end());
   I.slots.separating_axis = c.axis;
   I.slots.closest_features = c.features;
-  I.wkey.assign(c.wkey.begin(), c.wkey.end());
-  I.wcount.assign(c.wcount.begin(), c.wcount.end());
+  I.wall_contacts.key.assign(c.wkey.begin(), c.wkey.end());
+  I.wall_contacts.count.assign(c.wcount.begin(), c.wcount.end());
   if (!I.bodies.unpack(c.bodies))
     throw std::logic_error(
         "DemSystem::restore_state: the state copy holds another number of "
@@ -557,8 +557,8 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   st.shape = f.read_uint8(g + "shape");
   I.list.row = f.read_int64(g + "row");
   I.list.partner = from64<std::int32_t>(f.read_int64(g + "nbr"));
-  I.wkey = f.read_int64(g + "wkey");
-  I.wcount = f.read_uint8(g + "wcount");
+  I.wall_contacts.key = f.read_int64(g + "wkey");
+  I.wall_contacts.count = f.read_uint8(g + "wcount");
   try {
     I.bodies.restore(f, g);
   } catch (const std::invalid_argument& e) {
@@ -629,25 +629,26 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
             f.path().string() + " is not a unit quaternion (|q|^2 = " + std::to_string(q2) +
             ", accepted 1 +- 1e-6)");
     }
-  I.wf.assign(3 * kMaxWallContacts * n, 0.0), I.wp.assign(3 * kMaxWallContacts * n, 0.0),
-      I.wb.assign(3 * kMaxWallContacts * n, 0.0), I.wtri.assign(kMaxWallContacts * n, 0);
+  auto& wc = I.wall_contacts;
+  wc.force.assign(3 * kMaxWallContacts * n, 0.0), wc.point.assign(3 * kMaxWallContacts * n, 0.0),
+      wc.weights.assign(3 * kMaxWallContacts * n, 0.0), wc.triangle.assign(kMaxWallContacts * n, 0);
   I.refresh_particle_derived();
   // The neighbour list is rebuilt from the restored positions; the restored rows carry the
   // springs. Forces of the pairs do not depend on which non-touching pairs the list holds,
   // so the continuation is bitwise identical to an uninterrupted run.
   if (!I.rolling) {
-    I.slots.rolling_history.clear(), I.wroll.clear();
+    I.slots.rolling_history.clear(), wc.rolling_history.clear();
   } else {
     if (I.slots.rolling_history.empty())
       I.slots.rolling_history.assign(3 * I.list.partner.size(), 0.0);
-    if (I.wroll.empty()) I.wroll.assign(3 * kMaxWallContacts * n, 0.0);
+    if (wc.rolling_history.empty()) wc.rolling_history.assign(3 * kMaxWallContacts * n, 0.0);
     if (I.slots.rolling_history.size() != 3 * I.list.partner.size() ||
-        I.wroll.size() != 3 * kMaxWallContacts * n)
+        wc.rolling_history.size() != 3 * kMaxWallContacts * n)
       bad("restore: rolling history sizes in '" + group + "' of " + f.path().string() +
           " do not match the pair list and particles");
   }
-  if (I.wcount.size() != n || I.wkey.size() != kMaxWallContacts * n ||
-      I.wshear.size() != 3 * kMaxWallContacts * n || I.list.row.size() != n + 1)
+  if (wc.count.size() != n || wc.key.size() != kMaxWallContacts * n ||
+      wc.shear.size() != 3 * kMaxWallContacts * n || I.list.row.size() != n + 1)
     bad("restore: inconsistent array sizes in '" + group + "' of " + f.path().string());
   I.refresh_frozen();  // held at their saved poses
   I.list.must_build = true;

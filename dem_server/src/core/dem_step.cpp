@@ -352,10 +352,12 @@ double DemSystem::Impl::poly_kick_drift() {
 }
 
 phys::WallView DemSystem::Impl::wall_view() {
-  phys::WallView v{vpos.data(),     vvel.data(), tri_v.data(), tri_e.data(), tri_mat.data(),
-                   tri_wall.data(), prow.data(), ptri.data(),  wkey.data(),  wshear.data(),
-                   wf.data(),       wp.data(),   wb.data(),    wtri.data(),  wcount.data()};
-  v.wroll = rolling ? wroll.data() : nullptr;
+  detail::WallContactSlots& wc = wall_contacts;
+  phys::WallView v{vpos.data(),       vvel.data(),        tri_v.data(),    tri_e.data(),
+                   tri_mat.data(),    tri_wall.data(),    prow.data(),     ptri.data(),
+                   wc.key.data(),     wc.shear.data(),    wc.force.data(), wc.point.data(),
+                   wc.weights.data(), wc.triangle.data(), wc.count.data()};
+  v.wroll = rolling ? wc.rolling_history.data() : nullptr;
   if (walls_moving && !wall_motions.empty()) v.motion = wall_motions.data(), v.time = t;
   return v;
 }

@@ -247,12 +247,13 @@ std::size_t DemSystem::add_particles(std::span<const ParticleInit> particles) {
     I.tx.push_back(0), I.ty.push_back(0), I.tz.push_back(0);
   }
   const std::size_t n = st.size();
-  I.wkey.resize(kMaxWallContacts * n, -1);
-  I.wshear.resize(3 * kMaxWallContacts * n, 0.0);
-  if (I.rolling) I.wroll.resize(3 * kMaxWallContacts * n, 0.0);
-  I.wf.resize(3 * kMaxWallContacts * n), I.wp.resize(3 * kMaxWallContacts * n),
-      I.wb.resize(3 * kMaxWallContacts * n), I.wtri.resize(kMaxWallContacts * n);
-  I.wcount.resize(n, 0);
+  auto& wc = I.wall_contacts;
+  wc.key.resize(kMaxWallContacts * n, -1);
+  wc.shear.resize(3 * kMaxWallContacts * n, 0.0);
+  if (I.rolling) wc.rolling_history.resize(3 * kMaxWallContacts * n, 0.0);
+  wc.force.resize(3 * kMaxWallContacts * n), wc.point.resize(3 * kMaxWallContacts * n),
+      wc.weights.resize(3 * kMaxWallContacts * n), wc.triangle.resize(kMaxWallContacts * n);
+  wc.count.resize(n, 0);
   if (!I.frozen.empty()) I.frozen.resize(n, 0);
   if (I.periodic) I.image.resize(3 * n, 0);
   // keep the pair rows of the old particles (new ones have none yet)
@@ -318,11 +319,12 @@ void DemSystem::remove_particles(std::span<const std::uint8_t> keep) {
   compact(st.material, 1);
   compact(st.shape, 1);
   compact(st.shape_id, 1);
-  compact(I.wkey, kMaxWallContacts), compact(I.wshear, 3 * kMaxWallContacts);
-  if (!I.wroll.empty()) compact(I.wroll, 3 * kMaxWallContacts);
-  compact(I.wf, 3 * kMaxWallContacts), compact(I.wp, 3 * kMaxWallContacts),
-      compact(I.wb, 3 * kMaxWallContacts), compact(I.wtri, kMaxWallContacts);
-  compact(I.wcount, 1);
+  auto& wc = I.wall_contacts;
+  compact(wc.key, kMaxWallContacts), compact(wc.shear, 3 * kMaxWallContacts);
+  if (!wc.rolling_history.empty()) compact(wc.rolling_history, 3 * kMaxWallContacts);
+  compact(wc.force, 3 * kMaxWallContacts), compact(wc.point, 3 * kMaxWallContacts),
+      compact(wc.weights, 3 * kMaxWallContacts), compact(wc.triangle, kMaxWallContacts);
+  compact(wc.count, 1);
   if (!I.frozen.empty()) compact(I.frozen, 1);
   if (!I.image.empty()) compact(I.image, 3);
   I.refresh_frozen();
@@ -528,8 +530,9 @@ std::size_t DemSystem::state_bytes() const {
       add(I.slots.separating_axis), add(I.slots.closest_features), add(I.proofs.rotation),
       add(I.proofs.separation_left), add(I.proofs.core_motion), add(I.proofs.position),
       add(L.candidate_row), add(L.candidate_partner);
-  add(I.prow), add(I.ptri), add(I.wkey), add(I.wshear), add(I.wroll), add(I.wf), add(I.wp);
-  add(I.wb), add(I.wtri), add(I.wcount);
+  const auto& wc = I.wall_contacts;
+  add(I.prow), add(I.ptri), add(wc.key), add(wc.shear), add(wc.rolling_history), add(wc.force);
+  add(wc.point), add(wc.weights), add(wc.triangle), add(wc.count);
   const auto& a = I.shapes.arrays();
   add(a.vert), add(a.fnormal), add(a.fvert), add(a.edge), add(a.floop), add(a.flen);
   add(a.vsoa), add(a.fsoa);

@@ -49,6 +49,7 @@
 #include "rigid_mesh_bodies.hpp"
 #include "separation_proofs.hpp"
 #include "shape_table.hpp"
+#include "wall_contact_slots.hpp"
 
 namespace demfem::dem {
 
@@ -168,13 +169,7 @@ struct DemSystem::Impl {
   // particle -> candidate triangles (built with the neighbour list)
   std::vector<std::int64_t> prow;
   std::vector<std::int32_t> ptri;
-  // per-particle wall contact slots
-  std::vector<std::int64_t> wkey;  // kMaxWallContacts per particle, -1 = empty
-  std::vector<double> wshear;      // 3 per slot
-  std::vector<double> wroll;       // 3 per slot: rolling-torque history (only if rolling)
-  std::vector<double> wf, wp, wb;  // force on particle, contact point, barycentric weights
-  std::vector<std::int32_t> wtri;
-  std::vector<std::uint8_t> wcount;
+  detail::WallContactSlots wall_contacts;  // per particle (wall_contact_slots.hpp)
 
   CudaBackend* gpu = nullptr;
   DemSystem::Timings timing;

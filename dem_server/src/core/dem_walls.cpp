@@ -226,15 +226,16 @@ void DemSystem::Impl::wall_reduce(bool last, ForceMode mode, std::int64_t subste
   std::vector<double>& nodef = node_buf;  // member: no allocation per step
   if (has_flex) nodef.assign(flex.mesh.vertices.size(), 0.0);
   const std::size_t np = n();
+  const detail::WallContactSlots& wc = wall_contacts;
   for (std::size_t i = 0; i < np; ++i)
-    for (int c = 0; c < wcount[i]; ++c) {
+    for (int c = 0; c < wc.count[i]; ++c) {
       const std::size_t slot = kMaxWallContacts * i + c;
-      const std::int32_t tri = wtri[slot];
+      const std::int32_t tri = wc.triangle[slot];
       const std::int32_t w = tri_wall[tri];
       // force ON the wall = - force on the particle
-      const Vec3 f{-wf[3 * slot], -wf[3 * slot + 1], -wf[3 * slot + 2]};
+      const Vec3 f{-wc.force[3 * slot], -wc.force[3 * slot + 1], -wc.force[3 * slot + 2]};
       if (w >= 0) {
-        const Vec3 x{wp[3 * slot], wp[3 * slot + 1], wp[3 * slot + 2]};
+        const Vec3 x{wc.point[3 * slot], wc.point[3 * slot + 1], wc.point[3 * slot + 2]};
         const Vec3 q = phys::cross(x, f);
         auto& W = walls[w];
         W.force[0] += f.x, W.force[1] += f.y, W.force[2] += f.z;
@@ -242,7 +243,7 @@ void DemSystem::Impl::wall_reduce(bool last, ForceMode mode, std::int64_t subste
       } else {
         for (int e = 0; e < 3; ++e) {
           const std::int64_t node = tri_v[3 * tri + e] - flex.vbase;
-          const Vec3 fb = phys::node_share(wb[3 * slot + e], f);
+          const Vec3 fb = phys::node_share(wc.weights[3 * slot + e], f);
           nodef[3 * node] += fb.x, nodef[3 * node + 1] += fb.y, nodef[3 * node + 2] += fb.z;
         }
       }
@@ -355,14 +356,15 @@ WallFaceLoad DemSystem::wall_face_load(std::int32_t wall,
     if (face) load.area += 0.5 * ln;
   }
   auto& f = load.force;
+  const detail::WallContactSlots& wc = I.wall_contacts;
   for (std::size_t i = 0; i < I.n(); ++i)
-    for (int k = 0; k < I.wcount[i]; ++k) {
+    for (int k = 0; k < wc.count[i]; ++k) {
       const std::size_t slot = kMaxWallContacts * i + k;
-      const std::int64_t t = I.wtri[slot] - w.tbase;
+      const std::int64_t t = wc.triangle[slot] - w.tbase;
       if (t < 0 || t >= nt || !on_face[static_cast<std::size_t>(t)]) continue;
       // force ON the wall; a contact at the face's edge that pulls it outwards (a particle
       // beside the wall, below the face's plane) is not a load on the face
-      const Vec3 fw{-I.wf[3 * slot], -I.wf[3 * slot + 1], -I.wf[3 * slot + 2]};
+      const Vec3 fw{-wc.force[3 * slot], -wc.force[3 * slot + 1], -wc.force[3 * slot + 2]};
       if (phys::dot(fw, d) > 0) continue;
       f[0] += fw.x, f[1] += fw.y, f[2] += fw.z;
     }
