@@ -66,8 +66,10 @@ GpuHostView DemSystem::Impl::gpu_view() {
     v.vpos = vpos.data(), v.vvel = vvel.data();
     v.tri_v = tri_v.data(), v.tri_e = tri_e.data(), v.tri_mat = tri_mat.data();
     v.tri_wall = tri_wall.data(), v.prow = prow.data(), v.ptri = ptri.data();
-    v.wkey = wkey.data(), v.wshear = wshear.data(), v.wf = wf.data(), v.wp = wp.data();
-    v.wb = wb.data(), v.wtri = wtri.data(), v.wcount = wcount.data();
+    v.wkey = wall_contacts.key.data(), v.wshear = wall_contacts.shear.data(),
+    v.wf = wall_contacts.force.data(), v.wp = wall_contacts.point.data();
+    v.wb = wall_contacts.weights.data(), v.wtri = wall_contacts.triangle.data(),
+    v.wcount = wall_contacts.count.data();
     if (walls_moving) {
       v.walls_moving = true;
       v.vbuild = vbuild.data(), v.vref = gpu_vref.data(), v.vwall = gpu_vwall.data();
@@ -77,7 +79,7 @@ GpuHostView DemSystem::Impl::gpu_view() {
         v.flex_v = flex_v.data(), v.flex_a = flex_a.data(), v.flex_force = flex_force.data();
       }
     }
-    v.wroll = rolling ? wroll.data() : nullptr;
+    v.wroll = rolling ? wall_contacts.rolling_history.data() : nullptr;
   }
   return v;
 }
