@@ -68,12 +68,12 @@ auto double_arrays(ImplT& I) {
                                                        {"by", &I.list.update_y},
                                                        {"bz", &I.list.update_z},
                                                        {"wshear", &I.wall_contacts.shear},
-                                                       {"vpos", &I.vpos},
-                                                       {"vbuild", &I.vbuild},
-                                                       {"flex_x", &I.flex_x},
-                                                       {"flex_v", &I.flex_v},
-                                                       {"flex_a", &I.flex_a},
-                                                       {"flex_force", &I.flex_force},
+                                                       {"vpos", &I.walls.vertex_x},
+                                                       {"vbuild", &I.walls.vertex_x_at_build},
+                                                       {"flex_x", &I.walls.flexible_x0},
+                                                       {"flex_v", &I.walls.flexible_v0},
+                                                       {"flex_a", &I.walls.flexible_a0},
+                                                       {"flex_force", &I.walls.flexible_force},
                                                        {"scale", &st.scale},
                                                        {"ix", &st.ix},
                                                        {"iy", &st.iy},
@@ -158,15 +158,15 @@ namespace {
 template <class ImplT>  // DemSystem::Impl (a private type: deduced)
 std::vector<double> pack_drift(const ImplT& I) {
   std::vector<double> d;
-  for (std::size_t w = 0; w < I.drift_time.size(); ++w)
-    d.insert(d.end(), {I.drift_time[w], I.drift_rate[w]});
+  for (std::size_t w = 0; w < I.walls.drift_time.size(); ++w)
+    d.insert(d.end(), {I.walls.drift_time[w], I.walls.drift_rate[w]});
   return d;
 }
 template <class ImplT>
 void unpack_drift(ImplT& I, const std::vector<double>& d) {
-  if (d.size() != 2 * I.drift_time.size()) return;
-  for (std::size_t w = 0; w < I.drift_time.size(); ++w)
-    I.drift_time[w] = d[2 * w], I.drift_rate[w] = d[2 * w + 1];
+  if (d.size() != 2 * I.walls.drift_time.size()) return;
+  for (std::size_t w = 0; w < I.walls.drift_time.size(); ++w)
+    I.walls.drift_time[w] = d[2 * w], I.walls.drift_rate[w] = d[2 * w + 1];
 }
 
 // Replaces the table by the state's (a state without one keeps the system's).
@@ -284,9 +284,10 @@ void check_state_indices(const ImplT& I, std::size_t nverts, const std::string& 
                            std::to_string(I.list.update_y.size()) + " and " +
                            std::to_string(I.list.update_z.size()) +
                            " values: all three one per particle, or all three empty");
-  if (I.vpos.size() != nverts)
-    refuse("vpos", "has " + std::to_string(I.vpos.size() / 3) + " wall vertices, this system " +
-                       std::to_string(nverts / 3) + " (the state of other walls)");
+  if (I.walls.vertex_x.size() != nverts)
+    refuse("vpos", "has " + std::to_string(I.walls.vertex_x.size() / 3) +
+                       " wall vertices, this system " + std::to_string(nverts / 3) +
+                       " (the state of other walls)");
   // the pair rows: a prefix sum over the particles, each row's partners j > i ascending (the
   // order of the list's merge in refilter)
   const auto& row = I.list.row;
@@ -317,7 +318,7 @@ void check_state_indices(const ImplT& I, std::size_t nverts, const std::string& 
   if (I.slots.shear.size() != 3 * nbr.size())
     refuse("shear", "has " + std::to_string(I.slots.shear.size()) +
                         " values, not 3 per pair of nbr (" + std::to_string(3 * nbr.size()) + ")");
-  const bool walls = !I.tri_wall.empty();
+  const bool walls = !I.walls.triangle_wall.empty();
   for (std::size_t i = 0; i < I.wall_contacts.count.size(); ++i)
     if (I.wall_contacts.count[i] > (walls ? kMaxWallContacts : 0))
       refuse(entry("wcount", i), "= " + std::to_string(int(I.wall_contacts.count[i])) +
@@ -392,9 +393,9 @@ void DemSystem::save(io::H5File& f, const std::string& group) const {
   const std::string g = group + "/";
   f.set_attribute(group, "time", I.t);
   f.set_attribute(group, "steps", static_cast<std::int64_t>(I.steps));
-  f.set_attribute(group, "flex_tau", I.flex_tau);
+  f.set_attribute(group, "flex_tau", I.walls.flexible_tau);
   f.set_attribute(group, "max_overlap", I.max_ov);
-  f.set_attribute(group, "flex_max_overlap", I.flex_max_ov);
+  f.set_attribute(group, "flex_max_overlap", I.walls.flexible_max_overlap);
   f.set_attribute(group, "format", std::string("demfem-dem-state-1"));
   const PairsWithSprings pairs = pairs_with_springs(I);
   for (const auto& [name, v] : double_arrays(I)) {
@@ -417,8 +418,8 @@ void DemSystem::save(io::H5File& f, const std::string& group) const {
   }
   f.write(g + "wkey", std::span<const std::int64_t>(I.wall_contacts.key));
   f.write(g + "wcount", std::span<const std::uint8_t>(I.wall_contacts.count));
-  I.bodies.save(f, g);
-  if (I.force_limited) f.write(g + "wall_drift", std::span<const double>(pack_drift(I)));
+  I.walls.bodies.save(f, g);
+  if (I.walls.force_limited) f.write(g + "wall_drift", std::span<const double>(pack_drift(I)));
   if (!I.frozen.empty()) f.write(g + "frozen", std::span<const std::uint8_t>(I.frozen));
   if (I.periodic) {
     f.write(g + "image", std::span<const std::int64_t>(to64(I.image)));
@@ -462,9 +463,9 @@ void DemSystem::save_state(DemStateCopy& c) const {
   const auto& I = *impl_;
   c.time = I.t;
   c.steps = I.steps;
-  c.flex_tau = I.flex_tau;
+  c.flex_tau = I.walls.flexible_tau;
   c.max_overlap = I.max_ov;
-  c.flex_max_overlap = I.flex_max_ov;
+  c.flex_max_overlap = I.walls.flexible_max_overlap;
   c.particles = I.n();
   const auto arrays = double_arrays(I);
   c.arrays.resize(arrays.size());
@@ -480,7 +481,7 @@ void DemSystem::save_state(DemStateCopy& c) const {
   c.features = I.slots.closest_features;
   c.wkey.assign(I.wall_contacts.key.begin(), I.wall_contacts.key.end());
   c.wcount.assign(I.wall_contacts.count.begin(), I.wall_contacts.count.end());
-  c.bodies = I.bodies.pack();
+  c.bodies = I.walls.bodies.pack();
   c.drift = pack_drift(I);
   c.frozen = I.frozen;
   c.image = I.image;
@@ -496,9 +497,9 @@ void DemSystem::restore_state(const DemStateCopy& c) {
   }
   I.t = c.time;
   I.steps = c.steps;
-  I.flex_tau = c.flex_tau;
+  I.walls.flexible_tau = c.flex_tau;
   I.max_ov = c.max_overlap;
-  I.flex_max_ov = c.flex_max_overlap;
+  I.walls.flexible_max_overlap = c.flex_max_overlap;
   const auto arrays = double_arrays(I);
   for (std::size_t k = 0; k < arrays.size(); ++k) {
     if (constant_within_step(arrays[k].first)) continue;
@@ -510,7 +511,7 @@ void DemSystem::restore_state(const DemStateCopy& c) {
   I.slots.closest_features = c.features;
   I.wall_contacts.key.assign(c.wkey.begin(), c.wkey.end());
   I.wall_contacts.count.assign(c.wcount.begin(), c.wcount.end());
-  if (!I.bodies.unpack(c.bodies))
+  if (!I.walls.bodies.unpack(c.bodies))
     throw std::logic_error(
         "DemSystem::restore_state: the state copy holds another number of "
         "rigid bodies");
@@ -529,13 +530,13 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   auto& st = I.st;
   const std::string g = group + "/";
   if (!f.exists(group)) bad("restore: group '" + group + "' not found in " + f.path().string());
-  const std::size_t nwalls = I.walls.size();
-  const std::size_t nverts = I.vpos.size();
+  const std::size_t nwalls = I.walls.rigid.size();
+  const std::size_t nverts = I.walls.vertex_x.size();
   I.t = f.attribute_double(group, "time");
   I.steps = f.attribute_int64(group, "steps");
-  I.flex_tau = f.attribute_double(group, "flex_tau");
+  I.walls.flexible_tau = f.attribute_double(group, "flex_tau");
   I.max_ov = f.attribute_double(group, "max_overlap");
-  I.flex_max_ov = f.attribute_double(group, "flex_max_overlap");
+  I.walls.flexible_max_overlap = f.attribute_double(group, "flex_max_overlap");
   for (const auto& [name, v] : double_arrays(I)) {
     // the rolling histories are absent in states written before the rolling spring model:
     // they then start at zero (checked against the pair list below)
@@ -560,7 +561,7 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   I.wall_contacts.key = f.read_int64(g + "wkey");
   I.wall_contacts.count = f.read_uint8(g + "wcount");
   try {
-    I.bodies.restore(f, g);
+    I.walls.bodies.restore(f, g);
   } catch (const std::invalid_argument& e) {
     bad(std::string("restore: ") + e.what());
   }
@@ -568,8 +569,8 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   check_state_indices(I, nverts, f.path().string() + ":/" + g);
   // force-limited walls: their drift as saved (a state of another scene's walls, or of one
   // without such walls, leaves them at their start)
-  I.reset_drift();
-  if (I.force_limited && f.exists(g + "wall_drift")) {
+  I.walls.reset_drift();
+  if (I.walls.force_limited && f.exists(g + "wall_drift")) {
     const auto d = f.read_doubles(g + "wall_drift");
     if (d.size() != 2 * nwalls)
       bad("restore: wall_drift in '" + group + "' of " + f.path().string() + " has " +
@@ -595,7 +596,8 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   if (I.gpu && std::find(I.frozen.begin(), I.frozen.end(), std::uint8_t{1}) != I.frozen.end())
     bad("restore: '" + group + "' of " + f.path().string() +
         " holds frozen particles, which the CPU backend only holds (dem.backend = \"cpu\")");
-  if (I.vpos.size() != (I.vbuild.size()) || (nwalls > 0 && I.vpos.size() < 3))
+  if (I.walls.vertex_x.size() != (I.walls.vertex_x_at_build.size()) ||
+      (nwalls > 0 && I.walls.vertex_x.size() < 3))
     bad("restore: wall vertex data in '" + group + "' does not match the walls of this system");
   for (std::size_t i = 0; i < n; ++i)
     if (st.material[i] < 0 || static_cast<std::size_t>(st.material[i]) >= I.nmat)
@@ -658,8 +660,8 @@ void DemSystem::reset_clock() {
   auto& I = *impl_;
   I.t = 0.0;
   I.steps = 0;
-  I.reset_drift();  // the walls' motions start again
-  I.update_walls(I.t, I.flex_tau);
+  I.walls.reset_drift();  // the walls' motions start again
+  I.walls.update(I.t, I.walls.flexible_tau);
 }
 
 }  // namespace demfem::dem

@@ -191,7 +191,7 @@ void DemSystem::Impl::forces_and_kick() {
 
   const double g[3] = {s.gravity[0], s.gravity[1], s.gravity[2]};
   const phys::MotionArrays motion = motion_arrays();
-  const bool walls_on = !tri_v.empty();
+  const bool walls_on = !walls.empty();
   const phys::WallView wv = wall_view();
   const phys::ParticleView& view = a.view;
   const double* PF = slots.force.data();
@@ -291,7 +291,7 @@ void DemSystem::Impl::forces_and_kick() {
   max_ov = mo;
   adv_max_ov = std::max(adv_max_ov, mo);
   adv_max_rel = std::max(adv_max_rel, mr);
-  flex_max_ov = std::max(flex_max_ov, fmo);
+  walls.flexible_max_overlap = std::max(walls.flexible_max_overlap, fmo);
 }
 
 detail::PolyParticles DemSystem::Impl::poly_particles(const phys::ParticleView& view) const {
@@ -353,12 +353,23 @@ double DemSystem::Impl::poly_kick_drift() {
 
 phys::WallView DemSystem::Impl::wall_view() {
   detail::WallContactSlots& wc = wall_contacts;
-  phys::WallView v{vpos.data(),       vvel.data(),        tri_v.data(),    tri_e.data(),
-                   tri_mat.data(),    tri_wall.data(),    prow.data(),     ptri.data(),
-                   wc.key.data(),     wc.shear.data(),    wc.force.data(), wc.point.data(),
-                   wc.weights.data(), wc.triangle.data(), wc.count.data()};
+  phys::WallView v{walls.vertex_x.data(),
+                   walls.vertex_v.data(),
+                   walls.triangle_vertices.data(),
+                   walls.triangle_edges.data(),
+                   walls.triangle_material.data(),
+                   walls.triangle_wall.data(),
+                   walls.candidate_row.data(),
+                   walls.candidate_triangle.data(),
+                   wc.key.data(),
+                   wc.shear.data(),
+                   wc.force.data(),
+                   wc.point.data(),
+                   wc.weights.data(),
+                   wc.triangle.data(),
+                   wc.count.data()};
   v.wroll = rolling ? wc.rolling_history.data() : nullptr;
-  if (walls_moving && !wall_motions.empty()) v.motion = wall_motions.data(), v.time = t;
+  if (walls.moving && !walls.motions.empty()) v.motion = walls.motions.data(), v.time = t;
   return v;
 }
 
@@ -428,8 +439,8 @@ void DemSystem::Impl::rebuild() {
   list.build(list_particles(), rmax);
   list.adapt_inner_skin(steps, fixed_inner_skin(), true);
   // triangles: binned into the particle cells their AABB (grown by rmax + skin) touches
-  bin_wall_triangles(list.grid, list.cell);
-  vbuild = vpos;
+  walls.bin_triangles(list.grid, list.cell, list_particles(), rmax, list.skin);
+  walls.vertex_x_at_build = walls.vertex_x;
   list.must_build = false;
   refilter();
 }
@@ -465,15 +476,15 @@ void DemSystem::Impl::step(bool last, ForceMode mode, std::int64_t substeps) {
   const double t0 = omp_get_wtime();
   const double disp = kick_drift<Friction>();
   if (!frozen_idx.empty()) hold_frozen();
-  if (periodic && wrap_positions() && !tri_v.empty()) list.must_build = true;
-  if (!bodies.empty()) bodies.kick_drift(s.dt);
+  if (periodic && wrap_positions() && !walls.empty()) list.must_build = true;
+  if (!walls.bodies.empty()) walls.bodies.kick_drift(s.dt);
   t += s.dt;
-  flex_tau += s.dt;
-  if (force_limited) advance_drift(t);
+  walls.flexible_tau += s.dt;
+  if (walls.force_limited) walls.advance_drift(t, s.dt);
   double wdisp = 0.0;
-  if (walls_moving) {
-    update_walls(t, flex_tau);
-    wdisp = wall_displacement();
+  if (walls.moving) {
+    walls.update(t, walls.flexible_tau);
+    wdisp = walls.displacement();
   }
   const double t1 = omp_get_wtime();
   switch (list.next_update(list_particles(), disp, wdisp, steps, fixed_inner_skin())) {
@@ -496,14 +507,14 @@ void DemSystem::Impl::step(bool last, ForceMode mode, std::int64_t substeps) {
   // flexible mesh's node forces are summed every substep when they are averaged, and the
   // rigid bodies' loads every substep (they move by them), and so the loads of force-limited
   // walls (their drift goes on by them).
-  if (!tri_v.empty() &&
-      (last || (has_flex && mode == ForceMode::average) || !bodies.empty() || force_limited))
-    wall_reduce(last, mode, substeps);
-  if (force_limited) decide_drift();
-  if (!bodies.empty()) {
-    for (const auto& w : walls)
-      if (w.body >= 0) bodies.set_loads(w.body, w.force, w.torque);
-    bodies.kick(s.dt);
+  if (!walls.empty() && (last || (walls.has_flexible && mode == ForceMode::average) ||
+                         !walls.bodies.empty() || walls.force_limited))
+    walls.reduce(wall_contacts, n(), last, mode, substeps);
+  if (walls.force_limited) walls.decide_drift();
+  if (!walls.bodies.empty()) {
+    for (const auto& w : walls.rigid)
+      if (w.body >= 0) walls.bodies.set_loads(w.body, w.force, w.torque);
+    walls.bodies.kick(s.dt);
   }
   ++steps;
   const double t3 = omp_get_wtime();

@@ -350,9 +350,9 @@ void DemSystem::advance(std::int64_t substeps, ForceMode mode) {
     I.advance_gpu(substeps, mode);
     return;
   }
-  if (I.has_flex) {
-    std::fill(I.flex_force.begin(), I.flex_force.end(), 0.0);
-    I.flex_max_ov = 0.0;
+  if (I.walls.has_flexible) {
+    std::fill(I.walls.flexible_force.begin(), I.walls.flexible_force.end(), 0.0);
+    I.walls.flexible_max_overlap = 0.0;
   }
   if (I.periodic) I.check_periods();
   for (std::int64_t k = 0; k < substeps; ++k) {
@@ -480,8 +480,8 @@ std::size_t DemSystem::neighbour_pairs() const {
 DemSystem::PairList DemSystem::pair_list() const {
   const Impl& I = *impl_;
   const detail::NeighbourList& L = I.list;
-  return PairList{L.row,      L.partner,  I.slots.shear, L.update_x,
-                  L.update_y, L.update_z, I.prow,        I.ptri};
+  return PairList{L.row,      L.partner,  I.slots.shear,         L.update_x,
+                  L.update_y, L.update_z, I.walls.candidate_row, I.walls.candidate_triangle};
 }
 
 std::size_t DemSystem::contact_count() const {
@@ -531,7 +531,8 @@ std::size_t DemSystem::state_bytes() const {
       add(I.proofs.separation_left), add(I.proofs.core_motion), add(I.proofs.position),
       add(L.candidate_row), add(L.candidate_partner);
   const auto& wc = I.wall_contacts;
-  add(I.prow), add(I.ptri), add(wc.key), add(wc.shear), add(wc.rolling_history), add(wc.force);
+  add(I.walls.candidate_row), add(I.walls.candidate_triangle), add(wc.key), add(wc.shear),
+      add(wc.rolling_history), add(wc.force);
   add(wc.point), add(wc.weights), add(wc.triangle), add(wc.count);
   const auto& a = I.shapes.arrays();
   add(a.vert), add(a.fnormal), add(a.fvert), add(a.edge), add(a.floop), add(a.flen);

@@ -1,12 +1,13 @@
 // DemSystem::Impl, the DEM engine behind DemSystem (dem_system.hpp): state, contact
-// detection, walls and the CPU (OpenMP) backend. Private to src/core; its member functions
-// live by concern in dem_system.cpp (setup, particles), neighbour_list.cpp (grid build,
-// refilter, skin), dem_step.cpp (force pass and integration), dem_walls.cpp (wall store,
-// wall kinematics and loads), dem_gpu_bridge.cpp (the CUDA backend's host side),
+// detection, walls and the CPU (OpenMP) backend. Private to src/core. It holds its parts as
+// classes of their own: the neighbour list (neighbour_list.hpp), the per-pair slots
+// (pair_slots.hpp), the wall store (wall_store.hpp) and the wall contact slots
+// (wall_contact_slots.hpp). Its member functions live by concern in dem_system.cpp (setup,
+// particles), dem_step.cpp (the list update, force pass and integration), dem_walls.cpp
+// (DemSystem's wall API), dem_gpu_bridge.cpp (the CUDA backend's host side),
 // dem_periodic.cpp (periodic boundaries: the wrap, tiling) and dem_state_io.cpp (save /
-// restore). The physics (contact law, integrator, triangle
-// geometry, the step integrator) comes from include/demfem/dem/physics/*.hpp, shared with
-// the CUDA backend.
+// restore). The physics (contact law, integrator, triangle geometry, the step integrator)
+// comes from include/demfem/dem/physics/*.hpp, shared with the CUDA backend.
 //
 // Step structure (velocity Verlet, see physics/integrator.hpp):
 //   1. per particle: half kick with the last force, drift, max displacement since the last
@@ -50,6 +51,7 @@
 #include "separation_proofs.hpp"
 #include "shape_table.hpp"
 #include "wall_contact_slots.hpp"
+#include "wall_store.hpp"
 
 namespace demfem::dem {
 
@@ -133,42 +135,9 @@ struct DemSystem::Impl {
   double adv_max_ov = 0.0;   // largest overlap over the steps of the last advance()
   double adv_max_rel = 0.0;  // and against each contact's own radii (phys::relative_overlap)
 
-  // Walls: all triangles (rigid walls first, then the flexible mesh) in one store.
-  struct Wall {
-    WallMesh mesh;
-    std::int64_t vbase = 0, tbase = 0;  // offsets in the global vertex / triangle store
-    std::array<double, 3> force{}, torque{};
-    bool flexible = false;
-    int body = -1;  // index in `bodies` when the wall is moved by its contact forces
-  };
-  std::vector<Wall> walls;         // rigid walls; the flexible one is `flex`
-  detail::RigidMeshBodies bodies;  // walls moved by their contact forces (rigid_mesh_bodies.hpp)
-  bool has_flex = false;
-  Wall flex;
-  std::vector<double> flex_x, flex_v, flex_a;  // kinematics at the start of advance()
-  double flex_tau = 0.0;                       // time since that start
-  std::vector<double> flex_force;              // per node, as ForceMode asked
-  std::vector<double> node_buf;                // per node, forces of the current substep
-  double flex_max_ov = 0.0;
-  // global stores
-  std::vector<double> vpos, vvel, vbuild;  // 3 per vertex
-  std::vector<std::int32_t> tri_v, tri_e;  // 3 per triangle: vertices / edge ids
-  std::vector<std::int32_t> tri_wall;      // wall index, -1 = flexible mesh
-  std::vector<std::int32_t> tri_mat;
-  std::vector<phys::RigidMotion> wall_motions;  // per rigid wall: its motion, for both backends
-  std::size_t nedges = 0;
-  bool walls_dirty = true;  // topology must be rebuilt
-  bool walls_moving = false;
-  // Force-limited drift (WallMotion::max_force), per wall: the seconds its drift has
-  // advanced, and the fraction of its velocity it advances at in the next step,
-  // 1 - R / max_force in [0, 1] (R: the particles' push against it in the last one). Saved
-  // with the state.
-  std::vector<double> drift_time;
-  std::vector<double> drift_rate;
-  bool force_limited = false;  // some wall has a max_force
-  // particle -> candidate triangles (built with the neighbour list)
-  std::vector<std::int64_t> prow;
-  std::vector<std::int32_t> ptri;
+  // The walls (wall_store.hpp): every wall triangle in one store, their motion, the
+  // triangles near each particle, the loads on them.
+  detail::WallStore walls;
   detail::WallContactSlots wall_contacts;  // per particle (wall_contact_slots.hpp)
 
   CudaBackend* gpu = nullptr;
@@ -233,29 +202,9 @@ struct DemSystem::Impl {
   int nt() const { return n() + (kPolyWork - 1) * poly_count >= 2048 ? threads : 1; }
 
   // ---------------------------------------------------------------------------------------
-  // Wall topology: unique edge ids over the whole store so that a contact at an edge or a
-  // vertex shared by neighbouring triangles is counted once.
-  void build_wall_store();
-
-  // Vertex positions and velocities of the walls at time tt (tau: time into the advance()),
-  // by the kinematics shared with the CUDA backend (physics/wall_motion.hpp).
-  void update_walls(double tt, double tau);
-  // Force-limited walls: advance the drift over the step that ends at t (before
-  // update_walls), and decide from this step's wall forces whether it goes on (after
-  // wall_reduce).
-  void advance_drift(double t_end);
-  void decide_drift();
-  void reset_drift();
-
-  double wall_displacement() const;
-
-  // ---------------------------------------------------------------------------------------
   // The list's grid build (NeighbourList::build), the wall triangles binned into its grid,
   // then the refilter.
   void rebuild();
-  // The wall triangles near each particle (prow, ptri): binned into the cells of the
-  // list's grid that their box grown by rmax + skin touches.
-  void bin_wall_triangles(const phys::CellGrid& grid, const std::vector<std::int32_t>& cell);
   // The list proper refiltered from the candidates (NeighbourList::refilter), then indexed.
   void refilter();
   // The indices derived from the pair list (NeighbourList::index), the per-pair force slots
@@ -299,8 +248,6 @@ struct DemSystem::Impl {
   // same either way.
   template <bool Friction>
   double kick_drift();
-
-  void wall_reduce(bool last, ForceMode mode, std::int64_t substeps);
 
   template <bool Friction>
   void step(bool last, ForceMode mode, std::int64_t substeps);
