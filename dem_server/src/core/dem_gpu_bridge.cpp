@@ -11,14 +11,17 @@
 namespace demfem::dem {
 
 void DemSystem::Impl::gpu_wall_kinematics() {
-  gpu_vref.assign(vpos.size(), 0.0);
-  gpu_vwall.assign(vpos.size() / 3, -1);
-  for (std::size_t w = 0; w < walls.size(); ++w) {
-    const auto& x0 = walls[w].mesh.vertices;
-    std::copy(x0.begin(), x0.end(), gpu_vref.begin() + 3 * walls[w].vbase);
-    std::fill_n(gpu_vwall.begin() + walls[w].vbase, x0.size() / 3, static_cast<std::int32_t>(w));
+  gpu_vref.assign(walls.vertex_x.size(), 0.0);
+  gpu_vwall.assign(walls.vertex_x.size() / 3, -1);
+  for (std::size_t w = 0; w < walls.rigid.size(); ++w) {
+    const auto& x0 = walls.rigid[w].mesh.vertices;
+    std::copy(x0.begin(), x0.end(), gpu_vref.begin() + 3 * walls.rigid[w].first_vertex);
+    std::fill_n(gpu_vwall.begin() + walls.rigid[w].first_vertex, x0.size() / 3,
+                static_cast<std::int32_t>(w));
   }
-  if (has_flex) std::copy(flex_x.begin(), flex_x.end(), gpu_vref.begin() + 3 * flex.vbase);
+  if (walls.has_flexible)
+    std::copy(walls.flexible_x0.begin(), walls.flexible_x0.end(),
+              gpu_vref.begin() + 3 * walls.flexible.first_vertex);
 }
 
 GpuHostView DemSystem::Impl::gpu_view() {
@@ -61,22 +64,28 @@ GpuHostView DemSystem::Impl::gpu_view() {
     v.paxis = slots.separating_axis.data();
     v.pfeat = slots.closest_features.data();
   }
-  if (!tri_v.empty()) {
-    v.nverts = vpos.size() / 3, v.ntris = tri_v.size() / 3, v.nptri = ptri.size();
-    v.vpos = vpos.data(), v.vvel = vvel.data();
-    v.tri_v = tri_v.data(), v.tri_e = tri_e.data(), v.tri_mat = tri_mat.data();
-    v.tri_wall = tri_wall.data(), v.prow = prow.data(), v.ptri = ptri.data();
+  if (!walls.empty()) {
+    v.nverts = walls.vertex_x.size() / 3, v.ntris = walls.triangle_vertices.size() / 3,
+    v.nptri = walls.candidate_triangle.size();
+    v.vpos = walls.vertex_x.data(), v.vvel = walls.vertex_v.data();
+    v.tri_v = walls.triangle_vertices.data(), v.tri_e = walls.triangle_edges.data(),
+    v.tri_mat = walls.triangle_material.data();
+    v.tri_wall = walls.triangle_wall.data(), v.prow = walls.candidate_row.data(),
+    v.ptri = walls.candidate_triangle.data();
     v.wkey = wall_contacts.key.data(), v.wshear = wall_contacts.shear.data(),
     v.wf = wall_contacts.force.data(), v.wp = wall_contacts.point.data();
     v.wb = wall_contacts.weights.data(), v.wtri = wall_contacts.triangle.data(),
     v.wcount = wall_contacts.count.data();
-    if (walls_moving) {
+    if (walls.moving) {
       v.walls_moving = true;
-      v.vbuild = vbuild.data(), v.vref = gpu_vref.data(), v.vwall = gpu_vwall.data();
-      v.motion = wall_motions.data(), v.nwalls = wall_motions.size();
-      if (has_flex) {
-        v.flex_vbase = static_cast<std::size_t>(flex.vbase), v.flex_nodes = flex_x.size() / 3;
-        v.flex_v = flex_v.data(), v.flex_a = flex_a.data(), v.flex_force = flex_force.data();
+      v.vbuild = walls.vertex_x_at_build.data(), v.vref = gpu_vref.data(),
+      v.vwall = gpu_vwall.data();
+      v.motion = walls.motions.data(), v.nwalls = walls.motions.size();
+      if (walls.has_flexible) {
+        v.flex_vbase = static_cast<std::size_t>(walls.flexible.first_vertex),
+        v.flex_nodes = walls.flexible_x0.size() / 3;
+        v.flex_v = walls.flexible_v0.data(), v.flex_a = walls.flexible_a0.data(),
+        v.flex_force = walls.flexible_force.data();
       }
     }
     v.wroll = rolling ? wall_contacts.rolling_history.data() : nullptr;
@@ -94,13 +103,13 @@ void DemSystem::Impl::adopt_device_list() {
   GpuListDownload dl;
   dl.row = L.row.data(), dl.nbr = L.partner.data(), dl.bx = L.update_x.data();
   dl.by = L.update_y.data(), dl.bz = L.update_z.data();
-  if (!tri_v.empty()) {
-    prow.resize(np + 1), ptri.resize(nptri);
-    dl.prow = prow.data(), dl.ptri = ptri.data();
-    if (walls_moving) dl.vbuild = vbuild.data();
+  if (!walls.empty()) {
+    walls.candidate_row.resize(np + 1), walls.candidate_triangle.resize(nptri);
+    dl.prow = walls.candidate_row.data(), dl.ptri = walls.candidate_triangle.data();
+    if (walls.moving) dl.vbuild = walls.vertex_x_at_build.data();
   }
   cuda_download_lists(gpu, dl);
-  if (!tri_v.empty() && !walls_moving) vbuild = vpos;
+  if (!walls.empty() && !walls.moving) walls.vertex_x_at_build = walls.vertex_x;
   L.candidate_row = L.row,
   L.candidate_partner = L.partner;  // one level: the candidates are the list
   index_list();
@@ -116,9 +125,9 @@ void DemSystem::Impl::adopt_device_list() {
 
 void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
   const double t0 = omp_get_wtime();
-  if (has_flex) {
-    std::fill(flex_force.begin(), flex_force.end(), 0.0);
-    flex_max_ov = 0.0;
+  if (walls.has_flexible) {
+    std::fill(walls.flexible_force.begin(), walls.flexible_force.end(), 0.0);
+    walls.flexible_max_overlap = 0.0;
   }
   if (n() == 0) {  // nothing for the device: the CPU step moves the walls and the clock
     for (std::int64_t k = 0; k < substeps; ++k)
@@ -127,7 +136,7 @@ void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
     return;
   }
   if (list.must_build || list.row.size() != n() + 1 || !list.has_update_positions(n())) rebuild();
-  if (walls_moving) gpu_wall_kinematics();
+  if (walls.moving) gpu_wall_kinematics();
   auto view = [&] {
     GpuHostView v = gpu_view();
     v.flex_average = mode == ForceMode::average;
@@ -140,8 +149,9 @@ void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
   double tdet = 0.0;
   bool built_on_device = false;
   while (left > 0) {
-    const std::int64_t done = cuda_run_steps(gpu, left, list.skin, t, flex_tau, cancel);
-    for (std::int64_t k = 0; k < done; ++k) t += s.dt, flex_tau += s.dt;  // the device's sums
+    const std::int64_t done = cuda_run_steps(gpu, left, list.skin, t, walls.flexible_tau, cancel);
+    for (std::int64_t k = 0; k < done; ++k)
+      t += s.dt, walls.flexible_tau += s.dt;  // the device's sums
     steps += done;
     left -= done;
     check_cancel(substeps - left, substeps);
@@ -152,7 +162,7 @@ void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
       built_on_device = true;
       tdet += omp_get_wtime() - r0;
       cuda_finish_step(gpu);
-      t += s.dt, flex_tau += s.dt;
+      t += s.dt, walls.flexible_tau += s.dt;
       ++steps;
       --left;
     }
@@ -162,11 +172,12 @@ void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
   max_ov = cuda_max_overlap(gpu);
   adv_max_ov = cuda_advance_max_overlap(gpu);
   adv_max_rel = cuda_advance_max_relative_overlap(gpu);
-  if (has_flex) flex_max_ov = cuda_flex_max_overlap(gpu);
-  if (walls_moving && tri_v.empty()) update_walls(t, flex_tau);  // no triangle on the device
+  if (walls.has_flexible) walls.flexible_max_overlap = cuda_flex_max_overlap(gpu);
+  if (walls.moving && walls.empty())
+    walls.update(t, walls.flexible_tau);  // no triangle on the device
   // Per-wall force and torque of the last step from its contact slots, in the CPU's order
   // (last = false: the flexible node forces came from the device).
-  if (!tri_v.empty()) wall_reduce(false, ForceMode::last_substep, 1);
+  if (!walls.empty()) walls.reduce(wall_contacts, n(), false, ForceMode::last_substep, 1);
   timing.detection += tdet;
   timing.forces += omp_get_wtime() - t0 - tdet;  // device steps are not split further
 }
