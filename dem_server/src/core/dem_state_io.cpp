@@ -394,7 +394,7 @@ void DemSystem::save(io::H5File& f, const std::string& group) const {
   f.set_attribute(group, "time", I.t);
   f.set_attribute(group, "steps", static_cast<std::int64_t>(I.steps));
   f.set_attribute(group, "flex_tau", I.walls.flexible_tau);
-  f.set_attribute(group, "max_overlap", I.max_ov);
+  f.set_attribute(group, "max_overlap", I.max_overlap);
   f.set_attribute(group, "flex_max_overlap", I.walls.flexible_max_overlap);
   f.set_attribute(group, "format", std::string("demfem-dem-state-1"));
   const PairsWithSprings pairs = pairs_with_springs(I);
@@ -464,7 +464,7 @@ void DemSystem::save_state(DemStateCopy& c) const {
   c.time = I.t;
   c.steps = I.steps;
   c.flex_tau = I.walls.flexible_tau;
-  c.max_overlap = I.max_ov;
+  c.max_overlap = I.max_overlap;
   c.flex_max_overlap = I.walls.flexible_max_overlap;
   c.particles = I.n();
   const auto arrays = double_arrays(I);
@@ -498,7 +498,7 @@ void DemSystem::restore_state(const DemStateCopy& c) {
   I.t = c.time;
   I.steps = c.steps;
   I.walls.flexible_tau = c.flex_tau;
-  I.max_ov = c.max_overlap;
+  I.max_overlap = c.max_overlap;
   I.walls.flexible_max_overlap = c.flex_max_overlap;
   const auto arrays = double_arrays(I);
   for (std::size_t k = 0; k < arrays.size(); ++k) {
@@ -535,7 +535,7 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   I.t = f.attribute_double(group, "time");
   I.steps = f.attribute_int64(group, "steps");
   I.walls.flexible_tau = f.attribute_double(group, "flex_tau");
-  I.max_ov = f.attribute_double(group, "max_overlap");
+  I.max_overlap = f.attribute_double(group, "max_overlap");
   I.walls.flexible_max_overlap = f.attribute_double(group, "flex_max_overlap");
   for (const auto& [name, v] : double_arrays(I)) {
     // the rolling histories are absent in states written before the rolling spring model:
@@ -600,7 +600,7 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
       (nwalls > 0 && I.walls.vertex_x.size() < 3))
     bad("restore: wall vertex data in '" + group + "' does not match the walls of this system");
   for (std::size_t i = 0; i < n; ++i)
-    if (st.material[i] < 0 || static_cast<std::size_t>(st.material[i]) >= I.nmat)
+    if (st.material[i] < 0 || static_cast<std::size_t>(st.material[i]) >= I.material_count)
       bad("restore: particle material index out of range in '" + group + "'");
   if (st.shape_id.size() != n || st.scale.size() != n || st.ix.size() != n || st.iy.size() != n ||
       st.iz.size() != n)

@@ -139,8 +139,9 @@ void DemSystem::Impl::forces_and_kick() {
   a.pi = list.owner.data();
   a.pj = list.partner.data();
   a.mat = st.material.data();
-  a.pc = uniform_mat >= 0 ? pc.data() + uniform_mat * (nmat + 1) : pc.data();
-  a.nmat = nmat;
+  a.pc =
+      uniform_mat >= 0 ? pair_table.data() + uniform_mat * (material_count + 1) : pair_table.data();
+  a.nmat = material_count;
   a.dt = s.dt;
   a.shear = slots.shear.data();
   a.pf = slots.force.data();
@@ -149,7 +150,7 @@ void DemSystem::Impl::forces_and_kick() {
   a.rhist = slots.rolling_history.data();
   a.box = periodic ? &pbox : nullptr;
   // a periodic system's kernels look the pair constants up per pair (a.pc the whole table)
-  if (periodic) a.pc = pc.data();
+  if (periodic) a.pc = pair_table.data();
   const PairKernel kern =
       pick_pair_kernel(Friction, Friction && rolling, uniform_mat >= 0, periodic);
   detail::PolyParticles pp{};
@@ -171,8 +172,8 @@ void DemSystem::Impl::forces_and_kick() {
     pa = detail::PolyPairs{list.owner.data(),
                            list.partner.data(),
                            st.material.data(),
-                           pc.data(),
-                           nmat,
+                           pair_table.data(),
+                           material_count,
                            s.dt,
                            Friction,
                            rolling,
@@ -222,12 +223,12 @@ void DemSystem::Impl::forces_and_kick() {
       double wmo = 0.0;  // this particle's deepest wall contact
       double rc = ri;    // and its contact radius
       if (Poly && st.shape_id[i] >= 0) {
-        detail::poly_wall_contacts(pp, wv, i, pc.data() + st.material[i] * nmat, s.dt, Friction, f,
-                                   q, wmo, fmo);
+        detail::poly_wall_contacts(pp, wv, i, pair_table.data() + st.material[i] * material_count,
+                                   s.dt, Friction, f, q, wmo, fmo);
         rc = phys::particle_contact_radius(pp, static_cast<int>(i));
       } else {
-        wall_contacts_apart<Friction>(view, wv, i, pc.data() + st.material[i] * nmat, s.dt, f, q,
-                                      wmo, fmo);
+        wall_contacts_apart<Friction>(
+            view, wv, i, pair_table.data() + st.material[i] * material_count, s.dt, f, q, wmo, fmo);
       }
       mo = std::max(mo, wmo);
       mr = std::max(mr, phys::relative_overlap(wmo, rc, rc));
@@ -288,9 +289,9 @@ void DemSystem::Impl::forces_and_kick() {
   }
   if (active == T) balance.adapt();
   if constexpr (Poly) proofs.step = steps + 1;
-  max_ov = mo;
-  adv_max_ov = std::max(adv_max_ov, mo);
-  adv_max_rel = std::max(adv_max_rel, mr);
+  max_overlap = mo;
+  advance_max_overlap = std::max(advance_max_overlap, mo);
+  advance_max_relative_overlap = std::max(advance_max_relative_overlap, mr);
   walls.flexible_max_overlap = std::max(walls.flexible_max_overlap, fmo);
 }
 

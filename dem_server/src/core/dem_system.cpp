@@ -93,15 +93,15 @@ MaterialPair::PolyLaw poly_law_from_name(const std::string& name) {
 }
 
 void DemSystem::Impl::setup_pairs() {
-  nmat = s.materials.size();
-  pc.resize(nmat * nmat);
+  material_count = s.materials.size();
+  pair_table.resize(material_count * material_count);
   friction = rolling = false;
-  for (std::size_t a = 0; a < nmat; ++a)
-    for (std::size_t b = 0; b < nmat; ++b) {
+  for (std::size_t a = 0; a < material_count; ++a)
+    for (std::size_t b = 0; b < material_count; ++b) {
       const auto& ma = s.materials[a];
       const auto& mb = s.materials[b];
-      const auto& p = s.pairs[a * nmat + b];
-      pc[a * nmat + b] = phys::pair_constants(
+      const auto& p = s.pairs[a * material_count + b];
+      pair_table[a * material_count + b] = phys::pair_constants(
           ma.youngs_modulus, ma.poisson_ratio, mb.youngs_modulus, mb.poisson_ratio, p.restitution,
           p.friction, p.rolling_friction, p.rocking_damping,
           p.poly_law == MaterialPair::PolyLaw::smooth ? phys::kLawSmooth
@@ -183,9 +183,9 @@ std::size_t DemSystem::add_particles(std::span<const ParticleInit> particles) {
       bad(where + " has a non-finite position, velocity or angular velocity");
     if (p.shape == ParticleShape::sphere && (!(p.radius > 0.0) || !std::isfinite(p.radius)))
       bad(where + ".radius = " + std::to_string(p.radius) + " must be > 0 m");
-    if (p.material < 0 || static_cast<std::size_t>(p.material) >= I.nmat)
+    if (p.material < 0 || static_cast<std::size_t>(p.material) >= I.material_count)
       bad(where + ".material = " + std::to_string(p.material) + " outside [0, " +
-          std::to_string(I.nmat) + ")");
+          std::to_string(I.material_count) + ")");
     if (!(I.s.materials[p.material].density > 0.0))
       bad(where + ": material '" + I.s.materials[p.material].name +
           "' has density 0 (particles need a density > 0)");
@@ -344,8 +344,8 @@ void DemSystem::advance(std::int64_t substeps, ForceMode mode) {
   auto& I = *impl_;
   if (substeps < 0) bad("advance: substeps = " + std::to_string(substeps) + " must be >= 0");
   if (substeps == 0) return;
-  I.adv_max_ov = 0.0;
-  I.adv_max_rel = 0.0;
+  I.advance_max_overlap = 0.0;
+  I.advance_max_relative_overlap = 0.0;
   if (I.gpu) {
     I.advance_gpu(substeps, mode);
     return;
@@ -370,10 +370,10 @@ void DemSystem::set_cancel_flag(const std::atomic<bool>* flag) {
 }
 
 double DemSystem::advance_max_overlap() const {
-  return impl_->adv_max_ov;
+  return impl_->advance_max_overlap;
 }
 double DemSystem::advance_max_relative_overlap() const {
-  return impl_->adv_max_rel;
+  return impl_->advance_max_relative_overlap;
 }
 double DemSystem::time() const {
   return impl_->t;
@@ -459,7 +459,7 @@ std::array<double, 3> DemSystem::frozen_support() const {
 }
 
 double DemSystem::max_overlap() const {
-  return impl_->max_ov;
+  return impl_->max_overlap;
 }
 
 DemSystem::Timings DemSystem::timings() const {

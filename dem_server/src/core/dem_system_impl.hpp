@@ -68,8 +68,9 @@ inline constexpr int kMaxWallContacts = phys::kMaxWallContacts;
 struct DemSystem::Impl {
   DemSettings s;
   int threads = 1;
-  std::size_t nmat = 0;
-  std::vector<phys::PairConstants> pc;
+  std::size_t material_count = 0;
+  // contact constants per pair of materials, material_count x material_count (row: i's)
+  std::vector<phys::PairConstants> pair_table;
   bool friction = false;     // some pair has friction or rolling resistance
   bool orientation = false;  // integrate the orientation (settings or a non-spherical particle)
   bool rolling = false;
@@ -131,9 +132,10 @@ struct DemSystem::Impl {
   }
   // The list's skin is fixed (settings.list_skin) or one level (the device's list).
   bool fixed_inner_skin() const { return gpu != nullptr || s.list_skin > 0.0; }
-  double max_ov = 0.0;
-  double adv_max_ov = 0.0;   // largest overlap over the steps of the last advance()
-  double adv_max_rel = 0.0;  // and against each contact's own radii (phys::relative_overlap)
+  double max_overlap = 0.0;          // largest overlap of the last step, m
+  double advance_max_overlap = 0.0;  // largest overlap over the steps of the last advance()
+  double advance_max_relative_overlap =
+      0.0;  // and against each contact's own radii (phys::relative_overlap)
 
   // The walls (wall_store.hpp): every wall triangle in one store, their motion, the
   // triangles near each particle, the loads on them.
@@ -255,8 +257,8 @@ struct DemSystem::Impl {
   // Wall kinematics for the device (filled by gpu_wall_kinematics() when walls move): the
   // reference vertices (rigid walls) and the node positions at the start of the advance()
   // (flexible mesh) in store order, the wall of each vertex (-1: flexible).
-  std::vector<double> gpu_vref;
-  std::vector<std::int32_t> gpu_vwall;
+  std::vector<double> gpu_vertex_ref;
+  std::vector<std::int32_t> gpu_vertex_wall;
 
   void gpu_wall_kinematics();
 

@@ -30,9 +30,9 @@ std::int32_t DemSystem::add_wall(WallMesh wall) {
     if (t < 0 || t >= nv)
       bad(where + ": triangle vertex index " + std::to_string(t) + " outside [0, " +
           std::to_string(nv) + ")");
-  if (wall.material < 0 || static_cast<std::size_t>(wall.material) >= I.nmat)
+  if (wall.material < 0 || static_cast<std::size_t>(wall.material) >= I.material_count)
     bad(where + ": material " + std::to_string(wall.material) + " outside [0, " +
-        std::to_string(I.nmat) + ")");
+        std::to_string(I.material_count) + ")");
   const auto& m = wall.motion;
   if (!(m.end_time >= m.start_time)) bad(where + ": motion.end_time < motion.start_time");
   if (m.kind == WallMotion::Kind::rotation || m.kind == WallMotion::Kind::sinusoid) {
@@ -162,9 +162,9 @@ void DemSystem::set_flexible_mesh(const InterfaceMesh& mesh, std::int32_t materi
     if (t < 0 || t >= nv)
       bad("set_flexible_mesh: node index " + std::to_string(t) + " outside [0, " +
           std::to_string(nv) + ")");
-  if (material < 0 || static_cast<std::size_t>(material) >= I.nmat)
+  if (material < 0 || static_cast<std::size_t>(material) >= I.material_count)
     bad("set_flexible_mesh: material " + std::to_string(material) + " outside [0, " +
-        std::to_string(I.nmat) + ")");
+        std::to_string(I.material_count) + ")");
   I.walls.flexible = {};
   I.walls.flexible.mesh.name = "flexible";
   I.walls.flexible.mesh.vertices = mesh.reference_positions;
