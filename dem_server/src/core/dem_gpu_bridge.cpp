@@ -11,17 +11,17 @@
 namespace demfem::dem {
 
 void DemSystem::Impl::gpu_wall_kinematics() {
-  gpu_vref.assign(walls.vertex_x.size(), 0.0);
-  gpu_vwall.assign(walls.vertex_x.size() / 3, -1);
+  gpu_vertex_ref.assign(walls.vertex_x.size(), 0.0);
+  gpu_vertex_wall.assign(walls.vertex_x.size() / 3, -1);
   for (std::size_t w = 0; w < walls.rigid.size(); ++w) {
     const auto& x0 = walls.rigid[w].mesh.vertices;
-    std::copy(x0.begin(), x0.end(), gpu_vref.begin() + 3 * walls.rigid[w].first_vertex);
-    std::fill_n(gpu_vwall.begin() + walls.rigid[w].first_vertex, x0.size() / 3,
+    std::copy(x0.begin(), x0.end(), gpu_vertex_ref.begin() + 3 * walls.rigid[w].first_vertex);
+    std::fill_n(gpu_vertex_wall.begin() + walls.rigid[w].first_vertex, x0.size() / 3,
                 static_cast<std::int32_t>(w));
   }
   if (walls.has_flexible)
     std::copy(walls.flexible_x0.begin(), walls.flexible_x0.end(),
-              gpu_vref.begin() + 3 * walls.flexible.first_vertex);
+              gpu_vertex_ref.begin() + 3 * walls.flexible.first_vertex);
 }
 
 GpuHostView DemSystem::Impl::gpu_view() {
@@ -41,8 +41,8 @@ GpuHostView DemSystem::Impl::gpu_view() {
   v.shear = slots.shear.data();
   v.rhist = rolling ? slots.rolling_history.data() : nullptr;
   v.bx = list.update_x.data(), v.by = list.update_y.data(), v.bz = list.update_z.data();
-  v.pc = pc.data();
-  v.nmat = nmat;
+  v.pc = pair_table.data();
+  v.nmat = material_count;
   v.dt = s.dt;
   for (int k = 0; k < 3; ++k) v.gravity[k] = s.gravity[k];
   v.friction = friction, v.rolling = rolling;
@@ -78,8 +78,8 @@ GpuHostView DemSystem::Impl::gpu_view() {
     v.wcount = wall_contacts.count.data();
     if (walls.moving) {
       v.walls_moving = true;
-      v.vbuild = walls.vertex_x_at_build.data(), v.vref = gpu_vref.data(),
-      v.vwall = gpu_vwall.data();
+      v.vbuild = walls.vertex_x_at_build.data(), v.vref = gpu_vertex_ref.data(),
+      v.vwall = gpu_vertex_wall.data();
       v.motion = walls.motions.data(), v.nwalls = walls.motions.size();
       if (walls.has_flexible) {
         v.flex_vbase = static_cast<std::size_t>(walls.flexible.first_vertex),
@@ -169,9 +169,9 @@ void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
   }
   if (built_on_device) adopt_device_list();
   cuda_download_state(gpu, view());
-  max_ov = cuda_max_overlap(gpu);
-  adv_max_ov = cuda_advance_max_overlap(gpu);
-  adv_max_rel = cuda_advance_max_relative_overlap(gpu);
+  max_overlap = cuda_max_overlap(gpu);
+  advance_max_overlap = cuda_advance_max_overlap(gpu);
+  advance_max_relative_overlap = cuda_advance_max_relative_overlap(gpu);
   if (walls.has_flexible) walls.flexible_max_overlap = cuda_flex_max_overlap(gpu);
   if (walls.moving && walls.empty())
     walls.update(t, walls.flexible_tau);  // no triangle on the device
