@@ -50,6 +50,7 @@
 #include "rigid_mesh_bodies.hpp"
 #include "separation_proofs.hpp"
 #include "shape_table.hpp"
+#include "thread_balance.hpp"
 #include "wall_contact_slots.hpp"
 #include "wall_store.hpp"
 
@@ -132,10 +133,11 @@ struct DemSystem::Impl {
   }
   // The list's skin is fixed (settings.list_skin) or one level (the device's list).
   bool fixed_inner_skin() const { return gpu != nullptr || s.list_skin > 0.0; }
-  double max_overlap = 0.0;          // largest overlap of the last step, m
-  double advance_max_overlap = 0.0;  // largest overlap over the steps of the last advance()
-  double advance_max_relative_overlap =
-      0.0;  // and against each contact's own radii (phys::relative_overlap)
+  // The largest overlap of the last step (m), over the steps of the last advance() (m), and
+  // over them against each contact's own radii (phys::relative_overlap).
+  double max_overlap = 0.0;
+  double advance_max_overlap = 0.0;
+  double advance_max_relative_overlap = 0.0;
 
   // The walls (wall_store.hpp): every wall triangle in one store, their motion, the
   // triangles near each particle, the loads on them.
@@ -145,49 +147,8 @@ struct DemSystem::Impl {
   CudaBackend* gpu = nullptr;
   DemSystem::Timings timing;
 
-  // Particle ranges of the threads in forces_and_kick(), moved towards equal busy times. The
-  // bottom of a bed has more contacts per particle and the wall contacts, so equal counts
-  // leave one thread waiting (measured on the 20,000-sphere bed: 0.3 of its time). The
-  // result does not depend on the ranges (every sum has a fixed order; see
-  // forces_and_kick()), so timing them is safe for bitwise reproducibility.
-  struct ThreadBalance {
-    std::vector<std::int64_t> split;                 // T + 1 range bounds
-    std::vector<double> busy;                        // per thread: time before the barrier, s
-    std::vector<std::vector<std::int64_t>> waiting;  // per thread: particles gathered after it
-    void ensure(int threads, std::int64_t count) {
-      const auto T = static_cast<std::size_t>(threads);
-      if (split.size() == T + 1 && split.back() == count) return;
-      split.resize(T + 1);
-      for (std::size_t k = 0; k <= T; ++k)
-        split[k] = count * static_cast<std::int64_t>(k) / static_cast<std::int64_t>(T);
-      busy.assign(T, 0.0);
-      waiting.resize(T);
-    }
-    // New bounds from each thread's particles per second, halfway towards the balanced ones
-    // (timings on a shared machine are noisy).
-    void adapt() {
-      const std::size_t T = busy.size();
-      if (T < 2) return;
-      std::vector<double> rate(T);
-      double sum = 0.0;
-      for (std::size_t k = 0; k < T; ++k) {
-        const double cnt = static_cast<double>(split[k + 1] - split[k]);
-        rate[k] = busy[k] > 0.0 && cnt > 0.0 ? cnt / busy[k] : 0.0;
-        if (!(rate[k] > 0.0)) return;  // no usable timing
-        sum += rate[k];
-      }
-      const std::int64_t count = split.back();
-      double acc = 0.0;
-      for (std::size_t k = 1; k < T; ++k) {
-        acc += rate[k - 1];
-        const double target = static_cast<double>(count) * acc / sum;
-        const auto next = static_cast<std::int64_t>(0.5 * (static_cast<double>(split[k]) + target));
-        // at least one particle per thread, bounds ascending
-        split[k] = std::clamp<std::int64_t>(next, split[k - 1] + 1,
-                                            count - static_cast<std::int64_t>(T - k));
-      }
-    }
-  } balance;
+  // Particle ranges of the threads in forces_and_kick() (thread_balance.hpp).
+  detail::ThreadBalance balance;
 
   ~Impl() { cuda_backend_destroy(gpu); }
 
