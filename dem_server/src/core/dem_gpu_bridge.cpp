@@ -11,14 +11,17 @@
 namespace demfem::dem {
 
 void DemSystem::Impl::gpu_wall_kinematics() {
-  gpu_vref.assign(vpos.size(), 0.0);
-  gpu_vwall.assign(vpos.size() / 3, -1);
-  for (std::size_t w = 0; w < walls.size(); ++w) {
-    const auto& x0 = walls[w].mesh.vertices;
-    std::copy(x0.begin(), x0.end(), gpu_vref.begin() + 3 * walls[w].vbase);
-    std::fill_n(gpu_vwall.begin() + walls[w].vbase, x0.size() / 3, static_cast<std::int32_t>(w));
+  gpu_vertex_ref.assign(walls.vertex_x.size(), 0.0);
+  gpu_vertex_wall.assign(walls.vertex_x.size() / 3, -1);
+  for (std::size_t w = 0; w < walls.rigid.size(); ++w) {
+    const auto& x0 = walls.rigid[w].mesh.vertices;
+    std::copy(x0.begin(), x0.end(), gpu_vertex_ref.begin() + 3 * walls.rigid[w].first_vertex);
+    std::fill_n(gpu_vertex_wall.begin() + walls.rigid[w].first_vertex, x0.size() / 3,
+                static_cast<std::int32_t>(w));
   }
-  if (has_flex) std::copy(flex_x.begin(), flex_x.end(), gpu_vref.begin() + 3 * flex.vbase);
+  if (walls.has_flexible)
+    std::copy(walls.flexible_x0.begin(), walls.flexible_x0.end(),
+              gpu_vertex_ref.begin() + 3 * walls.flexible.first_vertex);
 }
 
 GpuHostView DemSystem::Impl::gpu_view() {
@@ -32,13 +35,14 @@ GpuHostView DemSystem::Impl::gpu_view() {
   v.tx = tx.data(), v.ty = ty.data(), v.tz = tz.data();
   v.radius = st.radius.data(), v.mass = st.mass.data(), v.inertia = st.inertia.data();
   v.material = st.material.data();
-  v.npairs = nbr.size();
-  v.row = row.data(), v.trow = trow.data(), v.tpair = tpair.data(), v.nbr = nbr.data();
+  v.npairs = list.pairs();
+  v.row = list.row.data(), v.trow = list.transposed_row.data();
+  v.tpair = list.transposed_pair.data(), v.nbr = list.partner.data();
   v.shear = slots.shear.data();
   v.rhist = rolling ? slots.rolling_history.data() : nullptr;
-  v.bx = bx.data(), v.by = by.data(), v.bz = bz.data();
-  v.pc = pc.data();
-  v.nmat = nmat;
+  v.bx = list.update_x.data(), v.by = list.update_y.data(), v.bz = list.update_z.data();
+  v.pc = pair_table.data();
+  v.nmat = material_count;
   v.dt = s.dt;
   for (int k = 0; k < 3; ++k) v.gravity[k] = s.gravity[k];
   v.friction = friction, v.rolling = rolling;
@@ -60,23 +64,31 @@ GpuHostView DemSystem::Impl::gpu_view() {
     v.paxis = slots.separating_axis.data();
     v.pfeat = slots.closest_features.data();
   }
-  if (!tri_v.empty()) {
-    v.nverts = vpos.size() / 3, v.ntris = tri_v.size() / 3, v.nptri = ptri.size();
-    v.vpos = vpos.data(), v.vvel = vvel.data();
-    v.tri_v = tri_v.data(), v.tri_e = tri_e.data(), v.tri_mat = tri_mat.data();
-    v.tri_wall = tri_wall.data(), v.prow = prow.data(), v.ptri = ptri.data();
-    v.wkey = wkey.data(), v.wshear = wshear.data(), v.wf = wf.data(), v.wp = wp.data();
-    v.wb = wb.data(), v.wtri = wtri.data(), v.wcount = wcount.data();
-    if (walls_moving) {
+  if (!walls.empty()) {
+    v.nverts = walls.vertex_x.size() / 3, v.ntris = walls.triangle_vertices.size() / 3,
+    v.nptri = walls.candidate_triangle.size();
+    v.vpos = walls.vertex_x.data(), v.vvel = walls.vertex_v.data();
+    v.tri_v = walls.triangle_vertices.data(), v.tri_e = walls.triangle_edges.data(),
+    v.tri_mat = walls.triangle_material.data();
+    v.tri_wall = walls.triangle_wall.data(), v.prow = walls.candidate_row.data(),
+    v.ptri = walls.candidate_triangle.data();
+    v.wkey = wall_contacts.key.data(), v.wshear = wall_contacts.shear.data(),
+    v.wf = wall_contacts.force.data(), v.wp = wall_contacts.point.data();
+    v.wb = wall_contacts.weights.data(), v.wtri = wall_contacts.triangle.data(),
+    v.wcount = wall_contacts.count.data();
+    if (walls.moving) {
       v.walls_moving = true;
-      v.vbuild = vbuild.data(), v.vref = gpu_vref.data(), v.vwall = gpu_vwall.data();
-      v.motion = wall_motions.data(), v.nwalls = wall_motions.size();
-      if (has_flex) {
-        v.flex_vbase = static_cast<std::size_t>(flex.vbase), v.flex_nodes = flex_x.size() / 3;
-        v.flex_v = flex_v.data(), v.flex_a = flex_a.data(), v.flex_force = flex_force.data();
+      v.vbuild = walls.vertex_x_at_build.data(), v.vref = gpu_vertex_ref.data(),
+      v.vwall = gpu_vertex_wall.data();
+      v.motion = walls.motions.data(), v.nwalls = walls.motions.size();
+      if (walls.has_flexible) {
+        v.flex_vbase = static_cast<std::size_t>(walls.flexible.first_vertex),
+        v.flex_nodes = walls.flexible_x0.size() / 3;
+        v.flex_v = walls.flexible_v0.data(), v.flex_a = walls.flexible_a0.data(),
+        v.flex_force = walls.flexible_force.data();
       }
     }
-    v.wroll = rolling ? wroll.data() : nullptr;
+    v.wroll = rolling ? wall_contacts.rolling_history.data() : nullptr;
   }
   return v;
 }
@@ -85,34 +97,37 @@ void DemSystem::Impl::adopt_device_list() {
   std::size_t npairs = 0, nptri = 0;
   cuda_list_sizes(gpu, &npairs, &nptri);
   const std::size_t np = n();
-  row.resize(np + 1), nbr.resize(npairs), bx.resize(np), by.resize(np), bz.resize(np);
+  auto& L = list;
+  L.row.resize(np + 1), L.partner.resize(npairs);
+  L.update_x.resize(np), L.update_y.resize(np), L.update_z.resize(np);
   GpuListDownload dl;
-  dl.row = row.data(), dl.nbr = nbr.data(), dl.bx = bx.data(), dl.by = by.data();
-  dl.bz = bz.data();
-  if (!tri_v.empty()) {
-    prow.resize(np + 1), ptri.resize(nptri);
-    dl.prow = prow.data(), dl.ptri = ptri.data();
-    if (walls_moving) dl.vbuild = vbuild.data();
+  dl.row = L.row.data(), dl.nbr = L.partner.data(), dl.bx = L.update_x.data();
+  dl.by = L.update_y.data(), dl.bz = L.update_z.data();
+  if (!walls.empty()) {
+    walls.candidate_row.resize(np + 1), walls.candidate_triangle.resize(nptri);
+    dl.prow = walls.candidate_row.data(), dl.ptri = walls.candidate_triangle.data();
+    if (walls.moving) dl.vbuild = walls.vertex_x_at_build.data();
   }
   cuda_download_lists(gpu, dl);
-  if (!tri_v.empty() && !walls_moving) vbuild = vpos;
-  orow = row, onbr = nbr;  // one level: the candidates are the list
+  if (!walls.empty() && !walls.moving) walls.vertex_x_at_build = walls.vertex_x;
+  L.candidate_row = L.row,
+  L.candidate_partner = L.partner;  // one level: the candidates are the list
   index_list();
   // the histories come with the state (cuda_download_state), sized as refilter() sizes them
   slots.shear.assign(friction ? 3 * npairs : 0, 0.0);
   slots.rolling_history.assign(rolling ? 3 * npairs : 0, 0.0);
   slots.separating_axis.assign(poly ? 3 * npairs : 0, 0.0);
   slots.closest_features.assign(poly ? 6 * npairs : 0, -1);
-  out_disp = 0.0, out_pair = 0.0;
-  steps_at_update = steps;
-  need_rebuild = false;
+  L.build_disp = 0.0, L.build_pair_disp = 0.0;
+  L.steps_at_update = steps;
+  L.must_build = false;
 }
 
 void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
   const double t0 = omp_get_wtime();
-  if (has_flex) {
-    std::fill(flex_force.begin(), flex_force.end(), 0.0);
-    flex_max_ov = 0.0;
+  if (walls.has_flexible) {
+    std::fill(walls.flexible_force.begin(), walls.flexible_force.end(), 0.0);
+    walls.flexible_max_overlap = 0.0;
   }
   if (n() == 0) {  // nothing for the device: the CPU step moves the walls and the clock
     for (std::int64_t k = 0; k < substeps; ++k)
@@ -120,8 +135,8 @@ void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
                : step<false>(k + 1 == substeps, mode, substeps);
     return;
   }
-  if (need_rebuild || row.size() != n() + 1 || bx.size() != n()) rebuild();
-  if (walls_moving) gpu_wall_kinematics();
+  if (list.must_build || list.row.size() != n() + 1 || !list.has_update_positions(n())) rebuild();
+  if (walls.moving) gpu_wall_kinematics();
   auto view = [&] {
     GpuHostView v = gpu_view();
     v.flex_average = mode == ForceMode::average;
@@ -134,33 +149,35 @@ void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
   double tdet = 0.0;
   bool built_on_device = false;
   while (left > 0) {
-    const std::int64_t done = cuda_run_steps(gpu, left, skin, t, flex_tau, cancel);
-    for (std::int64_t k = 0; k < done; ++k) t += s.dt, flex_tau += s.dt;  // the device's sums
+    const std::int64_t done = cuda_run_steps(gpu, left, list.skin, t, walls.flexible_tau, cancel);
+    for (std::int64_t k = 0; k < done; ++k)
+      t += s.dt, walls.flexible_tau += s.dt;  // the device's sums
     steps += done;
     left -= done;
     check_cancel(substeps - left, substeps);
     if (left > 0) {  // drift of the next step done, forces wait for the new list
       const double r0 = omp_get_wtime();
-      cuda_build_lists(gpu, skin, rmax);  // on the device, from the device's positions
-      ++rebuilds, ++refilters;            // one level: a build is its own refilter
+      cuda_build_lists(gpu, list.skin, rmax);  // on the device, from the device's positions
+      ++list.builds, ++list.refilters;         // one level: a build is its own refilter
       built_on_device = true;
       tdet += omp_get_wtime() - r0;
       cuda_finish_step(gpu);
-      t += s.dt, flex_tau += s.dt;
+      t += s.dt, walls.flexible_tau += s.dt;
       ++steps;
       --left;
     }
   }
   if (built_on_device) adopt_device_list();
   cuda_download_state(gpu, view());
-  max_ov = cuda_max_overlap(gpu);
-  adv_max_ov = cuda_advance_max_overlap(gpu);
-  adv_max_rel = cuda_advance_max_relative_overlap(gpu);
-  if (has_flex) flex_max_ov = cuda_flex_max_overlap(gpu);
-  if (walls_moving && tri_v.empty()) update_walls(t, flex_tau);  // no triangle on the device
+  max_overlap = cuda_max_overlap(gpu);
+  advance_max_overlap = cuda_advance_max_overlap(gpu);
+  advance_max_relative_overlap = cuda_advance_max_relative_overlap(gpu);
+  if (walls.has_flexible) walls.flexible_max_overlap = cuda_flex_max_overlap(gpu);
+  if (walls.moving && walls.empty())
+    walls.update(t, walls.flexible_tau);  // no triangle on the device
   // Per-wall force and torque of the last step from its contact slots, in the CPU's order
   // (last = false: the flexible node forces came from the device).
-  if (!tri_v.empty()) wall_reduce(false, ForceMode::last_substep, 1);
+  if (!walls.empty()) walls.reduce(wall_contacts, n(), false, ForceMode::last_substep, 1);
   timing.detection += tdet;
   timing.forces += omp_get_wtime() - t0 - tdet;  // device steps are not split further
 }

@@ -21,8 +21,8 @@ using detail::kMaxWallContacts;
 
 bool DemSystem::Impl::wrap_positions() {
   double* X[3] = {st.px.data(), st.py.data(), st.pz.data()};
-  double* B[3] = {bx.data(), by.data(), bz.data()};
-  const bool have_build = bx.size() == n();
+  double* B[3] = {list.update_x.data(), list.update_y.data(), list.update_z.data()};
+  const bool have_build = list.has_update_positions(n());
   const bool any_frozen = !frozen_idx.empty();
   const std::int64_t sn = static_cast<std::int64_t>(n());
   int wrapped = 0;
@@ -51,7 +51,7 @@ void DemSystem::Impl::check_periods() const {
     bad(std::string("the period in ") + "xyz"[d] + ", " + std::to_string(pbox.period[d]) +
         " m, is shorter than twice the neighbour list's cutoff, 2 (2 r_max + skin) = " +
         std::to_string(least) + " m (r_max = " + std::to_string(rmax) +
-        " m, the largest bounding radius; skin = " + std::to_string(skin) +
+        " m, the largest bounding radius; skin = " + std::to_string(list.skin) +
         " m): a pair would meet more than one image of the other. Use a period of at least " +
         std::to_string(least) + " m");
   }
@@ -111,12 +111,12 @@ void DemSystem::tile(const PeriodicRange& block, const std::array<int, 3>& copie
     bool swapped;
   };
   std::vector<Entry> entries;
-  const bool have_list = I.row.size() == I.n() + 1;
+  const bool have_list = I.list.row.size() == I.n() + 1;
   const double* X[3] = {I.st.px.data(), I.st.py.data(), I.st.pz.data()};
   std::array<int, 3> c{};
   for (std::int64_t i = 0; have_list && i < n; ++i)
-    for (std::int64_t p = I.row[i]; p < I.row[i + 1]; ++p) {
-      const std::int64_t j = I.nbr[p];
+    for (std::int64_t p = I.list.row[i]; p < I.list.row[i + 1]; ++p) {
+      const std::int64_t j = I.list.partner[p];
       int s[3];
       for (int d = 0; d < 3; ++d)
         s[d] = bb.period[d] > 0.0 ? static_cast<int>(std::lround(
@@ -158,13 +158,14 @@ void DemSystem::tile(const PeriodicRange& block, const std::array<int, 3>& copie
     q.orientation = {1, 0, 0, 0};  // the block's bits are copied below
   }
   // the block's list, kept apart: add_particles leaves the old rows in place
-  std::vector<std::int32_t> bnbr = I.nbr;
+  std::vector<std::int32_t> bnbr = I.list.partner;
   detail::PairSlots bslots = I.slots;
   if (!init.empty()) add_particles(init);
   // each copy's state as the block's, bit for bit: orientation, velocities (or rest), the
   // last step's forces and torques (the first half kick uses them), wall contact slots
   ParticleState& S = I.st;
   const auto K = static_cast<std::size_t>(kMaxWallContacts);
+  detail::WallContactSlots& wc = I.wall_contacts;
   for (std::int64_t k = n; k < total; ++k) {
     const std::int64_t i = k % n;
     S.qw[k] = S.qw[i], S.qx[k] = S.qx[i], S.qy[k] = S.qy[i], S.qz[k] = S.qz[i];
@@ -172,11 +173,12 @@ void DemSystem::tile(const PeriodicRange& block, const std::array<int, 3>& copie
     I.tx[k] = I.tx[i], I.ty[k] = I.ty[i], I.tz[k] = I.tz[i];
     S.vx[k] = S.vx[i], S.vy[k] = S.vy[i], S.vz[k] = S.vz[i];
     S.wx[k] = S.wx[i], S.wy[k] = S.wy[i], S.wz[k] = S.wz[i];
-    I.wcount[k] = I.wcount[i];
-    std::copy_n(I.wkey.begin() + K * i, K, I.wkey.begin() + K * k);
-    std::copy_n(I.wshear.begin() + 3 * K * i, 3 * K, I.wshear.begin() + 3 * K * k);
-    if (!I.wroll.empty())
-      std::copy_n(I.wroll.begin() + 3 * K * i, 3 * K, I.wroll.begin() + 3 * K * k);
+    wc.count[k] = wc.count[i];
+    std::copy_n(wc.key.begin() + K * i, K, wc.key.begin() + K * k);
+    std::copy_n(wc.shear.begin() + 3 * K * i, 3 * K, wc.shear.begin() + 3 * K * k);
+    if (!wc.rolling_history.empty())
+      std::copy_n(wc.rolling_history.begin() + 3 * K * i, 3 * K,
+                  wc.rolling_history.begin() + 3 * K * k);
     if (!I.frozen.empty()) I.frozen[k] = I.frozen[i];
   }
   if (!keep_velocities)
@@ -191,16 +193,16 @@ void DemSystem::tile(const PeriodicRange& block, const std::array<int, 3>& copie
   const bool roll = bslots.rolling_history.size() == 3 * bn && bn > 0;
   const bool axis = bslots.separating_axis.size() == 3 * bn &&
                     bslots.closest_features.size() == 6 * bn && bn > 0;
-  I.row.assign(static_cast<std::size_t>(total) + 1, 0);
-  I.nbr.resize(np);
+  I.list.row.assign(static_cast<std::size_t>(total) + 1, 0);
+  I.list.partner.resize(np);
   I.slots.shear.assign(shear ? 3 * np : 0, 0.0);
   I.slots.rolling_history.assign(roll ? 3 * np : 0, 0.0);
   I.slots.separating_axis.assign(axis ? 3 * np : 0, 0.0);
   I.slots.closest_features.assign(axis ? 6 * np : 0, -1);
   for (std::size_t q = 0; q < np; ++q) {
     const Entry& e = entries[q];
-    ++I.row[e.i + 1];
-    I.nbr[q] = static_cast<std::int32_t>(e.j);
+    ++I.list.row[e.i + 1];
+    I.list.partner[q] = static_cast<std::int32_t>(e.j);
     const double sign = e.swapped ? -1.0 : 1.0;
     for (int d = 0; d < 3; ++d) {
       if (shear) I.slots.shear[3 * q + d] = sign * bslots.shear[3 * e.p + d];
@@ -212,9 +214,9 @@ void DemSystem::tile(const PeriodicRange& block, const std::array<int, 3>& copie
         I.slots.closest_features[6 * q + k] =
             bslots.closest_features[6 * e.p + (e.swapped ? k ^ 1 : k)];
   }
-  for (std::int64_t k = 0; k < total; ++k) I.row[k + 1] += I.row[k];
-  I.bx.clear();
-  I.need_rebuild = true;  // the rebuild's refilter carries the history over (by pair)
+  for (std::int64_t k = 0; k < total; ++k) I.list.row[k + 1] += I.list.row[k];
+  I.list.update_x.clear();
+  I.list.must_build = true;  // the rebuild's refilter carries the history over (by pair)
 }
 
 }  // namespace demfem::dem

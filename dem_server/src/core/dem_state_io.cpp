@@ -63,17 +63,17 @@ auto double_arrays(ImplT& I) {
                                                        {"tz", &I.tz},
                                                        {"shear", &I.slots.shear},
                                                        {"rhist", &I.slots.rolling_history},
-                                                       {"wroll", &I.wroll},
-                                                       {"bx", &I.bx},
-                                                       {"by", &I.by},
-                                                       {"bz", &I.bz},
-                                                       {"wshear", &I.wshear},
-                                                       {"vpos", &I.vpos},
-                                                       {"vbuild", &I.vbuild},
-                                                       {"flex_x", &I.flex_x},
-                                                       {"flex_v", &I.flex_v},
-                                                       {"flex_a", &I.flex_a},
-                                                       {"flex_force", &I.flex_force},
+                                                       {"wroll", &I.wall_contacts.rolling_history},
+                                                       {"bx", &I.list.update_x},
+                                                       {"by", &I.list.update_y},
+                                                       {"bz", &I.list.update_z},
+                                                       {"wshear", &I.wall_contacts.shear},
+                                                       {"vpos", &I.walls.vertex_x},
+                                                       {"vbuild", &I.walls.vertex_x_at_build},
+                                                       {"flex_x", &I.walls.flexible_x0},
+                                                       {"flex_v", &I.walls.flexible_v0},
+                                                       {"flex_a", &I.walls.flexible_a0},
+                                                       {"flex_force", &I.walls.flexible_force},
                                                        {"scale", &st.scale},
                                                        {"ix", &st.ix},
                                                        {"iy", &st.iy},
@@ -158,15 +158,15 @@ namespace {
 template <class ImplT>  // DemSystem::Impl (a private type: deduced)
 std::vector<double> pack_drift(const ImplT& I) {
   std::vector<double> d;
-  for (std::size_t w = 0; w < I.drift_time.size(); ++w)
-    d.insert(d.end(), {I.drift_time[w], I.drift_rate[w]});
+  for (std::size_t w = 0; w < I.walls.drift_time.size(); ++w)
+    d.insert(d.end(), {I.walls.drift_time[w], I.walls.drift_rate[w]});
   return d;
 }
 template <class ImplT>
 void unpack_drift(ImplT& I, const std::vector<double>& d) {
-  if (d.size() != 2 * I.drift_time.size()) return;
-  for (std::size_t w = 0; w < I.drift_time.size(); ++w)
-    I.drift_time[w] = d[2 * w], I.drift_rate[w] = d[2 * w + 1];
+  if (d.size() != 2 * I.walls.drift_time.size()) return;
+  for (std::size_t w = 0; w < I.walls.drift_time.size(); ++w)
+    I.walls.drift_time[w] = d[2 * w], I.walls.drift_rate[w] = d[2 * w + 1];
 }
 
 // Replaces the table by the state's (a state without one keeps the system's).
@@ -200,13 +200,13 @@ struct PairsWithSprings {
 template <class ImplT>  // DemSystem::Impl (a private type: deduced)
 PairsWithSprings pairs_with_springs(const ImplT& I) {
   PairsWithSprings out;
-  const std::size_t n = I.row.empty() ? 0 : I.row.size() - 1;
-  out.row.assign(I.row.empty() ? 0 : n + 1, 0);
+  const std::size_t n = I.list.row.empty() ? 0 : I.list.row.size() - 1;
+  out.row.assign(I.list.row.empty() ? 0 : n + 1, 0);
   // without friction no pair has a spring (and no shear array): without polyhedra no pair is
   // state
-  const bool friction = I.slots.shear.size() == 3 * I.nbr.size();
-  out.caches = I.poly && I.slots.separating_axis.size() == 3 * I.nbr.size() &&
-               I.slots.closest_features.size() == 6 * I.nbr.size();
+  const bool friction = I.slots.shear.size() == 3 * I.list.partner.size();
+  out.caches = I.poly && I.slots.separating_axis.size() == 3 * I.list.partner.size() &&
+               I.slots.closest_features.size() == 6 * I.list.partner.size();
   if (!friction && !out.caches) return out;
   const bool rolling = friction && I.slots.rolling_history.size() == I.slots.shear.size();
   std::vector<std::pair<std::int32_t, std::size_t>> kept;  // (j, pair index)
@@ -222,11 +222,11 @@ PairsWithSprings pairs_with_springs(const ImplT& I) {
   };
   for (std::size_t i = 0; i < n; ++i) {
     kept.clear();
-    for (auto k = static_cast<std::size_t>(I.row[i]); k < static_cast<std::size_t>(I.row[i + 1]);
-         ++k)
+    for (auto k = static_cast<std::size_t>(I.list.row[i]);
+         k < static_cast<std::size_t>(I.list.row[i + 1]); ++k)
       if ((friction && spring(I.slots.shear, k)) ||
           (rolling && spring(I.slots.rolling_history, k)) || warm(k))
-        kept.emplace_back(I.nbr[k], k);
+        kept.emplace_back(I.list.partner[k], k);
     std::sort(kept.begin(), kept.end());
     for (const auto& [j, k] : kept) {
       out.nbr.push_back(j);
@@ -276,18 +276,22 @@ void check_state_indices(const ImplT& I, std::size_t nverts, const std::string& 
   per_particle("material", st.material.size());
   per_particle("shape", st.shape.size());
   // the list's build positions: all three or none (a state saved before the first build)
-  for (const auto* v : {&I.bx, &I.by, &I.bz}) per_particle("bx/by/bz", v->size(), true);
-  if (I.bx.size() != I.by.size() || I.bx.size() != I.bz.size())
-    refuse("bx/by/bz", "have " + std::to_string(I.bx.size()) + ", " + std::to_string(I.by.size()) +
-                           " and " + std::to_string(I.bz.size()) +
+  for (const auto* v : {&I.list.update_x, &I.list.update_y, &I.list.update_z})
+    per_particle("bx/by/bz", v->size(), true);
+  if (I.list.update_x.size() != I.list.update_y.size() ||
+      I.list.update_x.size() != I.list.update_z.size())
+    refuse("bx/by/bz", "have " + std::to_string(I.list.update_x.size()) + ", " +
+                           std::to_string(I.list.update_y.size()) + " and " +
+                           std::to_string(I.list.update_z.size()) +
                            " values: all three one per particle, or all three empty");
-  if (I.vpos.size() != nverts)
-    refuse("vpos", "has " + std::to_string(I.vpos.size() / 3) + " wall vertices, this system " +
-                       std::to_string(nverts / 3) + " (the state of other walls)");
+  if (I.walls.vertex_x.size() != nverts)
+    refuse("vpos", "has " + std::to_string(I.walls.vertex_x.size() / 3) +
+                       " wall vertices, this system " + std::to_string(nverts / 3) +
+                       " (the state of other walls)");
   // the pair rows: a prefix sum over the particles, each row's partners j > i ascending (the
   // order of the list's merge in refilter)
-  const auto& row = I.row;
-  const auto& nbr = I.nbr;
+  const auto& row = I.list.row;
+  const auto& nbr = I.list.partner;
   if (row.size() != n + 1)
     refuse("row", "has " + std::to_string(row.size()) + " values, not particles + 1 (" +
                       std::to_string(n + 1) + ")");
@@ -314,13 +318,13 @@ void check_state_indices(const ImplT& I, std::size_t nverts, const std::string& 
   if (I.slots.shear.size() != 3 * nbr.size())
     refuse("shear", "has " + std::to_string(I.slots.shear.size()) +
                         " values, not 3 per pair of nbr (" + std::to_string(3 * nbr.size()) + ")");
-  const bool walls = !I.tri_wall.empty();
-  for (std::size_t i = 0; i < I.wcount.size(); ++i)
-    if (I.wcount[i] > (walls ? kMaxWallContacts : 0))
-      refuse(entry("wcount", i), "= " + std::to_string(int(I.wcount[i])) +
+  const bool walls = !I.walls.triangle_wall.empty();
+  for (std::size_t i = 0; i < I.wall_contacts.count.size(); ++i)
+    if (I.wall_contacts.count[i] > (walls ? kMaxWallContacts : 0))
+      refuse(entry("wcount", i), "= " + std::to_string(int(I.wall_contacts.count[i])) +
                                      " wall contacts, accepted 0 .. " +
-                           std::to_string(walls ? kMaxWallContacts : 0) +
-                           (walls ? "" : " (this system has no wall triangles)"));
+                                     std::to_string(walls ? kMaxWallContacts : 0) +
+                                     (walls ? "" : " (this system has no wall triangles)"));
 }
 }  // namespace
 
@@ -346,7 +350,7 @@ void restore_pair_caches(ImplT& I, const io::H5File& f, const std::string& g) {
                                                   ": the narrow-phase caches come together)");
   const auto axis = f.read_doubles(g + "sepaxis");
   const auto feat = f.read_int64(g + "features");
-  const std::size_t np = I.nbr.size(), n = I.st.px.size();
+  const std::size_t np = I.list.partner.size(), n = I.st.px.size();
   if (axis.size() != 3 * np)
     refuse("sepaxis", "has " + std::to_string(axis.size()) + " values, not 3 per pair of nbr (" +
                           std::to_string(3 * np) + ")");
@@ -358,15 +362,15 @@ void restore_pair_caches(ImplT& I, const io::H5File& f, const std::string& g) {
     return id < 0 ? 1 : static_cast<std::int64_t>(I.shapes.shape(id).vertices.size() / 3);
   };
   for (std::size_t i = 0; i < n; ++i)
-    for (auto k = static_cast<std::size_t>(I.row[i]); k < static_cast<std::size_t>(I.row[i + 1]);
-         ++k) {
+    for (auto k = static_cast<std::size_t>(I.list.row[i]);
+         k < static_cast<std::size_t>(I.list.row[i + 1]); ++k) {
       const double* a = axis.data() + 3 * k;
       const double a2 = a[0] * a[0] + a[1] * a[1] + a[2] * a[2];
       if (!std::isfinite(a2) || !(a2 == 0.0 || std::abs(a2 - 1.0) < 1e-6))
         refuse("sepaxis[" + std::to_string(3 * k) + " .. " + std::to_string(3 * k + 2) + "]",
                "(pair " + std::to_string(k) + ") is not a unit axis or zero (|a|^2 = " +
                    std::to_string(a2) + ", accepted 0 or 1 +- 1e-6)");
-      const std::size_t j = static_cast<std::size_t>(I.nbr[k]);
+      const std::size_t j = static_cast<std::size_t>(I.list.partner[k]);
       for (int m = 0; m < 6; ++m) {
         const std::size_t owner = m % 2 == 0 ? i : j;
         const std::int64_t nv = vertices(owner), v = feat[6 * k + m];
@@ -389,9 +393,9 @@ void DemSystem::save(io::H5File& f, const std::string& group) const {
   const std::string g = group + "/";
   f.set_attribute(group, "time", I.t);
   f.set_attribute(group, "steps", static_cast<std::int64_t>(I.steps));
-  f.set_attribute(group, "flex_tau", I.flex_tau);
-  f.set_attribute(group, "max_overlap", I.max_ov);
-  f.set_attribute(group, "flex_max_overlap", I.flex_max_ov);
+  f.set_attribute(group, "flex_tau", I.walls.flexible_tau);
+  f.set_attribute(group, "max_overlap", I.max_overlap);
+  f.set_attribute(group, "flex_max_overlap", I.walls.flexible_max_overlap);
   f.set_attribute(group, "format", std::string("demfem-dem-state-1"));
   const PairsWithSprings pairs = pairs_with_springs(I);
   for (const auto& [name, v] : double_arrays(I)) {
@@ -412,10 +416,10 @@ void DemSystem::save(io::H5File& f, const std::string& group) const {
     f.write(g + "sepaxis", std::span<const double>(pairs.axis));
     f.write(g + "features", std::span<const std::int64_t>(pairs.feat));
   }
-  f.write(g + "wkey", std::span<const std::int64_t>(I.wkey));
-  f.write(g + "wcount", std::span<const std::uint8_t>(I.wcount));
-  I.bodies.save(f, g);
-  if (I.force_limited) f.write(g + "wall_drift", std::span<const double>(pack_drift(I)));
+  f.write(g + "wkey", std::span<const std::int64_t>(I.wall_contacts.key));
+  f.write(g + "wcount", std::span<const std::uint8_t>(I.wall_contacts.count));
+  I.walls.bodies.save(f, g);
+  if (I.walls.force_limited) f.write(g + "wall_drift", std::span<const double>(pack_drift(I)));
   if (!I.frozen.empty()) f.write(g + "frozen", std::span<const std::uint8_t>(I.frozen));
   if (I.periodic) {
     f.write(g + "image", std::span<const std::int64_t>(to64(I.image)));
@@ -459,9 +463,9 @@ void DemSystem::save_state(DemStateCopy& c) const {
   const auto& I = *impl_;
   c.time = I.t;
   c.steps = I.steps;
-  c.flex_tau = I.flex_tau;
-  c.max_overlap = I.max_ov;
-  c.flex_max_overlap = I.flex_max_ov;
+  c.flex_tau = I.walls.flexible_tau;
+  c.max_overlap = I.max_overlap;
+  c.flex_max_overlap = I.walls.flexible_max_overlap;
   c.particles = I.n();
   const auto arrays = double_arrays(I);
   c.arrays.resize(arrays.size());
@@ -469,15 +473,15 @@ void DemSystem::save_state(DemStateCopy& c) const {
     if (constant_within_step(arrays[k].first)) continue;
     c.arrays[k].assign(arrays[k].second->begin(), arrays[k].second->end());
   }
-  c.row.assign(I.row.begin(), I.row.end());
-  c.nbr.assign(I.nbr.begin(), I.nbr.end());
+  c.row.assign(I.list.row.begin(), I.list.row.end());
+  c.nbr.assign(I.list.partner.begin(), I.list.partner.end());
   // the narrow phase's warm starts, in the order of nbr as the springs (the rebuild after
   // restore_state() carries both over)
   c.axis = I.slots.separating_axis;
   c.features = I.slots.closest_features;
-  c.wkey.assign(I.wkey.begin(), I.wkey.end());
-  c.wcount.assign(I.wcount.begin(), I.wcount.end());
-  c.bodies = I.bodies.pack();
+  c.wkey.assign(I.wall_contacts.key.begin(), I.wall_contacts.key.end());
+  c.wcount.assign(I.wall_contacts.count.begin(), I.wall_contacts.count.end());
+  c.bodies = I.walls.bodies.pack();
   c.drift = pack_drift(I);
   c.frozen = I.frozen;
   c.image = I.image;
@@ -493,21 +497,21 @@ void DemSystem::restore_state(const DemStateCopy& c) {
   }
   I.t = c.time;
   I.steps = c.steps;
-  I.flex_tau = c.flex_tau;
-  I.max_ov = c.max_overlap;
-  I.flex_max_ov = c.flex_max_overlap;
+  I.walls.flexible_tau = c.flex_tau;
+  I.max_overlap = c.max_overlap;
+  I.walls.flexible_max_overlap = c.flex_max_overlap;
   const auto arrays = double_arrays(I);
   for (std::size_t k = 0; k < arrays.size(); ++k) {
     if (constant_within_step(arrays[k].first)) continue;
     arrays[k].second->assign(c.arrays[k].begin(), c.arrays[k].end());
   }
-  I.row.assign(c.row.begin(), c.row.end());
-  I.nbr.assign(c.nbr.begin(), c.nbr.end());
+  I.list.row.assign(c.row.begin(), c.row.end());
+  I.list.partner.assign(c.nbr.begin(), c.nbr.end());
   I.slots.separating_axis = c.axis;
   I.slots.closest_features = c.features;
-  I.wkey.assign(c.wkey.begin(), c.wkey.end());
-  I.wcount.assign(c.wcount.begin(), c.wcount.end());
-  if (!I.bodies.unpack(c.bodies))
+  I.wall_contacts.key.assign(c.wkey.begin(), c.wkey.end());
+  I.wall_contacts.count.assign(c.wcount.begin(), c.wcount.end());
+  if (!I.walls.bodies.unpack(c.bodies))
     throw std::logic_error(
         "DemSystem::restore_state: the state copy holds another number of "
         "rigid bodies");
@@ -516,9 +520,9 @@ void DemSystem::restore_state(const DemStateCopy& c) {
   I.image = c.image;
   I.refresh_frozen();
   // As restore(): the list is rebuilt from the restored positions and springs.
-  I.bx.clear(), I.by.clear(), I.bz.clear();
+  I.list.update_x.clear(), I.list.update_y.clear(), I.list.update_z.clear();
   I.refresh_particle_derived();
-  I.need_rebuild = true;
+  I.list.must_build = true;
 }
 
 void DemSystem::restore(const io::H5File& f, const std::string& group) {
@@ -526,13 +530,13 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   auto& st = I.st;
   const std::string g = group + "/";
   if (!f.exists(group)) bad("restore: group '" + group + "' not found in " + f.path().string());
-  const std::size_t nwalls = I.walls.size();
-  const std::size_t nverts = I.vpos.size();
+  const std::size_t nwalls = I.walls.rigid.size();
+  const std::size_t nverts = I.walls.vertex_x.size();
   I.t = f.attribute_double(group, "time");
   I.steps = f.attribute_int64(group, "steps");
-  I.flex_tau = f.attribute_double(group, "flex_tau");
-  I.max_ov = f.attribute_double(group, "max_overlap");
-  I.flex_max_ov = f.attribute_double(group, "flex_max_overlap");
+  I.walls.flexible_tau = f.attribute_double(group, "flex_tau");
+  I.max_overlap = f.attribute_double(group, "max_overlap");
+  I.walls.flexible_max_overlap = f.attribute_double(group, "flex_max_overlap");
   for (const auto& [name, v] : double_arrays(I)) {
     // the rolling histories are absent in states written before the rolling spring model:
     // they then start at zero (checked against the pair list below)
@@ -552,21 +556,21 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   restore_shapes(I.shapes, f, g);
   st.material = from64<std::int32_t>(f.read_int64(g + "material"));
   st.shape = f.read_uint8(g + "shape");
-  I.row = f.read_int64(g + "row");
-  I.nbr = from64<std::int32_t>(f.read_int64(g + "nbr"));
-  I.wkey = f.read_int64(g + "wkey");
-  I.wcount = f.read_uint8(g + "wcount");
+  I.list.row = f.read_int64(g + "row");
+  I.list.partner = from64<std::int32_t>(f.read_int64(g + "nbr"));
+  I.wall_contacts.key = f.read_int64(g + "wkey");
+  I.wall_contacts.count = f.read_uint8(g + "wcount");
   try {
-    I.bodies.restore(f, g);
+    I.walls.bodies.restore(f, g);
   } catch (const std::invalid_argument& e) {
     bad(std::string("restore: ") + e.what());
   }
-  if (I.row.empty()) I.row.assign(st.px.size() + 1, 0);  // saved before the first step
+  if (I.list.row.empty()) I.list.row.assign(st.px.size() + 1, 0);  // saved before the first step
   check_state_indices(I, nverts, f.path().string() + ":/" + g);
   // force-limited walls: their drift as saved (a state of another scene's walls, or of one
   // without such walls, leaves them at their start)
-  I.reset_drift();
-  if (I.force_limited && f.exists(g + "wall_drift")) {
+  I.walls.reset_drift();
+  if (I.walls.force_limited && f.exists(g + "wall_drift")) {
     const auto d = f.read_doubles(g + "wall_drift");
     if (d.size() != 2 * nwalls)
       bad("restore: wall_drift in '" + group + "' of " + f.path().string() + " has " +
@@ -592,10 +596,11 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
   if (I.gpu && std::find(I.frozen.begin(), I.frozen.end(), std::uint8_t{1}) != I.frozen.end())
     bad("restore: '" + group + "' of " + f.path().string() +
         " holds frozen particles, which the CPU backend only holds (dem.backend = \"cpu\")");
-  if (I.vpos.size() != (I.vbuild.size()) || (nwalls > 0 && I.vpos.size() < 3))
+  if (I.walls.vertex_x.size() != (I.walls.vertex_x_at_build.size()) ||
+      (nwalls > 0 && I.walls.vertex_x.size() < 3))
     bad("restore: wall vertex data in '" + group + "' does not match the walls of this system");
   for (std::size_t i = 0; i < n; ++i)
-    if (st.material[i] < 0 || static_cast<std::size_t>(st.material[i]) >= I.nmat)
+    if (st.material[i] < 0 || static_cast<std::size_t>(st.material[i]) >= I.material_count)
       bad("restore: particle material index out of range in '" + group + "'");
   if (st.shape_id.size() != n || st.scale.size() != n || st.ix.size() != n || st.iy.size() != n ||
       st.iz.size() != n)
@@ -626,35 +631,37 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
             f.path().string() + " is not a unit quaternion (|q|^2 = " + std::to_string(q2) +
             ", accepted 1 +- 1e-6)");
     }
-  I.wf.assign(3 * kMaxWallContacts * n, 0.0), I.wp.assign(3 * kMaxWallContacts * n, 0.0),
-      I.wb.assign(3 * kMaxWallContacts * n, 0.0), I.wtri.assign(kMaxWallContacts * n, 0);
+  auto& wc = I.wall_contacts;
+  wc.force.assign(3 * kMaxWallContacts * n, 0.0), wc.point.assign(3 * kMaxWallContacts * n, 0.0),
+      wc.weights.assign(3 * kMaxWallContacts * n, 0.0), wc.triangle.assign(kMaxWallContacts * n, 0);
   I.refresh_particle_derived();
   // The neighbour list is rebuilt from the restored positions; the restored rows carry the
   // springs. Forces of the pairs do not depend on which non-touching pairs the list holds,
   // so the continuation is bitwise identical to an uninterrupted run.
   if (!I.rolling) {
-    I.slots.rolling_history.clear(), I.wroll.clear();
+    I.slots.rolling_history.clear(), wc.rolling_history.clear();
   } else {
-    if (I.slots.rolling_history.empty()) I.slots.rolling_history.assign(3 * I.nbr.size(), 0.0);
-    if (I.wroll.empty()) I.wroll.assign(3 * kMaxWallContacts * n, 0.0);
-    if (I.slots.rolling_history.size() != 3 * I.nbr.size() ||
-        I.wroll.size() != 3 * kMaxWallContacts * n)
+    if (I.slots.rolling_history.empty())
+      I.slots.rolling_history.assign(3 * I.list.partner.size(), 0.0);
+    if (wc.rolling_history.empty()) wc.rolling_history.assign(3 * kMaxWallContacts * n, 0.0);
+    if (I.slots.rolling_history.size() != 3 * I.list.partner.size() ||
+        wc.rolling_history.size() != 3 * kMaxWallContacts * n)
       bad("restore: rolling history sizes in '" + group + "' of " + f.path().string() +
           " do not match the pair list and particles");
   }
-  if (I.wcount.size() != n || I.wkey.size() != kMaxWallContacts * n ||
-      I.wshear.size() != 3 * kMaxWallContacts * n || I.row.size() != n + 1)
+  if (wc.count.size() != n || wc.key.size() != kMaxWallContacts * n ||
+      wc.shear.size() != 3 * kMaxWallContacts * n || I.list.row.size() != n + 1)
     bad("restore: inconsistent array sizes in '" + group + "' of " + f.path().string());
   I.refresh_frozen();  // held at their saved poses
-  I.need_rebuild = true;
+  I.list.must_build = true;
 }
 
 void DemSystem::reset_clock() {
   auto& I = *impl_;
   I.t = 0.0;
   I.steps = 0;
-  I.reset_drift();  // the walls' motions start again
-  I.update_walls(I.t, I.flex_tau);
+  I.walls.reset_drift();  // the walls' motions start again
+  I.walls.update(I.t, I.walls.flexible_tau);
 }
 
 }  // namespace demfem::dem

@@ -136,11 +136,12 @@ void DemSystem::Impl::forces_and_kick() {
   a.view = phys::ParticleView{st.px.data(), st.py.data(),     st.pz.data(),  st.vx.data(),
                               st.vy.data(), st.vz.data(),     st.wx.data(),  st.wy.data(),
                               st.wz.data(), st.radius.data(), st.mass.data()};
-  a.pi = pown.data();
-  a.pj = nbr.data();
+  a.pi = list.owner.data();
+  a.pj = list.partner.data();
   a.mat = st.material.data();
-  a.pc = uniform_mat >= 0 ? pc.data() + uniform_mat * (nmat + 1) : pc.data();
-  a.nmat = nmat;
+  a.pc =
+      uniform_mat >= 0 ? pair_table.data() + uniform_mat * (material_count + 1) : pair_table.data();
+  a.nmat = material_count;
   a.dt = s.dt;
   a.shear = slots.shear.data();
   a.pf = slots.force.data();
@@ -149,7 +150,7 @@ void DemSystem::Impl::forces_and_kick() {
   a.rhist = slots.rolling_history.data();
   a.box = periodic ? &pbox : nullptr;
   // a periodic system's kernels look the pair constants up per pair (a.pc the whole table)
-  if (periodic) a.pc = pc.data();
+  if (periodic) a.pc = pair_table.data();
   const PairKernel kern =
       pick_pair_kernel(Friction, Friction && rolling, uniform_mat >= 0, periodic);
   detail::PolyParticles pp{};
@@ -158,21 +159,21 @@ void DemSystem::Impl::forces_and_kick() {
     pp = poly_particles(a.view);
     // the separation proofs of the last pass hold when it was this step's predecessor and
     // the list has not been updated since (a build or refilter renumbers the pairs)
-    const bool proven = proofs.step == steps && steps_at_update < steps &&
-                        proofs.separation_left.size() == nbr.size() &&
+    const bool proven = proofs.step == steps && list.steps_at_update < steps &&
+                        proofs.separation_left.size() == list.pairs() &&
                         proofs.rotation.size() == 9 * n() && proofs.position.size() == 3 * n();
-    if (!proven) proofs.separation_left.assign(nbr.size(), -1.0);
+    if (!proven) proofs.separation_left.assign(list.pairs(), -1.0);
     proofs.rotation.resize(9 * n());
     proofs.position.resize(3 * n());
     proofs.core_motion.resize(n());
     detail::poly_rotations(pp, proofs.rotation.data(), proofs.position.data(),
                            proofs.core_motion.data(), sn, nt());
     pp.rot = proofs.rotation.data();
-    pa = detail::PolyPairs{pown.data(),
-                           nbr.data(),
+    pa = detail::PolyPairs{list.owner.data(),
+                           list.partner.data(),
                            st.material.data(),
-                           pc.data(),
-                           nmat,
+                           pair_table.data(),
+                           material_count,
                            s.dt,
                            Friction,
                            rolling,
@@ -191,7 +192,7 @@ void DemSystem::Impl::forces_and_kick() {
 
   const double g[3] = {s.gravity[0], s.gravity[1], s.gravity[2]};
   const phys::MotionArrays motion = motion_arrays();
-  const bool walls_on = !tri_v.empty();
+  const bool walls_on = !walls.empty();
   const phys::WallView wv = wall_view();
   const phys::ParticleView& view = a.view;
   const double* PF = slots.force.data();
@@ -205,9 +206,9 @@ void DemSystem::Impl::forces_and_kick() {
     const double ri = st.radius[i];
     // own row (pairs i < j) in row order, then the transposed pairs (j < i) in order
     // x + (-1 y) is x - y exactly: the sums are those of a loop over each part
-    for (std::int64_t k = gather_row[i]; k < gather_row[i + 1]; ++k) {
-      const std::int64_t p = gather_pair[k];
-      const double sg = gather_sign[k];
+    for (std::int64_t k = list.gather_row[i]; k < list.gather_row[i + 1]; ++k) {
+      const std::int64_t p = list.gather_pair[k];
+      const double sg = list.gather_sign[k];
       fx += sg * PF[3 * p], fy += sg * PF[3 * p + 1], fz += sg * PF[3 * p + 2];
       if constexpr (Poly) {
         const double* T = sg > 0.0 ? PT : PTJ;
@@ -222,12 +223,12 @@ void DemSystem::Impl::forces_and_kick() {
       double wmo = 0.0;  // this particle's deepest wall contact
       double rc = ri;    // and its contact radius
       if (Poly && st.shape_id[i] >= 0) {
-        detail::poly_wall_contacts(pp, wv, i, pc.data() + st.material[i] * nmat, s.dt, Friction, f,
-                                   q, wmo, fmo);
+        detail::poly_wall_contacts(pp, wv, i, pair_table.data() + st.material[i] * material_count,
+                                   s.dt, Friction, f, q, wmo, fmo);
         rc = phys::particle_contact_radius(pp, static_cast<int>(i));
       } else {
-        wall_contacts_apart<Friction>(view, wv, i, pc.data() + st.material[i] * nmat, s.dt, f, q,
-                                      wmo, fmo);
+        wall_contacts_apart<Friction>(
+            view, wv, i, pair_table.data() + st.material[i] * material_count, s.dt, f, q, wmo, fmo);
       }
       mo = std::max(mo, wmo);
       mr = std::max(mr, phys::relative_overlap(wmo, rc, rc));
@@ -241,7 +242,7 @@ void DemSystem::Impl::forces_and_kick() {
   constexpr std::int64_t kBlock = 256;  // particles per block: ~1500 pairs, ~150 kB of slots
   const int T = nt();
   balance.ensure(T, sn);
-  for (auto& list : balance.waiting) list.clear();
+  for (auto& queue : balance.waiting) queue.clear();
   double mo = 0.0, mr = 0.0, fmo = 0.0;
   int active = T;
 #pragma omp parallel num_threads(T) reduction(max : mo, mr, fmo)
@@ -252,15 +253,17 @@ void DemSystem::Impl::forces_and_kick() {
     const double start = omp_get_wtime();
     const std::int64_t lo = nth == T ? balance.split[k] : sn * k / nth;
     const std::int64_t hi = nth == T ? balance.split[k + 1] : sn * (k + 1) / nth;
-    auto waits = [&](std::int64_t i) { return trow[i] < trow[i + 1] && tsrc[trow[i]] < lo; };
+    const std::int64_t* trow = list.transposed_row.data();
+    const std::int32_t* towner = list.transposed_owner.data();
+    auto waits = [&](std::int64_t i) { return trow[i] < trow[i + 1] && towner[trow[i]] < lo; };
     std::vector<std::int64_t>& waiting = balance.waiting[k];
     for (std::int64_t b0 = lo; b0 < hi; b0 += kBlock) {
       const std::int64_t b1 = std::min(hi, b0 + kBlock);
       const OverlapMax m = [&] {
         if constexpr (Poly)
-          return detail::poly_pair_forces(pp, pa, row[b0], row[b1]);
+          return detail::poly_pair_forces(pp, pa, list.row[b0], list.row[b1]);
         else
-          return kern(a, row[b0], row[b1]);
+          return kern(a, list.row[b0], list.row[b1]);
       }();
       mo = std::max(mo, m.abs), mr = std::max(mr, m.rel);
       for (std::int64_t i = b0; i < b1; ++i)
@@ -273,23 +276,23 @@ void DemSystem::Impl::forces_and_kick() {
 #pragma omp barrier
     // the waiting particles of all threads, shared out evenly (each gather is independent)
     std::int64_t total = 0;
-    for (const auto& list : balance.waiting) total += static_cast<std::int64_t>(list.size());
+    for (const auto& queue : balance.waiting) total += static_cast<std::int64_t>(queue.size());
     const std::int64_t w0 = total * k / nth, w1 = total * (k + 1) / nth;
     std::int64_t base = 0;
     for (std::size_t th = 0; th < balance.waiting.size() && base < w1; ++th) {
-      const auto& list = balance.waiting[th];
-      const std::int64_t len = static_cast<std::int64_t>(list.size());
+      const auto& queue = balance.waiting[th];
+      const std::int64_t len = static_cast<std::int64_t>(queue.size());
       for (std::int64_t m = std::max(w0, base); m < std::min(w1, base + len); ++m)
-        gather(list[m - base], mo, mr, fmo);
+        gather(queue[m - base], mo, mr, fmo);
       base += len;
     }
   }
   if (active == T) balance.adapt();
   if constexpr (Poly) proofs.step = steps + 1;
-  max_ov = mo;
-  adv_max_ov = std::max(adv_max_ov, mo);
-  adv_max_rel = std::max(adv_max_rel, mr);
-  flex_max_ov = std::max(flex_max_ov, fmo);
+  max_overlap = mo;
+  advance_max_overlap = std::max(advance_max_overlap, mo);
+  advance_max_relative_overlap = std::max(advance_max_relative_overlap, mr);
+  walls.flexible_max_overlap = std::max(walls.flexible_max_overlap, fmo);
 }
 
 detail::PolyParticles DemSystem::Impl::poly_particles(const phys::ParticleView& view) const {
@@ -337,24 +340,37 @@ phys::MotionArrays DemSystem::Impl::motion_arrays() {
 }
 
 double DemSystem::Impl::poly_kick_drift() {
-  const bool have_build = bx.size() == n();
+  const bool have_build = list.has_update_positions(n());
   detail::PolyDrift d{static_cast<std::int64_t>(n()),
                       s.dt,
                       nt(),
                       motion_arrays(),
-                      have_build ? bx.data() : nullptr,
-                      have_build ? by.data() : nullptr,
-                      have_build ? bz.data() : nullptr};
+                      have_build ? list.update_x.data() : nullptr,
+                      have_build ? list.update_y.data() : nullptr,
+                      have_build ? list.update_z.data() : nullptr};
   d.frozen = frozen_idx.empty() ? nullptr : frozen.data();
   return detail::poly_kick_drift(d);
 }
 
 phys::WallView DemSystem::Impl::wall_view() {
-  phys::WallView v{vpos.data(),     vvel.data(), tri_v.data(), tri_e.data(), tri_mat.data(),
-                   tri_wall.data(), prow.data(), ptri.data(),  wkey.data(),  wshear.data(),
-                   wf.data(),       wp.data(),   wb.data(),    wtri.data(),  wcount.data()};
-  v.wroll = rolling ? wroll.data() : nullptr;
-  if (walls_moving && !wall_motions.empty()) v.motion = wall_motions.data(), v.time = t;
+  detail::WallContactSlots& wc = wall_contacts;
+  phys::WallView v{walls.vertex_x.data(),
+                   walls.vertex_v.data(),
+                   walls.triangle_vertices.data(),
+                   walls.triangle_edges.data(),
+                   walls.triangle_material.data(),
+                   walls.triangle_wall.data(),
+                   walls.candidate_row.data(),
+                   walls.candidate_triangle.data(),
+                   wc.key.data(),
+                   wc.shear.data(),
+                   wc.force.data(),
+                   wc.point.data(),
+                   wc.weights.data(),
+                   wc.triangle.data(),
+                   wc.count.data()};
+  v.wroll = rolling ? wc.rolling_history.data() : nullptr;
+  if (walls.moving && !walls.motions.empty()) v.motion = walls.motions.data(), v.time = t;
   return v;
 }
 
@@ -364,10 +380,10 @@ double DemSystem::Impl::kick_drift() {
   const std::int64_t sn = static_cast<std::int64_t>(n());
   const double dt = s.dt, h = 0.5 * s.dt;
   double m2 = 0.0, w2max = 0.0;
-  const bool have_build = bx.size() == n();
+  const bool have_build = list.has_update_positions(n());
   const phys::MotionArrays m = motion_arrays();
   const double *Tx = tx.data(), *Ty = ty.data(), *Tz = tz.data();
-  const double *Bx = bx.data(), *By = by.data(), *Bz = bz.data();
+  const double *Bx = list.update_x.data(), *By = list.update_y.data(), *Bz = list.update_z.data();
   const double *wx = st.wx.data(), *wy = st.wy.data(), *wz = st.wz.data();
   // phys::kick_drift less the turn, which a second loop gives below
 #pragma omp parallel for simd num_threads(nt()) schedule(static) reduction(max : m2, w2max)
@@ -420,46 +436,67 @@ void DemSystem::Impl::hold_frozen() {
   }
 }
 
+void DemSystem::Impl::rebuild() {
+  list.build(list_particles(), rmax);
+  list.adapt_inner_skin(steps, fixed_inner_skin(), true);
+  // triangles: binned into the particle cells their AABB (grown by rmax + skin) touches
+  walls.bin_triangles(list.grid, list.cell, list_particles(), rmax, list.skin);
+  walls.vertex_x_at_build = walls.vertex_x;
+  list.must_build = false;
+  refilter();
+}
+
+void DemSystem::Impl::refilter() {
+  list.refilter(list_particles(), slots, detail::CarriedHistory{friction, rolling, poly});
+  index_list();
+}
+
+void DemSystem::Impl::index_list() {
+  const std::size_t np = n(), npair = list.pairs();
+  list.index(np, nt());
+  uniform_mat = np > 0 ? st.material[0] : -1;
+  for (std::size_t i = 0; i < np && uniform_mat >= 0; ++i)
+    if (st.material[i] != uniform_mat) uniform_mat = -1;
+  slots.force.assign(3 * npair, 0.0);
+  if (friction || poly)
+    slots.torque.assign(3 * npair, 0.0);
+  else
+    slots.torque.clear();
+  if (poly)
+    slots.torque_j.assign(3 * npair, 0.0);
+  else
+    slots.torque_j.clear();
+  if (rolling)
+    slots.rolling_torque.assign(3 * npair, 0.0);
+  else
+    slots.rolling_torque.clear();
+}
+
 template <bool Friction>
 void DemSystem::Impl::step(bool last, ForceMode mode, std::int64_t substeps) {
   const double t0 = omp_get_wtime();
   const double disp = kick_drift<Friction>();
   if (!frozen_idx.empty()) hold_frozen();
-  if (periodic && wrap_positions() && !tri_v.empty()) need_rebuild = true;
-  if (!bodies.empty()) bodies.kick_drift(s.dt);
+  if (periodic && wrap_positions() && !walls.empty()) list.must_build = true;
+  if (!walls.bodies.empty()) walls.bodies.kick_drift(s.dt);
   t += s.dt;
-  flex_tau += s.dt;
-  if (force_limited) advance_drift(t);
+  walls.flexible_tau += s.dt;
+  if (walls.force_limited) walls.advance_drift(t, s.dt);
   double wdisp = 0.0;
-  if (walls_moving) {
-    update_walls(t, flex_tau);
-    wdisp = wall_displacement();
+  if (walls.moving) {
+    walls.update(t, walls.flexible_tau);
+    wdisp = walls.displacement();
   }
   const double t1 = omp_get_wtime();
-  // Build when the candidates may miss a pair that comes within skin_in (d_i + d_j since
-  // the build > skin - skin_in) or a wall; refilter when a pair outside the list may touch
-  // (d_i + d_j since the last update > skin_in). d_i + d_j is bounded by twice the largest
-  // displacement, and when that bound calls for an update, by the sum of the two largest
-  // (a pass over the particles): a few fast spheres in a resting bed then use the whole
-  // skin before they call for a build, instead of half of it.
-  const double dbuild = out_disp + disp;  // |x - x_build| <= sum of the refilter intervals
-  const phys::ListRule rule{skin, skin_in, out_pair};
-  double pdisp = 2.0 * disp;
-  if (!need_rebuild && disp < 1e300 &&
-      (rule.build_by_pairs(pdisp) || rule.refilter_by_pairs(pdisp)))
-    pdisp = two_largest_displacements();
-  const double pbuild = out_pair + pdisp;  // d_i + d_j since the build, any pair
-  // (one level: no refilter has added to out_disp since the build, so dbuild = disp)
-  if (need_rebuild || rule.build_by_pairs(pdisp) || rule.build_by_walls(dbuild, wdisp)) {
-    rebuild();
-  } else if (rule.refilter_by_pairs(pdisp)) {
-    if (adapt_inner_skin(false, pbuild)) {
-      out_disp += disp;
-      out_pair += pdisp;
-      refilter();
-    } else {
+  switch (list.next_update(list_particles(), disp, wdisp, steps, fixed_inner_skin())) {
+    case detail::NeighbourList::Update::build:
       rebuild();
-    }
+      break;
+    case detail::NeighbourList::Update::refilter:
+      refilter();
+      break;
+    case detail::NeighbourList::Update::none:
+      break;
   }
   const double t2 = omp_get_wtime();
   if (poly)
@@ -471,14 +508,14 @@ void DemSystem::Impl::step(bool last, ForceMode mode, std::int64_t substeps) {
   // flexible mesh's node forces are summed every substep when they are averaged, and the
   // rigid bodies' loads every substep (they move by them), and so the loads of force-limited
   // walls (their drift goes on by them).
-  if (!tri_v.empty() &&
-      (last || (has_flex && mode == ForceMode::average) || !bodies.empty() || force_limited))
-    wall_reduce(last, mode, substeps);
-  if (force_limited) decide_drift();
-  if (!bodies.empty()) {
-    for (const auto& w : walls)
-      if (w.body >= 0) bodies.set_loads(w.body, w.force, w.torque);
-    bodies.kick(s.dt);
+  if (!walls.empty() && (last || (walls.has_flexible && mode == ForceMode::average) ||
+                         !walls.bodies.empty() || walls.force_limited))
+    walls.reduce(wall_contacts, n(), last, mode, substeps);
+  if (walls.force_limited) walls.decide_drift();
+  if (!walls.bodies.empty()) {
+    for (const auto& w : walls.rigid)
+      if (w.body >= 0) walls.bodies.set_loads(w.body, w.force, w.torque);
+    walls.bodies.kick(s.dt);
   }
   ++steps;
   const double t3 = omp_get_wtime();

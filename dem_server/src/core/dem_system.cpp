@@ -93,15 +93,15 @@ MaterialPair::PolyLaw poly_law_from_name(const std::string& name) {
 }
 
 void DemSystem::Impl::setup_pairs() {
-  nmat = s.materials.size();
-  pc.resize(nmat * nmat);
+  material_count = s.materials.size();
+  pair_table.resize(material_count * material_count);
   friction = rolling = false;
-  for (std::size_t a = 0; a < nmat; ++a)
-    for (std::size_t b = 0; b < nmat; ++b) {
+  for (std::size_t a = 0; a < material_count; ++a)
+    for (std::size_t b = 0; b < material_count; ++b) {
       const auto& ma = s.materials[a];
       const auto& mb = s.materials[b];
-      const auto& p = s.pairs[a * nmat + b];
-      pc[a * nmat + b] = phys::pair_constants(
+      const auto& p = s.pairs[a * material_count + b];
+      pair_table[a * material_count + b] = phys::pair_constants(
           ma.youngs_modulus, ma.poisson_ratio, mb.youngs_modulus, mb.poisson_ratio, p.restitution,
           p.friction, p.rolling_friction, p.rocking_damping,
           p.poly_law == MaterialPair::PolyLaw::smooth ? phys::kLawSmooth
@@ -114,7 +114,7 @@ void DemSystem::Impl::setup_pairs() {
 void DemSystem::Impl::refresh_particle_derived() {
   rmax = 0.0;
   for (double r : st.radius) rmax = std::max(rmax, r);
-  skin = s.skin > 0.0 ? s.skin : 0.2 * rmax;
+  list.skin = s.skin > 0.0 ? s.skin : 0.2 * rmax;
   orientation = s.track_orientation;
   poly_count = 0;
   for (std::uint8_t shape : st.shape)
@@ -122,7 +122,10 @@ void DemSystem::Impl::refresh_particle_derived() {
   poly = poly_count > 0;
   orientation = orientation || poly;
   // The CUDA backend checks the list against the whole skin on the device: one level.
-  skin_in = gpu != nullptr ? skin : (s.list_skin > 0.0 ? s.list_skin : kInnerSkin) * skin;
+  list.inner_skin =
+      gpu != nullptr
+          ? list.skin
+          : (s.list_skin > 0.0 ? s.list_skin : detail::NeighbourList::kInnerSkin) * list.skin;
 }
 
 // =========================================================================================
@@ -180,9 +183,9 @@ std::size_t DemSystem::add_particles(std::span<const ParticleInit> particles) {
       bad(where + " has a non-finite position, velocity or angular velocity");
     if (p.shape == ParticleShape::sphere && (!(p.radius > 0.0) || !std::isfinite(p.radius)))
       bad(where + ".radius = " + std::to_string(p.radius) + " must be > 0 m");
-    if (p.material < 0 || static_cast<std::size_t>(p.material) >= I.nmat)
+    if (p.material < 0 || static_cast<std::size_t>(p.material) >= I.material_count)
       bad(where + ".material = " + std::to_string(p.material) + " outside [0, " +
-          std::to_string(I.nmat) + ")");
+          std::to_string(I.material_count) + ")");
     if (!(I.s.materials[p.material].density > 0.0))
       bad(where + ": material '" + I.s.materials[p.material].name +
           "' has density 0 (particles need a density > 0)");
@@ -244,19 +247,20 @@ std::size_t DemSystem::add_particles(std::span<const ParticleInit> particles) {
     I.tx.push_back(0), I.ty.push_back(0), I.tz.push_back(0);
   }
   const std::size_t n = st.size();
-  I.wkey.resize(kMaxWallContacts * n, -1);
-  I.wshear.resize(3 * kMaxWallContacts * n, 0.0);
-  if (I.rolling) I.wroll.resize(3 * kMaxWallContacts * n, 0.0);
-  I.wf.resize(3 * kMaxWallContacts * n), I.wp.resize(3 * kMaxWallContacts * n),
-      I.wb.resize(3 * kMaxWallContacts * n), I.wtri.resize(kMaxWallContacts * n);
-  I.wcount.resize(n, 0);
+  auto& wc = I.wall_contacts;
+  wc.key.resize(kMaxWallContacts * n, -1);
+  wc.shear.resize(3 * kMaxWallContacts * n, 0.0);
+  if (I.rolling) wc.rolling_history.resize(3 * kMaxWallContacts * n, 0.0);
+  wc.force.resize(3 * kMaxWallContacts * n), wc.point.resize(3 * kMaxWallContacts * n),
+      wc.weights.resize(3 * kMaxWallContacts * n), wc.triangle.resize(kMaxWallContacts * n);
+  wc.count.resize(n, 0);
   if (!I.frozen.empty()) I.frozen.resize(n, 0);
   if (I.periodic) I.image.resize(3 * n, 0);
   // keep the pair rows of the old particles (new ones have none yet)
-  if (!I.row.empty()) I.row.resize(n + 1, I.row.back());
-  I.bx.clear();
+  if (!I.list.row.empty()) I.list.row.resize(n + 1, I.list.row.back());
+  I.list.update_x.clear();
   I.refresh_particle_derived();
-  I.need_rebuild = true;
+  I.list.must_build = true;
   return first;
 }
 
@@ -280,16 +284,16 @@ void DemSystem::remove_particles(std::span<const std::uint8_t> keep) {
     v.resize(stride * o);
   };
   // pair rows: renumber, drop pairs with a removed particle (order i < j is kept)
-  if (I.row.size() == n + 1) {
+  if (I.list.row.size() == n + 1) {
     std::vector<std::int64_t> nrow(static_cast<std::size_t>(m) + 1, 0);
     std::vector<std::int32_t> nnbr;
     std::vector<double> nsh, nrh, nax;
     std::vector<std::int32_t> nft;
     for (std::size_t i = 0; i < n; ++i) {
       if (!keep[i]) continue;
-      for (std::int64_t p = I.row[i]; p < I.row[i + 1]; ++p) {
-        if (map[I.nbr[p]] < 0) continue;
-        nnbr.push_back(map[I.nbr[p]]);
+      for (std::int64_t p = I.list.row[i]; p < I.list.row[i + 1]; ++p) {
+        if (map[I.list.partner[p]] < 0) continue;
+        nnbr.push_back(map[I.list.partner[p]]);
         if (!I.slots.shear.empty())
           for (int d = 0; d < 3; ++d) nsh.push_back(I.slots.shear[3 * p + d]);
         if (!I.slots.rolling_history.empty())
@@ -301,7 +305,8 @@ void DemSystem::remove_particles(std::span<const std::uint8_t> keep) {
       }
       nrow[map[i] + 1] = static_cast<std::int64_t>(nnbr.size());
     }
-    I.row.swap(nrow), I.nbr.swap(nnbr), I.slots.shear.swap(nsh), I.slots.rolling_history.swap(nrh);
+    I.list.row.swap(nrow), I.list.partner.swap(nnbr), I.slots.shear.swap(nsh),
+        I.slots.rolling_history.swap(nrh);
     I.slots.separating_axis.swap(nax);
     I.slots.closest_features.swap(nft);
   }
@@ -314,17 +319,18 @@ void DemSystem::remove_particles(std::span<const std::uint8_t> keep) {
   compact(st.material, 1);
   compact(st.shape, 1);
   compact(st.shape_id, 1);
-  compact(I.wkey, kMaxWallContacts), compact(I.wshear, 3 * kMaxWallContacts);
-  if (!I.wroll.empty()) compact(I.wroll, 3 * kMaxWallContacts);
-  compact(I.wf, 3 * kMaxWallContacts), compact(I.wp, 3 * kMaxWallContacts),
-      compact(I.wb, 3 * kMaxWallContacts), compact(I.wtri, kMaxWallContacts);
-  compact(I.wcount, 1);
+  auto& wc = I.wall_contacts;
+  compact(wc.key, kMaxWallContacts), compact(wc.shear, 3 * kMaxWallContacts);
+  if (!wc.rolling_history.empty()) compact(wc.rolling_history, 3 * kMaxWallContacts);
+  compact(wc.force, 3 * kMaxWallContacts), compact(wc.point, 3 * kMaxWallContacts),
+      compact(wc.weights, 3 * kMaxWallContacts), compact(wc.triangle, kMaxWallContacts);
+  compact(wc.count, 1);
   if (!I.frozen.empty()) compact(I.frozen, 1);
   if (!I.image.empty()) compact(I.image, 3);
   I.refresh_frozen();
-  I.bx.clear();
+  I.list.update_x.clear();
   I.refresh_particle_derived();
-  I.need_rebuild = true;
+  I.list.must_build = true;
 }
 
 const ParticleState& DemSystem::particles() const {
@@ -338,15 +344,15 @@ void DemSystem::advance(std::int64_t substeps, ForceMode mode) {
   auto& I = *impl_;
   if (substeps < 0) bad("advance: substeps = " + std::to_string(substeps) + " must be >= 0");
   if (substeps == 0) return;
-  I.adv_max_ov = 0.0;
-  I.adv_max_rel = 0.0;
+  I.advance_max_overlap = 0.0;
+  I.advance_max_relative_overlap = 0.0;
   if (I.gpu) {
     I.advance_gpu(substeps, mode);
     return;
   }
-  if (I.has_flex) {
-    std::fill(I.flex_force.begin(), I.flex_force.end(), 0.0);
-    I.flex_max_ov = 0.0;
+  if (I.walls.has_flexible) {
+    std::fill(I.walls.flexible_force.begin(), I.walls.flexible_force.end(), 0.0);
+    I.walls.flexible_max_overlap = 0.0;
   }
   if (I.periodic) I.check_periods();
   for (std::int64_t k = 0; k < substeps; ++k) {
@@ -364,10 +370,10 @@ void DemSystem::set_cancel_flag(const std::atomic<bool>* flag) {
 }
 
 double DemSystem::advance_max_overlap() const {
-  return impl_->adv_max_ov;
+  return impl_->advance_max_overlap;
 }
 double DemSystem::advance_max_relative_overlap() const {
-  return impl_->adv_max_rel;
+  return impl_->advance_max_relative_overlap;
 }
 double DemSystem::time() const {
   return impl_->t;
@@ -453,7 +459,7 @@ std::array<double, 3> DemSystem::frozen_support() const {
 }
 
 double DemSystem::max_overlap() const {
-  return impl_->max_ov;
+  return impl_->max_overlap;
 }
 
 DemSystem::Timings DemSystem::timings() const {
@@ -462,18 +468,20 @@ DemSystem::Timings DemSystem::timings() const {
 
 // Internal diagnostics for the benchmark and tests (declared in dem_system.hpp).
 std::int64_t DemSystem::neighbour_rebuilds() const {
-  return impl_->rebuilds;
+  return impl_->list.builds;
 }
 std::int64_t DemSystem::neighbour_refilters() const {
-  return impl_->refilters;
+  return impl_->list.refilters;
 }
 std::size_t DemSystem::neighbour_pairs() const {
-  return impl_->nbr.size();
+  return impl_->list.pairs();
 }
 
 DemSystem::PairList DemSystem::pair_list() const {
   const Impl& I = *impl_;
-  return PairList{I.row, I.nbr, I.slots.shear, I.bx, I.by, I.bz, I.prow, I.ptri};
+  const detail::NeighbourList& L = I.list;
+  return PairList{L.row,      L.partner,  I.slots.shear,         L.update_x,
+                  L.update_y, L.update_z, I.walls.candidate_row, I.walls.candidate_triangle};
 }
 
 std::size_t DemSystem::contact_count() const {
@@ -486,13 +494,14 @@ std::size_t DemSystem::contact_count() const {
 std::vector<std::int32_t> DemSystem::contact_counts() const {
   const auto& I = *impl_;
   std::vector<std::int32_t> n(I.st.size(), 0);
-  for (std::size_t i = 0; i + 1 < I.row.size() && i < n.size(); ++i) {
-    for (auto k = I.row[i]; k < I.row[i + 1]; ++k) {
+  const auto& row = I.list.row;
+  for (std::size_t i = 0; i + 1 < row.size() && i < n.size(); ++i) {
+    for (auto k = row[i]; k < row[i + 1]; ++k) {
       const auto p = static_cast<std::size_t>(3 * k);
       if (p + 2 < I.slots.force.size() &&
           (I.slots.force[p] != 0.0 || I.slots.force[p + 1] != 0.0 || I.slots.force[p + 2] != 0.0)) {
         ++n[i];
-        ++n[static_cast<std::size_t>(I.nbr[static_cast<std::size_t>(k)])];
+        ++n[static_cast<std::size_t>(I.list.partner[static_cast<std::size_t>(k)])];
       }
     }
   }
@@ -505,21 +514,26 @@ std::size_t DemSystem::state_bytes() const {
   std::size_t b = 0;
   auto add = [&b](const auto& v) { b += v.size() * sizeof(v[0]); };
   for (const auto* v :
-       {&st.px,     &st.py,   &st.pz,      &st.vx,    &st.vy, &st.vz, &st.wx, &st.wy,
-        &st.wz,     &st.qw,   &st.qx,      &st.qy,    &st.qz, &st.fx, &st.fy, &st.fz,
-        &st.radius, &st.mass, &st.inertia, &st.scale, &st.ix, &st.iy, &st.iz, &I.tx,
-        &I.ty,      &I.tz,    &I.bx,       &I.by,     &I.bz})
+       {&st.px,      &st.py,    &st.pz,           &st.vx,           &st.vy,          &st.vz,
+        &st.wx,      &st.wy,    &st.wz,           &st.qw,           &st.qx,          &st.qy,
+        &st.qz,      &st.fx,    &st.fy,           &st.fz,           &st.radius,      &st.mass,
+        &st.inertia, &st.scale, &st.ix,           &st.iy,           &st.iz,          &I.tx,
+        &I.ty,       &I.tz,     &I.list.update_x, &I.list.update_y, &I.list.update_z})
     add(*v);
   add(st.material), add(st.shape), add(st.shape_id);
-  add(I.row), add(I.nbr), add(I.pown), add(I.trow), add(I.tpair), add(I.tsrc);
-  add(I.gather_row), add(I.gather_pair), add(I.gather_sign), add(I.slots.shear),
+  const auto& L = I.list;
+  add(L.row), add(L.partner), add(L.owner), add(L.transposed_row), add(L.transposed_pair),
+      add(L.transposed_owner);
+  add(L.gather_row), add(L.gather_pair), add(L.gather_sign), add(I.slots.shear),
       add(I.slots.rolling_history);
   add(I.slots.force), add(I.slots.torque), add(I.slots.rolling_torque), add(I.slots.torque_j),
       add(I.slots.separating_axis), add(I.slots.closest_features), add(I.proofs.rotation),
-      add(I.proofs.separation_left), add(I.proofs.core_motion), add(I.proofs.position), add(I.orow),
-      add(I.onbr);
-  add(I.prow), add(I.ptri), add(I.wkey), add(I.wshear), add(I.wroll), add(I.wf), add(I.wp);
-  add(I.wb), add(I.wtri), add(I.wcount);
+      add(I.proofs.separation_left), add(I.proofs.core_motion), add(I.proofs.position),
+      add(L.candidate_row), add(L.candidate_partner);
+  const auto& wc = I.wall_contacts;
+  add(I.walls.candidate_row), add(I.walls.candidate_triangle), add(wc.key), add(wc.shear),
+      add(wc.rolling_history), add(wc.force);
+  add(wc.point), add(wc.weights), add(wc.triangle), add(wc.count);
   const auto& a = I.shapes.arrays();
   add(a.vert), add(a.fnormal), add(a.fvert), add(a.edge), add(a.floop), add(a.flen);
   add(a.vsoa), add(a.fsoa);

@@ -1,12 +1,13 @@
 // DemSystem::Impl, the DEM engine behind DemSystem (dem_system.hpp): state, contact
-// detection, walls and the CPU (OpenMP) backend. Private to src/core; its member functions
-// live by concern in dem_system.cpp (setup, particles), neighbour_list.cpp (grid build,
-// refilter, skin), dem_step.cpp (force pass and integration), dem_walls.cpp (wall store,
-// wall kinematics and loads), dem_gpu_bridge.cpp (the CUDA backend's host side),
+// detection, walls and the CPU (OpenMP) backend. Private to src/core. It holds its parts as
+// classes of their own: the neighbour list (neighbour_list.hpp), the per-pair slots
+// (pair_slots.hpp), the wall store (wall_store.hpp) and the wall contact slots
+// (wall_contact_slots.hpp). Its member functions live by concern in dem_system.cpp (setup,
+// particles), dem_step.cpp (the list update, force pass and integration), dem_walls.cpp
+// (DemSystem's wall API), dem_gpu_bridge.cpp (the CUDA backend's host side),
 // dem_periodic.cpp (periodic boundaries: the wrap, tiling) and dem_state_io.cpp (save /
-// restore). The physics (contact law, integrator, triangle
-// geometry, the step integrator) comes from include/demfem/dem/physics/*.hpp, shared with
-// the CUDA backend.
+// restore). The physics (contact law, integrator, triangle geometry, the step integrator)
+// comes from include/demfem/dem/physics/*.hpp, shared with the CUDA backend.
 //
 // Step structure (velocity Verlet, see physics/integrator.hpp):
 //   1. per particle: half kick with the last force, drift, max displacement since the last
@@ -15,7 +16,7 @@
 //   3. pair list: refiltered from the grid build's candidates when the two largest
 //      displacements since the last update may have closed the list skin, built from the
 //      grid when the candidates may no longer hold every pair that can touch (two levels,
-//      see Impl::orow and step())
+//      see neighbour_list.hpp and step())
 //   4. per particle i (parallel): forces of the pairs (i, j > i) of its CSR row, written to
 //      per-pair slots
 //   5. per particle (parallel): own-row slots + transposed pair slots (fixed order) + walls +
@@ -43,11 +44,15 @@
 #include "demfem/dem/physics/periodic_image.hpp"
 #include "demfem/dem/physics/wall_contact.hpp"
 #include "demfem/dem/physics/wall_motion.hpp"
+#include "neighbour_list.hpp"
 #include "pair_slots.hpp"
 #include "polyhedra.hpp"
 #include "rigid_mesh_bodies.hpp"
 #include "separation_proofs.hpp"
 #include "shape_table.hpp"
+#include "thread_balance.hpp"
+#include "wall_contact_slots.hpp"
+#include "wall_store.hpp"
 
 namespace demfem::dem {
 
@@ -62,17 +67,11 @@ inline constexpr int kMaxWallContacts = phys::kMaxWallContacts;
 }  // namespace detail
 
 struct DemSystem::Impl {
-  // Skin of the pair list as a fraction of the build skin (see orow), and its range when it
-  // adapts. On the settled 20,000-sphere bed (dem_throughput) 0.1 keeps 2.6 list pairs per
-  // particle (the whole skin: 3.6) and refilters every ~25 steps: +15 % particle-steps per
-  // second (best of 8 runs; 0.05: 2.5 pairs, no further gain). In a fast flow a thin skin
-  // would refilter every step or two, so the skin grows there (adapt_inner_skin()).
-  static constexpr double kInnerSkin = 0.1, kInnerSkinMax = 0.5;
-
   DemSettings s;
   int threads = 1;
-  std::size_t nmat = 0;
-  std::vector<phys::PairConstants> pc;
+  std::size_t material_count = 0;
+  // contact constants per pair of materials, material_count x material_count (row: i's)
+  std::vector<phys::PairConstants> pair_table;
   bool friction = false;     // some pair has friction or rolling resistance
   bool orientation = false;  // integrate the orientation (settings or a non-spherical particle)
   bool rolling = false;
@@ -108,7 +107,7 @@ struct DemSystem::Impl {
   bool wrap_positions();
   // Throws std::invalid_argument when a period is below the least one (least_period()).
   void check_periods() const;
-  double least_period() const { return 2.0 * (2.0 * rmax + skin); }
+  double least_period() const { return 2.0 * (2.0 * rmax + list.skin); }
 
   ParticleState st;
   std::vector<double> tx, ty, tz;  // torque of the last step
@@ -121,145 +120,35 @@ struct DemSystem::Impl {
                       std::to_string(of) + " steps (a stop was requested)");
     }
   }
-  double rmax = 0.0;
-  double skin = 0.0;
+  double rmax = 0.0;  // the largest bounding radius, m
 
-  // Neighbour list: CSR rows of pairs (i, j > i), j ascending; transposed index per j.
-  bool need_rebuild = true;
-  std::vector<std::int64_t> row;    // n + 1
-  std::vector<std::int32_t> nbr;    // j of each pair
-  std::vector<std::int32_t> pown;   // i of each pair (flat pair loop)
-  std::vector<std::int64_t> trow;   // n + 1
-  std::vector<std::int64_t> tpair;  // pair index, grouped by j, i ascending
-  std::vector<std::int32_t> tsrc;   // i of each transposed entry
-  // One loop per particle in the gather instead of two (own row, transposed): the exit of a
-  // short loop of varying length is mispredicted about once per particle.
-  std::vector<std::int64_t> gather_row;   // n + 1
-  std::vector<std::int64_t> gather_pair;  // pair of each entry
-  std::vector<double> gather_sign;        // +1 own row (force on i), -1 transposed (force on j)
-  detail::PairSlots slots;                // per pair of the list: springs, forces, caches
-  std::vector<double> bx, by, bz;         // positions at the last refilter
-  // Two-level list: a build from the cell grid keeps the candidate pairs within
-  // r_i + r_j + skin (orow, onbr, same layout as row, nbr); the list proper holds those
-  // within r_i + r_j + skin_in and is refiltered from them when some particle has moved
-  // skin_in / 2. A settled bed's particles jitter, so a list with a thin skin would need a
-  // grid build every few tens of steps; the refilter is a pass over the candidates.
-  std::vector<std::int64_t> orow;
-  std::vector<std::int32_t> onbr;
-  double skin_in = 0.0;
-  double out_disp = 0.0;  // bound of the largest displacement since the build, refilters summed
-  double out_pair = 0.0;  // bound of d_i + d_j of any pair since the build, refilters summed
-  std::int64_t refilters = 0;
-  std::int64_t steps_at_update = -1;  // step of the last build or refilter
+  // The neighbour list (neighbour_list.hpp) and the per-pair slots of its pairs.
+  detail::NeighbourList list;
+  detail::PairSlots slots;  // per pair of the list: springs, forces, caches
+  // The particles as the list reads them.
+  detail::ListParticles list_particles() const {
+    return {
+        st.px.data(), st.py.data(), st.pz.data(), st.radius.data(), static_cast<std::int64_t>(n()),
+        pbox,         periodic,     nt()};
+  }
+  // The list's skin is fixed (settings.list_skin) or one level (the device's list).
+  bool fixed_inner_skin() const { return gpu != nullptr || s.list_skin > 0.0; }
+  // The largest overlap of the last step (m), over the steps of the last advance() (m), and
+  // over them against each contact's own radii (phys::relative_overlap).
+  double max_overlap = 0.0;
+  double advance_max_overlap = 0.0;
+  double advance_max_relative_overlap = 0.0;
 
-  // The list's skin adapts at each list update (build or refilter) to the steps since the
-  // previous one, u:
-  //  * u < 10 (a flow): skin_in grows by 1.5; beyond kInnerSkinMax x skin the list goes to one
-  //    level (skin_in = skin). In a flow the build budget skin - skin_in (for d_i + d_j),
-  //    checked against the summed refilter intervals, runs out about twice as fast as the
-  //    whole skin (measured with the rule of twice the largest displacement: 96 builds and
-  //    31 refilters against 53 builds in 1500 steps of 4096 falling spheres, 10 % slower). A
-  //    refilter that may not grow the skin (the build budget) asks for a build;
-  //  * u > 40 (a settled bed): skin_in shrinks by 1.5, to kInnerSkin x skin at least;
-  //  * one level: a build more than 100 steps after the last goes back to two levels.
-  // It depends on step counts only, and the list's non-touching pairs do not change the
-  // result, so it keeps the bits. Returns false when a refilter must be a build instead.
-  bool adapt_inner_skin(bool build, double pbuild = 0.0);
-  double max_ov = 0.0;
-  double adv_max_ov = 0.0;   // largest overlap over the steps of the last advance()
-  double adv_max_rel = 0.0;  // and against each contact's own radii (phys::relative_overlap)
-  std::int64_t rebuilds = 0;
-
-  // Walls: all triangles (rigid walls first, then the flexible mesh) in one store.
-  struct Wall {
-    WallMesh mesh;
-    std::int64_t vbase = 0, tbase = 0;  // offsets in the global vertex / triangle store
-    std::array<double, 3> force{}, torque{};
-    bool flexible = false;
-    int body = -1;  // index in `bodies` when the wall is moved by its contact forces
-  };
-  std::vector<Wall> walls;         // rigid walls; the flexible one is `flex`
-  detail::RigidMeshBodies bodies;  // walls moved by their contact forces (rigid_mesh_bodies.hpp)
-  bool has_flex = false;
-  Wall flex;
-  std::vector<double> flex_x, flex_v, flex_a;  // kinematics at the start of advance()
-  double flex_tau = 0.0;                       // time since that start
-  std::vector<double> flex_force;              // per node, as ForceMode asked
-  std::vector<double> node_buf;                // per node, forces of the current substep
-  double flex_max_ov = 0.0;
-  // global stores
-  std::vector<double> vpos, vvel, vbuild;  // 3 per vertex
-  std::vector<std::int32_t> tri_v, tri_e;  // 3 per triangle: vertices / edge ids
-  std::vector<std::int32_t> tri_wall;      // wall index, -1 = flexible mesh
-  std::vector<std::int32_t> tri_mat;
-  std::vector<phys::RigidMotion> wall_motions;  // per rigid wall: its motion, for both backends
-  std::size_t nedges = 0;
-  bool walls_dirty = true;  // topology must be rebuilt
-  bool walls_moving = false;
-  // Force-limited drift (WallMotion::max_force), per wall: the seconds its drift has
-  // advanced, and the fraction of its velocity it advances at in the next step,
-  // 1 - R / max_force in [0, 1] (R: the particles' push against it in the last one). Saved
-  // with the state.
-  std::vector<double> drift_time;
-  std::vector<double> drift_rate;
-  bool force_limited = false;  // some wall has a max_force
-  // particle -> candidate triangles (built with the neighbour list)
-  std::vector<std::int64_t> prow;
-  std::vector<std::int32_t> ptri;
-  // per-particle wall contact slots
-  std::vector<std::int64_t> wkey;  // kMaxWallContacts per particle, -1 = empty
-  std::vector<double> wshear;      // 3 per slot
-  std::vector<double> wroll;       // 3 per slot: rolling-torque history (only if rolling)
-  std::vector<double> wf, wp, wb;  // force on particle, contact point, barycentric weights
-  std::vector<std::int32_t> wtri;
-  std::vector<std::uint8_t> wcount;
+  // The walls (wall_store.hpp): every wall triangle in one store, their motion, the
+  // triangles near each particle, the loads on them.
+  detail::WallStore walls;
+  detail::WallContactSlots wall_contacts;  // per particle (wall_contact_slots.hpp)
 
   CudaBackend* gpu = nullptr;
   DemSystem::Timings timing;
 
-  // Particle ranges of the threads in forces_and_kick(), moved towards equal busy times. The
-  // bottom of a bed has more contacts per particle and the wall contacts, so equal counts
-  // leave one thread waiting (measured on the 20,000-sphere bed: 0.3 of its time). The
-  // result does not depend on the ranges (every sum has a fixed order; see
-  // forces_and_kick()), so timing them is safe for bitwise reproducibility.
-  struct ThreadBalance {
-    std::vector<std::int64_t> split;                 // T + 1 range bounds
-    std::vector<double> busy;                        // per thread: time before the barrier, s
-    std::vector<std::vector<std::int64_t>> waiting;  // per thread: particles gathered after it
-    void ensure(int threads, std::int64_t count) {
-      const auto T = static_cast<std::size_t>(threads);
-      if (split.size() == T + 1 && split.back() == count) return;
-      split.resize(T + 1);
-      for (std::size_t k = 0; k <= T; ++k)
-        split[k] = count * static_cast<std::int64_t>(k) / static_cast<std::int64_t>(T);
-      busy.assign(T, 0.0);
-      waiting.resize(T);
-    }
-    // New bounds from each thread's particles per second, halfway towards the balanced ones
-    // (timings on a shared machine are noisy).
-    void adapt() {
-      const std::size_t T = busy.size();
-      if (T < 2) return;
-      std::vector<double> rate(T);
-      double sum = 0.0;
-      for (std::size_t k = 0; k < T; ++k) {
-        const double cnt = static_cast<double>(split[k + 1] - split[k]);
-        rate[k] = busy[k] > 0.0 && cnt > 0.0 ? cnt / busy[k] : 0.0;
-        if (!(rate[k] > 0.0)) return;  // no usable timing
-        sum += rate[k];
-      }
-      const std::int64_t count = split.back();
-      double acc = 0.0;
-      for (std::size_t k = 1; k < T; ++k) {
-        acc += rate[k - 1];
-        const double target = static_cast<double>(count) * acc / sum;
-        const auto next = static_cast<std::int64_t>(0.5 * (static_cast<double>(split[k]) + target));
-        // at least one particle per thread, bounds ascending
-        split[k] = std::clamp<std::int64_t>(next, split[k - 1] + 1,
-                                            count - static_cast<std::int64_t>(T - k));
-      }
-    }
-  } balance;
+  // Particle ranges of the threads in forces_and_kick() (thread_balance.hpp).
+  detail::ThreadBalance balance;
 
   ~Impl() { cuda_backend_destroy(gpu); }
 
@@ -276,36 +165,14 @@ struct DemSystem::Impl {
   int nt() const { return n() + (kPolyWork - 1) * poly_count >= 2048 ? threads : 1; }
 
   // ---------------------------------------------------------------------------------------
-  // Wall topology: unique edge ids over the whole store so that a contact at an edge or a
-  // vertex shared by neighbouring triangles is counted once.
-  void build_wall_store();
-
-  // Vertex positions and velocities of the walls at time tt (tau: time into the advance()),
-  // by the kinematics shared with the CUDA backend (physics/wall_motion.hpp).
-  void update_walls(double tt, double tau);
-  // Force-limited walls: advance the drift over the step that ends at t (before
-  // update_walls), and decide from this step's wall forces whether it goes on (after
-  // wall_reduce).
-  void advance_drift(double t_end);
-  void decide_drift();
-  void reset_drift();
-
-  double wall_displacement() const;
-
-  // ---------------------------------------------------------------------------------------
-  // Neighbour list: uniform grid by counting sort, pairs within r_i + r_j + skin.
+  // The list's grid build (NeighbourList::build), the wall triangles binned into its grid,
+  // then the refilter.
   void rebuild();
-  // The cell grid of a rebuild: its low corner, cell sizes and counts per direction.
-  // The wall triangles near each particle (prow, ptri): binned into the cells of the
-  // rebuild's grid (`cell`: each particle's) that their box grown by rmax + skin touches.
-  void bin_wall_triangles(const phys::CellGrid& grid, const std::vector<std::int32_t>& cell);
-
-  // The pair list proper: the candidates of the last build closer than r_i + r_j + skin_in
-  // now. Springs are carried over from the previous list (merge of sorted rows).
+  // The list proper refiltered from the candidates (NeighbourList::refilter), then indexed.
   void refilter();
-  // The indices derived from the pair list (row, nbr): the owner of each pair, the transpose,
-  // the gather list, the per-pair force slots. refilter() and the CUDA backend's adoption of
-  // a list built on the device call it.
+  // The indices derived from the pair list (NeighbourList::index), the per-pair force slots
+  // sized to it, the uniform material. refilter() and the CUDA backend's adoption of a list
+  // built on the device call it.
   void index_list();
 
   // ---------------------------------------------------------------------------------------
@@ -338,12 +205,6 @@ struct DemSystem::Impl {
 
   phys::WallView wall_view();
 
-  // Sum of the two largest displacements since the last list update (bx): bounds d_i + d_j
-  // of every pair. Per-thread top two, combined in thread order (max is exact: any order
-  // gives the same value).
-  std::vector<std::array<double, 2>> top_two;  // per thread (member: no allocation per call)
-  double two_largest_displacements();
-
   // Half kick + drift; returns the largest displacement since the last list update. The
   // orientation is advanced in a second loop: with only small rotations in this step (the
   // usual case) it runs in SIMD lanes without sin/cos; the per-particle arithmetic is the
@@ -351,16 +212,14 @@ struct DemSystem::Impl {
   template <bool Friction>
   double kick_drift();
 
-  void wall_reduce(bool last, ForceMode mode, std::int64_t substeps);
-
   template <bool Friction>
   void step(bool last, ForceMode mode, std::int64_t substeps);
 
   // Wall kinematics for the device (filled by gpu_wall_kinematics() when walls move): the
   // reference vertices (rigid walls) and the node positions at the start of the advance()
   // (flexible mesh) in store order, the wall of each vertex (-1: flexible).
-  std::vector<double> gpu_vref;
-  std::vector<std::int32_t> gpu_vwall;
+  std::vector<double> gpu_vertex_ref;
+  std::vector<std::int32_t> gpu_vertex_wall;
 
   void gpu_wall_kinematics();
 

@@ -1,6 +1,6 @@
 #pragma once
 // Prescribed kinematics of the walls and the force transfer to the flexible mesh, shared by
-// the CPU backend (DemSystem::Impl::update_walls, wall_reduce) and the CUDA backend
+// the CPU backend (WallStore::update, WallStore::reduce in src/core) and the CUDA backend
 // (cuda/dem_cuda.cu):
 //   * rigid motion of a wall (WallMotion: translation, rotation about an axis (Rodrigues),
 //     sinusoid along an axis with an optional steady drift), active in [start_time, end_time) and
