@@ -40,9 +40,10 @@ window (its `[[post]]` sleeper_report.py --hold). The sleeper is seated on each 
 `run` writes the sweep file OUT/<study>.sweep.toml, runs it into OUT/<study>/ (members in
 members/sSS_rRR/, as `demfem sweep`), then tools/sleeper_report.py into each done member's
 folder with the member's hold window. `collect` writes OUT/<study>/study_summary.csv and
-study_summary.json (mean, sd over the seeds of each setting; the dt study also each step's
-difference from the smallest step, per seed and of the means, against the seeds' sd at the
-smallest step), prints the table and draws <figures>/sleeper_study_<study>.png.
+study_summary.json (mean, sd over the seeds of each setting; the dt and freeze studies also
+each setting's difference from the smallest setting (the smallest step, no freezing), of the
+means and per seed on the same bed, beside the seeds' sd there), prints the tables and draws
+<figures>/sleeper_study_<study>.png.
 Exit status 2 on bad arguments, 1 when a member fails.
 """
 

@@ -1,7 +1,7 @@
 """The sleeper studies' tables and figure (`python3 -m studies sleeper collect STUDY ...`,
 tools/studies/sleeper.py): each done member's settlement since the load start against the
 reference time, and its scalars from sleeper_report.json; mean and sd over the seeds of each
-setting; for the dt study, each step against the smallest."""
+setting; for the dt and freeze studies, each setting against the smallest."""
 
 import csv
 import json
@@ -21,10 +21,12 @@ SHOW = ["seating_mm", "peak_mm", "cycle1_mm", "last_cycle_mm", "final_mm",
         "held_under_load_mm", "balance_pct", "cell1_kPa", "cell2_kPa", "cell3_kPa",
         "cell4_kPa", "cell5_kPa", "Z_all_rocks", "Z_under_sleeper", "phi_all_rocks",
         "strain_centre_hold_ue", "max_principal_strain_ue", "wall_s"]
-# compared with the smallest step in the dt study
-COMPARED = ["held_under_load_mm", "held_mm", "balance_pct", "cell1_kPa", "cell2_kPa",
-            "cell3_kPa", "cell4_kPa", "cell5_kPa", "Z_all_rocks", "Z_under_sleeper",
-            "Z_packing_upper", "phi_all_rocks", "max_principal_strain_ue"]
+# the studies whose settings are compared with their smallest (the smallest step, no
+# freezing), and the figures compared
+COMPARED_STUDIES = ("dt", "freeze")
+COMPARED = ["seating_mm", "held_under_load_mm", "held_mm", "balance_pct", "cell1_kPa",
+            "cell2_kPa", "cell3_kPa", "cell4_kPa", "cell5_kPa", "Z_all_rocks",
+            "Z_under_sleeper", "Z_packing_upper", "phi_all_rocks", "max_principal_strain_ue"]
 
 
 def fmt(v):
@@ -112,15 +114,16 @@ def summary_rows(by_value):
     return rows
 
 
-def step_comparison(by_value):
-    """The dt study: for each step and figure, the mean's difference from the smallest
-    step's mean, the largest difference of one seed's member from the same seed's at the
-    smallest step (same bed), both over the smallest step's sd over the seeds."""
+def against_reference(by_value):
+    """The dt and freeze studies: for each setting and figure, the mean's difference from
+    that of the reference (the smallest setting: the smallest step, freezing off), and the
+    largest difference of one seed's member from the same seed's reference member (same
+    bed), beside the reference's sd over the seeds."""
     ref_v = min(by_value)
     ref = {s: scal for s, _, scal in by_value[ref_v]}
     rows = []
     for v in sorted(by_value):
-        row = {"dt": v}
+        row = {"setting": v}
         own = {s: scal for s, _, scal in by_value[v]}
         for k in COMPARED:
             r = [ref[s][k] for s in ref if k in ref[s]]
@@ -149,7 +152,7 @@ def write_summary(folder, study, rows, comparison):
     path = os.path.join(folder, "study_summary.json")
     with open(path + ".part", "w") as f:
         json.dump({"study": study, "parameter": STUDIES[study].label, "rows": rows,
-                   "against_smallest_step": comparison}, f, indent=1)
+                   "against_reference": comparison}, f, indent=1)
     os.replace(path + ".part", path)
 
 
@@ -164,11 +167,12 @@ def print_table(study, rows, comparison):
         print(f"{r['setting']:>7} {r['n']:2d}  " + "  ".join(
             f"{r[k + '_mean']:9.4g} ±{r[k + '_sd']:8.2g}" for k in show))
     if comparison:
-        print("\nagainst the smallest step: (mean - mean at the smallest) / its sd over the "
-              "seeds; [largest difference of one seed from its own bed's member there]")
+        print(f"\nagainst {fmt(min(r['setting'] for r in comparison))}: (mean - its mean) / "
+              "its sd over the seeds; [largest difference of one seed from the same bed's "
+              "member there]")
         keys = [k for k in COMPARED if any(k in r for r in comparison)]
         for r in comparison:
-            print(f"{r['dt']:>7g}  " + "  ".join(
+            print(f"{fmt(r['setting']):>7}  " + "  ".join(
                 f"{k}: {r[k]['mean_diff_over_sd']:+.2f} [{r[k]['largest_paired_diff']:+.3g}]"
                 for k in keys if k in r))
 
@@ -214,7 +218,7 @@ def collect(a):
             print(f"{study}: no finished members in {folder}", file=sys.stderr)
             return 1
         rows = summary_rows(by_value)
-        comparison = step_comparison(by_value) if study == "dt" else []
+        comparison = against_reference(by_value) if study in COMPARED_STUDIES else []
         write_summary(folder, study, rows, comparison)
         print_table(study, rows, comparison)
         png = plot(study, by_value, a.figures)
