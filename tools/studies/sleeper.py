@@ -204,6 +204,8 @@ def run_study(study, a):
     _beds_folder(a.out, study)
     text = sweep_file_text(study, LOAD, parameters, [], EXECUTION)
     code = run_study_sweep(a.out, study, text, a.demfem_run, ["--jobs", str(a.jobs)])
+    if code >= 2:  # refused before anything ran (a seed's insertion that does not fit), or
+        return code  # stopped by a signal: the sweep said why
     failed = code != 0
     for member, state, _ in members_of(a.out, study):
         if state != DONE:
