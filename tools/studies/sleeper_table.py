@@ -33,11 +33,18 @@ def fmt(v):
     return f"{v:g}" if isinstance(v, float) else str(v)
 
 
+def minima_of(rep):
+    """The settlement since the load start (mm) at each cycle's minimum load (0: the first
+    ramp's end, at the peak), from a sleeper_report.json."""
+    s0 = rep["settlement_at_load_start_mm"]
+    return [c["settlement_mm"] - s0 for c in rep.get("cycles", [])]
+
+
 def report_scalars(rep):
     """The figures of one member's sleeper_report.json."""
     hold = rep.get("hold", {})
     s0 = rep["settlement_at_load_start_mm"]
-    mins = [c["settlement_mm"] - s0 for c in rep.get("cycles", [])]
+    mins = minima_of(rep)
     out = {"seating_mm": s0, "final_mm": rep["settlement_final_mm"] - s0,
            "tilt_final_mm": rep.get("tilt_final_mm")}
     if len(mins) > 1:
@@ -177,9 +184,19 @@ def print_table(study, rows, comparison):
                 for k in keys if k in r))
 
 
+def cycle_minima(member):
+    """minima_of the member's sleeper_report.json."""
+    with open(os.path.join(member.folder, "sleeper_report.json")) as f:
+        return minima_of(json.load(f))
+
+
 def plot(study, by_value, figures):
+    """The settlement since the load start against the reference time, mean with a pale
+    +- sd band per setting; beside it the settlement at the cycles' minima, mean +- sd."""
     plt = pyplot_or_exit("sleeper_study.py")
-    fig, ax = plt.subplots(figsize=(9, 4.5))
+    label = STUDIES[study].label
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 4.5),
+                                  gridspec_kw={"width_ratios": [2.2, 1]})
     for v in sorted(by_value):
         series = [member_series(m) for _, m, _ in by_value[v]]
         lo = max(0.0, max(s[0][0] for s in series))
@@ -189,16 +206,25 @@ def plot(study, by_value, figures):
         ms = [summarise([y[i] for y in ys]) for i in range(len(grid))]
         m = [x[1] for x in ms]
         sd = [0.0 if math.isnan(x[2]) else x[2] for x in ms]
-        line, = ax.plot(grid, m, lw=1.2, label=f"{STUDIES[study].label} {fmt(v)} "
-                                                 f"(n = {len(series)})")
+        line, = ax.plot(grid, m, lw=1.2, label=f"{label} {fmt(v)} (n = {len(series)})")
         ax.fill_between(grid, [a - b for a, b in zip(m, sd)], [a + b for a, b in zip(m, sd)],
                         color=line.get_color(), alpha=0.2, lw=0)
+        minima = [cycle_minima(mb) for _, mb, _ in by_value[v]]
+        n = min(len(x) for x in minima)
+        at = [summarise([x[k] for x in minima]) for k in range(n)]
+        ax2.errorbar(range(n), [x[1] for x in at],
+                     yerr=[0.0 if math.isnan(x[2]) else x[2] for x in at], marker="o",
+                     capsize=3, color=line.get_color(), label=fmt(v))
     ax.set_xlabel("reference time (t - load start) / time scale (s)")
     ax.set_ylabel("settlement since the load start (mm)")
-    ax.set_title(f"sleeper (small chain): {STUDIES[study].label}, mean ± sd over seeds",
-                 fontsize=10)
+    ax.set_title(f"sleeper (small chain): {label}, mean ± sd over seeds", fontsize=10)
     ax.legend(fontsize=8)
     ax.grid(True, lw=0.3)
+    ax2.set_xlabel("cycle (0: the first ramp's end, at the peak)")
+    ax2.set_ylabel("settlement at the cycle minimum (mm)")
+    ax2.set_title("at the cycles' minimum load, mean ± sd", fontsize=10)
+    ax2.legend(fontsize=8, title=label, title_fontsize=8)
+    ax2.grid(True, lw=0.3)
     fig.tight_layout()
     os.makedirs(figures, exist_ok=True)
     png = os.path.join(figures, f"sleeper_study_{study}.png")
