@@ -182,6 +182,19 @@ class SweepFile(SweepFileCase):
         self.assertEqual(plan.members[-1].overrides[:2],
                          ["dem.insert[0].mass=20.0", "dem.dt=2e-06"])
 
+    def test_seed_as_a_parameter(self):
+        # Without [repetitions] a parameter may set run.seed (seeds zipped with other keys):
+        # its value is the member's seed; the scene's own seed is not written after it.
+        text = SWEEP[:SWEEP.index("[repetitions]")] + SWEEP[SWEEP.index("[[quantity]]"):]
+        spec = self.read(text.replace('"dem.insert[0].mass" = [10.0, 20.0]',
+                                      '"dem.insert[0].mass" = [10.0, 20.0]\n'
+                                      '"run.seed" = [8, 9]'))
+        plan = build_plan(spec, Path(self.tmp.name) / "out", "/bin/true")
+        for m in plan.members:
+            seed = [8, 9][m.setting // 3]
+            seeds = [o for o in m.overrides if o.startswith("run.seed=")]
+            self.assertEqual((m.seed, set(seeds)), (seed, {f"run.seed={seed}"}))
+
     def test_errors_name_file_line_key(self):
         f = str(Path(self.tmp.name) / "s.toml")
         self.refused(SWEEP + "typo = 1\n", f"{f}:24: key 'quantity[0].typo'", "not a known key")

@@ -2,9 +2,9 @@
 
 import sys
 
-from studies import sheet
+from studies import sheet, sleeper
 
-STUDIES = {"sheet": sheet.main}
+STUDIES = {"sheet": sheet.main, "sleeper": sleeper.main}
 
 
 def main(argv):

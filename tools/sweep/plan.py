@@ -182,7 +182,13 @@ def build_plan(spec, output_dir, demfem_run, progress=None):
             if scene is not None:
                 scene_keys.assign(scene, k, v)  # checked when the file was read
         base_text = [f"{k}={scene_keys.toml_value(v)}" for k, v in base]
+        # Without [repetitions] a parameter may set the seed key itself (a study whose seeds
+        # are an axis zipped with other keys): its value is the member's seed, not the
+        # scene's, which would otherwise be written after it and win.
+        own_seed = dict(base).get(spec.repetitions.key)
         for ri, seed in enumerate(spec.repetitions.seeds):
+            if own_seed is not None:
+                seed = own_seed
             overrides = base_text + [f"{spec.repetitions.key}={scene_keys.toml_value(seed)}"]
             mid = f"s{si:0{ws}d}_r{ri:0{wr}d}"
             folder = out / "members" / mid
