@@ -103,6 +103,10 @@ struct Dev {
   std::int32_t* shape_id;
   double *scale, *ix, *iy, *iz, *ptj, *paxis;
   std::int32_t* pfeat;
+  // periodic boundaries: the periods and 3 image counters per particle
+  bool periodic;
+  phys::PeriodicBox pbox;
+  std::int32_t* image;
 };
 
 // The physics view of a system with polyhedra (device pointers).
@@ -151,6 +155,18 @@ __global__ void k_kick_drift(Dev d, std::size_t n, double dt, double half_skin2,
     phys::kick_drift(m, static_cast<std::int64_t>(i), dt, friction || d.poly, orientation);
     d2 = phys::displacement2(m, static_cast<std::int64_t>(i), d.bx, d.by, d.bz);
     if (d2 > half_skin2) atomicExch(d.stop + 1, 1);
+    if (d.periodic) {  // back into the periods (wrap_positions() on the CPU)
+      double* x[3] = {d.px + i, d.py + i, d.pz + i};
+      double* b[3] = {d.bx + i, d.by + i, d.bz + i};
+      bool wrapped = false;
+      for (int a = 0; a < 3; ++a) {
+        const int k = phys::wrap_coordinate(d.pbox, a, *x[a], b[a]);
+        d.image[3 * i + a] += k;
+        wrapped = wrapped || k != 0;
+      }
+      // the wall candidates were binned where it was (walls do not wrap): a new list
+      if (wrapped && d.walls) atomicExch(d.stop + 1, 1);
+    }
   }
   if (track) warp_max_to(d2, d.pdisp2);
 }
@@ -227,6 +243,7 @@ __global__ void k_pairs(Dev d, std::size_t n, std::size_t nmat, double dt, bool 
                                 d.wx, d.wy, d.wz, d.radius, d.mass};
   if (d.poly) {  // a system with polyhedra: the mixed pair law, torques on both bodies
     const phys::PolyView pv = poly_view(d);
+    const phys::PeriodicBox* box = d.periodic ? &d.pbox : nullptr;
     for (std::int64_t p = d.row[i]; p < d.row[i + 1]; ++p) {
       const std::int32_t j = d.nbr[p];
       phys::Vec3 sh{0, 0, 0}, rh{0, 0, 0};
@@ -237,7 +254,7 @@ __global__ void k_pairs(Dev d, std::size_t n, std::size_t nmat, double dt, bool 
       phys::Vec3 fij, ti, tj;
       const double delta = phys::mixed_pair<Friction>(
           pv, static_cast<int>(i), j, d.pc[mrow + d.material[j]], dt, Friction && rolling, sh, rh,
-          axis, d.pfeat + 6 * p, fij, ti, tj);
+          axis, d.pfeat + 6 * p, fij, ti, tj, nullptr, box);
       mo = fmax(mo, delta);
       if (delta > 0.0)
         mr = fmax(mr, phys::relative_overlap(delta, phys::particle_contact_radius(pv, i),
@@ -261,6 +278,7 @@ __global__ void k_pairs(Dev d, std::size_t n, std::size_t nmat, double dt, bool 
     }
     return;
   }
+  const phys::PeriodicBox* box = d.periodic ? &d.pbox : nullptr;
   for (std::int64_t p = d.row[i]; p < d.row[i + 1]; ++p) {
     const std::int32_t j = d.nbr[p];
     double* f = d.pf + 3 * p;
@@ -271,7 +289,7 @@ __global__ void k_pairs(Dev d, std::size_t n, std::size_t nmat, double dt, bool 
     phys::ContactResult r{};
     double delta = 0.0;
     if (!phys::sphere_sphere<Friction>(view, static_cast<int>(i), j, d.pc[mrow + d.material[j]], dt,
-                                       sh, rh, r, delta)) {
+                                       sh, rh, r, delta, box)) {
       f[0] = f[1] = f[2] = 0.0;
       if (Friction) {
         double* shp = d.shear + 3 * p;
@@ -457,7 +475,7 @@ void cuda_backend_destroy(CudaBackend* b) {
   cudaFree(b->d.flex_v), cudaFree(b->d.flex_a), cudaFree(b->d.flex_force);
   cudaFree(b->d.node_buf), cudaFree(b->d.clock), cudaFree(b->d.pdisp2), cudaFree(b->d.wdisp2);
   cudaFree(b->d.flex_max_ov);
-  cudaFree(b->d.rhist), cudaFree(b->d.wroll);
+  cudaFree(b->d.rhist), cudaFree(b->d.wroll), cudaFree(b->d.image);
   for (void* p : {static_cast<void*>(b->d.vbase),    static_cast<void*>(b->d.snv),
                   static_cast<void*>(b->d.fbase),    static_cast<void*>(b->d.snf),
                   static_cast<void*>(b->d.floop),    static_cast<void*>(b->d.flen),
@@ -517,6 +535,9 @@ void cuda_upload_state(CudaBackend* b, const GpuHostView& v) {
     up(d.shape_id, c[77], v.shape_id, n), up(d.scale, c[78], v.scale, n);
     up(d.ix, c[79], v.ix, n), up(d.iy, c[80], v.iy, n), up(d.iz, c[81], v.iz, n);
   }
+  d.periodic = v.periodic;
+  d.pbox = v.pbox;
+  if (v.periodic) up(d.image, c[85], v.image, 3 * n);
   d.walls = v.ntris > 0;
   b->ntris = v.ntris;
   if (d.walls) {
@@ -591,6 +612,7 @@ void cuda_download_state(CudaBackend* b, const GpuHostView& v) {
   down(v.qw, d.qw, n), down(v.qx, d.qx, n), down(v.qy, d.qy, n), down(v.qz, d.qz, n);
   down(v.fx, d.fx, n), down(v.fy, d.fy, n), down(v.fz, d.fz, n);
   down(v.tx, d.tx, n), down(v.ty, d.ty, n), down(v.tz, d.tz, n);
+  if (v.periodic && d.periodic) down(v.image, d.image, 3 * n);
   if (v.friction && v.shear && b->npairs == v.npairs) down(v.shear, d.shear, 3 * v.npairs);
   if (v.rhist && b->npairs == v.npairs) down(v.rhist, d.rhist, 3 * v.npairs);
   if (v.poly && b->npairs == v.npairs) {
@@ -627,6 +649,7 @@ std::size_t cuda_build_lists(CudaBackend* b, double skin, double rmax) {
   DeviceListInput in;
   in.n = n, in.px = d.px, in.py = d.py, in.pz = d.pz, in.radius = d.radius;
   in.rmax = rmax, in.skin = skin;
+  in.box = d.pbox, in.periodic = d.periodic;
   in.old_npairs = b->npairs, in.old_row = d.row, in.old_nbr = d.nbr;
   in.ntris = d.walls ? b->ntris : 0, in.vpos = d.vpos, in.tri_v = d.tri_v;
   const DeviceListCounts counts = b->list.count(in);

@@ -9,6 +9,7 @@
 #include <cstdint>
 
 #include "demfem/dem/physics/contact.hpp"
+#include "demfem/dem/physics/periodic_image.hpp"
 #include "demfem/dem/physics/shape_table.hpp"
 #include "demfem/dem/physics/wall_contact.hpp"
 #include "demfem/dem/physics/wall_motion.hpp"
@@ -76,6 +77,11 @@ struct GpuHostView {
   double* ptj = nullptr;          // 3 per pair (out)
   double* paxis = nullptr;        // 3 per pair (in/out)
   std::int32_t* pfeat = nullptr;  // 6 per pair (in/out)
+  // periodic boundaries (physics/periodic_image.hpp): the periods and per particle 3 image
+  // counters (in/out; the device wraps the positions after each drift)
+  bool periodic = false;
+  phys::PeriodicBox pbox;
+  std::int32_t* image = nullptr;
 };
 
 /// Host arrays a list built on the device is copied into (sized from cuda_list_sizes()).

@@ -60,6 +60,7 @@ GpuHostView DemSystem::Impl::gpu_view() {
     v.paxis = slots.separating_axis.data();
     v.pfeat = slots.closest_features.data();
   }
+  if (periodic) v.periodic = true, v.pbox = pbox, v.image = image.data();
   if (!tri_v.empty()) {
     v.nverts = vpos.size() / 3, v.ntris = tri_v.size() / 3, v.nptri = ptri.size();
     v.vpos = vpos.data(), v.vvel = vvel.data();
@@ -120,6 +121,7 @@ void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
                : step<false>(k + 1 == substeps, mode, substeps);
     return;
   }
+  if (periodic) check_periods();
   if (need_rebuild || row.size() != n() + 1 || bx.size() != n()) rebuild();
   if (walls_moving) gpu_wall_kinematics();
   auto view = [&] {

@@ -70,9 +70,6 @@ void validate(const DemSettings& s) {
       bad(std::string("settings.periodic: the range in ") + "xyz"[d] +
           " must be finite with hi > lo");
   }
-  if (s.periodic.any() && s.backend == DemBackendKind::cuda)
-    bad("periodic boundaries are run by the CPU backend only (backend = 'cpu'); the CUDA "
-        "backend's device list has no periodic images yet");
 }
 }  // namespace
 
