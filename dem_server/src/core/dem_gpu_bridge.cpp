@@ -122,7 +122,11 @@ void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
     return;
   }
   if (periodic) check_periods();
-  if (need_rebuild || row.size() != n() + 1 || bx.size() != n()) rebuild();
+  // The state and the list stay on the device from one advance() to the next: they are
+  // uploaded when the host changed them (every change of particles, walls or state sets
+  // need_rebuild) or the device does not hold them (the first advance(), one that threw).
+  const bool changed = need_rebuild || row.size() != n() + 1 || bx.size() != n();
+  if (changed) rebuild();
   if (walls_moving) gpu_wall_kinematics();
   auto view = [&] {
     GpuHostView v = gpu_view();
@@ -130,8 +134,12 @@ void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
     v.flex_inv_substeps = 1.0 / static_cast<double>(substeps);
     return v;
   };
-  cuda_upload_state(gpu, view());
-  cuda_upload_lists(gpu, view());
+  if (changed || !cuda_resident(gpu, n(), nbr.size())) {
+    cuda_upload_state(gpu, view());
+    cuda_upload_lists(gpu, view());
+  }
+  cuda_begin_advance(gpu, view());
+  cuda_set_resident(gpu, false);  // until the results are downloaded
   std::int64_t left = substeps;
   double tdet = 0.0;
   bool built_on_device = false;
@@ -155,6 +163,7 @@ void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
   }
   if (built_on_device) adopt_device_list();
   cuda_download_state(gpu, view());
+  cuda_set_resident(gpu, true);
   max_ov = cuda_max_overlap(gpu);
   adv_max_ov = cuda_advance_max_overlap(gpu);
   adv_max_rel = cuda_advance_max_relative_overlap(gpu);
