@@ -13,7 +13,7 @@
 #                                 1. every [gpu] test (CPU vs CUDA: spheres, static and moving
 #                                    walls, flexible mesh in both force modes, polyhedra under
 #                                    both laws, the device-built neighbour list, periodic beds
-#                                    of spheres and of rocks)
+#                                    of spheres and of rocks, frozen particles)
 #                                 2. spheres 10^4, 10^5, 10^6 on the device (share of time in
 #                                    detection), beds settled on the device
 #                                 3. rocks of 30 triangles, 10^4 and 10^5 (10^5 tiled from the

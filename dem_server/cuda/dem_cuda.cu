@@ -120,6 +120,11 @@ struct Dev {
   bool periodic;
   phys::PeriodicBox pbox;
   std::int32_t* image;
+  // frozen particles (DemSystem::freeze; frozen null: none): the mask, the held particles and
+  // their poses (7 each: x, y, z, qw, qx, qy, qz)
+  const std::uint8_t* frozen;
+  std::int64_t* frozen_idx;
+  double* frozen_hold;
 };
 
 // The physics view of a system with polyhedra (device pointers).
@@ -165,10 +170,14 @@ __global__ void k_kick_drift(Dev d, std::size_t n, double dt, double half_skin2,
   double d2 = 0.0;
   if (i < n) {
     const phys::MotionArrays m = motion_arrays(d);
-    phys::kick_drift(m, static_cast<std::int64_t>(i), dt, friction || d.poly, orientation);
+    const bool held = d.frozen != nullptr && d.frozen[i] != 0;
+    // a frozen body among polyhedra is not moved; a frozen sphere is put back by k_hold (as
+    // on the CPU: the displacement then counts its step)
+    if (!(held && d.poly))
+      phys::kick_drift(m, static_cast<std::int64_t>(i), dt, friction || d.poly, orientation);
     d2 = phys::displacement2(m, static_cast<std::int64_t>(i), d.bx, d.by, d.bz);
     if (d2 > half_skin2) atomicExch(d.stop + 1, 1);
-    if (d.periodic) {  // back into the periods (wrap_positions() on the CPU)
+    if (d.periodic && !held) {  // back into the periods (wrap_positions() on the CPU)
       double* x[3] = {d.px + i, d.py + i, d.pz + i};
       double* b[3] = {d.bx + i, d.by + i, d.bz + i};
       bool wrapped = false;
@@ -182,6 +191,14 @@ __global__ void k_kick_drift(Dev d, std::size_t n, double dt, double half_skin2,
     }
   }
   if (track) warp_max_to(d2, d.pdisp2);
+}
+
+// Frozen particles back at rest in their held poses (hold_frozen() on the CPU), after the
+// drift and after the force pass.
+__global__ void k_hold(Dev d, std::size_t nheld, bool force) {
+  if (*d.stop && !force) return;
+  const std::size_t k = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x;
+  if (k < nheld) phys::hold_pose(motion_arrays(d), d.frozen_idx[k], d.frozen_hold + 7 * k);
 }
 
 // Wall vertices at the new time t + dt (tau + dt into the advance()), as update_walls() on the
@@ -257,8 +274,15 @@ __global__ void k_pairs(Dev d, std::size_t n, std::size_t nmat, double dt, bool 
   if (d.poly) {  // a system with polyhedra: the mixed pair law, torques on both bodies
     const phys::PolyView pv = poly_view(d);
     const phys::PeriodicBox* box = d.periodic ? &d.pbox : nullptr;
+    const bool held = d.frozen != nullptr && d.frozen[i] != 0;
     for (std::int64_t p = d.row[i]; p < d.row[i + 1]; ++p) {
       const std::int32_t j = d.nbr[p];
+      if (held && d.frozen[j] != 0) {
+        // both held: their mutual force moves nothing and cancels in the frozen particles'
+        // total, so it is not computed and the caches are kept (as the CPU's pair_range)
+        for (int c = 0; c < 3; ++c) d.pf[3 * p + c] = d.pt[3 * p + c] = d.ptj[3 * p + c] = 0.0;
+        continue;
+      }
       phys::Vec3 sh{0, 0, 0}, rh{0, 0, 0};
       if (Friction) sh = phys::Vec3{d.shear[3 * p], d.shear[3 * p + 1], d.shear[3 * p + 2]};
       if (Friction && rolling)
@@ -442,6 +466,8 @@ struct CudaBackend {
   std::int64_t steps_since_build = 0;     // steps run since the last list build
   std::int64_t steps_between_builds = std::int64_t{1} << 40;  // between the last two builds
   std::size_t ntris = 0, nptri = 0;
+  std::size_t nfrozen = 0;                 // frozen particles (Dev::frozen_idx)
+  std::uint8_t* frozen_mask = nullptr;     // Dev::frozen when some are
   DeviceNeighbourList list;  // the list builder (device_list.hpp)
 };
 
@@ -494,6 +520,7 @@ void cuda_backend_destroy(CudaBackend* b) {
   cudaFree(b->d.flex_v), cudaFree(b->d.flex_a), cudaFree(b->d.flex_force);
   cudaFree(b->d.node_buf), cudaFree(b->d.clock), cudaFree(b->d.pdisp2), cudaFree(b->d.wdisp2);
   cudaFree(b->d.rhist), cudaFree(b->d.wroll), cudaFree(b->d.image);
+  cudaFree(b->frozen_mask), cudaFree(b->d.frozen_idx), cudaFree(b->d.frozen_hold);
   for (void* p : {static_cast<void*>(b->d.vbase),    static_cast<void*>(b->d.snv),
                   static_cast<void*>(b->d.fbase),    static_cast<void*>(b->d.snf),
                   static_cast<void*>(b->d.floop),    static_cast<void*>(b->d.flen),
@@ -563,6 +590,12 @@ void cuda_upload_state(CudaBackend* b, const GpuHostView& v) {
     up(d.shape_id, c[77], v.shape_id, n), up(d.scale, c[78], v.scale, n);
     up(d.ix, c[79], v.ix, n), up(d.iy, c[80], v.iy, n), up(d.iz, c[81], v.iz, n);
   }
+  b->nfrozen = v.nfrozen;
+  if (v.nfrozen > 0) {
+    up(b->frozen_mask, c[86], v.frozen, n), up(d.frozen_idx, c[87], v.frozen_idx, v.nfrozen);
+    up(d.frozen_hold, c[88], v.frozen_hold, 7 * v.nfrozen);
+  }
+  d.frozen = v.nfrozen > 0 ? b->frozen_mask : nullptr;
   d.periodic = v.periodic;
   d.pbox = v.pbox;
   if (v.periodic) up(d.image, c[85], v.image, 3 * n);
@@ -768,6 +801,10 @@ void enqueue_forces(CudaBackend* b, bool force) {
     k_gather_kick<false><<<grid, kBlock, 0, b->stream>>>(b->d, n, b->nmat, b->dt, b->g[0], b->g[1],
                                                          b->g[2], b->rolling, force);
   }
+  if (b->nfrozen > 0) {  // their second half kick undone
+    const unsigned gridh = static_cast<unsigned>((b->nfrozen + kBlock - 1) / kBlock);
+    k_hold<<<gridh, kBlock, 0, b->stream>>>(b->d, b->nfrozen, force);
+  }
   if (b->flex_nodes > 0) {
     const std::size_t n3 = 3 * b->flex_nodes;
     const unsigned gridf = static_cast<unsigned>((n3 + kBlock - 1) / kBlock);
@@ -781,6 +818,10 @@ void enqueue_step(CudaBackend* b, double skin) {
   const double half_skin = 0.5 * skin;
   k_kick_drift<<<grid, kBlock, 0, b->stream>>>(b->d, n, b->dt, half_skin * half_skin, b->friction,
                                                b->orientation, b->walls_moving);
+  if (b->nfrozen > 0) {
+    const unsigned gridh = static_cast<unsigned>((b->nfrozen + kBlock - 1) / kBlock);
+    k_hold<<<gridh, kBlock, 0, b->stream>>>(b->d, b->nfrozen, false);
+  }
   if (b->walls_moving && b->nverts > 0) {
     const unsigned gridv = static_cast<unsigned>((b->nverts + kBlock - 1) / kBlock);
     k_walls<<<gridv, kBlock, 0, b->stream>>>(b->d, b->nverts, b->dt);

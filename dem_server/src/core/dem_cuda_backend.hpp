@@ -82,6 +82,12 @@ struct GpuHostView {
   bool periodic = false;
   phys::PeriodicBox pbox;
   std::int32_t* image = nullptr;
+  // frozen particles (DemSystem::freeze; nfrozen 0: none): the mask (n), the held particles
+  // and their poses (7 each: x, y, z, qw, qx, qy, qz)
+  std::size_t nfrozen = 0;
+  const std::uint8_t* frozen = nullptr;
+  const std::int64_t* frozen_idx = nullptr;
+  const double* frozen_hold = nullptr;
 };
 
 /// Host arrays a list built on the device is copied into (sized from cuda_list_sizes()).

@@ -61,6 +61,10 @@ GpuHostView DemSystem::Impl::gpu_view() {
     v.pfeat = slots.closest_features.data();
   }
   if (periodic) v.periodic = true, v.pbox = pbox, v.image = image.data();
+  if (!frozen_idx.empty()) {
+    v.nfrozen = frozen_idx.size(), v.frozen = frozen.data();
+    v.frozen_idx = frozen_idx.data(), v.frozen_hold = frozen_hold.data();
+  }
   if (!tri_v.empty()) {
     v.nverts = vpos.size() / 3, v.ntris = tri_v.size() / 3, v.nptri = ptri.size();
     v.vpos = vpos.data(), v.vvel = vvel.data();
