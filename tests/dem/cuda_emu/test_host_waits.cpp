@@ -65,8 +65,9 @@ TEST_CASE("The device keeps the state between advances and the host waits once p
   // CPU twin alongside; at advance 8 both go back to the save point of advance 4 (the host
   // changed the state: the device must take it). An advance without a list build: exactly
   // one wait, no graph captured, and nothing copied to the device but the clock (16 bytes);
-  // with builds: one wait to end the run, and per build the list's own (the counts it reads)
-  // and the held-back step's, so at most 1 + 3 per build. Positions: within 1e-9 of the
+  // with builds: one wait to end each run, the held-back step's and the list build's own, so
+  // at most 1 + 3 per build (the build's reads of its counts go through Thrust, which this
+  // double does not count: two more per build on a device). Positions: within 1e-9 of the
   // radius of the CPU run's (as the other CPU-vs-CUDA tests).
   DemSystem cpu = resting_bed(DemBackendKind::cpu);
   DemSystem gpu = resting_bed(DemBackendKind::cuda);
