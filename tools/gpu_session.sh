@@ -12,7 +12,8 @@
 #                               within 8 minutes (the device call's limit is 10):
 #                                 1. every [gpu] test (CPU vs CUDA: spheres, static and moving
 #                                    walls, flexible mesh in both force modes, polyhedra under
-#                                    both laws, the device-built neighbour list)
+#                                    both laws, the device-built neighbour list, periodic beds
+#                                    of spheres and of rocks, frozen particles)
 #                                 2. spheres 10^4, 10^5, 10^6 on the device (share of time in
 #                                    detection), beds settled on the device
 #                                 3. rocks of 30 triangles, 10^4 and 10^5 (10^5 tiled from the
@@ -26,7 +27,10 @@
 #                                    prepared first by the CPU DEM, as the cases ask; the
 #                                    sleeper's pressure cells are force-limited walls, which
 #                                    the CUDA backend refuses so far: exit 2, key named)
-#                                 7. spheres 10^7 and rocks 10^6, with what time is left
+#                                 7. the periodic block (150 rocks, periodic in x and y) for
+#                                    0.1 s through dem_server, on the device and on 16 CPU
+#                                    threads (wall times; the end states come back in $OUT)
+#                                 8. spheres 10^7 and rocks 10^6, with what time is left
 #                               JSON and logs under $OUT (or ./gpu_out); steps.json lists every
 #                               step with its exit status, seconds, and why it was skipped.
 #   tools/gpu_session.sh dry    (here, no GPU) the same script from a normal build (./build):
@@ -185,7 +189,27 @@ for scene in sheet_ci sleeper_ci; do
       --set 'dem.backend=\"cuda\"' --quiet --no-post; rc=\$?; echo exit \$rc; [ \$rc = 2 ]"
   fi
 done
-# 7. the largest beds with the time left
+# 7. a periodic scene on the device and on the CPU: the pour of cases/periodic_block.toml for
+#    0.1 s (10^4 steps), output at the start and the end; the wall time of each (the end
+#    states come back under $OUT/periodic_{cuda,cpu} to be compared on the development machine)
+periodic_pair() {
+  local b t0
+  for b in cuda cpu; do
+    mkdir -p "$out/periodic_$b"
+    t0=$(date +%s%N)
+    $(exe dem_server) --scene cases/periodic_block.toml --output-dir "$out/periodic_$b" --quiet \
+      --set "dem.backend=\"$b\"" --set dem.threads=16 --set run.end_time=0.1 \
+      --set run.output_interval=0.1 || return $?
+    echo "periodic_$b: wall $((($(date +%s%N) - t0) / 1000000)) ms"
+  done
+}
+export -f periodic_pair
+if [ "$mode" = run ]; then
+  step periodic gpu 90 periodic_pair
+else
+  step periodic any 30 "echo 'periodic: on the device only (two dem_server runs)'"
+fi
+# 8. the largest beds with the time left
 step spheres_1e7_gpu gpu 200 "$(exe dem_throughput) --only 10000000 --max-particles 10000000 \
   --no-cpu --settle-backend cuda --settle-threads 16 --cache $cache \
   --json $out/spheres_1e7_gpu.json"

@@ -2,8 +2,10 @@
 // (physics/contact.hpp, physics/step_integrator.hpp) over device structure-of-arrays state.
 // Walls use the shared sphere-triangle contact set (physics/wall_contact.hpp) inside the
 // gather kernel. One step is three kernels (kick+drift, pair forces per CSR row,
-// gather+kick), captured once into a CUDA graph and replayed without host synchronisation; the host
-// reads one flag per chunk of steps to learn whether the neighbour list must be rebuilt. Sums are
+// gather+kick), captured once into a CUDA graph and replayed without host synchronisation. The
+// state, the list and the graph stay on the device from one advance() to the next; the host
+// waits for the device once per run of steps and then reads one summary (the stop flags, the
+// steps done, the overlap maxima) in one transfer, and once more per list build. Sums are
 // in a fixed order (per-pair slots gathered per particle), so the particle state is
 // deterministic; the atomics are integer ones (flags, step counter, bit patterns of maxima).
 // Moving walls and the flexible mesh add a kernel after the drift that places every wall vertex
@@ -58,6 +60,17 @@ void ensure_keep(T*& p, std::size_t& cap, std::size_t n, std::size_t keep) {
   cap = n;
 }
 
+// What the host reads after a run of steps, in one transfer into pinned memory. The
+// maxima are the bit patterns of non-negative doubles (ordered as integers).
+struct DeviceSummary {
+  unsigned long long steps_done;   // steps completed since the run began
+  unsigned long long max_ov;       // largest overlap of the last step
+  unsigned long long flex_max_ov;  // largest overlap with the flexible mesh this advance()
+  unsigned long long adv_max_ov;   // largest overlap this advance()
+  unsigned long long adv_max_rel;  // largest phys::relative_overlap this advance()
+  int stop[2];                     // a list build stopped the run / was asked for
+};
+
 struct Dev {
   double *px, *py, *pz, *vx, *vy, *vz, *wx, *wy, *wz, *qw, *qx, *qy, *qz;
   double *fx, *fy, *fz, *tx, *ty, *tz, *radius, *mass, *inertia;
@@ -103,6 +116,15 @@ struct Dev {
   std::int32_t* shape_id;
   double *scale, *ix, *iy, *iz, *ptj, *paxis;
   std::int32_t* pfeat;
+  // periodic boundaries: the periods and 3 image counters per particle
+  bool periodic;
+  phys::PeriodicBox pbox;
+  std::int32_t* image;
+  // frozen particles (DemSystem::freeze; frozen null: none): the mask, the held particles and
+  // their poses (7 each: x, y, z, qw, qx, qy, qz)
+  const std::uint8_t* frozen;
+  std::int64_t* frozen_idx;
+  double* frozen_hold;
 };
 
 // The physics view of a system with polyhedra (device pointers).
@@ -148,11 +170,35 @@ __global__ void k_kick_drift(Dev d, std::size_t n, double dt, double half_skin2,
   double d2 = 0.0;
   if (i < n) {
     const phys::MotionArrays m = motion_arrays(d);
-    phys::kick_drift(m, static_cast<std::int64_t>(i), dt, friction || d.poly, orientation);
+    const bool held = d.frozen != nullptr && d.frozen[i] != 0;
+    // a frozen body among polyhedra is not moved; a frozen sphere is put back by k_hold (as
+    // on the CPU: the displacement then counts its step)
+    if (!(held && d.poly))
+      phys::kick_drift(m, static_cast<std::int64_t>(i), dt, friction || d.poly, orientation);
     d2 = phys::displacement2(m, static_cast<std::int64_t>(i), d.bx, d.by, d.bz);
     if (d2 > half_skin2) atomicExch(d.stop + 1, 1);
+    if (d.periodic && !held) {  // back into the periods (wrap_positions() on the CPU)
+      double* x[3] = {d.px + i, d.py + i, d.pz + i};
+      double* b[3] = {d.bx + i, d.by + i, d.bz + i};
+      bool wrapped = false;
+      for (int a = 0; a < 3; ++a) {
+        const int k = phys::wrap_coordinate(d.pbox, a, *x[a], b[a]);
+        d.image[3 * i + a] += k;
+        wrapped = wrapped || k != 0;
+      }
+      // the wall candidates were binned where it was (walls do not wrap): a new list
+      if (wrapped && d.walls) atomicExch(d.stop + 1, 1);
+    }
   }
   if (track) warp_max_to(d2, d.pdisp2);
+}
+
+// Frozen particles back at rest in their held poses (hold_frozen() on the CPU), after the
+// drift and after the force pass.
+__global__ void k_hold(Dev d, std::size_t nheld, bool force) {
+  if (*d.stop && !force) return;
+  const std::size_t k = blockIdx.x * static_cast<std::size_t>(blockDim.x) + threadIdx.x;
+  if (k < nheld) phys::hold_pose(motion_arrays(d), d.frozen_idx[k], d.frozen_hold + 7 * k);
 }
 
 // Wall vertices at the new time t + dt (tau + dt into the advance()), as update_walls() on the
@@ -227,8 +273,16 @@ __global__ void k_pairs(Dev d, std::size_t n, std::size_t nmat, double dt, bool 
                                 d.wx, d.wy, d.wz, d.radius, d.mass};
   if (d.poly) {  // a system with polyhedra: the mixed pair law, torques on both bodies
     const phys::PolyView pv = poly_view(d);
+    const phys::PeriodicBox* box = d.periodic ? &d.pbox : nullptr;
+    const bool held = d.frozen != nullptr && d.frozen[i] != 0;
     for (std::int64_t p = d.row[i]; p < d.row[i + 1]; ++p) {
       const std::int32_t j = d.nbr[p];
+      if (held && d.frozen[j] != 0) {
+        // both held: their mutual force moves nothing and cancels in the frozen particles'
+        // total, so it is not computed and the caches are kept (as the CPU's pair_range)
+        for (int c = 0; c < 3; ++c) d.pf[3 * p + c] = d.pt[3 * p + c] = d.ptj[3 * p + c] = 0.0;
+        continue;
+      }
       phys::Vec3 sh{0, 0, 0}, rh{0, 0, 0};
       if (Friction) sh = phys::Vec3{d.shear[3 * p], d.shear[3 * p + 1], d.shear[3 * p + 2]};
       if (Friction && rolling)
@@ -237,7 +291,7 @@ __global__ void k_pairs(Dev d, std::size_t n, std::size_t nmat, double dt, bool 
       phys::Vec3 fij, ti, tj;
       const double delta = phys::mixed_pair<Friction>(
           pv, static_cast<int>(i), j, d.pc[mrow + d.material[j]], dt, Friction && rolling, sh, rh,
-          axis, d.pfeat + 6 * p, fij, ti, tj);
+          axis, d.pfeat + 6 * p, fij, ti, tj, nullptr, box);
       mo = fmax(mo, delta);
       if (delta > 0.0)
         mr = fmax(mr, phys::relative_overlap(delta, phys::particle_contact_radius(pv, i),
@@ -261,6 +315,7 @@ __global__ void k_pairs(Dev d, std::size_t n, std::size_t nmat, double dt, bool 
     }
     return;
   }
+  const phys::PeriodicBox* box = d.periodic ? &d.pbox : nullptr;
   for (std::int64_t p = d.row[i]; p < d.row[i + 1]; ++p) {
     const std::int32_t j = d.nbr[p];
     double* f = d.pf + 3 * p;
@@ -271,7 +326,7 @@ __global__ void k_pairs(Dev d, std::size_t n, std::size_t nmat, double dt, bool 
     phys::ContactResult r{};
     double delta = 0.0;
     if (!phys::sphere_sphere<Friction>(view, static_cast<int>(i), j, d.pc[mrow + d.material[j]], dt,
-                                       sh, rh, r, delta)) {
+                                       sh, rh, r, delta, box)) {
       f[0] = f[1] = f[2] = 0.0;
       if (Friction) {
         double* shp = d.shear + 3 * p;
@@ -401,8 +456,18 @@ struct CudaBackend {
   std::size_t nverts = 0, flex_nodes = 0;
   bool flex_average = false;
   double flex_inv = 1.0;
-  int* host_flags = nullptr;  // pinned: stop[2], steps_done (as 2 ints)
+  DeviceSummary* summary_dev = nullptr;   // the stop flags, counters and maxima of Dev
+  DeviceSummary* summary_host = nullptr;  // pinned: its copy after the last wait
+  cudaEvent_t chunk_done = nullptr;       // recorded after each chunk's summary copy
+  Dev graph_dev{};                        // the Dev the graph was captured with
+  bool graph_flex_average = false;        // and its ForceMode fold
+  double graph_flex_inv = 0.0;
+  bool resident = false;                  // the device holds the host's state and list
+  std::int64_t steps_since_build = 0;     // steps run since the last list build
+  std::int64_t steps_between_builds = std::int64_t{1} << 40;  // between the last two builds
   std::size_t ntris = 0, nptri = 0;
+  std::size_t nfrozen = 0;                 // frozen particles (Dev::frozen_idx)
+  std::uint8_t* frozen_mask = nullptr;     // Dev::frozen when some are
   DeviceNeighbourList list;  // the list builder (device_list.hpp)
 };
 
@@ -418,22 +483,21 @@ bool cuda_device_present() {
 CudaBackend* cuda_backend_create() {
   auto* b = new CudaBackend();
   check(cudaStreamCreate(&b->stream), "cudaStreamCreate");
-  check(cudaMalloc(&b->d.stop, 2 * sizeof(int)), "cudaMalloc");
-  check(cudaMalloc(&b->d.steps_done, sizeof(unsigned long long)), "cudaMalloc");
-  check(cudaMalloc(&b->d.max_ov, sizeof(unsigned long long)), "cudaMalloc");
+  check(cudaEventCreateWithFlags(&b->chunk_done, cudaEventDisableTiming), "cudaEventCreate");
+  check(cudaMalloc(&b->summary_dev, sizeof(DeviceSummary)), "cudaMalloc");
+  check(cudaMallocHost(&b->summary_host, sizeof(DeviceSummary)), "cudaMallocHost");
+  check(cudaMemset(b->summary_dev, 0, sizeof(DeviceSummary)), "cudaMemset");
+  std::memset(b->summary_host, 0, sizeof(DeviceSummary));
+  DeviceSummary* s = b->summary_dev;
+  b->d.stop = s->stop, b->d.steps_done = &s->steps_done, b->d.max_ov = &s->max_ov;
+  b->d.flex_max_ov = &s->flex_max_ov, b->d.adv_max_ov = &s->adv_max_ov;
+  b->d.adv_max_rel = &s->adv_max_rel;
   check(cudaMalloc(&b->d.clock, 2 * sizeof(double)), "cudaMalloc");
   check(cudaMalloc(&b->d.pdisp2, sizeof(unsigned long long)), "cudaMalloc");
   check(cudaMalloc(&b->d.wdisp2, sizeof(unsigned long long)), "cudaMalloc");
-  check(cudaMalloc(&b->d.flex_max_ov, sizeof(unsigned long long)), "cudaMalloc");
-  check(cudaMalloc(&b->d.adv_max_ov, sizeof(unsigned long long)), "cudaMalloc");
-  check(cudaMalloc(&b->d.adv_max_rel, sizeof(unsigned long long)), "cudaMalloc");
-  check(cudaMemset(b->d.stop, 0, 2 * sizeof(int)), "cudaMemset");
   check(cudaMemset(b->d.clock, 0, 2 * sizeof(double)), "cudaMemset");
   check(cudaMemset(b->d.pdisp2, 0, sizeof(unsigned long long)), "cudaMemset");
   check(cudaMemset(b->d.wdisp2, 0, sizeof(unsigned long long)), "cudaMemset");
-  check(cudaMemset(b->d.flex_max_ov, 0, sizeof(unsigned long long)), "cudaMemset");
-  check(cudaMemset(b->d.adv_max_ov, 0, sizeof(unsigned long long)), "cudaMemset");
-  check(cudaMemset(b->d.adv_max_rel, 0, sizeof(unsigned long long)), "cudaMemset");
   return b;
 }
 
@@ -447,8 +511,7 @@ void cuda_backend_destroy(CudaBackend* b) {
       &b->d.bx, &b->d.by, &b->d.bz, &b->d.shear,  &b->d.pf,   &b->d.pt,      &b->d.pr};
   for (auto* p : dp) cudaFree(*p);
   cudaFree(b->d.material), cudaFree(b->d.row), cudaFree(b->d.trow), cudaFree(b->d.tpair);
-  cudaFree(b->d.nbr), cudaFree(b->d.pc), cudaFree(b->d.stop), cudaFree(b->d.steps_done);
-  cudaFree(b->d.max_ov), cudaFree(b->d.adv_max_ov), cudaFree(b->d.adv_max_rel);
+  cudaFree(b->d.nbr), cudaFree(b->d.pc), cudaFree(b->summary_dev), cudaFreeHost(b->summary_host);
   cudaFree(b->d.vpos), cudaFree(b->d.vvel), cudaFree(b->d.tri_v), cudaFree(b->d.tri_e);
   cudaFree(b->d.tri_mat), cudaFree(b->d.tri_wall), cudaFree(b->d.prow), cudaFree(b->d.ptri);
   cudaFree(b->d.wkey), cudaFree(b->d.wshear), cudaFree(b->d.wf), cudaFree(b->d.wp);
@@ -456,8 +519,8 @@ void cuda_backend_destroy(CudaBackend* b) {
   cudaFree(b->d.vbuild), cudaFree(b->d.vref), cudaFree(b->d.vwall), cudaFree(b->d.motion);
   cudaFree(b->d.flex_v), cudaFree(b->d.flex_a), cudaFree(b->d.flex_force);
   cudaFree(b->d.node_buf), cudaFree(b->d.clock), cudaFree(b->d.pdisp2), cudaFree(b->d.wdisp2);
-  cudaFree(b->d.flex_max_ov);
-  cudaFree(b->d.rhist), cudaFree(b->d.wroll);
+  cudaFree(b->d.rhist), cudaFree(b->d.wroll), cudaFree(b->d.image);
+  cudaFree(b->frozen_mask), cudaFree(b->d.frozen_idx), cudaFree(b->d.frozen_hold);
   for (void* p : {static_cast<void*>(b->d.vbase),    static_cast<void*>(b->d.snv),
                   static_cast<void*>(b->d.fbase),    static_cast<void*>(b->d.snf),
                   static_cast<void*>(b->d.floop),    static_cast<void*>(b->d.flen),
@@ -470,6 +533,7 @@ void cuda_backend_destroy(CudaBackend* b) {
                   static_cast<void*>(b->d.iz),       static_cast<void*>(b->d.ptj),
                   static_cast<void*>(b->d.paxis),    static_cast<void*>(b->d.pfeat)})
     cudaFree(p);
+  if (b->chunk_done) cudaEventDestroy(b->chunk_done);
   if (b->stream) cudaStreamDestroy(b->stream);
   delete b;
 }
@@ -480,6 +544,13 @@ void up(T*& dst, std::size_t& cap, const T* src, std::size_t n) {
   ensure(dst, cap, n);
   if (n) check(cudaMemcpy(dst, src, n * sizeof(T), cudaMemcpyHostToDevice), "upload");
 }
+// Per advance(): enqueued on the stream (a pageable source is staged before the call returns).
+template <class T>
+void up_async(T*& dst, std::size_t& cap, const T* src, std::size_t n, cudaStream_t stream) {
+  ensure(dst, cap, n);
+  if (n)
+    check(cudaMemcpyAsync(dst, src, n * sizeof(T), cudaMemcpyHostToDevice, stream), "upload");
+}
 template <class T>
 void down(T* dst, const T* src, std::size_t n) {
   if (n) check(cudaMemcpy(dst, src, n * sizeof(T), cudaMemcpyDeviceToHost), "download");
@@ -489,7 +560,9 @@ void down(T* dst, const T* src, std::size_t n) {
 void cuda_upload_state(CudaBackend* b, const GpuHostView& v) {
   const std::size_t n = v.n;
   b->n = n, b->nmat = v.nmat, b->dt = v.dt, b->friction = v.friction, b->rolling = v.rolling;
-  b->orientation = v.orientation;  // the graph below is rebuilt after every upload
+  b->orientation = v.orientation;
+  // the graph holds the particle count (its launch sizes) and these parameters: capture again
+  if (b->graph) cudaGraphExecDestroy(b->graph), b->graph = nullptr;
   for (int k = 0; k < 3; ++k) b->g[k] = v.gravity[k];
   std::size_t* c = b->cap;
   Dev& d = b->d;
@@ -517,6 +590,15 @@ void cuda_upload_state(CudaBackend* b, const GpuHostView& v) {
     up(d.shape_id, c[77], v.shape_id, n), up(d.scale, c[78], v.scale, n);
     up(d.ix, c[79], v.ix, n), up(d.iy, c[80], v.iy, n), up(d.iz, c[81], v.iz, n);
   }
+  b->nfrozen = v.nfrozen;
+  if (v.nfrozen > 0) {
+    up(b->frozen_mask, c[86], v.frozen, n), up(d.frozen_idx, c[87], v.frozen_idx, v.nfrozen);
+    up(d.frozen_hold, c[88], v.frozen_hold, 7 * v.nfrozen);
+  }
+  d.frozen = v.nfrozen > 0 ? b->frozen_mask : nullptr;
+  d.periodic = v.periodic;
+  d.pbox = v.pbox;
+  if (v.periodic) up(d.image, c[85], v.image, 3 * n);
   d.walls = v.ntris > 0;
   b->ntris = v.ntris;
   if (d.walls) {
@@ -530,31 +612,47 @@ void cuda_upload_state(CudaBackend* b, const GpuHostView& v) {
     up(d.wcount, c[52], v.wcount, n);
     if (v.wroll) up(d.wroll, c[38], v.wroll, 3 * ns);
   }
-  // moving walls and the flexible mesh: reference vertices, motions, node kinematics of this
-  // advance(); the node force output starts at zero (as on the CPU)
   b->walls_moving = d.walls && v.walls_moving;
   d.walls_moving = b->walls_moving && v.nwalls > 0;
   b->nverts = d.walls ? v.nverts : 0;
   b->flex_nodes = b->walls_moving ? v.flex_nodes : 0;
-  b->flex_average = v.flex_average, b->flex_inv = v.flex_inv_substeps;
   d.flex_nodes = b->flex_nodes;
   d.flex_vbase = static_cast<std::int64_t>(v.flex_vbase);
+  b->resident = false;  // until the advance() that uploaded it has downloaded its results
+}
+
+void cuda_begin_advance(CudaBackend* b, const GpuHostView& v) {
+  std::size_t* c = b->cap;
+  Dev& d = b->d;
+  // moving walls and the flexible mesh: reference vertices, motions, node kinematics of this
+  // advance(); the node force output starts at zero (as on the CPU)
+  b->flex_average = v.flex_average, b->flex_inv = v.flex_inv_substeps;
   if (b->walls_moving) {
-    up(d.vref, c[56], v.vref, 3 * v.nverts), up(d.vwall, c[57], v.vwall, v.nverts);
-    up(d.motion, c[58], v.motion, v.nwalls);
+    up_async(d.vref, c[56], v.vref, 3 * v.nverts, b->stream);
+    up_async(d.vwall, c[57], v.vwall, v.nverts, b->stream);
+    up_async(d.motion, c[58], v.motion, v.nwalls, b->stream);
     if (b->flex_nodes > 0) {
       const std::size_t n3 = 3 * b->flex_nodes;
-      up(d.flex_v, c[59], v.flex_v, n3), up(d.flex_a, c[60], v.flex_a, n3);
+      up_async(d.flex_v, c[59], v.flex_v, n3, b->stream);
+      up_async(d.flex_a, c[60], v.flex_a, n3, b->stream);
       ensure(d.flex_force, c[61], n3), ensure(d.node_buf, c[62], n3);
-      check(cudaMemset(d.flex_force, 0, n3 * sizeof(double)), "cudaMemset");
-      check(cudaMemset(d.node_buf, 0, n3 * sizeof(double)), "cudaMemset");
+      check(cudaMemsetAsync(d.flex_force, 0, n3 * sizeof(double), b->stream), "cudaMemset");
+      check(cudaMemsetAsync(d.node_buf, 0, n3 * sizeof(double), b->stream), "cudaMemset");
     }
   }
-  check(cudaMemset(d.flex_max_ov, 0, sizeof(unsigned long long)), "cudaMemset");
-  check(cudaMemset(d.adv_max_ov, 0, sizeof(unsigned long long)), "cudaMemset");
-  check(cudaMemset(d.adv_max_rel, 0, sizeof(unsigned long long)), "cudaMemset");
-  check(cudaMemset(d.max_ov, 0, sizeof(unsigned long long)), "cudaMemset");
-  if (b->graph) cudaGraphExecDestroy(b->graph), b->graph = nullptr;  // pointers may move
+  // the maxima of this advance() start at zero (the graph is captured again if an array moved)
+  check(cudaMemsetAsync(d.flex_max_ov, 0, sizeof(unsigned long long), b->stream), "cudaMemset");
+  check(cudaMemsetAsync(d.adv_max_ov, 0, sizeof(unsigned long long), b->stream), "cudaMemset");
+  check(cudaMemsetAsync(d.adv_max_rel, 0, sizeof(unsigned long long), b->stream), "cudaMemset");
+  check(cudaMemsetAsync(d.max_ov, 0, sizeof(unsigned long long), b->stream), "cudaMemset");
+}
+
+bool cuda_resident(CudaBackend* b, std::size_t n, std::size_t npairs) {
+  return b->resident && b->n == n && b->npairs == npairs;
+}
+
+void cuda_set_resident(CudaBackend* b, bool resident) {
+  b->resident = resident;
 }
 
 void cuda_upload_lists(CudaBackend* b, const GpuHostView& v) {
@@ -578,7 +676,6 @@ void cuda_upload_lists(CudaBackend* b, const GpuHostView& v) {
     ensure(d.pt, c[35], 3 * np), ensure(d.pr, c[36], 3 * np);
     if (v.rhist) up(d.rhist, c[37], v.rhist, 3 * np);
   }
-  if (b->graph) cudaGraphExecDestroy(b->graph), b->graph = nullptr;
 }
 
 void cuda_download_state(CudaBackend* b, const GpuHostView& v) {
@@ -591,6 +688,7 @@ void cuda_download_state(CudaBackend* b, const GpuHostView& v) {
   down(v.qw, d.qw, n), down(v.qx, d.qx, n), down(v.qy, d.qy, n), down(v.qz, d.qz, n);
   down(v.fx, d.fx, n), down(v.fy, d.fy, n), down(v.fz, d.fz, n);
   down(v.tx, d.tx, n), down(v.ty, d.ty, n), down(v.tz, d.tz, n);
+  if (v.periodic && d.periodic) down(v.image, d.image, 3 * n);
   if (v.friction && v.shear && b->npairs == v.npairs) down(v.shear, d.shear, 3 * v.npairs);
   if (v.rhist && b->npairs == v.npairs) down(v.rhist, d.rhist, 3 * v.npairs);
   if (v.poly && b->npairs == v.npairs) {
@@ -627,6 +725,7 @@ std::size_t cuda_build_lists(CudaBackend* b, double skin, double rmax) {
   DeviceListInput in;
   in.n = n, in.px = d.px, in.py = d.py, in.pz = d.pz, in.radius = d.radius;
   in.rmax = rmax, in.skin = skin;
+  in.box = d.pbox, in.periodic = d.periodic;
   in.old_npairs = b->npairs, in.old_row = d.row, in.old_nbr = d.nbr;
   in.ntris = d.walls ? b->ntris : 0, in.vpos = d.vpos, in.tri_v = d.tri_v;
   const DeviceListCounts counts = b->list.count(in);
@@ -702,6 +801,10 @@ void enqueue_forces(CudaBackend* b, bool force) {
     k_gather_kick<false><<<grid, kBlock, 0, b->stream>>>(b->d, n, b->nmat, b->dt, b->g[0], b->g[1],
                                                          b->g[2], b->rolling, force);
   }
+  if (b->nfrozen > 0) {  // their second half kick undone
+    const unsigned gridh = static_cast<unsigned>((b->nfrozen + kBlock - 1) / kBlock);
+    k_hold<<<gridh, kBlock, 0, b->stream>>>(b->d, b->nfrozen, force);
+  }
   if (b->flex_nodes > 0) {
     const std::size_t n3 = 3 * b->flex_nodes;
     const unsigned gridf = static_cast<unsigned>((n3 + kBlock - 1) / kBlock);
@@ -715,6 +818,10 @@ void enqueue_step(CudaBackend* b, double skin) {
   const double half_skin = 0.5 * skin;
   k_kick_drift<<<grid, kBlock, 0, b->stream>>>(b->d, n, b->dt, half_skin * half_skin, b->friction,
                                                b->orientation, b->walls_moving);
+  if (b->nfrozen > 0) {
+    const unsigned gridh = static_cast<unsigned>((b->nfrozen + kBlock - 1) / kBlock);
+    k_hold<<<gridh, kBlock, 0, b->stream>>>(b->d, b->nfrozen, false);
+  }
   if (b->walls_moving && b->nverts > 0) {
     const unsigned gridv = static_cast<unsigned>((b->nverts + kBlock - 1) / kBlock);
     k_walls<<<gridv, kBlock, 0, b->stream>>>(b->d, b->nverts, b->dt);
@@ -722,6 +829,45 @@ void enqueue_step(CudaBackend* b, double skin) {
   k_latch<<<1, 1, 0, b->stream>>>(b->d, b->dt, skin, b->walls_moving);
   enqueue_forces(b, false);
 }
+}  // namespace
+
+namespace {
+// The graph of one step: captured again when an argument it holds changed (the device
+// pointers in Dev, which a list build or an upload may move; the skin; the ForceMode fold).
+void ensure_graph(CudaBackend* b, double skin) {
+  if (b->graph && b->graph_skin == skin && b->graph_flex_average == b->flex_average &&
+      b->graph_flex_inv == b->flex_inv && std::memcmp(&b->graph_dev, &b->d, sizeof(Dev)) == 0)
+    return;
+  if (b->graph) cudaGraphExecDestroy(b->graph), b->graph = nullptr;
+  cudaGraph_t g;
+  check(cudaStreamBeginCapture(b->stream, cudaStreamCaptureModeThreadLocal), "capture");
+  enqueue_step(b, skin);
+  check(cudaStreamEndCapture(b->stream, &g), "capture");
+  check(cudaGraphInstantiate(&b->graph, g, 0), "cudaGraphInstantiate");
+  cudaGraphDestroy(g);
+  b->graph_skin = skin;
+  b->graph_flex_average = b->flex_average, b->graph_flex_inv = b->flex_inv;
+  std::memcpy(&b->graph_dev, &b->d, sizeof(Dev));
+}
+
+// The summary into pinned memory, and the event that says it has arrived (no wait).
+void copy_summary(CudaBackend* b) {
+  check(cudaMemcpyAsync(b->summary_host, b->summary_dev, sizeof(DeviceSummary),
+                        cudaMemcpyDeviceToHost, b->stream),
+        "summary");
+  check(cudaEventRecord(b->chunk_done, b->stream), "cudaEventRecord");
+}
+
+// Whether all work enqueued so far is done and its summary asks for a list build (a query,
+// not a wait: the device goes on with what is queued).
+bool stop_seen(CudaBackend* b) {
+  const cudaError_t e = cudaEventQuery(b->chunk_done);
+  if (e == cudaErrorNotReady) return false;
+  check(e, "cudaEventQuery");
+  return b->summary_host->stop[0] != 0;
+}
+
+constexpr std::int64_t kChunk = 256;  // steps enqueued between two looks at cancel and stop
 }  // namespace
 
 std::int64_t cuda_run_steps(CudaBackend* b, std::int64_t steps, double skin, double t, double tau,
@@ -735,32 +881,29 @@ std::int64_t cuda_run_steps(CudaBackend* b, std::int64_t steps, double skin, dou
   const double clock[2] = {t, tau};
   check(cudaMemcpyAsync(b->d.clock, clock, sizeof(clock), cudaMemcpyHostToDevice, b->stream),
         "clock");
-  if (!b->graph || b->graph_skin != skin) {
-    if (b->graph) cudaGraphExecDestroy(b->graph), b->graph = nullptr;
-    cudaGraph_t g;
-    check(cudaStreamBeginCapture(b->stream, cudaStreamCaptureModeThreadLocal), "capture");
-    enqueue_step(b, skin);
-    check(cudaStreamEndCapture(b->stream, &g), "capture");
-    check(cudaGraphInstantiate(&b->graph, g, 0), "cudaGraphInstantiate");
-    cudaGraphDestroy(g);
-    b->graph_skin = skin;
-  }
-  // Replay in chunks; steps after a rebuild request return at once on the device.
-  std::int64_t done = 0;
-  int flags[2] = {0, 0};
-  unsigned long long count = 0;
-  while (done < steps) {
-    const std::int64_t chunk = steps - done < 256 ? steps - done : 256;
+  ensure_graph(b, skin);
+  // One batch of steps, then one wait. Steps after a build request return at once on the
+  // device, so a batch is capped at twice the steps between the last two builds (all steps
+  // while the list lasts, as in a settled bed: one wait per advance()). Within the batch the
+  // host looks, every kChunk steps and without waiting, at the cancel flag and at the summary
+  // of the work already done, and stops enqueueing when either says so.
+  const std::int64_t cap = 2 * b->steps_between_builds > kChunk ? 2 * b->steps_between_builds
+                                                                : kChunk;
+  const std::int64_t batch = steps < cap ? steps : cap;
+  for (std::int64_t queued = 0; queued < batch;) {
+    const std::int64_t chunk = batch - queued < kChunk ? batch - queued : kChunk;
     for (std::int64_t k = 0; k < chunk; ++k) check(cudaGraphLaunch(b->graph, b->stream), "launch");
-    check(cudaMemcpyAsync(flags, b->d.stop, 2 * sizeof(int), cudaMemcpyDeviceToHost, b->stream),
-          "flags");
-    check(
-        cudaMemcpyAsync(&count, b->d.steps_done, sizeof(count), cudaMemcpyDeviceToHost, b->stream),
-        "flags");
-    check(cudaStreamSynchronize(b->stream), "cudaStreamSynchronize");
-    done = static_cast<std::int64_t>(count);
-    if (flags[0]) break;
+    queued += chunk;
+    copy_summary(b);
     if (cancel != nullptr && cancel->load(std::memory_order_relaxed)) break;  // a stop request
+    if (queued < batch && stop_seen(b)) break;
+  }
+  check(cudaStreamSynchronize(b->stream), "cudaStreamSynchronize");  // the batch's one wait
+  const std::int64_t done = static_cast<std::int64_t>(b->summary_host->steps_done);
+  b->steps_since_build += done;
+  if (b->summary_host->stop[0]) {
+    b->steps_between_builds = b->steps_since_build;
+    b->steps_since_build = 0;
   }
   return done;
 }
@@ -768,33 +911,33 @@ std::int64_t cuda_run_steps(CudaBackend* b, std::int64_t steps, double skin, dou
 void cuda_finish_step(CudaBackend* b) {
   enqueue_forces(b, true);
   check(cudaMemsetAsync(b->d.stop, 0, 2 * sizeof(int), b->stream), "cudaMemset");
+  copy_summary(b);
   check(cudaStreamSynchronize(b->stream), "cudaStreamSynchronize");
 }
 
 namespace {
-double read_max(const unsigned long long* dev_bits) {
-  unsigned long long bits = 0;
-  check(cudaMemcpy(&bits, dev_bits, sizeof(bits), cudaMemcpyDeviceToHost), "max_overlap");
+double bits_value(unsigned long long bits) {
   double v = 0.0;
   std::memcpy(&v, &bits, sizeof(v));
   return v;
 }
 }  // namespace
 
+// The maxima of the summary read at the last wait (no transfer).
 double cuda_max_overlap(CudaBackend* b) {
-  return read_max(b->d.max_ov);
+  return bits_value(b->summary_host->max_ov);
 }
 
 double cuda_flex_max_overlap(CudaBackend* b) {
-  return read_max(b->d.flex_max_ov);
+  return bits_value(b->summary_host->flex_max_ov);
 }
 
 double cuda_advance_max_overlap(CudaBackend* b) {
-  return read_max(b->d.adv_max_ov);
+  return bits_value(b->summary_host->adv_max_ov);
 }
 
 double cuda_advance_max_relative_overlap(CudaBackend* b) {
-  return read_max(b->d.adv_max_rel);
+  return bits_value(b->summary_host->adv_max_rel);
 }
 
 }  // namespace demfem::dem

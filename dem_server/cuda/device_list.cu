@@ -70,31 +70,43 @@ struct CellOfParticle {
   DEMFEM_HD I64 operator()(I64 i) const { return g.cell(px[i], py[i], pz[i]); }
 };
 
-struct CountPartners {
+// The candidate partners of particle i, in a periodic grid at their nearest images (the
+// CPU build's two scans).
+struct PartnerScan {
   phys::CellGrid g;
   phys::CellOrder o;
   const double *px, *py, *pz, *r;
   double skin;
+  phys::PeriodicBox box;
+  bool periodic;
+  template <class Emit>
+  DEMFEM_HD void operator()(I64 i, Emit&& emit) const {
+    if (periodic)
+      phys::for_each_periodic_candidate(g, o, box, i, px[i], py[i], pz[i], r[i], skin, emit);
+    else
+      phys::for_each_candidate(g, o, i, px[i], py[i], pz[i], r[i], skin, emit);
+  }
+};
+
+struct CountPartners {
+  PartnerScan scan;
   DEMFEM_HD I64 operator()(I64 i) const {
     I64 c = 0;
-    phys::for_each_candidate(g, o, i, px[i], py[i], pz[i], r[i], skin, [&](I32) { ++c; });
+    scan(i, [&](I32) { ++c; });
     return c;
   }
 };
 
-// Writes the partners of row i and sorts them (insertion sort: rows hold a few tens).
+// Writes the partners of row i and sorts them (insertion sort: rows hold a few tens; the
+// periodic scan emits them out of order, as on the CPU, which sorts each row too).
 struct FillPartners {
-  phys::CellGrid g;
-  phys::CellOrder o;
-  const double *px, *py, *pz, *r;
-  double skin;
+  PartnerScan scan;
   const I64* row;
   I32* nbr;
   DEMFEM_HD void operator()(I64 i) const {
     I32* out = nbr + row[i];
     I64 c = 0;
-    phys::for_each_candidate(g, o, i, px[i], py[i], pz[i], r[i], skin,
-                             [&](I32 j) { out[c++] = j; });
+    scan(i, [&](I32 j) { out[c++] = j; });
     for (I64 a = 1; a < c; ++a) {
       const I32 v = out[a];
       I64 b = a;
@@ -192,6 +204,13 @@ struct DeviceNeighbourList::Work {
   DVec<double> sx, sy, sz, sr, dbuf;
 };
 
+namespace {
+PartnerScan partner_scan(const phys::CellGrid& g, const phys::CellOrder& order,
+                         const DeviceListInput& in) {
+  return PartnerScan{g, order, in.px, in.py, in.pz, in.radius, in.skin, in.box, in.periodic};
+}
+}  // namespace
+
 DeviceNeighbourList::DeviceNeighbourList() : w_(std::make_unique<Work>()) {}
 DeviceNeighbourList::~DeviceNeighbourList() = default;
 
@@ -217,7 +236,11 @@ DeviceListCounts DeviceNeighbourList::count(const DeviceListInput& in) {
                                    BoxOfParticle{in.px, in.py, in.pz}, box, JoinBoxes{});
   else
     for (int d = 0; d < 3; ++d) box.lo[d] = box.hi[d] = 0.0;
-  w.grid = phys::cell_grid(box.lo, box.hi, n, in.rmax, in.skin);
+  // a periodic direction's grid spans its period (the positions lie in [lo, lo + L))
+  for (int d = 0; d < 3; ++d)
+    if (in.box.period[d] > 0.0)
+      box.lo[d] = in.box.lo[d], box.hi[d] = in.box.lo[d] + in.box.period[d];
+  w.grid = phys::cell_grid(box.lo, box.hi, n, in.rmax, in.skin, in.box.period);
   w.ncell = w.grid.cells();
   // particles in cell order: a stable sort keeps them in index order within a cell
   const std::size_t un = in.n;
@@ -240,7 +263,7 @@ DeviceListCounts DeviceNeighbourList::count(const DeviceListInput& in) {
   // rows: partners counted per particle, then a prefix sum
   w.row.assign(un + 1, 0);
   thrust::transform(pol, count_from(0), count_from(n), w.row.begin() + 1,
-                    CountPartners{w.grid, order, in.px, in.py, in.pz, in.radius, in.skin});
+                    CountPartners{partner_scan(w.grid, order, in)});
   thrust::inclusive_scan(pol, w.row.begin() + 1, w.row.end(), w.row.begin() + 1);
   w.np = w.row[un];  // a read of the device
   // walls: each triangle's cells, its (cell, triangle) entries sorted by cell (stable: the
@@ -284,7 +307,7 @@ void DeviceNeighbourList::fill(const DeviceListInput& in, const DeviceListOutput
   thrust::copy(pol, w.row.begin(), w.row.end(), out.row);
   thrust::for_each(
       pol, count_from(0), count_from(n),
-      FillPartners{w.grid, order, in.px, in.py, in.pz, in.radius, in.skin, out.row, out.nbr});
+      FillPartners{partner_scan(w.grid, order, in), out.row, out.nbr});
   // histories: each new pair's key looked up among the old keys (both ascending)
   w.owner.resize(unp), w.keys.resize(unp), w.pos.resize(unp);
   thrust::upper_bound(pol, out.row + 1, out.row + n + 1, count_from(0), count_from(np),

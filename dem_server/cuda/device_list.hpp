@@ -5,7 +5,8 @@
 // the list it replaces (old and new pairs matched by a sorted key and a binary search), and each
 // particle's candidate wall triangles (the triangles binned into the same grid). The list and
 // its order equal the CPU build's (neighbour_list.cpp, one level): both call the same grid and
-// candidate functions (physics/grid_cell.hpp, physics/triangle_bins.hpp).
+// candidate functions (physics/grid_cell.hpp, physics/triangle_bins.hpp). A periodic system's
+// grid spans its periods and the candidates are taken at their nearest images, as on the CPU.
 //
 // Written with Thrust, so that the same sort, scan and search calls compile for CUDA (nvcc)
 // and, in the host emulation of the backend (tests/dem/cuda_emu), for Thrust's CPP backend.
@@ -15,6 +16,8 @@
 #include <cstdint>
 #include <memory>
 
+#include "demfem/dem/physics/periodic_image.hpp"
+
 namespace demfem::dem {
 
 /// What a build reads (device pointers) and the list it replaces.
@@ -23,6 +26,8 @@ struct DeviceListInput {
   const double *px = nullptr, *py = nullptr, *pz = nullptr, *radius = nullptr;
   double rmax = 0.0;  ///< largest radius, m
   double skin = 0.0;  ///< m
+  phys::PeriodicBox box;  ///< the periods (none: period 0 in every direction)
+  bool periodic = false;  ///< some direction is periodic
   // the list being replaced: rows (n + 1) and partners; its histories are carried
   std::size_t old_npairs = 0;
   const std::int64_t* old_row = nullptr;

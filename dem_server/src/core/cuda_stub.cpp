@@ -35,6 +35,13 @@ void cuda_upload_state(CudaBackend*, const GpuHostView&) {
 void cuda_upload_lists(CudaBackend*, const GpuHostView&) {
   no_cuda();
 }
+void cuda_begin_advance(CudaBackend*, const GpuHostView&) {
+  no_cuda();
+}
+bool cuda_resident(CudaBackend*, std::size_t, std::size_t) {
+  return false;
+}
+void cuda_set_resident(CudaBackend*, bool) {}
 void cuda_download_state(CudaBackend*, const GpuHostView&) {
   no_cuda();
 }

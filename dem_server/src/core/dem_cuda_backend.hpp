@@ -9,6 +9,7 @@
 #include <cstdint>
 
 #include "demfem/dem/physics/contact.hpp"
+#include "demfem/dem/physics/periodic_image.hpp"
 #include "demfem/dem/physics/shape_table.hpp"
 #include "demfem/dem/physics/wall_contact.hpp"
 #include "demfem/dem/physics/wall_motion.hpp"
@@ -76,6 +77,17 @@ struct GpuHostView {
   double* ptj = nullptr;          // 3 per pair (out)
   double* paxis = nullptr;        // 3 per pair (in/out)
   std::int32_t* pfeat = nullptr;  // 6 per pair (in/out)
+  // periodic boundaries (physics/periodic_image.hpp): the periods and per particle 3 image
+  // counters (in/out; the device wraps the positions after each drift)
+  bool periodic = false;
+  phys::PeriodicBox pbox;
+  std::int32_t* image = nullptr;
+  // frozen particles (DemSystem::freeze; nfrozen 0: none): the mask (n), the held particles
+  // and their poses (7 each: x, y, z, qw, qx, qy, qz)
+  std::size_t nfrozen = 0;
+  const std::uint8_t* frozen = nullptr;
+  const std::int64_t* frozen_idx = nullptr;
+  const double* frozen_hold = nullptr;
 };
 
 /// Host arrays a list built on the device is copied into (sized from cuda_list_sizes()).
@@ -93,19 +105,31 @@ CudaBackend* cuda_backend_create();
 void cuda_backend_destroy(CudaBackend* b);
 /// Copies the particle state and parameters to the device.
 void cuda_upload_state(CudaBackend* b, const GpuHostView& v);
+/// At the start of every advance(), after an upload or on the resident state: the moving
+/// walls' motions and reference vertices and the flexible mesh's node kinematics of this
+/// advance(), the ForceMode fold, the maxima of the advance() set to zero (enqueued, no wait).
+void cuda_begin_advance(CudaBackend* b, const GpuHostView& v);
+/// Whether the device holds the host's particle state and list (n particles, npairs pairs):
+/// set by the host after an advance() downloaded its results, cleared by an upload of the
+/// state and by the host before it runs steps (a step that throws leaves the host behind).
+bool cuda_resident(CudaBackend* b, std::size_t n, std::size_t npairs);
+void cuda_set_resident(CudaBackend* b, bool resident);
 /// Copies the neighbour list, springs and build positions to the device.
 void cuda_upload_lists(CudaBackend* b, const GpuHostView& v);
 /// Copies the particle state and the springs (tangential and rolling) back to the host;
 /// with moving walls also the wall vertex positions and velocities and the flexible node
 /// forces.
 void cuda_download_state(CudaBackend* b, const GpuHostView& v);
-/// Runs up to `steps` steps on the device (one CUDA graph for the whole chunk) and stops
+/// Runs up to `steps` steps on the device (a CUDA graph of one step, replayed) and stops
 /// early when the neighbour list must be rebuilt (the CPU rule: a particle moved more than
 /// skin / 2, or the largest particle displacement plus the largest wall vertex displacement
 /// since the last build exceeds the skin): returns the number of steps done. The check runs
-/// on the device; the host reads one flag per chunk. t and tau are the time and the time
-/// into the advance() at the start (the device advances its copy by dt per step, as the
-/// host does). Returns early, after a chunk, when `cancel` (may be null) is found set.
+/// on the device; the host waits once, at the end, and reads one summary (flags, steps done,
+/// overlap maxima). At most twice the steps between the last two builds are run before that
+/// wait (steps after a build request are no-ops on the device). t and tau are the time and
+/// the time into the advance() at the start (the device advances its copy by dt per step, as
+/// the host does). Returns early when `cancel` (may be null) is found set (looked at every
+/// 256 steps enqueued).
 std::int64_t cuda_run_steps(CudaBackend* b, std::int64_t steps, double skin, double t, double tau,
                             const std::atomic<bool>* cancel = nullptr);
 /// Builds the neighbour list and the wall candidates on the device from the device's
@@ -117,8 +141,10 @@ void cuda_list_sizes(CudaBackend* b, std::size_t* npairs, std::size_t* nptri);
 /// Copies the device's list (rows, partners, build positions, wall candidates and the wall
 /// vertices at the build) to the host.
 void cuda_download_lists(CudaBackend* b, const GpuListDownload& v);
-/// Completes a step whose drift was done but whose forces were held back for a rebuild.
+/// Completes a step whose drift was done but whose forces were held back for a rebuild, and
+/// reads the summary (one wait).
 void cuda_finish_step(CudaBackend* b);
+/// The maxima below are those of the summary read at the last wait (no transfer).
 /// Largest overlap of the last step, m.
 double cuda_max_overlap(CudaBackend* b);
 /// Largest overlap with the flexible mesh since the last upload_state, m.

@@ -64,6 +64,11 @@ GpuHostView DemSystem::Impl::gpu_view() {
     v.paxis = slots.separating_axis.data();
     v.pfeat = slots.closest_features.data();
   }
+  if (periodic) v.periodic = true, v.pbox = pbox, v.image = image.data();
+  if (!frozen_idx.empty()) {
+    v.nfrozen = frozen_idx.size(), v.frozen = frozen.data();
+    v.frozen_idx = frozen_idx.data(), v.frozen_hold = frozen_hold.data();
+  }
   if (!walls.empty()) {
     v.nverts = walls.vertex_x.size() / 3, v.ntris = walls.triangle_vertices.size() / 3,
     v.nptri = walls.candidate_triangle.size();
@@ -135,7 +140,13 @@ void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
                : step<false>(k + 1 == substeps, mode, substeps);
     return;
   }
-  if (list.must_build || list.row.size() != n() + 1 || !list.has_update_positions(n())) rebuild();
+  if (periodic) check_periods();
+  // The state and the list stay on the device from one advance() to the next: they are
+  // uploaded when the host changed them (every change of particles, walls or state sets
+  // list.must_build) or the device does not hold them (the first advance(), one that threw).
+  const bool changed =
+      list.must_build || list.row.size() != n() + 1 || !list.has_update_positions(n());
+  if (changed) rebuild();
   if (walls.moving) gpu_wall_kinematics();
   auto view = [&] {
     GpuHostView v = gpu_view();
@@ -143,8 +154,12 @@ void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
     v.flex_inv_substeps = 1.0 / static_cast<double>(substeps);
     return v;
   };
-  cuda_upload_state(gpu, view());
-  cuda_upload_lists(gpu, view());
+  if (changed || !cuda_resident(gpu, n(), list.partner.size())) {
+    cuda_upload_state(gpu, view());
+    cuda_upload_lists(gpu, view());
+  }
+  cuda_begin_advance(gpu, view());
+  cuda_set_resident(gpu, false);  // until the results are downloaded
   std::int64_t left = substeps;
   double tdet = 0.0;
   bool built_on_device = false;
@@ -169,6 +184,7 @@ void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
   }
   if (built_on_device) adopt_device_list();
   cuda_download_state(gpu, view());
+  cuda_set_resident(gpu, true);
   max_overlap = cuda_max_overlap(gpu);
   advance_max_overlap = cuda_advance_max_overlap(gpu);
   advance_max_relative_overlap = cuda_advance_max_relative_overlap(gpu);

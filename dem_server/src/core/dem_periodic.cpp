@@ -30,14 +30,9 @@ bool DemSystem::Impl::wrap_positions() {
   for (std::int64_t i = 0; i < sn; ++i) {
     if (any_frozen && frozen[i] != 0) continue;  // held where it is (hold_frozen)
     for (int d = 0; d < 3; ++d) {
-      const int k = phys::wrap_count(pbox, d, X[d][i]);
+      const int k = phys::wrap_coordinate(pbox, d, X[d][i], have_build ? B[d] + i : nullptr);
       if (k == 0) continue;
-      const double L = pbox.period[d], lo = pbox.lo[d];
-      // a particle moves less than a period per step: one wrap brings it in, up to the
-      // rounding of x -/+ L, which the clamp keeps out of a wrap back in the next step
-      X[d][i] = std::clamp(X[d][i] - k * L, lo, std::nextafter(lo + L, lo));
       image[3 * i + d] += k;
-      if (have_build) B[d][i] -= k * L;
       wrapped = 1;
     }
   }

@@ -593,9 +593,6 @@ void DemSystem::restore(const io::H5File& f, const std::string& group) {
           std::to_string(I.image.size()) + " entries, not 3 per particle (" + std::to_string(n) +
           ")");
   }
-  if (I.gpu && std::find(I.frozen.begin(), I.frozen.end(), std::uint8_t{1}) != I.frozen.end())
-    bad("restore: '" + group + "' of " + f.path().string() +
-        " holds frozen particles, which the CPU backend only holds (dem.backend = \"cpu\")");
   if (I.walls.vertex_x.size() != (I.walls.vertex_x_at_build.size()) ||
       (nwalls > 0 && I.walls.vertex_x.size() < 3))
     bad("restore: wall vertex data in '" + group + "' does not match the walls of this system");

@@ -426,14 +426,9 @@ void DemSystem::Impl::refresh_frozen() {
 }
 
 void DemSystem::Impl::hold_frozen() {
-  for (std::size_t k = 0; k < frozen_idx.size(); ++k) {
-    const auto i = static_cast<std::size_t>(frozen_idx[k]);
-    const double* h = frozen_hold.data() + 7 * k;
-    st.px[i] = h[0], st.py[i] = h[1], st.pz[i] = h[2];
-    st.qw[i] = h[3], st.qx[i] = h[4], st.qy[i] = h[5], st.qz[i] = h[6];
-    st.vx[i] = st.vy[i] = st.vz[i] = 0.0;
-    st.wx[i] = st.wy[i] = st.wz[i] = 0.0;
-  }
+  const phys::MotionArrays m = motion_arrays();
+  for (std::size_t k = 0; k < frozen_idx.size(); ++k)
+    phys::hold_pose(m, frozen_idx[k], frozen_hold.data() + 7 * k);
 }
 
 void DemSystem::Impl::rebuild() {

@@ -70,9 +70,6 @@ void validate(const DemSettings& s) {
       bad(std::string("settings.periodic: the range in ") + "xyz"[d] +
           " must be finite with hi > lo");
   }
-  if (s.periodic.any() && s.backend == DemBackendKind::cuda)
-    bad("periodic boundaries are run by the CPU backend only (backend = 'cpu'); the CUDA "
-        "backend's device list has no periodic images yet");
 }
 }  // namespace
 
@@ -425,8 +422,6 @@ double DemSystem::kinetic_energy() const {
 
 void DemSystem::freeze(std::span<const std::uint8_t> mask) {
   auto& I = *impl_;
-  if (I.gpu)
-    bad("freeze: frozen particles are held by the CPU backend only (dem.backend = \"cpu\")");
   if (mask.size() != I.n())
     bad("freeze: the mask has " + std::to_string(mask.size()) + " entries, need " +
         std::to_string(I.n()));
@@ -438,6 +433,7 @@ void DemSystem::freeze(std::span<const std::uint8_t> mask) {
       I.st.wx[i] = I.st.wy[i] = I.st.wz[i] = 0.0;
     }
   I.refresh_frozen();
+  if (I.gpu) cuda_set_resident(I.gpu, false);  // the device takes the mask and the rest
 }
 
 std::span<const std::uint8_t> DemSystem::frozen() const {

@@ -62,8 +62,6 @@ void read_settings(const Table& dem, DemScene& s) {
     box.finish();
     f.max_speed = fz->number("max_speed", 0.01, Range::positive());
     fz->finish();
-    if (f.enabled && st.backend == DemBackendKind::cuda)
-      fz->fail("enabled", "frozen particles are held by the CPU backend only (dem.backend)");
     if (f.enabled) s.freeze = f;
   }
   if (dem.has("remove_by")) {

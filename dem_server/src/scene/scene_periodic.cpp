@@ -23,10 +23,6 @@ void read_periodic(const scene::Table& dem, DemScene& s) {
     s.periodic_where[d] = p->where(key);
   }
   if (!r.any()) p->fail("x", "[dem.periodic] needs at least one of x, y, z = [lo, hi]");
-  if (s.settings.backend == DemBackendKind::cuda)
-    p->fail(r.on[0] ? "x" : (r.on[1] ? "y" : "z"),
-            "periodic boundaries are run by the CPU backend only (dem.backend = \"cpu\"); the "
-            "CUDA backend's device neighbour list has no periodic images yet");
   p->finish();
 }
 

@@ -352,9 +352,4 @@ TEST_CASE("Periodic settings that cannot work are refused", "[dem][periodic][bad
     s.periodic.hi[0] = -1.0;
     CHECK_THROWS_WITH(DemSystem(s), Catch::Contains("hi > lo"));
   }
-  SECTION("the CUDA backend") {
-    auto s = periodic_settings(true, 0.0);
-    s.backend = DemBackendKind::cuda;
-    CHECK_THROWS_WITH(DemSystem(s), Catch::Contains("CPU backend"));
-  }
 }

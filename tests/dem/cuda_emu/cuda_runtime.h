@@ -8,6 +8,11 @@
 // reduction followed by one atomic from lane 0 becomes one atomic per thread (the same result).
 // What this checks: the host orchestration and the kernels' arithmetic and indexing. What it
 // does not: concurrency, the real warp shuffle, the device's sin/cos, memory limits.
+// It also counts what a device would cost the host (emu_counters): the times the host waits
+// for queued device work (an explicit synchronisation, or a blocking transfer, while work is
+// queued: on a device such a call waits for that work), the bytes copied to the device and
+// the graph captures. Device work here is done at once; `busy` records that some would be
+// queued on a device.
 
 #include <cmath>
 #include <cstddef>
@@ -16,7 +21,10 @@
 #include <cstdlib>
 #include <cstring>
 #include <functional>
+#include <set>
 #include <vector>
+
+#define DEMFEM_CUDA_EMULATION 1
 
 #define __global__
 #define __device__
@@ -35,8 +43,25 @@ struct EmuDim3 {
 };
 inline thread_local EmuDim3 blockIdx, threadIdx, blockDim;
 
+struct EmuCounters {
+  long host_waits = 0;              // waits for queued device work
+  unsigned long long bytes_to_device = 0;
+  long captures = 0;                // stream captures (graphs built)
+  bool busy = false;                // device work queued since the last wait
+  std::set<const void*> pinned;     // host memory from cudaMallocHost
+};
+inline EmuCounters emu_counters;
+inline void emu_enqueue() {
+  emu_counters.busy = true;
+}
+inline void emu_wait() {
+  if (emu_counters.busy) ++emu_counters.host_waits;
+  emu_counters.busy = false;
+}
+
 using cudaError_t = int;
 constexpr cudaError_t cudaSuccess = 0;
+constexpr cudaError_t cudaErrorNotReady = 600;
 inline const char* cudaGetErrorString(cudaError_t) {
   return "emulated CUDA error";
 }
@@ -75,17 +100,40 @@ inline cudaError_t cudaFree(void* p) {
   std::free(p);
   return cudaSuccess;
 }
-inline cudaError_t cudaMemcpy(void* dst, const void* src, std::size_t bytes, cudaMemcpyKind) {
-  if (emu_capture) emu_fail("cudaMemcpy during stream capture");
-  std::memcpy(dst, src, bytes);
+template <class T>
+cudaError_t cudaMallocHost(T** p, std::size_t bytes) {
+  *p = static_cast<T*>(std::malloc(bytes));
+  if (!*p) emu_fail("out of memory");
+  emu_counters.pinned.insert(*p);
   return cudaSuccess;
 }
+inline cudaError_t cudaFreeHost(void* p) {
+  emu_counters.pinned.erase(p);
+  std::free(p);
+  return cudaSuccess;
+}
+inline void emu_copy(void* dst, const void* src, std::size_t bytes, cudaMemcpyKind kind) {
+  if (emu_capture) emu_fail("cudaMemcpy during stream capture");
+  if (kind == cudaMemcpyHostToDevice) emu_counters.bytes_to_device += bytes;
+  std::memcpy(dst, src, bytes);
+}
+// Blocking: waits for the queued work first.
+inline cudaError_t cudaMemcpy(void* dst, const void* src, std::size_t bytes, cudaMemcpyKind kind) {
+  emu_wait();
+  emu_copy(dst, src, bytes, kind);
+  return cudaSuccess;
+}
+// Queued, except a copy to pageable host memory, which returns once it is done (a wait).
 inline cudaError_t cudaMemcpyAsync(void* dst, const void* src, std::size_t bytes,
                                    cudaMemcpyKind kind, cudaStream_t) {
-  return cudaMemcpy(dst, src, bytes, kind);
+  if (kind == cudaMemcpyDeviceToHost && emu_counters.pinned.count(dst) == 0) emu_wait();
+  else emu_enqueue();
+  emu_copy(dst, src, bytes, kind);
+  return cudaSuccess;
 }
 inline cudaError_t cudaMemset(void* dst, int value, std::size_t bytes) {
   if (emu_capture) emu_fail("cudaMemset during stream capture");
+  emu_enqueue();
   std::memset(dst, value, bytes);
   return cudaSuccess;
 }
@@ -100,14 +148,34 @@ inline cudaError_t cudaStreamDestroy(cudaStream_t) {
   return cudaSuccess;
 }
 inline cudaError_t cudaStreamSynchronize(cudaStream_t) {
+  emu_wait();
   return cudaSuccess;
 }
 inline cudaError_t cudaDeviceSynchronize() {
+  emu_wait();
+  return cudaSuccess;
+}
+// Events: the work before a record is done at once here, so a query finds it done.
+using cudaEvent_t = int*;
+constexpr unsigned cudaEventDisableTiming = 2;
+inline cudaError_t cudaEventCreateWithFlags(cudaEvent_t* e, unsigned) {
+  *e = new int(0);
+  return cudaSuccess;
+}
+inline cudaError_t cudaEventDestroy(cudaEvent_t e) {
+  delete e;
+  return cudaSuccess;
+}
+inline cudaError_t cudaEventRecord(cudaEvent_t, cudaStream_t) {
+  return cudaSuccess;
+}
+inline cudaError_t cudaEventQuery(cudaEvent_t) {
   return cudaSuccess;
 }
 inline cudaError_t cudaStreamBeginCapture(cudaStream_t, cudaStreamCaptureMode) {
   if (emu_capture) emu_fail("nested stream capture");
   emu_capture = new EmuGraph;
+  ++emu_counters.captures;
   return cudaSuccess;
 }
 inline cudaError_t cudaStreamEndCapture(cudaStream_t, cudaGraph_t* g) {
@@ -128,6 +196,7 @@ inline cudaError_t cudaGraphExecDestroy(cudaGraphExec_t g) {
   return cudaSuccess;
 }
 inline cudaError_t cudaGraphLaunch(cudaGraphExec_t g, cudaStream_t) {
+  emu_enqueue();
   for (auto& launch : g->launches) launch();
   return cudaSuccess;
 }
@@ -179,10 +248,12 @@ void emu_launch(unsigned grid, unsigned block, Kernel kernel, Args... args) {
         kernel(args...);
       }
   };
-  if (emu_capture)
+  if (emu_capture) {
     emu_capture->launches.push_back(run);
-  else
+  } else {
+    emu_enqueue();
     run();
+  }
 }
 #define EMU_LAUNCH(grid, block, shmem, stream, kernel, ...) \
   emu_launch(static_cast<unsigned>(grid), static_cast<unsigned>(block), kernel, __VA_ARGS__)

@@ -74,13 +74,19 @@ DEMFEM_HD bool sphere_sphere_select(const ParticleView& p, int i, int j, const P
 }
 
 /// Contact of spheres i and j (i's row in the pair list). Returns false when they do not
-/// overlap (then nothing is written). On contact as sphere_sphere_select().
+/// overlap (then nothing is written). On contact as sphere_sphere_select(); with `box` (not
+/// null) j is taken at its image nearest to i.
 template <bool Friction>
 DEMFEM_HD bool sphere_sphere(const ParticleView& p, int i, int j, const PairConstants& c, double dt,
-                             Vec3& shear, Vec3& roll, ContactResult& out, double& delta) {
-  const double dx = p.px[j] - p.px[i], dy = p.py[j] - p.py[i], dz = p.pz[j] - p.pz[i];
+                             Vec3& shear, Vec3& roll, ContactResult& out, double& delta,
+                             const PeriodicBox* box = nullptr) {
+  double dx = p.px[j] - p.px[i], dy = p.py[j] - p.py[i], dz = p.pz[j] - p.pz[i];
+  if (box != nullptr)
+    dx += image_shift(*box, 0, dx), dy += image_shift(*box, 1, dy), dz += image_shift(*box, 2, dz);
   const double rs = p.radius[i] + p.radius[j];
   if (dx * dx + dy * dy + dz * dz >= rs * rs) return false;
+  if (box != nullptr)
+    return sphere_sphere_select<Friction, true, true>(p, i, j, c, dt, shear, roll, out, delta, box);
   return sphere_sphere_select<Friction>(p, i, j, c, dt, shear, roll, out, delta);
 }
 

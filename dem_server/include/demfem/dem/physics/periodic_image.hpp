@@ -6,8 +6,10 @@
 // so that image is unique for every pair that can touch, and the positions of moving
 // particles stay in [lo, lo + L) (wrapped each step): the branch vector x_j - x_i then lies
 // in (-L, L) and the nearest image is a select, not a rounding (it vectorises). Shared by
-// the pair kernels, the neighbour list and the sensors; the CUDA backend has no periodic
-// list yet (a periodic scene is refused there).
+// the pair kernels, the neighbour lists (the CPU's and the device's), the wrap of both
+// backends' drifts and the sensors.
+
+#include <cmath>
 
 #include "demfem/dem/physics/hd.hpp"
 
@@ -42,6 +44,21 @@ DEMFEM_HD int wrap_count(const PeriodicBox& b, int d, double x) {
   const double L = b.period[d];
   if (!(L > 0.0)) return 0;
   return x >= b.lo[d] + L ? 1 : (x < b.lo[d] ? -1 : 0);
+}
+
+/// Brings coordinate x of direction d into [lo, lo + L) after a drift (wrap_count), and the
+/// list's build position `x_build` (null: none) by the same period, so that the displacement
+/// since the build is unchanged. Returns the periods taken off (the image counter's step).
+/// A particle moves less than a period per step: one wrap brings it in, up to the rounding
+/// of x -/+ L, which the clamp keeps out of a wrap back in the next step.
+DEMFEM_HD int wrap_coordinate(const PeriodicBox& b, int d, double& x, double* x_build) {
+  const int k = wrap_count(b, d, x);
+  if (k == 0) return 0;
+  const double L = b.period[d], lo = b.lo[d], top = std::nextafter(lo + L, lo);
+  const double y = x - k * L;
+  x = y < lo ? lo : (top < y ? top : y);  // std::clamp(y, lo, top)
+  if (x_build != nullptr) *x_build -= k * L;
+  return k;
 }
 
 }  // namespace demfem::dem::phys

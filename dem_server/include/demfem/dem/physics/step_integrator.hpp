@@ -30,6 +30,16 @@ struct MotionArrays {
   const std::int32_t* shape_id;  ///< >= 0: a rigid body's shape (null: spheres only)
 };
 
+/// Puts particle i back at rest in the pose `h` (x, y, z, qw, qx, qy, qz) it was frozen in
+/// (DemSystem::freeze): after the drift and after the force pass, bit for bit, on both
+/// backends.
+DEMFEM_HD void hold_pose(const MotionArrays& m, std::int64_t i, const double* h) {
+  m.px[i] = h[0], m.py[i] = h[1], m.pz[i] = h[2];
+  m.qw[i] = h[3], m.qx[i] = h[4], m.qy[i] = h[5], m.qz[i] = h[6];
+  m.vx[i] = m.vy[i] = m.vz[i] = 0.0;
+  m.wx[i] = m.wy[i] = m.wz[i] = 0.0;
+}
+
 /// True when particle i turns as a rigid body with a full inertia tensor.
 DEMFEM_HD bool rigid_body(const MotionArrays& m, std::int64_t i) {
   return m.shape_id != nullptr && m.shape_id[i] >= 0;
