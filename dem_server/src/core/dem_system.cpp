@@ -499,6 +499,22 @@ std::vector<std::int32_t> DemSystem::contact_counts() const {
   return n;
 }
 
+std::vector<DemSystem::PairForce> DemSystem::contact_forces() const {
+  const auto& I = *impl_;
+  const auto& pf = I.slots.force;
+  std::vector<PairForce> out;
+  for (std::size_t i = 0; i + 1 < I.row.size(); ++i) {
+    for (auto k = I.row[i]; k < I.row[i + 1]; ++k) {
+      const auto p = static_cast<std::size_t>(3 * k);
+      if (p + 2 < pf.size() && (pf[p] != 0.0 || pf[p + 1] != 0.0 || pf[p + 2] != 0.0))
+        out.push_back(PairForce{static_cast<std::int32_t>(i),
+                                I.nbr[static_cast<std::size_t>(k)],
+                                {pf[p], pf[p + 1], pf[p + 2]}});
+    }
+  }
+  return out;
+}
+
 std::size_t DemSystem::state_bytes() const {
   const auto& I = *impl_;
   const auto& st = I.st;
