@@ -56,6 +56,7 @@ SCENES = {
     "cases/sleeper_prep_tiled_mid.toml": (0.02, []),
     "cases/sleeper_prep_poured_mid.toml": (0.3, []),
     "cases/sleeper_prep_block_poured_mid.toml": (0.3, []),
+    "cases/sleeper_prep_block_compacted_mid.toml": (0.3, []),
     "cases/sheet_fill_ci.toml": (0.1, []),
     "cases/sheet_fill.toml": (0.005, []),
     "cases/sheet_fill_coarse.toml": (0.01, []),
