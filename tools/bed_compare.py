@@ -12,7 +12,8 @@ rattlers' share, mean contact force <f>, fraction of contacts above 2<f>, the ex
 tail's rate beta, vertical stress), the rocks in the run (the `particles` of
 sensor_<count>.csv), and the slabs sensor_<slabs>1.csv, sensor_<slabs>2.csv, ... (from the
 floor up, each --slab-height thick from z = 0): solid fraction, Z without rattlers and
-vertical stress at each slab's mid-height (a run without the count or slab sensors shows
+vertical stress at each slab's mid-height (a folder named *poured* and not *tiled* is drawn
+dashed; a run without the count or slab sensors shows
 none). Prints a Markdown table; with --png draws the
 depth profiles, one line per folder. Exit status 2 on a missing or empty sensor file.
 """
@@ -95,7 +96,7 @@ def main():
         for folder, _, _, profile in beds:
             z = [s["z"] for s in profile]
             label = os.path.basename(os.path.normpath(folder))
-            style = "--" if "poured" in label else "-"
+            style = "--" if "poured" in label and "tiled" not in label else "-"  # poured: dashed
             for ax, key in zip(axes, ("solid_fraction", "coordination_no_rattlers", "stress_zz")):
                 ax.plot([s.get(key, float("nan")) for s in profile], z, style, marker="o",
                         label=label)
