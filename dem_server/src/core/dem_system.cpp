@@ -488,20 +488,29 @@ std::size_t DemSystem::contact_count() const {
   return c;
 }
 std::vector<std::int32_t> DemSystem::contact_counts() const {
-  const auto& I = *impl_;
-  std::vector<std::int32_t> n(I.st.size(), 0);
-  const auto& row = I.list.row;
-  for (std::size_t i = 0; i + 1 < row.size() && i < n.size(); ++i) {
-    for (auto k = row[i]; k < row[i + 1]; ++k) {
-      const auto p = static_cast<std::size_t>(3 * k);
-      if (p + 2 < I.slots.force.size() &&
-          (I.slots.force[p] != 0.0 || I.slots.force[p + 1] != 0.0 || I.slots.force[p + 2] != 0.0)) {
-        ++n[i];
-        ++n[static_cast<std::size_t>(I.list.partner[static_cast<std::size_t>(k)])];
-      }
-    }
+  std::vector<std::int32_t> n(impl_->st.size(), 0);
+  for (const PairForce& c : contact_forces()) {
+    ++n[static_cast<std::size_t>(c.i)];
+    ++n[static_cast<std::size_t>(c.j)];
   }
   return n;
+}
+
+std::vector<DemSystem::PairForce> DemSystem::contact_forces() const {
+  const auto& I = *impl_;
+  const auto& pf = I.slots.force;
+  const auto& row = I.list.row;
+  std::vector<PairForce> out;
+  for (std::size_t i = 0; i + 1 < row.size() && i < I.st.size(); ++i) {
+    for (auto k = row[i]; k < row[i + 1]; ++k) {
+      const auto p = static_cast<std::size_t>(3 * k);
+      if (p + 2 < pf.size() && (pf[p] != 0.0 || pf[p + 1] != 0.0 || pf[p + 2] != 0.0))
+        out.push_back(PairForce{static_cast<std::int32_t>(i),
+                                I.list.partner[static_cast<std::size_t>(k)],
+                                {pf[p], pf[p + 1], pf[p + 2]}});
+    }
+  }
+  return out;
 }
 
 std::size_t DemSystem::state_bytes() const {

@@ -54,6 +54,7 @@ std::vector<SensorSpec> read_sensors(const Table& dem, const std::vector<WallSpe
       ss.box_hi = t.vec3("hi");
       for (int k = 0; k < 3; ++k)
         if (!(ss.box_hi[k] > ss.box_lo[k])) t.fail("hi", "must exceed 'lo' in x, y and z");
+      ss.contacts = t.boolean("contacts", false);
     } else {
       ss.kind = SensorSpec::Kind::repose;
       auto c = t.numbers("centre", 2);

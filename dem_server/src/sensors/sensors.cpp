@@ -127,8 +127,8 @@ struct SensorSet::Entry {
 };
 
 namespace {
-std::vector<std::string> columns_of(SensorSpec::Kind k) {
-  switch (k) {
+std::vector<std::string> columns_of(const SensorSpec& spec) {
+  switch (spec.kind) {
     case SensorSpec::Kind::mass_flow:
       return {"time", "mass_flow", "mass_crossed"};
     case SensorSpec::Kind::wall_force:
@@ -140,6 +140,10 @@ std::vector<std::string> columns_of(SensorSpec::Kind k) {
     case SensorSpec::Kind::repose:
       return {"time", "angle_deg", "heap_radius", "heap_height"};
     case SensorSpec::Kind::packing:
+      if (spec.contacts)
+        return {"time",       "particles",         "solid_fraction",           "coordination",
+                "top",        "rattlers",          "coordination_no_rattlers", "contacts",
+                "force_mean", "force_above_2mean", "force_tail_decay",         "stress_zz"};
       return {"time", "particles", "solid_fraction", "coordination", "top"};
   }
   return {};
@@ -167,7 +171,7 @@ SensorSet::SensorSet(std::vector<SensorSpec> specs, const std::filesystem::path&
     if (!dir.empty()) {
       e->csv_path = dir / ("sensor_" + e->spec.name + ".csv");
       if (create_files) {
-        e->csv = std::make_unique<io::CsvWriter>(e->csv_path, columns_of(e->spec.kind));
+        e->csv = std::make_unique<io::CsvWriter>(e->csv_path, columns_of(e->spec));
       }
     }
     entries_.push_back(std::move(e));
@@ -305,6 +309,12 @@ void SensorSet::sample(const DemSystem& system, std::span<const std::int64_t> id
       case SensorSpec::Kind::packing: {
         const auto r = packing_in_box(system, e.spec.box_lo, e.spec.box_hi);
         v = {double(r.particles), r.solid_fraction, r.coordination, r.top};
+        if (e.spec.contacts) {
+          const auto c = contact_statistics_in_box(system, e.spec.box_lo, e.spec.box_hi);
+          v.insert(v.end(),
+                   {double(c.rattlers), c.coordination_no_rattlers, double(c.force.contacts),
+                    c.force.mean, c.force.above_two_mean, c.force.tail_decay, c.stress_zz});
+        }
         break;
       }
     }

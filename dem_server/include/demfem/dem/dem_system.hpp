@@ -386,6 +386,14 @@ class DemSystem {
   std::size_t contact_count() const;
   /// Per particle: its particle-particle pairs in contact in the last step (coordination).
   std::vector<std::int32_t> contact_counts() const;
+  /// @brief A particle-particle contact of the last step and its force.
+  struct PairForce {
+    std::int32_t i = 0, j = 0;      ///< the pair, i < j
+    std::array<double, 3> force{};  ///< on i by j (normal and tangential), N; on j minus it
+  };
+  /// The pairs in contact in the last step (those contact_counts() counts), in pair-list
+  /// order, with their forces (bed statistics: the packing sensor's force distribution).
+  std::vector<PairForce> contact_forces() const;
   /// Bytes held by the host state: particle arrays, pair list with its histories and
   /// slots, wall-contact slots, shape table (for benchmarks).
   std::size_t state_bytes() const;

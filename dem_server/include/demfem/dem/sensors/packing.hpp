@@ -1,10 +1,15 @@
 #pragma once
 // Packing of a granular bed in a control box (the `packing` sensor): solid fraction, mean
 // coordination number and the height of the bed's top, as EDEM's and LIGGGHTS's bin
-// measurements report them. A particle belongs to the box when its centre lies in it.
+// measurements report them; with `contacts = true` also the contact statistics by which two
+// preparations of a bed are compared (docs/cases.md, "Preparing the bed"): coordination
+// without rattlers, the contact-force distribution and the vertical stress. A particle
+// belongs to the box when its centre lies in it, a contact when its branch vector's midpoint
+// does.
 
 #include <array>
 #include <cstdint>
+#include <span>
 
 #include "demfem/dem/dem_system.hpp"
 
@@ -35,5 +40,45 @@ double particle_top(const DemSystem& system, std::size_t i);
 /// std::invalid_argument for a box with hi <= lo in some coordinate, or longer than a period.
 PackingResult packing_in_box(const DemSystem& system, const std::array<double, 3>& lo,
                              const std::array<double, 3>& hi);
+
+/// @brief The distribution of contact forces f (N), as granular packings report it: the
+/// mean <f>, the fraction above 2 <f>, and the decay rate beta of the exponential tail
+/// P(f/<f>) ~ exp(-beta f/<f>) above the mean, estimated by maximum likelihood (for x =
+/// f/<f> > 1, beta = 1 / mean(x - 1): the exponential's rate, unbiased for an exponential tail).
+/// An exponential distribution has 2<f> fraction e^-2 = 0.135 and beta = 1; random packings
+/// of frictional grains give beta about 1 to 1.5.
+struct ForceDistribution {
+  std::int64_t contacts = 0;  ///< forces counted
+  double mean = 0.0;          ///< <f>, N; NaN without contacts
+  double above_two_mean = 0;  ///< fraction of the contacts with f > 2 <f>; NaN without contacts
+  double tail_decay = 0.0;    ///< beta; NaN when no f exceeds <f> (e.g. all forces equal)
+};
+
+/// @brief force_distribution of the magnitudes `forces` (N, each >= 0).
+ForceDistribution force_distribution(std::span<const double> forces);
+
+/// @brief The contact statistics of a bed in a box (packing sensor, `contacts = true`).
+struct ContactStatistics {
+  /// Particles whose centre lies in the box with fewer than 2 particle-particle contacts
+  /// (wall contacts are not counted; a particle on the floor with one rock neighbour is one).
+  std::int64_t rattlers = 0;
+  /// Mean coordination of the box's other particles counting only their contacts with other
+  /// non-rattlers (rattlers found in one pass, over all particles); 0 without such particles.
+  double coordination_no_rattlers = 0.0;
+  /// |f| of the particle-particle contacts (normal and tangential force together: with
+  /// friction mu, |f| lies within sqrt(1 + mu^2) of the normal force) whose branch vector's
+  /// midpoint lies in the box.
+  ForceDistribution force;
+  /// Vertical stress of those contacts, Pa, compression positive: the Love-Weber mean
+  /// stress -(1/V) sum f_z l_z, f the force on i, l = x_j - x_i (nearest image), V the box's
+  /// volume (the weight of the bed above a horizontal slab, per area, in a bed at rest).
+  double stress_zz = 0.0;
+};
+
+/// @brief contact_statistics of the box [lo, hi] from the system's contacts of the last step
+/// (DemSystem::contact_forces). The same box rules and errors as packing_in_box().
+ContactStatistics contact_statistics_in_box(const DemSystem& system,
+                                            const std::array<double, 3>& lo,
+                                            const std::array<double, 3>& hi);
 
 }  // namespace demfem::dem

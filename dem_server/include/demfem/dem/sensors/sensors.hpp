@@ -102,6 +102,7 @@ struct SensorSpec {
   ReposeOptions repose;
   // packing (packing.hpp): the control box
   std::array<double, 3> box_lo{}, box_hi{};
+  bool contacts = false;  ///< packing: also the contact statistics (contact_statistics_in_box)
 };
 
 /// @brief The sensors of a run and their CSV series. sample() is called after each advance()
