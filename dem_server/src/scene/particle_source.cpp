@@ -778,6 +778,7 @@ std::size_t load_particles(const ParticleSource& s, DemSystem& system,
                      " (its scene_hash differs); run that scene "
                      "again (`demfem run` does so itself)");
   std::vector<std::int64_t> origin_line;  // a CSV's: its lines
+  PeriodicRange block;  // a state's periodic directions (the block a tiled bed is made of)
   try {
     if (s.history) {
       restore_state(s, system, walls);
@@ -813,10 +814,12 @@ std::size_t load_particles(const ParticleSource& s, DemSystem& system,
       }
       origin_line = std::move(l.line);
     }
-    if (s.tile != std::array<int, 3>{1, 1, 1}) {
+    if (s.format == ParticleSource::Format::state &&
+        (s.tile != std::array<int, 3>{1, 1, 1} || s.outside == ParticleSource::Outside::crop)) {
       io::H5File f(s.file, io::H5File::Mode::read);
+      block = read_state_periodic(f, s.group);
       try {
-        system.tile(read_state_periodic(f, s.group), s.tile, s.velocities);
+        if (s.tile != std::array<int, 3>{1, 1, 1}) system.tile(block, s.tile, s.velocities);
       } catch (const std::invalid_argument& e) {
         throw SceneError(s.tile_where + ": " + s.file.string() + ": " + e.what());
       }
@@ -857,10 +860,12 @@ std::size_t load_particles(const ParticleSource& s, DemSystem& system,
       const double x[3] = {p.px[i], p.py[i], p.pz[i]};
       bool in = true;
       for (int d = 0; d < 3; ++d) in = in && x[d] >= lo[d] && x[d] <= hi[d];
-      // crop: in a tiled direction the whole bounding sphere (the cut goes through the bed;
-      // the floor, in a direction not tiled, carries the bed as it did the block)
+      // crop: in a direction the block was periodic in and this scene is not (tiled or
+      // not: a block tiled once still has rocks across its seam, which a wall there would
+      // cut), the whole bounding sphere; the floor, in a direction the block was not
+      // periodic in, carries the bed as it did the block
       for (int d = 0; d < 3 && s.outside == ParticleSource::Outside::crop; ++d)
-        if (s.tile[d] > 1)
+        if (block.on[d] && !system.settings().periodic.on[d])
           in = in && x[d] - p.radius[i] >= lo[d] && x[d] + p.radius[i] <= hi[d];
       if (in) continue;
       ++outside;

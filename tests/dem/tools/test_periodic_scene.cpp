@@ -272,3 +272,42 @@ TEST_CASE("[dem.output] positions = \"unwrapped\" writes x + n L", "[scene][peri
     CHECK(crossed > 50);
   }
 }
+
+TEST_CASE("[dem.load] outside = \"crop\" cuts a block across every seam it had, tiled or not",
+          "[scene][periodic][tile]") {
+  // The block is periodic in x and y; the bed tiles it twice in x and once in y. A rock
+  // across the block's y seam (its centre wrapped inside, its sphere through y = 0 or 0.03)
+  // would be cut by the box's side walls at the seam: crop drops it as it drops those the
+  // x cut goes through.
+  const demfem::test::TempDir tmp("dem_periodic_crop_seam");
+  std::size_t across_y = 0;
+  {
+    DemRun block(parse(kPeriodic), tmp.path / "block", 1, 0.0, nullptr);
+    block.system().advance(200);
+    const auto& q = block.system().particles();
+    for (std::size_t i = 0; i < q.size(); ++i)
+      if (q.py[i] - q.radius[i] < 0.0 || q.py[i] + q.radius[i] > 0.03) ++across_y;
+    demfem::io::H5File h5(tmp.path / "block.h5", demfem::io::H5File::Mode::create);
+    block.system().save(h5, "dem");
+  }
+  REQUIRE(across_y > 0);  // else the test would prove nothing
+  std::string tiled = replace(kPeriodic, "[dem.periodic]\nx = [0.0, 0.04]\ny = [0.0, 0.03]\n", "");
+  tiled = replace(tiled,
+                  "plane = { point = [0.02, 0.015, 0.0], normal = [0, 0, 1], size = 1.0 }",
+                  "box = { lo = [0.0, 0.0, 0.0], hi = [0.07, 0.03, 0.04], open_top = true }");
+  const std::string insert = tiled.substr(tiled.find("[[dem.insert]]"));
+  tiled = replace(tiled, insert,
+                  "[dem.load]\nfile = \"" + (tmp.path / "block.h5").string() +
+                      "\"\nhistory = false\nvelocities = false\ntile = [2, 1, 1]\n"
+                      "outside = \"crop\"\n");
+  DemRun run(parse(tiled), tmp.path / "tiled", 1, 0.0, nullptr);
+  const auto& p = run.system().particles();
+  CAPTURE(across_y, p.size());
+  REQUIRE(p.size() > 0);
+  std::size_t crossing = 0;
+  for (std::size_t i = 0; i < p.size(); ++i)
+    if (p.py[i] - p.radius[i] < 0.0 || p.py[i] + p.radius[i] > 0.03 ||
+        p.px[i] - p.radius[i] < 0.0 || p.px[i] + p.radius[i] > 0.07)
+      ++crossing;
+  CHECK(crossing == 0);
+}
