@@ -26,7 +26,8 @@ from sweep_testing import SOURCE, check  # first: it puts tools/ on sys.path
 
 # Three small DEM scenes: a layer of spheres, a second layer on it, a run on both; each
 # passes the run's seed on to the one it loads, as the sleeper chain's scenes do.
-LAYER = """
+# The run, one material and its pair: the start of each of the three scenes.
+HEAD = """
 [run]
 name = "{name}"
 end_time = 0.002
@@ -48,7 +49,8 @@ a = "grain"
 b = "grain"
 friction = 0.5
 restitution = 0.2
-{load}
+"""
+LAYER = HEAD + """{load}
 [[dem.insert]]
 material = "grain"
 lo = [0.0, 0.0, {z0}]
@@ -66,29 +68,7 @@ scene = "{scene}"
 history = false
 pass = ["run.seed", "dem.pairs"]
 """
-LOAD = """
-[run]
-name = "on_layers"
-end_time = 0.002
-seed = 7
-
-[dem]
-dt = 1e-5
-gravity = [0.0, 0.0, -9.81]
-threads = 1
-
-[[dem.materials]]
-name = "grain"
-youngs_modulus = 1e7
-poisson_ratio = 0.3
-density = 2600.0
-
-[[dem.pairs]]
-a = "grain"
-b = "grain"
-friction = 0.5
-restitution = 0.2
-
+LOAD = HEAD.format(name="on_layers") + """
 [dem.load]
 scene = "layer2.toml"
 pass = ["run.seed", "dem.pairs"]

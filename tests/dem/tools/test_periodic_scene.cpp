@@ -198,6 +198,20 @@ TEST_CASE("A settled periodic bed has no seam", "[dem][periodic][bed]") {
   CHECK(z_lo > 3.0);  // a bed, not a gas
 }
 
+// kPeriodic's scene without its periods and insertion: a walled box (lo at the origin, `hi`)
+// that loads the periodic block saved in `block`, tiled `tile` times and cropped.
+static std::string tiled_scene(const std::filesystem::path& block, const std::string& tile,
+                               const std::string& hi) {
+  std::string text = replace(kPeriodic, "[dem.periodic]\nx = [0.0, 0.04]\ny = [0.0, 0.03]\n", "");
+  text = replace(text, "plane = { point = [0.02, 0.015, 0.0], normal = [0, 0, 1], size = 1.0 }",
+                 "box = { lo = [0.0, 0.0, 0.0], hi = " + hi + ", open_top = true }");
+  const std::string insert = text.substr(text.find("[[dem.insert]]"));
+  return replace(text, insert,
+                 "[dem.load]\nfile = \"" + block.string() +
+                     "\"\nhistory = false\nvelocities = false\ntile = " + tile +
+                     "\noutside = \"crop\"\n");
+}
+
 TEST_CASE("[dem.load] tile: a periodic block tiled and cropped to a box",
           "[scene][periodic][tile]") {
   const demfem::test::TempDir tmp("dem_periodic_tile_scene");
@@ -210,15 +224,7 @@ TEST_CASE("[dem.load] tile: a periodic block tiled and cropped to a box",
     demfem::io::H5File h5(tmp.path / "block.h5", demfem::io::H5File::Mode::create);
     block.system().save(h5, "dem");
   }
-  std::string tiled = replace(kPeriodic, "[dem.periodic]\nx = [0.0, 0.04]\ny = [0.0, 0.03]\n", "");
-  tiled = replace(tiled,
-                  "plane = { point = [0.02, 0.015, 0.0], normal = [0, 0, 1], size = 1.0 }",
-                  "box = { lo = [0.0, 0.0, 0.0], hi = [0.07, 0.05, 0.04], open_top = true }");
-  const std::string insert = tiled.substr(tiled.find("[[dem.insert]]"));
-  tiled = replace(tiled, insert,
-                  "[dem.load]\nfile = \"" + (tmp.path / "block.h5").string() +
-                      "\"\nhistory = false\nvelocities = false\ntile = [2, 2, 1]\n"
-                      "outside = \"crop\"\n");
+  const std::string tiled = tiled_scene(tmp.path / "block.h5", "[2, 2, 1]", "[0.07, 0.05, 0.04]");
   DemRun run(parse(tiled), tmp.path / "tiled", 1, 0.0, nullptr);
   const auto& p = run.system().particles();
   CHECK(p.size() < 4 * n);      // cropped to the box
@@ -291,15 +297,7 @@ TEST_CASE("[dem.load] outside = \"crop\" cuts a block across every seam it had, 
     block.system().save(h5, "dem");
   }
   REQUIRE(across_y > 0);  // else the test would prove nothing
-  std::string tiled = replace(kPeriodic, "[dem.periodic]\nx = [0.0, 0.04]\ny = [0.0, 0.03]\n", "");
-  tiled = replace(tiled,
-                  "plane = { point = [0.02, 0.015, 0.0], normal = [0, 0, 1], size = 1.0 }",
-                  "box = { lo = [0.0, 0.0, 0.0], hi = [0.07, 0.03, 0.04], open_top = true }");
-  const std::string insert = tiled.substr(tiled.find("[[dem.insert]]"));
-  tiled = replace(tiled, insert,
-                  "[dem.load]\nfile = \"" + (tmp.path / "block.h5").string() +
-                      "\"\nhistory = false\nvelocities = false\ntile = [2, 1, 1]\n"
-                      "outside = \"crop\"\n");
+  const std::string tiled = tiled_scene(tmp.path / "block.h5", "[2, 1, 1]", "[0.07, 0.03, 0.04]");
   DemRun run(parse(tiled), tmp.path / "tiled", 1, 0.0, nullptr);
   const auto& p = run.system().particles();
   CAPTURE(across_y, p.size());
