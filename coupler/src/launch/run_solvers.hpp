@@ -66,6 +66,7 @@ class RunSolvers {
   std::unique_ptr<protocol::CouplerSession> session_;
   // Before the processes: their hooks remove these files when they end, also in ~RunSolvers.
   MpiJobFiles dem_mpi_jobs_;  // the MPI jobs of an external DEM (one per start)
+  pid_t dem_hello_pid_ = 0;   // the pid in the external DEM's Hello (mpirun's rank 0); 0: none yet
   std::unique_ptr<SolverProcess> dem_proc_, fem_proc_;
   std::unique_ptr<SolverLink> link_;
   std::string fem_program_ = "fem_server";  // how messages name the FEM process
