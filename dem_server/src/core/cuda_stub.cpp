@@ -61,6 +61,12 @@ void cuda_download_lists(CudaBackend*, const GpuListDownload&) {
 void cuda_finish_step(CudaBackend*) {
   no_cuda();
 }
+void cuda_upload_wall_vertices(CudaBackend*, const GpuHostView&) {
+  no_cuda();
+}
+void cuda_download_wall_contacts(CudaBackend*, const GpuHostView&) {
+  no_cuda();
+}
 double cuda_max_overlap(CudaBackend*) {
   no_cuda();
 }
