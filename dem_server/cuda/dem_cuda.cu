@@ -908,6 +908,10 @@ std::int64_t cuda_run_steps(CudaBackend* b, std::int64_t steps, double skin, dou
   return done;
 }
 
+bool cuda_build_pending(CudaBackend* b) {
+  return b->summary_host->stop[0] != 0;
+}
+
 void cuda_finish_step(CudaBackend* b) {
   enqueue_forces(b, true);
   check(cudaMemsetAsync(b->d.stop, 0, 2 * sizeof(int), b->stream), "cudaMemset");

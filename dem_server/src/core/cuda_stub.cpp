@@ -58,6 +58,9 @@ void cuda_list_sizes(CudaBackend*, std::size_t*, std::size_t*) {
 void cuda_download_lists(CudaBackend*, const GpuListDownload&) {
   no_cuda();
 }
+bool cuda_build_pending(CudaBackend*) {
+  no_cuda();
+}
 void cuda_finish_step(CudaBackend*) {
   no_cuda();
 }

@@ -138,6 +138,10 @@ void cuda_download_state(CudaBackend* b, const GpuHostView& v);
 /// 256 steps enqueued).
 std::int64_t cuda_run_steps(CudaBackend* b, std::int64_t steps, double skin, double t, double tau,
                             const std::atomic<bool>* cancel = nullptr);
+/// Whether the last cuda_run_steps stopped because a list build is due (the drift of the next
+/// step done, its forces held back: cuda_build_lists, then cuda_finish_step); false when it
+/// ran all the steps of its batch (fewer than asked: the batch cap) or saw the cancel flag.
+bool cuda_build_pending(CudaBackend* b);
 /// Builds the neighbour list and the wall candidates on the device from the device's
 /// positions (cuda/device_list.hpp: the CPU's one-level list, pair for pair), carrying the
 /// pair histories over: no particle state crosses to the host. Returns the pair count.

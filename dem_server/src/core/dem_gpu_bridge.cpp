@@ -196,7 +196,9 @@ void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
     left -= done;
     if (by_loads && done == asked) gpu_walls_follow_loads();
     check_cancel(substeps - left, substeps);
-    if (by_loads ? done < asked : left > 0) {  // drift of the next step done, forces wait
+    // A run ends early for a list build (the drift of the next step done, its forces wait for
+    // the new list) or at its batch cap (nothing pending: the loop runs on).
+    if (left > 0 && cuda_build_pending(gpu)) {
       const double r0 = omp_get_wtime();
       cuda_build_lists(gpu, list.skin, rmax);  // on the device, from the device's positions
       ++list.builds, ++list.refilters;         // one level: a build is its own refilter
