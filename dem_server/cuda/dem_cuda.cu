@@ -214,7 +214,7 @@ __global__ void k_walls(Dev d, std::size_t nverts, double dt) {
     const std::int32_t w = d.vwall[k];
     if (w >= 0) {  // a fixed wall (kind 0) keeps its vertices
       phys::rigid_vertex(phys::rigid_pose(d.motion[w], d.clock[0] + dt), d.vref + 3 * k, x, v);
-    } else {
+    } else if (w != kVertexPlacedByHost) {  // placed: uploaded before the step
       const double tau = d.clock[1] + dt;
       const std::int64_t node = static_cast<std::int64_t>(k) - d.flex_vbase;
       for (int c = 0; c < 3; ++c)
@@ -908,11 +908,29 @@ std::int64_t cuda_run_steps(CudaBackend* b, std::int64_t steps, double skin, dou
   return done;
 }
 
+bool cuda_build_pending(CudaBackend* b) {
+  return b->summary_host->stop[0] != 0;
+}
+
 void cuda_finish_step(CudaBackend* b) {
   enqueue_forces(b, true);
   check(cudaMemsetAsync(b->d.stop, 0, 2 * sizeof(int), b->stream), "cudaMemset");
   copy_summary(b);
   check(cudaStreamSynchronize(b->stream), "cudaStreamSynchronize");
+}
+
+void cuda_upload_wall_vertices(CudaBackend* b, const GpuHostView& v) {
+  if (b->nverts != v.nverts) throw std::logic_error("cuda_upload_wall_vertices: vertex count");
+  up_async(b->d.vpos, b->cap[40], v.vpos, 3 * v.nverts, b->stream);
+  up_async(b->d.vvel, b->cap[41], v.vvel, 3 * v.nverts, b->stream);
+}
+
+void cuda_download_wall_contacts(CudaBackend* b, const GpuHostView& v) {
+  const Dev& d = b->d;
+  check(cudaStreamSynchronize(b->stream), "cudaStreamSynchronize");
+  const std::size_t ns = static_cast<std::size_t>(phys::kMaxWallContacts) * b->n;
+  down(v.wf, d.wf, 3 * ns), down(v.wp, d.wp, 3 * ns), down(v.wb, d.wb, 3 * ns);
+  down(v.wtri, d.wtri, ns), down(v.wcount, d.wcount, b->n);
 }
 
 namespace {

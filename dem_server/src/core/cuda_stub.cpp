@@ -58,7 +58,16 @@ void cuda_list_sizes(CudaBackend*, std::size_t*, std::size_t*) {
 void cuda_download_lists(CudaBackend*, const GpuListDownload&) {
   no_cuda();
 }
+bool cuda_build_pending(CudaBackend*) {
+  no_cuda();
+}
 void cuda_finish_step(CudaBackend*) {
+  no_cuda();
+}
+void cuda_upload_wall_vertices(CudaBackend*, const GpuHostView&) {
+  no_cuda();
+}
+void cuda_download_wall_contacts(CudaBackend*, const GpuHostView&) {
   no_cuda();
 }
 double cuda_max_overlap(CudaBackend*) {

@@ -18,6 +18,11 @@ namespace demfem::dem {
 
 struct CudaBackend;
 
+/// GpuHostView::vwall of a vertex the host places before each step (a wall moved by its
+/// contact forces or a force-limited wall: cuda_upload_wall_vertices); -1: the flexible mesh,
+/// >= 0: the rigid wall whose motion the device evaluates.
+constexpr std::int32_t kVertexPlacedByHost = -2;
+
 /// Host arrays of the particle state and the neighbour list (views into DemSystem::Impl).
 struct GpuHostView {
   std::size_t n = 0;
@@ -47,7 +52,8 @@ struct GpuHostView {
   bool walls_moving = false;
   const double* vbuild = nullptr;       ///< 3 per vertex: positions at the last build
   const double* vref = nullptr;         ///< 3 per vertex: reference (rigid) / start (flexible)
-  const std::int32_t* vwall = nullptr;  ///< per vertex: wall index, -1 = flexible mesh
+  const std::int32_t* vwall = nullptr;  ///< per vertex: wall index, -1 = flexible mesh,
+                                        ///< kVertexPlacedByHost
   const phys::RigidMotion* motion = nullptr;  ///< per rigid wall
   std::size_t nwalls = 0;
   std::size_t flex_vbase = 0, flex_nodes = 0;         ///< first vertex and node count of the mesh
@@ -132,6 +138,10 @@ void cuda_download_state(CudaBackend* b, const GpuHostView& v);
 /// 256 steps enqueued).
 std::int64_t cuda_run_steps(CudaBackend* b, std::int64_t steps, double skin, double t, double tau,
                             const std::atomic<bool>* cancel = nullptr);
+/// Whether the last cuda_run_steps stopped because a list build is due (the drift of the next
+/// step done, its forces held back: cuda_build_lists, then cuda_finish_step); false when it
+/// ran all the steps of its batch (fewer than asked: the batch cap) or saw the cancel flag.
+bool cuda_build_pending(CudaBackend* b);
 /// Builds the neighbour list and the wall candidates on the device from the device's
 /// positions (cuda/device_list.hpp: the CPU's one-level list, pair for pair), carrying the
 /// pair histories over: no particle state crosses to the host. Returns the pair count.
@@ -145,6 +155,12 @@ void cuda_download_lists(CudaBackend* b, const GpuListDownload& v);
 /// reads the summary (one wait).
 void cuda_finish_step(CudaBackend* b);
 /// The maxima below are those of the summary read at the last wait (no transfer).
+/// Copies the wall vertex positions and velocities (vpos, vvel) to the device, enqueued
+/// before the next step: the vertices marked kVertexPlacedByHost keep them in that step.
+void cuda_upload_wall_vertices(CudaBackend* b, const GpuHostView& v);
+/// Copies the wall contact slots of the last step (forces, points, weights, triangles,
+/// counts) to the host (one wait), for WallStore::reduce.
+void cuda_download_wall_contacts(CudaBackend* b, const GpuHostView& v);
 /// Largest overlap of the last step, m.
 double cuda_max_overlap(CudaBackend* b);
 /// Largest overlap with the flexible mesh since the last upload_state, m.

@@ -16,8 +16,9 @@ void DemSystem::Impl::gpu_wall_kinematics() {
   for (std::size_t w = 0; w < walls.rigid.size(); ++w) {
     const auto& x0 = walls.rigid[w].mesh.vertices;
     std::copy(x0.begin(), x0.end(), gpu_vertex_ref.begin() + 3 * walls.rigid[w].first_vertex);
+    const bool by_loads = walls.rigid[w].body >= 0 || walls.rigid[w].mesh.motion.max_force > 0.0;
     std::fill_n(gpu_vertex_wall.begin() + walls.rigid[w].first_vertex, x0.size() / 3,
-                static_cast<std::int32_t>(w));
+                by_loads ? kVertexPlacedByHost : static_cast<std::int32_t>(w));
   }
   if (walls.has_flexible)
     std::copy(walls.flexible_x0.begin(), walls.flexible_x0.end(),
@@ -128,6 +129,25 @@ void DemSystem::Impl::adopt_device_list() {
   L.must_build = false;
 }
 
+// Before a device step: the walls moved by their loads advanced over it as the CPU step
+// advances them (first half kick and drift of the bodies, the limited drift), all walls placed
+// at its end time, and the vertices sent to the device (it keeps those of these walls).
+void DemSystem::Impl::gpu_place_walls_by_loads() {
+  if (!walls.bodies.empty()) walls.bodies.kick_drift(s.dt);
+  if (walls.force_limited) walls.advance_drift(t + s.dt, s.dt);
+  walls.update(t + s.dt, walls.flexible_tau + s.dt);
+  cuda_upload_wall_vertices(gpu, gpu_view());
+}
+
+// After a device step: its wall loads summed from its contact slots in the CPU's order
+// (WallStore::reduce; the flexible node forces stay the device's), then the CPU step's
+// reaction to them.
+void DemSystem::Impl::gpu_walls_follow_loads() {
+  cuda_download_wall_contacts(gpu, gpu_view());
+  walls.reduce(wall_contacts, n(), false, ForceMode::last_substep, 1);
+  walls_follow_loads();
+}
+
 void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
   const double t0 = omp_get_wtime();
   if (walls.has_flexible) {
@@ -163,14 +183,22 @@ void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
   std::int64_t left = substeps;
   double tdet = 0.0;
   bool built_on_device = false;
+  // walls moved by their loads: one step per run (correct first; a device reduction and
+  // body step would keep the batches)
+  const bool by_loads = walls_move_by_loads() && !walls.empty();
   while (left > 0) {
-    const std::int64_t done = cuda_run_steps(gpu, left, list.skin, t, walls.flexible_tau, cancel);
+    if (by_loads) gpu_place_walls_by_loads();
+    const std::int64_t asked = by_loads ? 1 : left;
+    const std::int64_t done = cuda_run_steps(gpu, asked, list.skin, t, walls.flexible_tau, cancel);
     for (std::int64_t k = 0; k < done; ++k)
       t += s.dt, walls.flexible_tau += s.dt;  // the device's sums
     steps += done;
     left -= done;
+    if (by_loads && done == asked) gpu_walls_follow_loads();
     check_cancel(substeps - left, substeps);
-    if (left > 0) {  // drift of the next step done, forces wait for the new list
+    // A run ends early for a list build (the drift of the next step done, its forces wait for
+    // the new list) or at its batch cap (nothing pending: the loop runs on).
+    if (left > 0 && cuda_build_pending(gpu)) {
       const double r0 = omp_get_wtime();
       cuda_build_lists(gpu, list.skin, rmax);  // on the device, from the device's positions
       ++list.builds, ++list.refilters;         // one level: a build is its own refilter
@@ -180,6 +208,7 @@ void DemSystem::Impl::advance_gpu(std::int64_t substeps, ForceMode mode) {
       t += s.dt, walls.flexible_tau += s.dt;
       ++steps;
       --left;
+      if (by_loads) gpu_walls_follow_loads();
     }
   }
   if (built_on_device) adopt_device_list();

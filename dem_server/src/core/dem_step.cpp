@@ -467,6 +467,15 @@ void DemSystem::Impl::index_list() {
     slots.rolling_torque.clear();
 }
 
+void DemSystem::Impl::walls_follow_loads() {
+  if (walls.force_limited) walls.decide_drift();
+  if (!walls.bodies.empty()) {
+    for (const auto& w : walls.rigid)
+      if (w.body >= 0) walls.bodies.set_loads(w.body, w.force, w.torque);
+    walls.bodies.kick(s.dt);
+  }
+}
+
 template <bool Friction>
 void DemSystem::Impl::step(bool last, ForceMode mode, std::int64_t substeps) {
   const double t0 = omp_get_wtime();
@@ -506,12 +515,7 @@ void DemSystem::Impl::step(bool last, ForceMode mode, std::int64_t substeps) {
   if (!walls.empty() && (last || (walls.has_flexible && mode == ForceMode::average) ||
                          !walls.bodies.empty() || walls.force_limited))
     walls.reduce(wall_contacts, n(), last, mode, substeps);
-  if (walls.force_limited) walls.decide_drift();
-  if (!walls.bodies.empty()) {
-    for (const auto& w : walls.rigid)
-      if (w.body >= 0) walls.bodies.set_loads(w.body, w.force, w.torque);
-    walls.bodies.kick(s.dt);
-  }
+  walls_follow_loads();
   ++steps;
   const double t3 = omp_get_wtime();
   timing.integration += t1 - t0;

@@ -214,10 +214,15 @@ struct DemSystem::Impl {
 
   template <bool Friction>
   void step(bool last, ForceMode mode, std::int64_t substeps);
+  // After a step's wall loads are summed (WallStore::reduce): force-limited walls decide
+  // their drift of the next step, rigid mesh bodies take their loads and the second half
+  // kick. Both backends.
+  void walls_follow_loads();
 
   // Wall kinematics for the device (filled by gpu_wall_kinematics() when walls move): the
   // reference vertices (rigid walls) and the node positions at the start of the advance()
-  // (flexible mesh) in store order, the wall of each vertex (-1: flexible).
+  // (flexible mesh) in store order, the wall of each vertex (-1: flexible,
+  // kVertexPlacedByHost: a body or a force-limited wall, placed by the host every step).
   std::vector<double> gpu_vertex_ref;
   std::vector<std::int32_t> gpu_vertex_wall;
 
@@ -231,7 +236,14 @@ struct DemSystem::Impl {
   // only when its own is stale (particles added or removed, a restore). Moving walls
   // and the flexible mesh are placed on the device every step by the CPU's formulas
   // (physics/wall_motion.hpp); the device sums the flexible node forces as `mode` asks.
+  // Walls moved by their loads (rigid mesh bodies, force-limited walls) need the loads of
+  // each step before the next: then the device runs one step per wait and the host moves
+  // those walls between the steps by the CPU step's code (gpu_place_walls_by_loads before a step,
+  // gpu_walls_follow_loads after it).
   void advance_gpu(std::int64_t substeps, ForceMode mode);
+  bool walls_move_by_loads() const { return !walls.bodies.empty() || walls.force_limited; }
+  void gpu_place_walls_by_loads();
+  void gpu_walls_follow_loads();
   // After an advance in which the device rebuilt the list: the device's list taken over
   // (rows, partners, build positions, wall candidates), its indices derived (index_list()).
   void adopt_device_list();

@@ -49,17 +49,9 @@ std::int32_t DemSystem::add_wall(WallMesh wall) {
       bad(where + ": motion.max_force limits a drift: a translation or a sinusoid's velocity");
     if (m.velocity[0] == 0.0 && m.velocity[1] == 0.0 && m.velocity[2] == 0.0)
       bad(where + ": motion.max_force needs a non-zero motion.velocity (the drift it limits)");
-    if (I.gpu != nullptr || I.s.backend != DemBackendKind::cpu)
-      bad(where +
-          ": a force-limited wall (motion.max_force) runs on the CPU backend only (the CUDA "
-          "backend moves walls on the device without their forces)");
   }
   detail::WallStore::Wall w;
   if (wall.body.enabled) {
-    if (I.gpu != nullptr || I.s.backend != DemBackendKind::cpu)
-      bad(where +
-          ": rigid bodies moved by contact forces run on the CPU backend only (the CUDA "
-          "backend has no kernel for them yet)");
     w.body = I.walls.bodies.add(wall, I.s.gravity, where);
   }
   w.mesh = std::move(wall);

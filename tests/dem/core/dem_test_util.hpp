@@ -85,6 +85,23 @@ inline WallMesh two_triangle_floor(std::int32_t material = 1) {
   return w;
 }
 
+/// The closed box [lo, hi] (12 triangles, outward normals): a wall or a rigid mesh body.
+inline WallMesh box_mesh(std::array<double, 3> lo, std::array<double, 3> hi,
+                         std::int32_t material = 1) {
+  WallMesh w;
+  w.name = "box";
+  w.material = material;
+  for (int k = 0; k < 8; ++k)
+    w.vertices.insert(w.vertices.end(),
+                      {k & 1 ? hi[0] : lo[0], k & 2 ? hi[1] : lo[1], k & 4 ? hi[2] : lo[2]});
+  // faces, counter-clockwise seen from outside
+  const int q[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
+                       {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  for (const auto& f : q)
+    w.triangles.insert(w.triangles.end(), {f[0], f[1], f[2], f[0], f[2], f[3]});
+  return w;
+}
+
 inline ParticleInit sphere(std::array<double, 3> x, double r, std::array<double, 3> v = {},
                            std::array<double, 3> w = {}) {
   ParticleInit p;

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <utility>
 
+#include "../core/dem_test_util.hpp"
 #include "demfem/dem/dem_system.hpp"
 #include "demfem/dem/physics/rigid_body.hpp"
 #include "demfem/dem/scene/dem_scene.hpp"
@@ -23,19 +24,9 @@ using namespace demfem::dem;
 
 namespace {
 
-/// Closed box [lo, hi] with outward normals (12 triangles).
 WallMesh box_body(std::array<double, 3> lo, std::array<double, 3> hi, std::int32_t material = 1) {
-  WallMesh w;
+  WallMesh w = demfem::dem::test::box_mesh(lo, hi, material);
   w.name = "body";
-  w.material = material;
-  for (int k = 0; k < 8; ++k)
-    w.vertices.insert(w.vertices.end(),
-                      {k & 1 ? hi[0] : lo[0], k & 2 ? hi[1] : lo[1], k & 4 ? hi[2] : lo[2]});
-  // faces, counter-clockwise seen from outside
-  const int q[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
-                       {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
-  for (const auto& f : q)
-    w.triangles.insert(w.triangles.end(), {f[0], f[1], f[2], f[0], f[2], f[3]});
   return w;
 }
 
@@ -222,7 +213,7 @@ TEST_CASE("a body resting on spheres: reactions equal the weights; restore is bi
   CHECK(std::abs(b.velocity[2]) < 1e-4);
 
   // save half-way, restore into a fresh system, continue: bitwise equal
-  test::TempDir dir("rigid_body");
+  demfem::test::TempDir dir("rigid_body");
   DemSystem a(s), c(s);
   plate_on_nine_balls(a, 0.14);
   plate_on_nine_balls(c, 0.14);

@@ -164,14 +164,15 @@ struct WallMotion {
   /// its speed, none at R >= max_force, R the particles' push against it in the step before
   /// (their force on the wall along -velocity), N; 0: no limit. A compaction plate then
   /// presses a jammed bed with a bounded force instead of driving into it (the vibration
-  /// goes on). CPU backend only.
+  /// goes on). Both backends (CUDA: one device step per wait while such a wall exists).
   double max_force = 0.0;
 };
 
 /// @brief Makes a wall a rigid body moved by the particles' contact forces (pressure cells,
 /// a rigid sleeper, a loose plate; physics/rigid_mesh_body.hpp) instead of a prescribed
 /// motion. Mass properties are given here (the scene computes them from the closed mesh and
-/// a density, shapes/mesh_body.hpp). CPU backend only.
+/// a density, shapes/mesh_body.hpp). Both backends (the CUDA backend steps once per wait
+/// while such a wall exists: the host moves it between the device's steps).
 struct RigidBodySpec {
   bool enabled = false;
   double mass = 0.0;                              ///< kg, > 0
