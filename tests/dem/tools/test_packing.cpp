@@ -24,11 +24,9 @@ DemSettings no_gravity() {
   s.threads = 1;
   return s;
 }
-}  // namespace
 
-TEST_CASE("packing in a box: simple cubic lattice of spheres", "[sensor][packing]") {
-  const double r = 0.01, s = 0.0198;  // 0.2 mm overlap with each of six neighbours
-  DemSystem d(no_gravity());
+// 5 x 5 x 5 spheres of radius r on a simple cubic lattice of spacing s from the origin.
+std::vector<ParticleInit> cubic_lattice(double r, double s) {
   std::vector<ParticleInit> ps;
   for (int i = 0; i < 5; ++i)
     for (int j = 0; j < 5; ++j)
@@ -38,7 +36,14 @@ TEST_CASE("packing in a box: simple cubic lattice of spheres", "[sensor][packing
         p.radius = r;
         ps.push_back(p);
       }
-  d.add_particles(ps);
+  return ps;
+}
+}  // namespace
+
+TEST_CASE("packing in a box: simple cubic lattice of spheres", "[sensor][packing]") {
+  const double r = 0.01, s = 0.0198;  // 0.2 mm overlap with each of six neighbours
+  DemSystem d(no_gravity());
+  d.add_particles(cubic_lattice(r, s));
   d.advance(1);  // the contact forces of one step
   // The inner 3 x 3 x 3 centres, in a box of 3 lattice cells around them.
   const std::array<double, 3> lo{0.5 * s, 0.5 * s, 0.5 * s}, hi{3.5 * s, 3.5 * s, 3.5 * s};
@@ -128,16 +133,7 @@ TEST_CASE("contact statistics in a box: simple cubic lattice, every contact Hert
           "[sensor][packing][contacts]") {
   const double r = 0.01, s = 0.0198;  // 0.2 mm overlap with each of six neighbours
   DemSystem d(no_gravity());
-  std::vector<ParticleInit> ps;
-  for (int i = 0; i < 5; ++i)
-    for (int j = 0; j < 5; ++j)
-      for (int k = 0; k < 5; ++k) {
-        ParticleInit p;
-        p.position = {s * i, s * j, s * k};
-        p.radius = r;
-        ps.push_back(p);
-      }
-  d.add_particles(ps);
+  d.add_particles(cubic_lattice(r, s));
   d.advance(1);  // at rest: the forces of the overlaps alone (no dashpot, no spring yet)
   // Hertz: F = 4/3 E* sqrt(R* delta) delta, E* = E / (2 (1 - nu^2)), R* = r / 2
   const double e_star = 1e7 / (2.0 * (1.0 - 0.3 * 0.3)), delta = 2 * r - s;
