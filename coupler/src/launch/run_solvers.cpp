@@ -107,9 +107,7 @@ void RunSolvers::start_processes(const std::optional<ResumePoint>& resume, RunCo
     // An external DEM may be an MPI job: its shared-memory files go once it has ended
     // (mpi_job_files.hpp says why the launcher does it).
     remote_link->on_hello([this](Role role, pid_t pid) {
-      if (role != Role::dem) return;
-      dem_hello_pid_ = pid;
-      dem_mpi_jobs_.note_rank(pid);
+      if (role == Role::dem) note_external_dem_hello(pid);
     });
     dem_proc_->set_after_end([this] {
       for (const auto& name : dem_mpi_jobs_.remove_left())
@@ -147,6 +145,11 @@ void RunSolvers::describe_processes(RemoteLink& link, const std::optional<Resume
   }
 }
 
+void RunSolvers::note_external_dem_hello(pid_t pid) {
+  dem_hello_pid_ = pid;
+  dem_mpi_jobs_.note_rank(pid);
+}
+
 void RunSolvers::restart(Role role) {
   SolverProcess* p = process(role);
   // A wrapper that started the solver (mpirun: the Hello came from rank 0, another pid) is
@@ -154,9 +157,11 @@ void RunSolvers::restart(Role role) {
   // killed at once, it would leave them. It gets a moment to finish first.
   // (Only a process that said its Hello: the session keeps the last Hello, which for a
   // process that never said one is its predecessor's.)
-  if (role == Role::dem && dem_hello_pid_ > 0 && dem_hello_pid_ != p->pid())
-    p->wait_for(std::chrono::milliseconds(3000));
-  dem_hello_pid_ = 0;
+  if (role == Role::dem) {
+    if (dem_hello_pid_ > 0 && dem_hello_pid_ != p->pid())
+      p->wait_for(std::chrono::milliseconds(3000));
+    dem_hello_pid_ = 0;  // until the restarted process says its Hello
+  }
   // The protocol gave it up (gone, or heartbeat stale: stopped or hung): a hung process
   // would never answer again, so it is killed rather than asked to leave.
   p->signal(SIGKILL);
@@ -171,8 +176,7 @@ void RunSolvers::restart(Role role) {
   std::printf("demfem run: started %s (pid %d)\n", program(role).c_str(), static_cast<int>(pid));
   std::fflush(stdout);
   session_->wait_hello(role, pid);
-  if (role == Role::dem) dem_hello_pid_ = session_->peer(role).pid;
-  if (role == Role::dem && run_.external_dem) dem_mpi_jobs_.note_rank(dem_hello_pid_);
+  if (role == Role::dem && run_.external_dem) note_external_dem_hello(session_->peer(role).pid);
   try {
     session_->reattach(role);
   } catch (const protocol::PeerDied&) {

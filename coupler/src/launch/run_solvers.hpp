@@ -15,9 +15,9 @@
 #include "demfem/protocol/protocol.hpp"
 #include "launch/debug_kill.hpp"
 #include "launch/launch_options.hpp"
+#include "launch/mpi_job_files.hpp"
 #include "launch/preflight.hpp"
 #include "launch/resume_point.hpp"
-#include "launch/mpi_job_files.hpp"
 #include "launch/supervisor.hpp"
 
 namespace demfem::coupling::launch {
@@ -58,6 +58,9 @@ class RunSolvers {
                                            const std::vector<std::string>& fem_args);
   void describe_processes(RemoteLink& link, const std::optional<ResumePoint>& resume);
   void restart(protocol::Role role);
+  /// The external DEM's Hello came from `pid` (rank 0 under mpirun): kept for the restart's
+  /// grace, and its MPI job noted for the clean-up of its files.
+  void note_external_dem_hello(pid_t pid);
   void debug_kill_after_send(protocol::Role role, std::int64_t step);
 
   const LaunchOptions& opt_;
@@ -66,7 +69,7 @@ class RunSolvers {
   std::unique_ptr<protocol::CouplerSession> session_;
   // Before the processes: their hooks remove these files when they end, also in ~RunSolvers.
   MpiJobFiles dem_mpi_jobs_;  // the MPI jobs of an external DEM (one per start)
-  pid_t dem_hello_pid_ = 0;   // the pid in the external DEM's Hello (mpirun's rank 0); 0: none yet
+  pid_t dem_hello_pid_ = 0;   // the pid in the external DEM's Hello (mpirun's rank 0); 0: none
   std::unique_ptr<SolverProcess> dem_proc_, fem_proc_;
   std::unique_ptr<SolverLink> link_;
   std::string fem_program_ = "fem_server";  // how messages name the FEM process
