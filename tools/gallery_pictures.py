@@ -86,6 +86,7 @@ SCENES = {
     "cases/sleeper_pour2_cells026.toml": (0.002, []),
     "cases/sleeper_bed2_cells026.toml": (0.001, []),
     "cases/sleeper_block1.toml": (0.002, []),
+    "cases/sleeper_block1_compact.toml": (1.202, []),
     "cases/sleeper_pour1_tiled.toml": (0.002, []),
     "cases/sleeper_bed1_tiled.toml": (0.001, []),
     "cases/sleeper_pour2_tiled.toml": (0.002, []),
