@@ -364,7 +364,7 @@ def level_figures(fig, d):
 
 
 def cell_depths(out, fig, d):
-    """[{name, x, top_m, depth_m}]: each cell's top and its depth under the bed's top (the
+    """[{name, x, area_m2, top_m, depth_m}]: each cell's top and its depth under the bed's top (the
     under_sleeper sensor's highest rock at t = 0, before the sleeper) in the run's first
     walls snapshot (the cells' pose as prepared); the scene's box when the walls or that
     sensor are not written or not readable (no numpy / libhdf5)."""
@@ -378,7 +378,8 @@ def cell_depths(out, fig, d):
         pass
     under = d.packing.get("under_sleeper")
     bed_top = under["top"][0] if under else None
-    return source, bed_top, [{"name": c["name"], "x": c["x"], "top_m": tops[c["name"]],
+    return source, bed_top, [{"name": c["name"], "x": c["x"], "area_m2": c["area"],
+                              "top_m": tops[c["name"]],
                               "depth_m": (bed_top - tops[c["name"]]) if bed_top else None}
                              for c in fig["cells"]]
 
@@ -477,7 +478,7 @@ def level_lines(report):
         w = m["window"]
         pressures = ", ".join(f"{n} {p:.2f}" for n, p in m["cell_pressure_kPa"].items())
         n = min(m["cell_samples"].values())
-        how = (f"mean of {n} samples in [{w[0]:.6g}, {w[1]:.6g}] s" if n else
+        how = (f"mean of {n} sample{'s' if n > 1 else ''} in [{w[0]:.6g}, {w[1]:.6g}] s" if n else
                f"the sample nearest it, none in [{w[0]:.6g}, {w[1]:.6g}] s")
         lines.append(
             f"{m['level_kN']:g} kN level {m['stage']} the cycles (this scene's "
@@ -605,6 +606,7 @@ def main(argv):
     report = report_of(fig, d, cyc, i_seat, a.hold)
     source, bed_top, cells = cell_depths(out, fig, d)
     report["cells"] = {"source": source, "bed_top_m": bed_top, "cells": cells}
+    report["load_start_s"] = t0  # the pattern's start: tools/sleeper_cutaway.py's reference
     with open(os.path.join(out, "sleeper_report.json"), "w") as f:
         json.dump(report, f, indent=1)
     lines = report_lines(out, d, report, cyc, i_seat) + level_lines(report)
