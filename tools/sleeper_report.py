@@ -2,7 +2,7 @@
 """Plots and key figures of a sleeper-on-ballast run (thesis ch. 6, cases/sleeper*.toml).
 
 usage: tools/sleeper_report.py OUTPUT_DIR --scene SCENE [--hold T0,T1 | last:D] [--rock-density RHO]
-                               [--set KEY=VALUE ...]
+                               [--set KEY=VALUE ...] [--beside OTHER_OUTPUT_DIR ...]
 
 Reads, from OUTPUT_DIR: fem_monitor.csv (bottom probes b*_uz of the sleeper), sensor_base.csv
 (force of the rocks on the box: its fz is minus the base reaction), sensor_cell<k>.csv (force
@@ -26,7 +26,10 @@ Writes into OUTPUT_DIR:
   cell_pressures_levels.png
                        thesis fig. 6.14: the five cells' pressures against x at the thesis's
                        load levels, 44 kN (triangles) and 132 kN (circles) per rail seat on
-                       the ramp before the cycles (left) and on the ramp after them (right)
+                       the ramp before the cycles (left) and on the ramp after them (right);
+                       with --beside, the other runs' (their sleeper_report.json: the cells
+                       0.26 m deep of cases/sleeper_cells026.toml beside the 0.13 m of
+                       cases/sleeper.toml, say) in other colours, labelled by depth
   sleeper_report.txt   the key figures in words
   sleeper_report.json  the same, for scripts and tests
 Force balance of the static hold (--hold window, the load held at its peak): the base
@@ -489,31 +492,64 @@ def level_lines(report):
     return lines
 
 
-def plot_levels(plt, out, report):
+def depth_span(report):
+    """The cells' depths as words ('0.130' or '0.149-0.182'), None when unknown."""
+    depths = [c["depth_m"] for c in report["cells"]["cells"] if c["depth_m"] is not None]
+    if not depths:
+        return None
+    lo, hi = f"{min(depths):.3f}", f"{max(depths):.3f}"
+    return lo if lo == hi else f"{lo}-{hi}"
+
+
+def beside_reports(folders):
+    """[(folder, report)] of other runs' sleeper_report.json (--beside): their levels are drawn
+    beside this run's (another depth of the cells, say). ValueError naming the file when one
+    is missing or predates the levels."""
+    runs = []
+    for folder in folders:
+        path = os.path.join(folder, "sleeper_report.json")
+        try:
+            with open(path) as f:
+                other = json.load(f)
+        except (OSError, json.JSONDecodeError) as e:
+            raise ValueError(f"--beside {folder}: {path} is not readable ({e}); run "
+                             "tools/sleeper_report.py on that run first") from None
+        if "load_levels" not in other or "cells" not in other:
+            raise ValueError(f"--beside {folder}: {path} has no load_levels / cells (written by "
+                             "an older tools/sleeper_report.py): report that run again")
+        runs.append((folder, other))
+    return runs
+
+
+def plot_levels(plt, out, report, beside=()):
     """cell_pressures_levels.png, as thesis fig. 6.14: the cells' pressures against their x,
-    44 kN (triangles) and 132 kN (circles), before the cycles (left) and after (right)."""
-    xs = {c["name"]: c["x"] for c in report["cells"]["cells"]}
-    f, ax = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
+    44 kN (triangles, dashed) and 132 kN (circles), before the cycles (left) and after
+    (right); the runs of --beside in other colours, each labelled by its cells' depth."""
+    f, ax = plt.subplots(1, 2, figsize=(11, 4.5 if beside else 4), sharey=True)
+    runs = [(None, report)] + list(beside)
+    for r, (folder, rep) in enumerate(runs):
+        xs = {c["name"]: c["x"] for c in rep["cells"]["cells"]}
+        who = f"{depth_span(rep) or '?'} m deep: " if beside else ""
+        for k, stage in enumerate(("before", "after")):
+            for m in (m for m in rep["load_levels"] if m["stage"] == stage):
+                names = sorted(m["cell_pressure_kPa"], key=xs.get)
+                ax[k].plot([xs[n] for n in names], [m["cell_pressure_kPa"][n] for n in names],
+                           "^--" if m["level_kN"] < 100 else "o-", color=f"C{r % 10}",
+                           label=f"{who}{m['level_kN']:g} kN (scene: "
+                                 f"{m['load_per_seat_N'] / 1e3:.4g} kN per seat), "
+                                 f"t = {m['time']:.4g} s")
     for k, stage in enumerate(("before", "after")):
-        for m in (m for m in report["load_levels"] if m["stage"] == stage):
-            names = sorted(m["cell_pressure_kPa"], key=xs.get)
-            ax[k].plot([xs[n] for n in names], [m["cell_pressure_kPa"][n] for n in names],
-                       "^--" if m["level_kN"] < 100 else "o--",
-                       label=f"{m['level_kN']:g} kN (scene: {m['load_per_seat_N'] / 1e3:.4g} kN "
-                             f"per seat), t = {m['time']:.4g} s")
         ax[k].set_title(f"{stage} the cycles")
         ax[k].set_xlabel("cell centre x (m)")
         ax[k].grid(True)
         if ax[k].lines:
-            ax[k].legend(fontsize=8)
+            ax[k].legend(fontsize=7 if beside else 8)
         else:
             ax[k].text(0.5, 0.5, "not reached by the run", ha="center",
                        transform=ax[k].transAxes)
-    depths = [c["depth_m"] for c in report["cells"]["cells"] if c["depth_m"] is not None]
-    span = f"{min(depths):.3f}-{max(depths):.3f}" if depths else ""
-    if depths and f"{min(depths):.3f}" == f"{max(depths):.3f}":
-        span = f"{min(depths):.3f}"
-    ax[0].set_ylabel("cell pressure (kPa)" + (f", tops {span} m deep" if depths else ""))
+    span = depth_span(report)
+    ax[0].set_ylabel("cell pressure (kPa)" + (f", tops {span} m deep" if span and not beside
+                                              else ""))
     f.tight_layout()
     f.savefig(os.path.join(out, "cell_pressures_levels.png"), dpi=110)
 
@@ -592,6 +628,10 @@ def main(argv):
                          "(runs of another length, e.g. a time-scale study's members)")
     ap.add_argument("--rock-density", type=float, default=None,
                     help="kg/m^3 (default: the scene's granite)")
+    ap.add_argument("--beside", action="append", default=[], metavar="OUTPUT_DIR",
+                    help="another sleeper run, already reported (its sleeper_report.json): "
+                         "its cells' pressures at the load levels drawn beside this run's "
+                         "(the cells 0.26 m deep beside 0.13 m, fig. 6.14)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="a scene key as the run had it (demfem run --set)")
     a = ap.parse_args(argv)
@@ -599,6 +639,7 @@ def main(argv):
     try:
         fig = scene_figures(a.scene, a.rock_density, run_overrides(out) + a.set)
         d = read_run(out, fig)
+        beside = beside_reports(a.beside)
     except (FileNotFoundError, KeyError, ValueError, tomllib.TOMLDecodeError) as e:
         print(f"sleeper_report.py: {e}", file=sys.stderr)
         return 2
@@ -607,6 +648,9 @@ def main(argv):
     source, bed_top, cells = cell_depths(out, fig, d)
     report["cells"] = {"source": source, "bed_top_m": bed_top, "cells": cells}
     report["load_start_s"] = t0  # the pattern's start: tools/sleeper_cutaway.py's reference
+    if beside:
+        report["beside"] = [{"output": folder, "cells_depth_m": depth_span(other)}
+                            for folder, other in beside]
     with open(os.path.join(out, "sleeper_report.json"), "w") as f:
         json.dump(report, f, indent=1)
     lines = report_lines(out, d, report, cyc, i_seat) + level_lines(report)
@@ -617,7 +661,7 @@ def main(argv):
     plot_settlement(plt, out, d, cyc, t0, fig["pattern"].get("time_scale", 1.0))
     plot_cells(plt, out, d, report)
     plot_strain(plt, out, fig, d, t0)
-    plot_levels(plt, out, report)
+    plot_levels(plt, out, report, beside)
     return 0
 
 

@@ -15,11 +15,14 @@ value at it, exact to round-off (tolerance 1e-9 relative); cell 1 is the largest
 (112 > 106), the middle cell 3 at the three later moments. Sampled every 0.2 ms the report
 averages the samples within +-0.6 ms (2 % of the ramp); sampled every 5 ms, with no sample in
 that window, it takes the nearest one (0.105, 0.12 s), and a run that ends at 0.15 s has only
-the two moments before the cycles. Exit 77 (skipped) without matplotlib."""
+the two moments before the cycles. --beside draws another reported run beside this one (its
+cells' depth in the json); a folder without a report is refused with exit 2, the report left
+as it was. Exit 77 (skipped) without matplotlib."""
 
 import json
 import math
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -115,6 +118,22 @@ with tempfile.TemporaryDirectory() as d:
     png = os.path.join(d, "cell_pressures_levels.png")
     if not os.path.isfile(png) or open(png, "rb").read(8) != b"\x89PNG\r\n\x1a\n":
         fail.append("no cell_pressures_levels.png")
+    # --beside: another reported run (here the same one) drawn beside, named in the json; a
+    # folder without a report is refused (exit 2) before anything is written
+    with tempfile.TemporaryDirectory() as other:
+        shutil.copy(os.path.join(d, "sleeper_report.json"), other)
+        r = subprocess.run([sys.executable, script, d, "--scene", scene, "--beside", other],
+                           capture_output=True, text=True)
+        with open(os.path.join(d, "sleeper_report.json")) as f:
+            beside = json.load(f).get("beside")
+        if r.returncode != 0 or beside != [{"output": other, "cells_depth_m": "0.160"}]:
+            fail.append(f"--beside: exit {r.returncode} {r.stderr[-300:]}, json {beside}")
+        before = open(os.path.join(d, "sleeper_report.json")).read()
+        r = subprocess.run([sys.executable, script, d, "--scene", scene, "--beside",
+                            os.path.join(other, "none")], capture_output=True, text=True)
+        if r.returncode != 2 or "sleeper_report.json" not in r.stderr or \
+                open(os.path.join(d, "sleeper_report.json")).read() != before:
+            fail.append(f"a --beside without a report: exit {r.returncode}, {r.stderr[-300:]}")
 with tempfile.TemporaryDirectory() as d:
     write_output(d, 5e-3, 0.15)
     rep, _ = run_report(d)
