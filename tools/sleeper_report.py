@@ -40,7 +40,9 @@ when the run froze some (sensor_frozen.csv, [dem.freeze]), against the weights o
 Load levels (json "load_levels"): the thesis compares the cells at 44 and 132 kN of its 220 kN
 peak on the linear ramps before and after the cycles (§6.5); a scene with another peak_force is
 read at the same fractions of it (0.2 and 0.6: 11 and 33 kN at the CI's 55 kN). Each moment
-comes from the pattern's keys (docs/scene_fem.md); the pressures there are the mean of each
+comes from the pattern's keys (docs/scene_fem.md); so do the first and the last cycle's peaks
+(cycle_max: 44 kN in the thesis; stages first_cycle and last_cycle, in the json and the text,
+not in the figure); the pressures there are the mean of each
 cell's samples within +-2 % of the ramp's duration about it (the load within +-2 % of the peak,
 symmetric, so the mean load is the level), or the sample nearest it when that window holds
 none; with the settlement then, the largest cell and whether it is the middle one (x). Moments
@@ -312,10 +314,16 @@ def pattern_times(pat):
     return pat.get("start_time", 0.0), pat.get("time_scale", 1.0), ramp, t1, t1 + cycles
 
 
+STAGE_WORDS = {"before": "on the ramp before the cycles", "first_cycle": "at the first cycle's "
+               "peak", "last_cycle": "at the last cycle's peak", "after": "on the ramp after "
+               "the cycles"}
+
+
 def level_moments(pat):
-    """The moments the pattern passes the thesis's levels on its two ramps: [{level_kN,
-    stage ('before'/'after' the cycles), load_per_seat_N (the scene's), time}]."""
-    start, scale, ramp, _, t2 = pattern_times(pat)
+    """The moments the pattern passes the thesis's levels on its two ramps, and the first and
+    the last cycle's peaks (cycle_max, 44 kN in the thesis), in time order: [{level_kN (the
+    thesis's), stage (STAGE_WORDS), load_per_seat_N (the scene's), time}]."""
+    start, scale, ramp, t1, t2 = pattern_times(pat)
     peak = pat.get("peak_force", THESIS_PEAK_N)
     moments = []
     for stage, ramp_start in (("before", 0.0), ("after", t2)):
@@ -324,17 +332,25 @@ def level_moments(pat):
             moments.append({"level_kN": level / 1e3, "stage": stage,
                             "load_per_seat_N": fraction * peak,
                             "time": start + scale * (ramp_start + fraction * ramp)})
-    return moments
+    freq = pat.get("cycle_frequency", 100.0)
+    cycle_max = pat.get("cycle_max", 44e3)
+    for stage, k in (("first_cycle", 0), ("last_cycle", round((t2 - t1) * freq) - 1)):
+        # F = cycle_min + (cycle_max - cycle_min) (1 - cos 2 pi f (tau - T_1)) / 2: the peak
+        # of cycle k at tau = T_1 + (k + 1/2) / f
+        moments.append({"level_kN": round(cycle_max / peak * THESIS_PEAK_N / 1e3, 9) if peak
+                        else cycle_max / 1e3, "stage": stage, "load_per_seat_N": cycle_max,
+                        "time": start + scale * (t1 + (k + 0.5) / freq)})
+    return sorted(moments, key=lambda m: m["time"])
 
 
 def value_at(t, y, tm, half):
-    """Mean of y over [tm - half, tm + half] and the number of samples in it; the sample
-    nearest tm (count 0) when the window holds none (a series sampled more coarsely)."""
+    """(mean of y over [tm - half, tm + half], the number of samples in it, None); the sample
+    nearest tm, 0 and its time when the window holds none (a series sampled more coarsely)."""
     v = window_mean(t, y, tm - half, tm + half)
     if v is not None:
-        return v, sum(1 for a in t if tm - half - 1e-9 <= a <= tm + half + 1e-9)
+        return v, sum(1 for a in t if tm - half - 1e-9 <= a <= tm + half + 1e-9), None
     i = min(range(len(t)), key=lambda j: abs(t[j] - tm))
-    return y[i], 0
+    return y[i], 0, t[i]
 
 
 def middle_cell(cells):
@@ -356,8 +372,10 @@ def level_figures(fig, d):
             continue
         entry = dict(m, window=[tm - half, tm + half], cell_pressure_kPa={}, cell_samples={})
         for c, tc, p in d.cells:
-            entry["cell_pressure_kPa"][c["name"]], entry["cell_samples"][c["name"]] = \
-                value_at(tc, p, tm, half)
+            v, n, nearest = value_at(tc, p, tm, half)
+            entry["cell_pressure_kPa"][c["name"]], entry["cell_samples"][c["name"]] = v, n
+            if nearest is not None:
+                entry["nearest_sample_s"] = nearest
         entry["settlement_mm"] = value_at(d.t, d.settle, tm, half)[0]
         name = max(entry["cell_pressure_kPa"], key=entry["cell_pressure_kPa"].get)
         entry["largest_cell"] = name
@@ -482,9 +500,10 @@ def level_lines(report):
         pressures = ", ".join(f"{n} {p:.2f}" for n, p in m["cell_pressure_kPa"].items())
         n = min(m["cell_samples"].values())
         how = (f"mean of {n} sample{'s' if n > 1 else ''} in [{w[0]:.6g}, {w[1]:.6g}] s" if n else
-               f"the sample nearest it, none in [{w[0]:.6g}, {w[1]:.6g}] s")
+               f"the sample nearest it, t = {m.get('nearest_sample_s', float('nan')):.6g} s, "
+               f"none in [{w[0]:.6g}, {w[1]:.6g}] s")
         lines.append(
-            f"{m['level_kN']:g} kN level {m['stage']} the cycles (this scene's "
+            f"{m['level_kN']:g} kN level {STAGE_WORDS[m['stage']]} (this scene's "
             f"{m['load_per_seat_N'] / 1e3:.4g} kN per seat at t = {m['time']:.6g} s; {how}): "
             f"cell pressures (kPa) {pressures}; largest {m['largest_cell']}"
             f"{' (the middle cell)' if m['middle_cell_largest'] else ' (not the middle cell)'}; "

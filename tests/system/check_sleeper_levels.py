@@ -9,15 +9,18 @@ from the report: sleeper_mini's pattern starts at 0.1 s, time scale 1, ramps of 
 (F = peak tau / T_r), cycles 0.03-0.09 s (T_u = 0); its peak is 22 kN (load scale 0.1), so the
 thesis's 44 and 132 kN of its 220 kN stand at 0.2 and 0.6 of the peak: 4.4 and 13.2 kN here,
 at t = 0.1 + 0.2 x 0.03 = 0.106 s and 0.118 s before the cycles, and 0.1 + 0.09 + 0.006 =
-0.196 s and 0.208 s after. The cells' pressures are linear in time (cell 3: 1000 t kPa; cell 1:
+0.196 s and 0.208 s after; the first and the last of its six cycles (100 Hz,
+F = cycle_min + (cycle_max - cycle_min)(1 - cos 2 pi f (tau - 0.03)) / 2) peak at cycle_max =
+4.4 kN (the thesis's 44 kN) at t = 0.1 + 0.03 + 0.005 = 0.135 s and 0.1 + 0.03 + 0.055 =
+0.185 s. The cells' pressures are linear in time (cell 3: 1000 t kPa; cell 1:
 112 kPa; the others 10 k kPa), so the mean over a window symmetric about a moment is the
 value at it, exact to round-off (tolerance 1e-9 relative); cell 1 is the largest at 0.106 s
-(112 > 106), the middle cell 3 at the three later moments. Sampled every 0.2 ms the report
+(112 > 106), the middle cell 3 at the later moments. Sampled every 0.2 ms the report
 averages the samples within +-0.6 ms (2 % of the ramp); sampled every 5 ms, with no sample in
-that window, it takes the nearest one (0.105, 0.12 s), and a run that ends at 0.15 s has only
-the two moments before the cycles. --beside draws another reported run beside this one (its
-cells' depth in the json); a folder without a report is refused with exit 2, the report left
-as it was. Exit 77 (skipped) without matplotlib."""
+that window, it takes the nearest one (0.105, 0.12 s; 0.135 s is a sample), and a run that ends
+at 0.15 s has only the moments up to the first cycle's peak. --beside draws another reported
+run beside this one (its cells' depth in the json); a folder without a report is refused with
+exit 2, the report left as it was. Exit 77 (skipped) without matplotlib."""
 
 import json
 import math
@@ -41,6 +44,7 @@ CELL_AREA = 0.22 * 0.22        # m^2, sleeper_mini's cells (table 6.1)
 BED_TOP = 0.47                 # m, the made-up under_sleeper top at t = 0
 CELL_TOP = 0.31                # m, sleeper_mini's cells' tops (scene)
 MOMENTS = [(44.0, "before", 4.4e3, 0.106), (132.0, "before", 13.2e3, 0.118),
+           (44.0, "first_cycle", 4.4e3, 0.135), (44.0, "last_cycle", 4.4e3, 0.185),
            (44.0, "after", 4.4e3, 0.196), (132.0, "after", 13.2e3, 0.208)]
 
 
@@ -113,7 +117,8 @@ with tempfile.TemporaryDirectory() as d:
     for c in rep["cells"]["cells"]:
         if not math.isclose(c["depth_m"], BED_TOP - CELL_TOP, rel_tol=1e-12):
             fail.append(f"{c['name']}: depth {c['depth_m']} m, expected {BED_TOP - CELL_TOP}")
-    if "132 kN level after the cycles" not in text or "(the middle cell)" not in text:
+    if "132 kN level on the ramp after the cycles" not in text or \
+            "44 kN level at the last cycle's peak" not in text or "(the middle cell)" not in text:
         fail.append("the text report lacks the levels: " + text)
     png = os.path.join(d, "cell_pressures_levels.png")
     if not os.path.isfile(png) or open(png, "rb").read(8) != b"\x89PNG\r\n\x1a\n":
@@ -137,9 +142,14 @@ with tempfile.TemporaryDirectory() as d:
 with tempfile.TemporaryDirectory() as d:
     write_output(d, 5e-3, 0.15)
     rep, _ = run_report(d)
-    fail += check_levels(rep, [0.105, 0.12], "sampled every 5 ms, to 0.15 s")
-    if any(min(m["cell_samples"].values()) != 0 for m in rep["load_levels"]):
-        fail.append("5 ms: the nearest sample (0 in the window) expected")
+    fail += check_levels(rep, [0.105, 0.12, 0.135], "sampled every 5 ms, to 0.15 s")
+    samples = [(min(m["cell_samples"].values()), m.get("nearest_sample_s"))
+               for m in rep["load_levels"]]
+    if len(samples) != 3 or samples[2] != (1, None) or any(
+            n != 0 or not math.isclose(ts, want, rel_tol=1e-12)
+            for (n, ts), want in zip(samples[:2], (0.105, 0.12))):
+        fail.append(f"5 ms: the nearest samples 0.105 and 0.12 s, then one in the window "
+                    f"expected: {samples}")
 if fail:
     print("\n".join(fail))
     sys.exit(1)
