@@ -2,7 +2,7 @@
 """Plots and key figures of a sleeper-on-ballast run (thesis ch. 6, cases/sleeper*.toml).
 
 usage: tools/sleeper_report.py OUTPUT_DIR --scene SCENE [--hold T0,T1 | last:D] [--rock-density RHO]
-                               [--set KEY=VALUE ...]
+                               [--set KEY=VALUE ...] [--beside OTHER_OUTPUT_DIR ...]
 
 Reads, from OUTPUT_DIR: fem_monitor.csv (bottom probes b*_uz of the sleeper), sensor_base.csv
 (force of the rocks on the box: its fz is minus the base reaction), sensor_cell<k>.csv (force
@@ -15,13 +15,21 @@ volume from the node bounding box), the cells' density and size, and the all_roc
 the run recorded in OUTPUT_DIR/run.json are applied first, so the report of a run with
 --set (400 cycles instead of the scene's 100, say) needs none here.
 Writes into OUTPUT_DIR:
-  settlement.png       settlement (mean uz of the bottom probes, mm) against time, and at each
-                       cycle's minimum load against the cycle number
+  settlement.png       settlement (mean uz of the bottom probes, mm) against time (top axis:
+                       the pattern's reference time, fig. 6.7's), and at each cycle's minimum
+                       load against the cycle number
   cell_pressures.png   each cell's pressure (vertical force of the rocks / top area, kPa)
                        against time, and the five cells' pressures in the hold against x
   sleeper_strain.png   the sleeper's bending strain against time: the bottom fibre's axial
                        strain at each strain gauge (below), and the largest principal strain
                        of all elements (fem_series.csv, thesis fig. 6.8) when written
+  cell_pressures_levels.png
+                       thesis fig. 6.14: the five cells' pressures against x at the thesis's
+                       load levels, 44 kN (triangles) and 132 kN (circles) per rail seat on
+                       the ramp before the cycles (left) and on the ramp after them (right);
+                       with --beside, the other runs' (their sleeper_report.json: the cells
+                       0.26 m deep of cases/sleeper_cells026.toml beside the 0.13 m of
+                       cases/sleeper.toml, say) in other colours, labelled by depth
   sleeper_report.txt   the key figures in words
   sleeper_report.json  the same, for scripts and tests
 Force balance of the static hold (--hold window, the load held at its peak): the base
@@ -29,6 +37,18 @@ reaction (mean of -fz of the box over the window), plus the force holding the fr
 when the run froze some (sensor_frozen.csv, [dem.freeze]), against the weights of the rocks
 (all_rocks volume x density x g), the cells and the sleeper plus the applied load (seating
 + every seat's peak). Exit status 2 on a missing file, column or scene key.
+Load levels (json "load_levels"): the thesis compares the cells at 44 and 132 kN of its 220 kN
+peak on the linear ramps before and after the cycles (§6.5); a scene with another peak_force is
+read at the same fractions of it (0.2 and 0.6: 11 and 33 kN at the CI's 55 kN). Each moment
+comes from the pattern's keys (docs/scene_fem.md); so do the first and the last cycle's peaks
+(cycle_max: 44 kN in the thesis; stages first_cycle and last_cycle, in the json and the text,
+not in the figure); the pressures there are the mean of each
+cell's samples within +-2 % of the ramp's duration about it (the load within +-2 % of the peak,
+symmetric, so the mean load is the level), or the sample nearest it when that window holds
+none; with the settlement then, the largest cell and whether it is the middle one (x). Moments
+after the run's end are left out. json "cells": each cell's top and its depth under the bed's
+top (under_sleeper's highest rock at t = 0), the tops from the first walls snapshot when
+readable, else from the scene.
 Strain gauges: a pair of monitor probes named sg_<label>_0 and sg_<label>_1 (two nodes of
 the bottom face on the centre line, 0 at the smaller x) is a gauge of length x_1 - x_0 (of
 the mesh nodes nearest to the probe points); its strain is (ux_1 - ux_0) / (x_1 - x_0), the
@@ -44,7 +64,8 @@ import sys
 import types
 import tomllib
 
-from demfem_post import load_scene, read_csv, run_overrides
+import demfem_post
+from demfem_post import MissingModule, load_scene, read_csv, run_overrides
 from demfem_post.plots import pyplot_or_exit
 
 G = 9.81
@@ -135,7 +156,7 @@ def scene_figures(scene_path, rock_density, overrides=()):
             for k in range(3):
                 v *= b["hi"][k] - b["lo"][k]
             cells.append({"name": w["name"], "x": 0.5 * (b["lo"][0] + b["hi"][0]),
-                          "mass": w["body"]["density"] * v,
+                          "mass": w["body"]["density"] * v, "top": b["hi"][2],
                           "area": (b["hi"][0] - b["lo"][0]) * (b["hi"][1] - b["lo"][1])})
     rocks_box = None
     for s in dem.get("sensors", []):
@@ -271,6 +292,119 @@ def first_loaded_rows(packing):
             for name, p in packing.items()}
 
 
+# The thesis's comparison with Song et al. (§6.5, fig. 6.14): the cells' pressures at 44 and
+# 132 kN per rail seat on the linear ramps before and after the cycles, of the pattern's
+# 220 kN peak. A scene with another peak (the CI load scale 0.25: 55 kN) is read at the same
+# fractions of its own peak, so that its levels stand where the thesis's stand in the pattern.
+THESIS_PEAK_N = 220e3
+THESIS_LEVELS_N = (44e3, 132e3)
+# half-width of the window the pressures are averaged over, as a fraction of the ramp's
+# duration: the load varies by +-2 % of the peak in it (+-4.4 kN at 220 kN), symmetric about
+# the moment, so that its mean load is the level
+LEVEL_WINDOW_OF_RAMP = 0.02
+
+
+def pattern_times(pat):
+    """(start, time scale, ramp, first ramp's end + unloading T_1, cycles' end T_2) of the
+    sleeper pattern (docs/scene_fem.md), reference times in s."""
+    freq = pat.get("cycle_frequency", 100.0)
+    ramp = pat.get("ramp_duration", 0.03)
+    t1 = ramp + pat.get("unload_duration", 0.0)
+    cycles = (pat["cycles"] / freq) if "cycles" in pat else pat.get("cycle_duration", 0.06)
+    return pat.get("start_time", 0.0), pat.get("time_scale", 1.0), ramp, t1, t1 + cycles
+
+
+STAGE_WORDS = {"before": "on the ramp before the cycles", "first_cycle": "at the first cycle's "
+               "peak", "last_cycle": "at the last cycle's peak", "after": "on the ramp after "
+               "the cycles"}
+
+
+def level_moments(pat):
+    """The moments the pattern passes the thesis's levels on its two ramps, and the first and
+    the last cycle's peaks (cycle_max, 44 kN in the thesis), in time order: [{level_kN (the
+    thesis's), stage (STAGE_WORDS), load_per_seat_N (the scene's), time}]."""
+    start, scale, ramp, t1, t2 = pattern_times(pat)
+    peak = pat.get("peak_force", THESIS_PEAK_N)
+    moments = []
+    for stage, ramp_start in (("before", 0.0), ("after", t2)):
+        for level in THESIS_LEVELS_N:
+            fraction = level / THESIS_PEAK_N
+            moments.append({"level_kN": level / 1e3, "stage": stage,
+                            "load_per_seat_N": fraction * peak,
+                            "time": start + scale * (ramp_start + fraction * ramp)})
+    freq = pat.get("cycle_frequency", 100.0)
+    cycle_max = pat.get("cycle_max", 44e3)
+    for stage, k in (("first_cycle", 0), ("last_cycle", round((t2 - t1) * freq) - 1)):
+        # F = cycle_min + (cycle_max - cycle_min) (1 - cos 2 pi f (tau - T_1)) / 2: the peak
+        # of cycle k at tau = T_1 + (k + 1/2) / f
+        moments.append({"level_kN": round(cycle_max / peak * THESIS_PEAK_N / 1e3, 9) if peak
+                        else cycle_max / 1e3, "stage": stage, "load_per_seat_N": cycle_max,
+                        "time": start + scale * (t1 + (k + 0.5) / freq)})
+    return sorted(moments, key=lambda m: m["time"])
+
+
+def value_at(t, y, tm, half):
+    """(mean of y over [tm - half, tm + half], the number of samples in it, None); the sample
+    nearest tm, 0 and its time when the window holds none (a series sampled more coarsely)."""
+    v = window_mean(t, y, tm - half, tm + half)
+    if v is not None:
+        return v, sum(1 for a in t if tm - half - 1e-9 <= a <= tm + half + 1e-9), None
+    i = min(range(len(t)), key=lambda j: abs(t[j] - tm))
+    return y[i], 0, t[i]
+
+
+def middle_cell(cells):
+    """The name of the middle cell by x (the one under the sleeper's centre)."""
+    by_x = sorted(cells, key=lambda c: c["x"])
+    return by_x[len(by_x) // 2]["name"]
+
+
+def level_figures(fig, d):
+    """The cells' pressures, the settlement and the largest cell at each level moment that
+    the run reached (fig. 6.14); moments after the run's end are left out."""
+    _, scale, ramp, _, _ = pattern_times(fig["pattern"])
+    half = LEVEL_WINDOW_OF_RAMP * scale * ramp
+    middle = middle_cell(fig["cells"])
+    levels = []
+    for m in level_moments(fig["pattern"]):
+        tm = m["time"]
+        if not d.cells or tm > min(tc[-1] for _, tc, _ in d.cells) + 1e-9:
+            continue
+        entry = dict(m, window=[tm - half, tm + half], cell_pressure_kPa={}, cell_samples={})
+        for c, tc, p in d.cells:
+            v, n, nearest = value_at(tc, p, tm, half)
+            entry["cell_pressure_kPa"][c["name"]], entry["cell_samples"][c["name"]] = v, n
+            if nearest is not None:
+                entry["nearest_sample_s"] = nearest
+        entry["settlement_mm"] = value_at(d.t, d.settle, tm, half)[0]
+        name = max(entry["cell_pressure_kPa"], key=entry["cell_pressure_kPa"].get)
+        entry["largest_cell"] = name
+        entry["middle_cell_largest"] = name == middle
+        levels.append(entry)
+    return levels
+
+
+def cell_depths(out, fig, d):
+    """[{name, x, area_m2, top_m, depth_m}]: each cell's top and its depth under the bed's top (the
+    under_sleeper sensor's highest rock at t = 0, before the sleeper) in the run's first
+    walls snapshot (the cells' pose as prepared); the scene's box when the walls or that
+    sensor are not written or not readable (no numpy / libhdf5)."""
+    tops = {c["name"]: c["top"] for c in fig["cells"]}
+    source = "scene"
+    try:
+        walls = demfem_post.open(out).walls(0.0)
+        tops = {n: float(walls[n].points[:, 2].max()) for n in tops}
+        source = "walls output, first snapshot"
+    except (FileNotFoundError, KeyError, ValueError, OSError, MissingModule):
+        pass
+    under = d.packing.get("under_sleeper")
+    bed_top = under["top"][0] if under else None
+    return source, bed_top, [{"name": c["name"], "x": c["x"], "area_m2": c["area"],
+                              "top_m": tops[c["name"]],
+                              "depth_m": (bed_top - tops[c["name"]]) if bed_top else None}
+                             for c in fig["cells"]]
+
+
 def report_of(fig, d, cyc, i_seat, hold_arg):
     t, settle, tilt = d.t, d.settle, d.tilt
     report = {"probes": d.probes, "final_time": t[-1], "settlement_final_mm": settle[-1],
@@ -294,6 +428,7 @@ def report_of(fig, d, cyc, i_seat, hold_arg):
             "last": {k: v[-1] for k, v in p.items()}}
     if hold_arg:
         report["hold"] = hold_figures(fig, d, hold_arg, i_seat)
+    report["load_levels"] = level_figures(fig, d)
     return report
 
 
@@ -351,13 +486,105 @@ def hold_lines(h):
     return lines
 
 
-def plot_settlement(plt, out, d, cyc, t0):
+def level_lines(report):
+    """The cells' depths and their pressures at the thesis's load levels, in words."""
+    cells = report["cells"]
+    lines = [f"pressure cells (tops from the {cells['source']}; bed top "
+             + (f"{cells['bed_top_m']:.4f} m, under_sleeper at t = 0): " if cells["bed_top_m"]
+                else "unknown: no under_sleeper sensor): ")
+             + ", ".join(f"{c['name']} x {c['x']:.3f} top {c['top_m']:.4f} m"
+                         + (f" depth {c['depth_m']:.3f} m" if c["depth_m"] is not None else "")
+                         for c in cells["cells"])]
+    for m in report["load_levels"]:
+        w = m["window"]
+        pressures = ", ".join(f"{n} {p:.2f}" for n, p in m["cell_pressure_kPa"].items())
+        n = min(m["cell_samples"].values())
+        how = (f"mean of {n} sample{'s' if n > 1 else ''} in [{w[0]:.6g}, {w[1]:.6g}] s" if n else
+               f"the sample nearest it, t = {m.get('nearest_sample_s', float('nan')):.6g} s, "
+               f"none in [{w[0]:.6g}, {w[1]:.6g}] s")
+        lines.append(
+            f"{m['level_kN']:g} kN level {STAGE_WORDS[m['stage']]} (this scene's "
+            f"{m['load_per_seat_N'] / 1e3:.4g} kN per seat at t = {m['time']:.6g} s; {how}): "
+            f"cell pressures (kPa) {pressures}; largest {m['largest_cell']}"
+            f"{' (the middle cell)' if m['middle_cell_largest'] else ' (not the middle cell)'}; "
+            f"settlement {m['settlement_mm']:.3f} mm")
+    return lines
+
+
+def depth_span(report):
+    """The cells' depths as words ('0.130' or '0.149-0.182'), None when unknown."""
+    depths = [c["depth_m"] for c in report["cells"]["cells"] if c["depth_m"] is not None]
+    if not depths:
+        return None
+    lo, hi = f"{min(depths):.3f}", f"{max(depths):.3f}"
+    return lo if lo == hi else f"{lo}-{hi}"
+
+
+def beside_reports(folders):
+    """[(folder, report)] of other runs' sleeper_report.json (--beside): their levels are drawn
+    beside this run's (another depth of the cells, say). ValueError naming the file when one
+    is missing or predates the levels."""
+    runs = []
+    for folder in folders:
+        path = os.path.join(folder, "sleeper_report.json")
+        try:
+            with open(path) as f:
+                other = json.load(f)
+        except (OSError, json.JSONDecodeError) as e:
+            raise ValueError(f"--beside {folder}: {path} is not readable ({e}); run "
+                             "tools/sleeper_report.py on that run first") from None
+        if "load_levels" not in other or "cells" not in other:
+            raise ValueError(f"--beside {folder}: {path} has no load_levels / cells (written by "
+                             "an older tools/sleeper_report.py): report that run again")
+        runs.append((folder, other))
+    return runs
+
+
+def plot_levels(plt, out, report, beside=()):
+    """cell_pressures_levels.png, as thesis fig. 6.14: the cells' pressures against their x,
+    44 kN (triangles, dashed) and 132 kN (circles), before the cycles (left) and after
+    (right); the runs of --beside in other colours, each labelled by its cells' depth."""
+    f, ax = plt.subplots(1, 2, figsize=(11, 4.5 if beside else 4), sharey=True)
+    runs = [(None, report)] + list(beside)
+    for r, (folder, rep) in enumerate(runs):
+        xs = {c["name"]: c["x"] for c in rep["cells"]["cells"]}
+        who = f"{depth_span(rep) or '?'} m deep: " if beside else ""
+        for k, stage in enumerate(("before", "after")):
+            for m in (m for m in rep["load_levels"] if m["stage"] == stage):
+                names = sorted(m["cell_pressure_kPa"], key=xs.get)
+                ax[k].plot([xs[n] for n in names], [m["cell_pressure_kPa"][n] for n in names],
+                           "^--" if m["level_kN"] < 100 else "o-", color=f"C{r % 10}",
+                           label=f"{who}{m['level_kN']:g} kN (scene: "
+                                 f"{m['load_per_seat_N'] / 1e3:.4g} kN per seat), "
+                                 f"t = {m['time']:.4g} s")
+    for k, stage in enumerate(("before", "after")):
+        ax[k].set_title(f"{stage} the cycles")
+        ax[k].set_xlabel("cell centre x (m)")
+        ax[k].grid(True)
+        if ax[k].lines:
+            ax[k].legend(fontsize=7 if beside else 8)
+        else:
+            ax[k].text(0.5, 0.5, "not reached by the run", ha="center",
+                       transform=ax[k].transAxes)
+    span = depth_span(report)
+    ax[0].set_ylabel("cell pressure (kPa)" + (f", tops {span} m deep" if span and not beside
+                                              else ""))
+    f.tight_layout()
+    f.savefig(os.path.join(out, "cell_pressures_levels.png"), dpi=110)
+
+
+def plot_settlement(plt, out, d, cyc, t0, scale):
     t, uz, probes = d.t, d.uz, d.probes
     f1, ax = plt.subplots(1, 2, figsize=(11, 4))
     ax[0].plot(t, d.settle, label="mean")
     ax[0].plot(t, [1e3 * v for v in uz[0]], lw=0.7, label=probes[0])
     ax[0].plot(t, [1e3 * v for v in uz[-1]], lw=0.7, label=probes[-1])
     ax[0].axvline(t0, color="grey", lw=0.5)
+    # fig. 6.7's axis: the pattern's reference time (time scale 1), from the load's start
+    ref = ax[0].secondary_xaxis("top", functions=(lambda x: (x - t0) / scale,
+                                                  lambda r: t0 + r * scale))
+    ref.set_xlabel(f"reference time of the pattern (s; time scale {scale:g}, fig. 6.7)",
+                   fontsize=8)
     ax[0].set_xlabel("time (s)")
     ax[0].set_ylabel("settlement: uz of the bottom (mm)")
     ax[0].legend()
@@ -420,6 +647,10 @@ def main(argv):
                          "(runs of another length, e.g. a time-scale study's members)")
     ap.add_argument("--rock-density", type=float, default=None,
                     help="kg/m^3 (default: the scene's granite)")
+    ap.add_argument("--beside", action="append", default=[], metavar="OUTPUT_DIR",
+                    help="another sleeper run, already reported (its sleeper_report.json): "
+                         "its cells' pressures at the load levels drawn beside this run's "
+                         "(the cells 0.26 m deep beside 0.13 m, fig. 6.14)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="a scene key as the run had it (demfem run --set)")
     a = ap.parse_args(argv)
@@ -427,21 +658,29 @@ def main(argv):
     try:
         fig = scene_figures(a.scene, a.rock_density, run_overrides(out) + a.set)
         d = read_run(out, fig)
+        beside = beside_reports(a.beside)
     except (FileNotFoundError, KeyError, ValueError, tomllib.TOMLDecodeError) as e:
         print(f"sleeper_report.py: {e}", file=sys.stderr)
         return 2
     cyc, i_seat, t0 = cycle_minima(fig, d)
     report = report_of(fig, d, cyc, i_seat, a.hold)
+    source, bed_top, cells = cell_depths(out, fig, d)
+    report["cells"] = {"source": source, "bed_top_m": bed_top, "cells": cells}
+    report["load_start_s"] = t0  # the pattern's start: tools/sleeper_cutaway.py's reference
+    if beside:
+        report["beside"] = [{"output": folder, "cells_depth_m": depth_span(other)}
+                            for folder, other in beside]
     with open(os.path.join(out, "sleeper_report.json"), "w") as f:
         json.dump(report, f, indent=1)
-    lines = report_lines(out, d, report, cyc, i_seat)
+    lines = report_lines(out, d, report, cyc, i_seat) + level_lines(report)
     with open(os.path.join(out, "sleeper_report.txt"), "w") as f:
         f.write("\n".join(lines) + "\n")
     print("\n".join(lines))
     plt = pyplot_or_exit("sleeper_report.py")
-    plot_settlement(plt, out, d, cyc, t0)
+    plot_settlement(plt, out, d, cyc, t0, fig["pattern"].get("time_scale", 1.0))
     plot_cells(plt, out, d, report)
     plot_strain(plt, out, fig, d, t0)
+    plot_levels(plt, out, report, beside)
     return 0
 
 
