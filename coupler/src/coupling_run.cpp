@@ -103,10 +103,10 @@ bool coupling_step(RunSession& run, std::int64_t i, const StepObserver& observer
   const auto step_start = RunClock::now();
   StepDiagnostics d;
   d.step = i;
-  d.time = static_cast<double>(i + 1) * s.coupling_dt;
+  d.time = s.time_at(i + 1);
   StepCommand dem_cmd;
   dem_cmd.step = i;
-  dem_cmd.time = static_cast<double>(i) * s.coupling_dt;
+  dem_cmd.time = s.time_at(i);
   dem_cmd.dt = s.coupling_dt;
   dem_cmd.substeps = s.dem_substeps;
   dem_cmd.buffer = kSharedBuffer;
@@ -147,7 +147,7 @@ std::int64_t start_or_resume(RunSession& run, RunCheckpoints& checkpoints) {
   const CouplingSettings& s = run.settings;
   const auto& resume_from = run.control.resume_from;
   if (!resume_from) {
-    run.output.write_initial_interface(run.interface_state(), s.coupling_dt);
+    run.output.write_initial_interface(run.interface_state(), s.start_time, s.coupling_dt);
     if (s.checkpoint.enabled) {
       discard_checkpoints_after(checkpoints.directory(), -1);  // an older run's: replaced
       checkpoints.take(0);
@@ -181,8 +181,8 @@ bool serve_checkpoint_request(RunSession& run, RunCheckpoints& checkpoints, std:
   const Request asked = control.checkpoint_request ? control.checkpoint_request() : Request::none;
   if (asked == Request::none) return false;
   const bool stop_after = asked == Request::stop && control.stop;
-  const std::string at = "step " + std::to_string(i) + " (t = " +
-                         format_number(static_cast<double>(i) * run.settings.coupling_dt) + " s)";
+  const std::string at =
+      "step " + std::to_string(i) + " (t = " + format_number(run.settings.time_at(i)) + " s)";
   if (!run.settings.checkpoint.enabled) {
     run.report("a checkpoint was asked for at " + at +
                ", but the scene has no [checkpoint]: none written" +
@@ -200,8 +200,8 @@ bool serve_checkpoint_request(RunSession& run, RunCheckpoints& checkpoints, std:
 void check_before_step(const RunSession& run, const std::atomic<bool>* stop, std::int64_t i) {
   if (run.control.check_output_folder) run.control.check_output_folder();
   if (stop && stop->load()) {
-    throw Interrupted("stopped by a signal before coupling step " + std::to_string(i) + " (t = " +
-                      format_number(static_cast<double>(i) * run.settings.coupling_dt) + " s)");
+    throw Interrupted("stopped by a signal before coupling step " + std::to_string(i) +
+                      " (t = " + format_number(run.settings.time_at(i)) + " s)");
   }
 }
 

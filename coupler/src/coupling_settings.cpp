@@ -41,6 +41,14 @@ std::string format(double v) {
   return std::string(text, r.ptr);
 }
 
+// A time the run computed (a loaded state's, a sum of steps) in a message: nine digits,
+// "0.02" for 0.019999999999999796.
+std::string time_text(double t) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.9g", t);
+  return text;
+}
+
 // A step count for a message: "1e+18", not "1000000000000000128".
 std::string count_text(double v) {
   char text[32];
@@ -74,7 +82,6 @@ void check_step_counts(const CouplingSettings& s, const Table& root) {
     }
   }
 }
-
 
 // The implicit scheme's keys of [coupling]; any of them with another scheme, or an IQN-ILS key
 // with another acceleration, is refused (it would be silently without effect).
@@ -141,6 +148,31 @@ std::int64_t steps_to_reach(double end_time, double dt) {
   const double n = std::round(r);
   if (std::abs(r - n) <= 1e-9 * std::max(1.0, r)) return std::max<std::int64_t>(1, std::llround(n));
   return static_cast<std::int64_t>(std::ceil(r));
+}
+
+void start_clock_at(CouplingSettings& s, double time, const std::string& where) {
+  // At least one DEM step to make, as dem_server alone does (DemRun::run_to): a run whose
+  // end lies before its start would take one step past it.
+  if (!(time + 0.5 * s.dem_dt < s.run.end_time)) {
+    throw SceneError(s.run.end_time_where + " = " + format(s.run.end_time) +
+                     " s is not after t = " + time_text(time) +
+                     " s, where the DEM continues its loaded state (" + where +
+                     "); run.end_time is an absolute time, not a duration: give one after " +
+                     time_text(time) + " s");
+  }
+  s.start_time = time;
+  s.start_time_where = where;
+  s.step_count = steps_to_reach(s.run.end_time - time, s.coupling_dt);
+}
+
+std::string start_time_mismatch(const CouplingSettings& s, double checkpoint_start) {
+  if (checkpoint_start == s.start_time) return {};
+  return "its run's clock started at t = " + time_text(checkpoint_start) +
+         " s, this run's at t = " + time_text(s.start_time) + " s" +
+         (s.start_time_where.empty() ? std::string(" (no [dem.load] keep_time)")
+                                     : " (" + s.start_time_where + ": the loaded state's time)") +
+         ", so its steps' times differ; resume with the scene and the loaded state it was taken "
+         "with, or start afresh";
 }
 
 bool names_external_backend(const std::optional<scene::Table>& solver) {

@@ -178,7 +178,10 @@ SolverSections check_solver_sections(const scene::Document& scene, std::uint64_t
     }
     out.dem_backend = dem::dem_backend_name(ds.settings.backend);
     out.dem_threads = ds.settings.threads > 0 ? ds.settings.threads : omp_get_max_threads();
-    out.dem_setup_particles = dem::DemRun::check_setup(ds, seed);
+    const auto setup = dem::DemRun::setup(ds, seed);
+    out.dem_setup_particles = setup->setup_particles();
+    out.dem_start_time = setup->system().time();
+    if (ds.load && ds.load->keep_time) out.dem_start_where = dem->table("load")->where("keep_time");
   }
   return out;
 }

@@ -24,9 +24,8 @@ bool RunCheckpoints::due(std::int64_t steps) const {
   if (!cps.enabled || steps == last_step_ || steps >= s.step_count) return false;
   if (cps.every_steps > 0 && steps % cps.every_steps == 0) return true;
   if (cps.every_sim_time > 0.0) {
-    const double t = static_cast<double>(steps) * s.coupling_dt;
-    const double t_last =
-        static_cast<double>(std::max<std::int64_t>(last_step_, 0)) * s.coupling_dt;
+    const double t = s.time_at(steps);
+    const double t_last = s.time_at(std::max<std::int64_t>(last_step_, 0));
     if (std::floor(t / cps.every_sim_time + 1e-9) > std::floor(t_last / cps.every_sim_time + 1e-9))
       return true;
   }
@@ -89,6 +88,7 @@ void RunCheckpoints::save_coupler(const std::filesystem::path& file, std::int64_
     h5.set_attribute("/", "scheme", std::string(scheme_name(s.scheme)));
     h5.set_attribute("/", "node_count", static_cast<std::int64_t>(run_.n3 / 3));
     h5.set_attribute("/", "time", sum.time);
+    h5.set_attribute("/", "start_time", s.start_time);
     h5.set_attribute("/", "work_dem", st.work_dem);
     h5.set_attribute("/", "work_fem", st.work_fem);
     h5.set_attribute("/", "settled", static_cast<std::int64_t>(st.settled));
@@ -168,6 +168,11 @@ void RunCheckpoints::load_coupler(const std::filesystem::path& file, std::int64_
            std::to_string(n3 / 3) +
            " (the FEM mesh or fem.interface_surface changed): its state cannot be continued "
            "with this scene");
+  // The clock's start (a DEM state's time kept, [dem.load] keep_time): the steps' times
+  // follow from it. Checkpoints of older versions lack it: their runs started at 0.
+  const std::string clock = start_time_mismatch(
+      s, h5.has_attribute("/", "start_time") ? h5.attribute_double("/", "start_time") : 0.0);
+  need(clock.empty(), clock);
   sum.time = h5.attribute_double("/", "time");
   st.work_dem = h5.attribute_double("/", "work_dem");
   st.work_fem = h5.attribute_double("/", "work_fem");

@@ -49,9 +49,10 @@ void RunOutput::write_interface_if_due(const InterfaceState& state, double time,
     write_interface(state, schedule_.take(time, coupling_dt), time, steps);
 }
 
-void RunOutput::write_initial_interface(const InterfaceState& state, double coupling_dt) {
-  write_interface(state, schedule_.label(0.0, coupling_dt), 0.0, 0);
-  schedule_.skip_to_after(0.0);
+void RunOutput::write_initial_interface(const InterfaceState& state, double time,
+                                        double coupling_dt) {
+  write_interface(state, schedule_.label(time, coupling_dt), time, 0);
+  schedule_.skip_to_after(time);
 }
 
 void RunOutput::write_final_interface(const InterfaceState& state, double time, double coupling_dt,

@@ -39,8 +39,8 @@ class RunOutput {
   /// An output is due after the step that ended at `time`: written with its label.
   void write_interface_if_due(const InterfaceState& state, double time, double coupling_dt,
                               std::int64_t steps);
-  /// The reference state as output 0 of a fresh run.
-  void write_initial_interface(const InterfaceState& state, double coupling_dt);
+  /// The reference state as output 0 of a fresh run, whose clock starts at `time`.
+  void write_initial_interface(const InterfaceState& state, double time, double coupling_dt);
   /// The end state as the last output of the series, unless the last output is of this step.
   void write_final_interface(const InterfaceState& state, double time, double coupling_dt,
                              std::int64_t steps);

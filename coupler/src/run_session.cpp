@@ -17,6 +17,7 @@ RunSession::RunSession(SolverLink& link_in, const CouplingSettings& settings_in,
       state(mesh.reference_positions),
       exchange(link_in, control_in, state, n3) {
   summary.mesh = std::move(mesh);
+  summary.time = settings.start_time;  // a fresh run's; a resumed one's from its checkpoint
   scheme = make_coupling_scheme(SchemeContext{settings, exchange, state,
                                               summary.mesh.reference_positions, summary,
                                               [this](const std::string& m) { report(m); }});

@@ -67,6 +67,11 @@ std::optional<int> read_scene(const LaunchOptions& opt, CheckedRun& run) {
       print_seat(*seat);  // as the prepare steps' lines: also with --quiet
     }
     run.sections = check_solver_sections(*run.doc, run.settings.run.seed);
+    // A DEM that continues its loaded state's clock ([dem.load] keep_time, DEM alone): the
+    // run's clock starts there too, so that coupling.csv, the progress and the step count
+    // agree with the DEM's sensors and snapshots, and run.end_time is where both end.
+    if (!run.sections.dem_start_where.empty())
+      start_clock_at(run.settings, run.sections.dem_start_time, run.sections.dem_start_where);
   } catch (const scene::SceneError& e) {
     std::fprintf(stderr, "demfem run: scene error: %s\n", e.what());
     return kExitBadInput;

@@ -56,6 +56,12 @@ std::optional<int> prepare_resume(const fs::path& checkpoint, const CouplingSett
     }
     if (coupler.has_attribute("/", "output_dir"))
       origin = coupler.attribute_string("/", "output_dir");
+    // Before any process starts (the run's restore checks it again).
+    const std::string clock =
+        start_time_mismatch(settings, coupler.has_attribute("/", "start_time")
+                                          ? coupler.attribute_double("/", "start_time")
+                                          : 0.0);
+    if (!clock.empty()) return refuse("checkpoint " + checkpoint.string() + ": " + clock);
     // dem.h5 of an external DEM is in the program's own format: neither dem_server nor
     // another program can continue it, nor can an external DEM continue dem_server's.
     if (settings.has_dem) {

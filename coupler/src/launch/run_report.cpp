@@ -11,12 +11,17 @@ namespace demfem::coupling::launch {
 
 void print_run_plan(const LaunchOptions& opt, const CheckedRun& run) {
   const CouplingSettings& settings = run.settings;
+  // A clock that starts at a loaded state's time says so: end_time is not the run's length.
+  char from[96] = "";
+  if (!settings.start_time_where.empty())
+    std::snprintf(from, sizeof(from), " from t = %.9g s (the DEM state's time)",
+                  settings.start_time);
   std::printf(
-      "demfem run: %s: scheme %s, dt_C = %.6g s (n_D = %lld), %lld coupling steps to "
+      "demfem run: %s: scheme %s, dt_C = %.6g s (n_D = %lld), %lld coupling steps%s to "
       "t = %.6g s%s\n",
       opt.scene.c_str(), scheme_name(settings.scheme), settings.coupling_dt,
       static_cast<long long>(settings.dem_substeps), static_cast<long long>(settings.step_count),
-      settings.run.end_time, run.remote ? "" : " (in process)");
+      from, settings.run.end_time, run.remote ? "" : " (in process)");
   std::fflush(stdout);
 }
 

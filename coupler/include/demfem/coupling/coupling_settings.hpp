@@ -127,7 +127,12 @@ struct CouplingSettings {
   double fem_dt = 0.0;            ///< [fem].dt, s
   double coupling_dt = 0.0;       ///< dt_C, s
   std::int64_t dem_substeps = 1;  ///< n_D per coupling step
-  std::int64_t step_count = 0;    ///< coupling steps to reach run.end_time
+  std::int64_t step_count = 0;    ///< coupling steps from start_time to run.end_time
+  /// The run's clock at coupling step 0, s: 0, or the time of the DEM state a DEM-only scene
+  /// continues ([dem.load] keep_time; start_clock_at). run.end_time is absolute.
+  double start_time = 0.0;
+  /// Why the clock starts at start_time, for messages: "file:line: key 'dem.load.keep_time'".
+  std::string start_time_where;
 
   // one_way_static: the DEM runs on the fixed mesh until t >= settle_min_time and its
   // kinetic energy <= settle_kinetic_energy (0 = no criterion: until run.end_time).
@@ -142,6 +147,11 @@ struct CouplingSettings {
 
   std::optional<BeamCheck> beam_check;
   CheckpointSettings checkpoint;
+
+  /// The time at the start of coupling step `step` (the end of step - 1), s.
+  double time_at(std::int64_t step) const {
+    return start_time + static_cast<double>(step) * coupling_dt;
+  }
 
   ForceMode force_mode() const {
     return force_averaging ? ForceMode::average : ForceMode::last_substep;
@@ -170,6 +180,18 @@ std::int64_t dem_substeps(double fem_dt, double dem_dt, const std::string& fem_w
 /// end_time is not a multiple of dt within 1e-9). Saturates at INT64_MAX (the caller refuses
 /// counts above kMaxCouplingSteps).
 std::int64_t steps_to_reach(double end_time, double dt);
+
+/// @brief Starts the run's clock at `time` (s) instead of 0: the DEM of a DEM-only scene
+/// continues a loaded state at its time ([dem.load] keep_time, docs/scene_dem.md). run.end_time
+/// stays the absolute end, so step_count becomes the steps from `time` to it. `where` says why
+/// (the key), for messages. Throws scene::SceneError naming run.end_time and `where` when
+/// run.end_time is not at least one DEM step after `time`.
+void start_clock_at(CouplingSettings& s, double time, const std::string& where);
+
+/// @brief Why a checkpoint of a run whose clock started at `checkpoint_start` (s; coupler.h5
+/// attribute start_time, 0 where a checkpoint lacks it) cannot be continued by a run of `s`:
+/// empty when the two start alike (the steps' times follow from the start).
+std::string start_time_mismatch(const CouplingSettings& s, double checkpoint_start);
 
 /// True when a solver's table ([dem] or [fem]) names backend = "external": the table then
 /// belongs to the outside program (docs/backends.md), and demfem's own readers keep out of it.

@@ -19,7 +19,11 @@ struct SolverSections {
   std::string dem_backend;              ///< "" without [dem]
   int dem_threads = 0;                  ///< the DEM's CPU threads (dem.threads or OpenMP's)
   std::size_t dem_setup_particles = 0;  ///< particles of the DEM's set-up (DemRun)
-  std::size_t fem_nodes = 0;            ///< nodes and elements of the FEM mesh
+  /// The DEM's clock when its set-up is done, s: 0, or the loaded state's time with
+  /// [dem.load] keep_time (then dem_start_where names that key; the run's clock starts there).
+  double dem_start_time = 0.0;
+  std::string dem_start_where;
+  std::size_t fem_nodes = 0;  ///< nodes and elements of the FEM mesh
   std::size_t fem_elements = 0;
   /// Interface nodes of demfem's own FEM backends (fem, modal, rigid: one interface
   /// definition); 0 when not known (an external program's interface is its own).
