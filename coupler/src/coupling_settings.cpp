@@ -83,6 +83,30 @@ void check_step_counts(const CouplingSettings& s, const Table& root) {
   }
 }
 
+// [dem.load] keep_time continues the DEM's clock at the loaded state's time, and the run's
+// clock starts there too (start_clock_at, once the state is read): only a DEM alone, whose
+// first coupling step is the state's next, can follow. Refused before anything is prepared.
+void check_kept_time(const CouplingSettings& s, const Table& dem) {
+  const auto load = dem.table("load");
+  if (s.dem_external() || !load || !load->has("keep_time") || !load->boolean("keep_time")) return;
+  const std::string where = load->where("keep_time");
+  if (s.has_fem) {
+    throw SceneError(where +
+                     ": the DEM would continue at the loaded state's time while the "
+                     "structure of [fem] starts at t = 0 (its loads, its output and the "
+                     "coupling steps are timed from there); keep_time = true is accepted "
+                     "in a scene of [dem] alone. Use keep_time = false here (the clock "
+                     "starts at 0; the state's contact history is kept)");
+  }
+  if (s.dem_settle_time > 0) {
+    throw SceneError(where + ": with " + dem.where("settle_time") + " = " +
+                     format(s.dem_settle_time) +
+                     " s the DEM's clock runs on before the run's first step, away from the "
+                     "run's clock, which starts at the state's time; drop settle_time (the run "
+                     "itself continues the state: raise run.end_time) or use keep_time = false");
+  }
+}
+
 // The implicit scheme's keys of [coupling]; any of them with another scheme, or an IQN-ILS key
 // with another acceleration, is refused (it would be silently without effect).
 void read_implicit_settings(CouplingSettings& s, const Table& c) {
@@ -251,6 +275,7 @@ CouplingSettings read_coupling_settings(const scene::Document& doc) {
   }
   check_step_counts(s, root);
   s.step_count = steps_to_reach(s.run.end_time, s.coupling_dt);
+  if (s.has_dem) check_kept_time(s, *dem);
 
   if (coupling) {
     if (s.scheme == Scheme::dem_only || s.scheme == Scheme::fem_only) {

@@ -182,3 +182,36 @@ TEST_CASE(
     CHECK(started_pids(e.out).empty());
   }
 }
+
+TEST_CASE(
+    "keep_time is refused where the run's clock cannot follow the DEM's: with a [fem], "
+    "with dem.settle_time") {
+  // Refused from the keys, before the prepare scene runs (its state is never made here) and
+  // before any process starts; --check says the same.
+  TempDir d;
+  const fs::path coupled =
+      write_chain(d.path, "", "\n[fem]\ndt = 1e-4\n\n[coupling]\nscheme = \"just_in_time\"\n");
+  for (const bool check : {false, true}) {
+    INFO((check ? "--check" : "a run"));
+    std::vector<std::string> args = {coupled.string()};
+    if (check) args.push_back("--check");
+    const Ended e = run(d.path, args);
+    INFO(e.out << e.err);
+    CHECK(e.status == 2);
+    CHECK_THAT(e.err, Catch::Contains("load.toml:") &&
+                          Catch::Contains("key 'dem.load.keep_time'") &&
+                          Catch::Contains("[fem] starts at t = 0") &&
+                          Catch::Contains("keep_time = false"));
+    CHECK(started_pids(e.out).empty());
+  }
+  const fs::path settled = write_chain(d.path, "", "\n");
+  const Ended e = run(d.path, {settled.string(), "--set", "dem.settle_time=0.01"});
+  INFO(e.out << e.err);
+  CHECK(e.status == 2);
+  CHECK_THAT(e.err, Catch::Contains("key 'dem.load.keep_time'") &&
+                        Catch::Contains("key 'dem.settle_time'") &&
+                        Catch::Contains("0.01 s the DEM's clock runs on"));
+  CHECK(started_pids(e.out).empty());
+  CHECK_FALSE(fs::exists(d.path / "out/prep"));
+  CHECK_FALSE(fs::exists(d.path / "out/load"));
+}
