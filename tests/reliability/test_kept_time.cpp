@@ -4,7 +4,7 @@
 // steps: the DEM went on past run.end_time, and coupling.csv's times differed from the DEM's
 // sensors and state by the state's time. A chain of two small scenes (216 spheres settling in
 // a box, then continued with the clock kept) run as a user runs them: real demfem_run
-// processes in a folder of their own.
+// processes in a folder of their own, and dem_server alone, which ends the same.
 #include <catch2/catch.hpp>
 
 #include <csignal>
@@ -141,6 +141,17 @@ TEST_CASE(
   CHECK(ke.back() > kEndTime - 0.005);
   // The checkpoints carry the run's times too: step 10 is t = 0.03 s.
   CHECK(manifest_time(out / "checkpoints/step-000010") == Approx(0.03).margin(1e-12));
+  {
+    INFO("dem_server alone runs the scene to the same end state, bit for bit");
+    const Ended alone = demfem::test::wait_for(
+        demfem::test::launch(d.path, {(demfem::test::kBin / "dem_server").string(), "--scene",
+                                      scene.string(), "--output-dir", "out/alone"}));
+    INFO(alone.out << alone.err);
+    REQUIRE(alone.status == 0);
+    const DemEnd by_itself = dem_end(d.path / "out/alone");
+    CHECK(by_itself.time == end.time);
+    CHECK(by_itself.arrays == end.arrays);
+  }
 
   {
     INFO("SIGUSR2 half-way and --resume: the same bits as the run straight through");
