@@ -91,6 +91,7 @@ SCENES = {
     "cases/sleeper_bed1_tiled.toml": (0.001, []),
     "cases/sleeper_pour2_tiled.toml": (0.002, []),
     "cases/sleeper_bed2_tiled.toml": (0.001, []),
+    "cases/sleeper_land_tiled.toml": (0.001, []),
     "cases/sleeper_tiled.toml": (0.002, []),
     "cases/sleeper_cells026.toml": (0.002, []),
     "examples/python_spring_plate/static_ci.toml": (None, []),
