@@ -55,6 +55,7 @@ SCENES = {
     "cases/sleeper_prep_block_mid.toml": (0.3, []),
     "cases/sleeper_prep_tiled_mid.toml": (0.02, []),
     "cases/sleeper_prep_poured_mid.toml": (0.3, []),
+    "cases/sleeper_prep_landed_mid.toml": (0.01, []),
     "cases/sleeper_prep_block_poured_mid.toml": (0.3, []),
     "cases/sleeper_prep_block_compacted_mid.toml": (0.3, []),
     "cases/sheet_fill_ci.toml": (0.1, []),
@@ -72,6 +73,7 @@ SCENES = {
     "cases/sleeper_bed1_ci.toml": (0.7, ["dem.settle_time=0"]),  # the rocks have fallen
     "cases/sleeper_pour1.toml": (0.2, []),
     "cases/sleeper_bed2_mini.toml": (0.002, []),
+    "cases/sleeper_land_mini.toml": (0.01, []),
     "cases/sleeper_bed2_ci.toml": (0.002, []),
     "cases/sleeper_bed2_ci_packed.toml": (0.002, []),
     "cases/sleeper_bed1.toml": (0.001, []),
