@@ -76,6 +76,8 @@ SCENES = {
     "cases/sleeper_land_mini.toml": (0.01, []),
     "cases/sleeper_bed2_ci.toml": (0.002, []),
     "cases/sleeper_bed2_ci_packed.toml": (0.002, []),
+    "cases/sleeper_pour2_ci_fast.toml": (None, []),
+    "cases/sleeper_bed2_ci_fast.toml": (0.002, []),
     "cases/sleeper_bed1.toml": (0.001, []),
     "cases/sleeper_pour2.toml": (0.002, []),
     "cases/sleeper_pour2_packed.toml": (0.002, []),

@@ -436,6 +436,14 @@ void DemSystem::freeze(std::span<const std::uint8_t> mask) {
   if (I.gpu) cuda_set_resident(I.gpu, false);  // the device takes the mask and the rest
 }
 
+void DemSystem::release_frozen() {
+  auto& I = *impl_;
+  if (I.frozen.empty()) return;
+  I.frozen.clear();
+  I.refresh_frozen();
+  if (I.gpu) cuda_set_resident(I.gpu, false);  // the device takes the empty mask
+}
+
 std::span<const std::uint8_t> DemSystem::frozen() const {
   return impl_->frozen;
 }

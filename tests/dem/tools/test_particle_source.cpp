@@ -278,6 +278,62 @@ TEST_CASE("dem.load: a saved state with its contact history continues bit for bi
   }
 }
 
+// A layer frozen while the next one was poured ([dem.freeze]) is saved with its mask; the
+// scene that loads the state (the trim, the load case) holds only what its own [dem.freeze]
+// holds, so the load case runs with every rock free.
+TEST_CASE("dem.load: a state's frozen particles are free in the scene that loads it",
+          "[dem][load][frozen]") {
+  TempDir dir("load_frozen");
+  // The bed settles for 0.2 s, then the grains whose centre lies below 5 mm are frozen.
+  const std::string freeze =
+      "[dem.freeze]\ntime = 0.2\nactive = { lo = [-1.0, -1.0, 0.005], hi = [1.0, 1.0, 1.0] }\n"
+      "max_speed = 1e9\n";
+  const Scene a = scene_file(dir, "fill.toml", std::string(kHead) + kInsert + freeze +
+                                                   "[dem.output]\nstate = true\n");
+  DemRun saved(a.dem, dir / "fill", 1, 0.0, nullptr);
+  saved.run_to(0.2);
+  const std::size_t held = saved.system().frozen_count();
+  REQUIRE(held > 10);
+  REQUIRE(held < saved.system().particles().size());
+  saved.finish();  // writes fill/dem_state.h5 with the mask
+  const auto held_pz = saved.system().particles().pz;
+  const std::string load = "[dem.load]\nfile = \"fill/dem_state.h5\"\n";
+
+  // Of the grains held in the saved run, how many move in 200 steps of the loading scene.
+  auto moved_of_held = [&](DemRun& run) {
+    run.system().advance(200);
+    std::size_t moved = 0;
+    for (std::size_t i = 0; i < held_pz.size(); ++i)
+      moved += held_pz[i] < 0.005 && run.system().particles().pz[i] != held_pz[i] ? 1 : 0;
+    return moved;
+  };
+  SECTION("without [dem.freeze], or with it disabled, every grain is free and moves") {
+    const std::string disabled =
+        "[dem.freeze]\nenabled = false\ntime = 0.0\nactive = { lo = [0, 0, 0], hi = [1, 1, 1] }\n";
+    for (const std::string& own : {std::string(), disabled}) {
+      const auto s = read(dir, std::string(kHead) + load + own);
+      REQUIRE(s.load->history);
+      DemRun run(s, {}, 1, 0.0, nullptr);
+      CHECK(run.system().frozen_count() == 0);
+      CHECK(run.system().frozen_support() == std::array<double, 3>{0.0, 0.0, 0.0});
+      // the grains below 5 mm settle a little further under the bed's weight, now computed
+      CHECK(moved_of_held(run) > held / 2);
+    }
+  }
+  SECTION("the loading scene's own [dem.freeze] holds its own grains, not the state's") {
+    const std::string own = "[dem.freeze]\ntime = 0.0\n"
+                            "active = { lo = [-1.0, -1.0, 0.003], hi = [1.0, 1.0, 1.0] }\n"
+                            "max_speed = 1e9\n";
+    // at its start (t = 0) the scene freezes the centres below 3 mm, fewer than were held
+    DemRun run(read(dir, std::string(kHead) + load + own), {}, 1, 0.0, nullptr);
+    std::size_t below = 0;
+    for (double z : held_pz) below += z < 0.003 ? 1 : 0;
+    REQUIRE(below > 0);
+    REQUIRE(below < held);
+    CHECK(run.system().frozen_count() == below);
+  }
+}
+
 // A sweep varies a bed's settings: [dem.load] set (fixed overrides of the prepare scene) and
 // pass (this run's own --set overrides under the given keys go on to it). Each variant has a
 // folder of its own, and its state is current only for the overrides that made it.
