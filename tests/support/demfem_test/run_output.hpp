@@ -54,6 +54,27 @@ inline std::vector<double> csv_column(const std::vector<std::vector<std::string>
   return v;
 }
 
+/// The first cell in which two CSV tables (read_csv, header row first) differ, the wall-clock
+/// columns (`wall_*`) left out: "" when they agree; else where and what, for a test's message
+/// (`CHECK(first_difference_but_wall_times(a, b) == "")` prints it).
+inline std::string first_difference_but_wall_times(const std::vector<std::vector<std::string>>& a,
+                                                   const std::vector<std::vector<std::string>>& b) {
+  if (a.size() != b.size())
+    return std::to_string(a.size()) + " rows against " + std::to_string(b.size());
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    if (a[i].size() != b[i].size())
+      return "row " + std::to_string(i) + ": " + std::to_string(a[i].size()) + " cells against " +
+             std::to_string(b[i].size());
+    for (std::size_t k = 0; k < a[i].size(); ++k) {
+      if (a[0][k].rfind("wall_", 0) == 0) continue;
+      if (a[i][k] != b[i][k])
+        return "row " + std::to_string(i) + " column " + a[0][k] + ": " + a[i][k] + " against " +
+               b[i][k];
+    }
+  }
+  return "";
+}
+
 /// Whether the file starts with the PNG signature (a plot was written, not a stub).
 inline bool is_png(const std::filesystem::path& p) {
   std::ifstream in(p, std::ios::binary);
