@@ -28,15 +28,14 @@ import json
 import os
 import sys
 
-try:
-    from paraview import simple as pv
-    from paraview import servermanager
-    from vtk.numpy_interface import dataset_adapter as dsa
-    import numpy as np
-except ImportError as e:
-    print(f"sleeper_cutaway.py: needs ParaView's pvbatch (Debian: paraview, xvfb): {e}",
-          file=sys.stderr)
-    sys.exit(2)
+from demfem_post.needs import need_or_exit
+
+# ParaView's Python, run by pvbatch under xvfb-run (Debian: paraview, xvfb)
+PARAVIEW = ("paraview and xvfb", "xvfb-run -a pvbatch")
+pv = need_or_exit("sleeper_cutaway.py", "paraview.simple", *PARAVIEW)
+servermanager = need_or_exit("sleeper_cutaway.py", "paraview.servermanager", *PARAVIEW)
+dsa = need_or_exit("sleeper_cutaway.py", "vtk.numpy_interface.dataset_adapter", *PARAVIEW)
+np = need_or_exit("sleeper_cutaway.py", "numpy", "python3-numpy", "xvfb-run -a pvbatch")
 
 
 class InputError(Exception):
