@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "core/shape_table.hpp"
+#include "dem_test_util.hpp"
 #include "demfem/dem/dem_system.hpp"
 
 namespace demfem::dem::test {
@@ -169,6 +170,27 @@ inline std::array<double, 4> random_quaternion(std::mt19937_64& rng) {
   double q[4] = {g(rng), g(rng), g(rng), g(rng)};
   const double l = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
   return {q[0] / l, q[1] / l, q[2] / l, q[3] / l};
+}
+
+/// A cloud thrown over a floor in a 0.04 m periodic cell (the periodic tests of both backends):
+/// 6 x 6 x 4 sites 6.6 mm apart, sideways velocities of up to 2 m/s and 0.3 m/s down; every
+/// third site a 2.2 mm sphere, the others polyhedra of `shape` at random orientations (all
+/// spheres when `rocks` is false). The draws of `rng` are in site order.
+inline std::vector<ParticleInit> periodic_thrown_cloud(std::int32_t shape, std::mt19937_64& rng,
+                                                       bool rocks = true) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<ParticleInit> p;
+  for (int k = 0; k < 4; ++k)
+    for (int j = 0; j < 6; ++j)
+      for (int i = 0; i < 6; ++i) {
+        const std::array<double, 3> x{0.0066 * i + 0.003, 0.0066 * j + 0.003, 0.004 + 0.0066 * k};
+        const std::array<double, 3> v{2.0 * u(rng), 2.0 * u(rng), -0.3};
+        if (!rocks || (i + j + k) % 3 == 0)
+          p.push_back(sphere(x, 0.0022, v, {10 * u(rng), 0, 0}));
+        else
+          p.push_back(poly(shape, x, random_quaternion(rng), v, {20 * u(rng), 20 * u(rng), 0}));
+      }
+  return p;
 }
 
 }  // namespace demfem::dem::test

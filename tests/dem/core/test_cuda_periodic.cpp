@@ -39,19 +39,7 @@ DemSystem periodic_bed(DemBackendKind backend, bool rocks) {
   sys.add_wall(two_triangle_floor());
   const auto shape = sys.add_shape(box_shape(0.0019, 0.0016, 0.0013, 0.0004));
   std::mt19937_64 rng(11);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  std::vector<ParticleInit> p;
-  for (int k = 0; k < 4; ++k)
-    for (int j = 0; j < 6; ++j)
-      for (int i = 0; i < 6; ++i) {
-        const std::array<double, 3> x{0.0066 * i + 0.003, 0.0066 * j + 0.003, 0.004 + 0.0066 * k};
-        const std::array<double, 3> v{2.0 * u(rng), 2.0 * u(rng), -0.3};
-        if (!rocks || (i + j + k) % 3 == 0)
-          p.push_back(sphere(x, 0.0022, v, {10 * u(rng), 0, 0}));
-        else
-          p.push_back(poly(shape, x, random_quaternion(rng), v, {20 * u(rng), 20 * u(rng), 0}));
-      }
-  sys.add_particles(p);
+  sys.add_particles(periodic_thrown_cloud(shape, rng, rocks));
   return sys;
 }
 
