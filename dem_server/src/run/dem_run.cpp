@@ -116,16 +116,6 @@ DemRun::DemRun(const DemScene& scene, const std::filesystem::path& output_dir, s
   if (scene_.load && !state_to_come) {
     const std::size_t n = load_particles(*scene_.load, *system_, meshes, log);
     for (std::size_t i = 0; i < n; ++i) ids_.push_back(next_id_++);
-    // A state saved with frozen particles (its scene's [dem.freeze]) brings their mask along;
-    // which particles are held is this scene's choice, not the state's: the next scene of a
-    // chain (a trim, the load case) must not carry a layer frozen while another was poured.
-    // A checkpoint restart restores the mask afterwards (restore()), so it continues bitwise.
-    if (const std::size_t held = system_->frozen_count(); held > 0) {
-      system_->release_frozen();
-      if (log)
-        *log << "dem.load: " << held << " particles frozen in " << scene_.load->file.string()
-             << " are free in this scene (its own [dem.freeze] decides what is held)\n";
-    }
   }
   const WallClearance walls = wall_clearance();
   for (std::size_t i = 0; i < scene_.lattices.size(); ++i) {

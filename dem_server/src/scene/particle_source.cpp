@@ -380,8 +380,10 @@ std::string describe_count(std::size_t n) {
 // Walls that move (a prescribed motion, or a rigid body moved by its contacts) are compared
 // by their vertex count only: a body continues from its saved pose, a moving wall takes the
 // pose of the scene's clock (keep a moving wall away from the particles at the save, as a
-// compaction plate parked above the bed).
-void restore_state(const ParticleSource& s, DemSystem& system, std::span<const WallMesh> walls) {
+// compaction plate parked above the bed). Returns how many particles the state held frozen
+// (all free now).
+std::size_t restore_state(const ParticleSource& s, DemSystem& system,
+                          std::span<const WallMesh> walls) {
   io::H5File f(s.file, io::H5File::Mode::read);
   require_state_group(f, s);
   const std::string g = s.group + "/";
@@ -469,6 +471,13 @@ void restore_state(const ParticleSource& s, DemSystem& system, std::span<const W
     data_error(s, s.file.string(), e.what());
   }
   if (!s.keep_time) system.reset_clock();
+  // The saved run's [dem.freeze] mask comes with the state; which particles are held is this
+  // scene's choice (its own [dem.freeze]), not the state's: the next scene of a chain (a trim,
+  // the load case) must not carry a layer frozen while another was poured. A checkpoint
+  // restart restores the mask through DemRun::restore, not here, so it continues bitwise.
+  const std::size_t held = system.frozen_count();
+  system.release_frozen();
+  return held;
 }
 
 }  // namespace
@@ -779,9 +788,10 @@ std::size_t load_particles(const ParticleSource& s, DemSystem& system,
                      "again (`demfem run` does so itself)");
   std::vector<std::int64_t> origin_line;  // a CSV's: its lines
   PeriodicRange block;  // a state's periodic directions (the block a tiled bed is made of)
+  std::size_t released = 0;  // particles the state held frozen, free here
   try {
     if (s.history) {
-      restore_state(s, system, walls);
+      released = restore_state(s, system, walls);
     } else {
       Loaded l = s.format == ParticleSource::Format::csv        ? read_csv(s, log)
                  : s.format == ParticleSource::Format::snapshot ? read_snapshot(s)
@@ -901,6 +911,9 @@ std::size_t load_particles(const ParticleSource& s, DemSystem& system,
     *log << "dem: loaded " << describe_count(system.particle_count()) << " from " << kind << " "
          << s.file.string() << (s.history ? " with contact history" : "")
          << (s.history && s.keep_time ? " (time kept)" : "");
+    if (released > 0)
+      *log << "; " << released << " particles frozen in the state are free in this scene (its "
+           << "own [dem.freeze] decides what is held)";
     if (outside > 0)
       *log << "; " << outside << " outside the walls' bounding box "
            << (s.outside == ParticleSource::Outside::keep ? "kept" : "removed")

@@ -344,8 +344,8 @@ class DemSystem {
   /// nothing). Particles frozen earlier stay frozen. The mask is part of the saved state.
   void freeze(std::span<const std::uint8_t> mask);
   /// Frees every frozen particle: each moves again from the pose it was held at, starting at
-  /// rest, its springs as they were kept. A scene that loads a state (DemRun, dem.load) frees
-  /// them, so that only its own [dem.freeze] holds particles (a layer frozen while the next
+  /// rest, its springs as they were kept. A scene that loads a state with its history
+  /// ([dem.load], load_particles) frees them, so that only its own [dem.freeze] holds particles (a layer frozen while the next
   /// one was poured carries the load case free). Nothing happens when none is frozen.
   void release_frozen();
   /// Per particle: 1 when frozen (empty when none ever was).
