@@ -136,6 +136,18 @@ std::vector<double> DemSystem::wall_vertices(std::int32_t wall) const {
           I.walls.vertex_x.begin() + 3 * w.first_vertex + w.mesh.vertices.size()};
 }
 
+std::vector<double> DemSystem::wall_vertices_at_clock(std::int32_t wall) const {
+  check_wall(*impl_, wall);
+  const auto& I = *impl_;
+  const auto& w = I.walls.rigid[wall];
+  if (w.body >= 0 || w.mesh.motion.kind == WallMotion::Kind::fixed) return wall_vertices(wall);
+  const phys::RigidPose pose = I.walls.motion_pose(static_cast<std::size_t>(wall), I.t);
+  std::vector<double> x(w.mesh.vertices.size()), v(w.mesh.vertices.size());
+  for (std::size_t k = 0; k < x.size(); k += 3)
+    phys::rigid_vertex(pose, w.mesh.vertices.data() + k, x.data() + k, v.data() + k);
+  return x;
+}
+
 RigidBodyState DemSystem::body_state(std::int32_t wall) const {
   check_wall(*impl_, wall);
   const auto& w = impl_->walls.rigid[wall];

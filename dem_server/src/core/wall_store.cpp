@@ -101,12 +101,7 @@ void WallStore::update(double tt, double tau) {
       continue;
     }
     if (w.mesh.motion.kind == WallMotion::Kind::fixed) continue;
-    const phys::RigidMotion& m = motions[wi];
-    const phys::RigidPose pose =
-        w.mesh.motion.max_force > 0.0
-            ? phys::rigid_pose(m, tt, drift_time[wi],
-                               tt >= m.start_time && tt < m.end_time ? drift_rate[wi] : 0.0)
-            : phys::rigid_pose(m, tt);
+    const phys::RigidPose pose = motion_pose(wi, tt);
     const std::size_t nv = w.mesh.vertices.size() / 3;
     double* x = vertex_x.data() + 3 * w.first_vertex;
     double* v = vertex_v.data() + 3 * w.first_vertex;
@@ -120,6 +115,14 @@ void WallStore::update(double tt, double tau) {
     for (std::size_t k = 0; k < 3 * nv; ++k)
       phys::flexible_node(flexible_x0[k], flexible_v0[k], flexible_a0[k], tau, x[k], v[k]);
   }
+}
+
+phys::RigidPose WallStore::motion_pose(std::size_t wi, double tt) const {
+  const phys::RigidMotion& m = motions[wi];
+  return rigid[wi].mesh.motion.max_force > 0.0
+             ? phys::rigid_pose(m, tt, drift_time[wi],
+                                tt >= m.start_time && tt < m.end_time ? drift_rate[wi] : 0.0)
+             : phys::rigid_pose(m, tt);
 }
 
 void WallStore::advance_drift(double t_end, double dt) {

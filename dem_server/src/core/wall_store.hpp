@@ -76,6 +76,9 @@ class WallStore {
   // Vertex positions and velocities of the walls at time t (tau: time into the advance()),
   // by the kinematics shared with the CUDA backend (physics/wall_motion.hpp).
   void update(double t, double tau);
+  // The pose of rigid wall `wi`'s motion at time t, with its drift as it stands (a wall
+  // with a motion, not a body); what update() places its vertices by.
+  phys::RigidPose motion_pose(std::size_t wi, double t) const;
 
   // Force-limited walls: advance the drift over the step of `dt` that ends at t_end (before
   // update), and decide from this step's wall forces whether it goes on (after reduce).

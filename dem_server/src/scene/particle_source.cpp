@@ -375,6 +375,36 @@ std::string describe_count(std::size_t n) {
   return std::to_string(n) + " particle" + (n == 1 ? "" : "s");
 }
 
+// keep_time: the clock goes on, so a wall with a motion is placed where this scene's motion
+// puts it at the state's time, with the drift a force limit had given it (that drift is the
+// time it advanced, so another velocity scales the travel). A motion other than the saving
+// scene's would move the wall there in the first step, into the bed if it was a compaction
+// plate, and the run would blow up blaming its step: said here instead, naming the wall.
+void check_walls_continue(const ParticleSource& s, const DemSystem& system,
+                          std::span<const WallMesh> walls) {
+  for (std::size_t w = 0; w < system.wall_count() && w < walls.size(); ++w) {
+    if (walls[w].body.enabled || walls[w].motion.kind == WallMotion::Kind::fixed) continue;
+    const auto at = system.wall_vertices(static_cast<std::int32_t>(w));
+    const auto goes = system.wall_vertices_at_clock(static_cast<std::int32_t>(w));
+    double jump = 0.0;
+    for (std::size_t k = 0; k + 2 < at.size(); k += 3)
+      jump = std::max(jump, std::hypot(goes[k] - at[k], goes[k + 1] - at[k + 1],
+                                       goes[k + 2] - at[k + 2]));
+    // the same motion gives the saved vertices bit for bit; 1 nm allows nothing physical
+    if (jump > 1e-9) {
+      std::ostringstream msg;
+      msg << "with keep_time the wall '" << walls[w].name << "' goes on with this scene's motion "
+          << "from the state's time " << system.time() << " s, which puts it " << jump
+          << " m from where the state left it: its motion (velocity, start or end time, "
+             "place) differs from the scene that saved the state (a force-limited drift keeps "
+             "the time it advanced, so another velocity changes its travel). Give it the saving "
+             "scene's motion, or load without keep_time (the clock and the walls' motions "
+             "start again at 0, the wall at its box)";
+      data_error(s, s.file.string(), msg.str());
+    }
+  }
+}
+
 // History: the state's walls must be this scene's, at the same place, and its masses this
 // scene's densities; then DemSystem::restore continues it exactly.
 // Walls that move (a prescribed motion, or a rigid body moved by its contacts) are compared
@@ -470,7 +500,10 @@ std::size_t restore_state(const ParticleSource& s, DemSystem& system,
   } catch (const std::exception& e) {
     data_error(s, s.file.string(), e.what());
   }
-  if (!s.keep_time) system.reset_clock();
+  if (s.keep_time)
+    check_walls_continue(s, system, walls);
+  else
+    system.reset_clock();
   // The saved run's [dem.freeze] mask comes with the state; which particles are held is this
   // scene's choice (its own [dem.freeze]), not the state's: the next scene of a chain (a trim,
   // the load case) must not carry a layer frozen while another was poured. A checkpoint

@@ -337,6 +337,62 @@ TEST_CASE("dem.load: a state's frozen particles are free in the scene that loads
 // A sweep varies a bed's settings: [dem.load] set (fixed overrides of the prepare scene) and
 // pass (this run's own --set overrides under the given keys go on to it). Each variant has a
 // folder of its own, and its state is current only for the overrides that made it.
+TEST_CASE("dem.load keep_time: a moving wall goes on with its motion; another motion is refused "
+          "naming the wall",
+          "[dem][load]") {
+  TempDir dir("load_wall_motion");
+  // A force-limited plate drifting down above the grains (it never reaches them here): the
+  // drift a state saves is the time it advanced, so a scene that changes its velocity and
+  // keeps the clock would place the plate elsewhere at the first step (into the bed, in the
+  // full-scale sleeper's second layer: a blow-up blamed on the step).
+  const auto plate = [](const std::string& velocity) {
+    return "[[dem.walls]]\nname = \"plate\"\nmaterial = \"steel\"\n"
+           "box = { lo = [0.001, 0.001, 0.09], hi = [0.039, 0.039, 0.095] }\n"
+           "motion = { kind = \"sinusoid\", direction = [0, 0, 1], amplitude = 0.0005, "
+           "frequency = 20.0, velocity = [0, 0, " +
+           velocity + "], max_force = 5.0 }\n";
+  };
+  const std::string fill =
+      std::string(kHead) + plate("-0.05") + kInsert + "[dem.output]\nstate = true\n";
+  const Scene a = scene_file(dir, "fill.toml", fill);
+  DemRun whole(a.dem, {}, 1, 0.0, nullptr);
+  whole.system().advance(3000);
+  DemRun saved(a.dem, dir / "fill", 1, 0.0, nullptr);
+  saved.system().advance(3000);
+  saved.finish();
+  whole.system().advance(200);
+  const std::string load = "[dem.load]\nfile = \"fill/dem_state.h5\"\n";
+  const auto bottom = [](const std::vector<double>& x) {  // the plate's lowest vertex, m
+    double z = x[2];
+    for (std::size_t k = 2; k < x.size(); k += 3) z = std::min(z, x[k]);
+    return z;
+  };
+
+  SECTION("the same motion, the clock kept: bitwise the uninterrupted run, plate included") {
+    const auto s = read(dir, std::string(kHead) + plate("-0.05") + load + "keep_time = true\n");
+    DemRun run(s, {}, 1, 0.0, nullptr);
+    run.system().advance(200);
+    require_same_state(whole.system().particles(), run.system().particles());
+    CHECK(run.system().wall_vertices(1) == whole.system().wall_vertices(1));
+    // 0.03 s of drift at 0.05 m/s moved it 1.5 mm down (and the vibration within 0.5 mm)
+    const double z = bottom(run.system().wall_vertices(1));
+    CHECK(z < 0.09 - 0.0015 + 0.0005 + 1e-9);
+    CHECK(z > 0.09 - 0.0015 - 0.0005 - 1e-9);
+  }
+  SECTION("another velocity with the clock kept: refused, naming the wall and the distance") {
+    const std::string text =
+        std::string(kHead) + plate("-0.5") + load + "keep_time = true\n";
+    const std::string e = error_of(dir, text);
+    CHECK_THAT(e, Catch::Contains("fill/dem_state.h5") && Catch::Contains("wall 'plate'") &&
+                      Catch::Contains("keep_time") && Catch::Contains("0.0135 m"));
+  }
+  SECTION("another velocity, the clock at 0: the motion starts again at the plate's box") {
+    const auto s = read(dir, std::string(kHead) + plate("-0.5") + load);
+    DemRun run(s, {}, 1, 0.0, nullptr);
+    CHECK(bottom(run.system().wall_vertices(1)) == 0.09);
+  }
+}
+
 TEST_CASE("dem.load: a prepare scene with overrides ('set', 'pass')", "[dem][load]") {
   TempDir dir("load_prepare_overrides");
   const std::string fill = std::string(kHead) + kInsert + "[dem.output]\nstate = true\n";

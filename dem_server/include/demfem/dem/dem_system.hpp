@@ -273,6 +273,11 @@ class DemSystem {
   WallFaceLoad wall_face_load(std::int32_t wall, const std::array<double, 3>& direction) const;
   /// Current vertex positions of a wall (it may move).
   std::vector<double> wall_vertices(std::int32_t wall) const;
+  /// Where the wall's motion puts its vertices at the system's clock, with its force-limited
+  /// drift as it stands: after a restore that keeps the clock, a wall whose motion differs
+  /// from the saving run's is placed there at the first step, not where the state had it
+  /// ([dem.load] keep_time compares the two). A fixed wall or a body: its current vertices.
+  std::vector<double> wall_vertices_at_clock(std::int32_t wall) const;
   /// State of a wall that is a rigid body (WallMesh::body); throws std::invalid_argument for
   /// any other wall.
   RigidBodyState body_state(std::int32_t wall) const;
