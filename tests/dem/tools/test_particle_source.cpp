@@ -5,6 +5,7 @@
 #include <catch2/catch.hpp>
 
 #include <fstream>
+#include <memory>
 #include <sstream>
 
 #include "demfem/dem/run/dem_output.hpp"
@@ -71,6 +72,20 @@ void require_same_state(const ParticleState& a, const ParticleState& b) {
                  &ParticleState::vy, &ParticleState::vz, &ParticleState::wx, &ParticleState::wy,
                  &ParticleState::wz, &ParticleState::fx, &ParticleState::fy, &ParticleState::fz})
     for (std::size_t i = 0; i < a.size(); ++i) REQUIRE((a.*m)[i] == (b.*m)[i]);
+}
+
+// The fill scene run twice for `steps`: `whole` goes on uninterrupted, `saved` writes its state
+// (<dir>/fill/dem_state.h5) for a loading scene to continue.
+struct FillRuns {
+  std::unique_ptr<DemRun> whole, saved;
+};
+FillRuns run_and_save(const TempDir& dir, const DemScene& fill, std::int64_t steps) {
+  FillRuns r{std::make_unique<DemRun>(fill, std::filesystem::path{}, 1, 0.0, nullptr),
+             std::make_unique<DemRun>(fill, dir / "fill", 1, 0.0, nullptr)};
+  r.whole->system().advance(steps);
+  r.saved->system().advance(steps);
+  r.saved->finish();
+  return r;
 }
 
 }  // namespace
@@ -198,11 +213,9 @@ TEST_CASE("dem.load: a saved state with its contact history continues bit for bi
   // 400.
   const std::string fill = std::string(kHead) + kInsert + "[dem.output]\nstate = true\n";
   const Scene a = scene_file(dir, "fill.toml", fill);
-  DemRun whole(a.dem, {}, 1, 0.0, nullptr);
-  whole.system().advance(20000);
-  DemRun saved(a.dem, dir / "fill", 1, 0.0, nullptr);
-  saved.system().advance(20000);
-  saved.finish();  // writes fill/dem_state.h5
+  const FillRuns runs = run_and_save(dir, a.dem, 20000);
+  DemRun& whole = *runs.whole;
+  DemRun& saved = *runs.saved;
   REQUIRE(std::filesystem::exists(dir / "fill" / kStateFileName));
   require_same_state(whole.system().particles(), saved.system().particles());
   // The bed rests: the history (springs of touching pairs and wall contacts) matters.
@@ -355,11 +368,8 @@ TEST_CASE("dem.load keep_time: a moving wall goes on with its motion; another mo
   const std::string fill =
       std::string(kHead) + plate("-0.05") + kInsert + "[dem.output]\nstate = true\n";
   const Scene a = scene_file(dir, "fill.toml", fill);
-  DemRun whole(a.dem, {}, 1, 0.0, nullptr);
-  whole.system().advance(3000);
-  DemRun saved(a.dem, dir / "fill", 1, 0.0, nullptr);
-  saved.system().advance(3000);
-  saved.finish();
+  const FillRuns runs = run_and_save(dir, a.dem, 3000);
+  DemRun& whole = *runs.whole;
   whole.system().advance(200);
   const std::string load = "[dem.load]\nfile = \"fill/dem_state.h5\"\n";
   const auto bottom = [](const std::vector<double>& x) {  // the plate's lowest vertex, m
@@ -477,11 +487,9 @@ TEST_CASE("dem.load: a state of rocks continues bit for bit", "[dem][load][poly]
   const std::string shapes = rock.text() + wheat_rocks.text();
   const std::string fill = std::string(kHead) + shapes + "[dem.output]\nstate = true\n";
   const Scene a = scene_file(dir, "fill.toml", fill);
-  DemRun whole(a.dem, {}, 1, 0.0, nullptr);
-  whole.system().advance(15000);
-  DemRun saved(a.dem, dir / "fill", 1, 0.0, nullptr);
-  saved.system().advance(15000);
-  saved.finish();
+  const FillRuns runs = run_and_save(dir, a.dem, 15000);
+  DemRun& whole = *runs.whole;
+  DemRun& saved = *runs.saved;
   REQUIRE(saved.system().contact_count() > 10);  // rocks rest on rocks (18): history matters
   whole.system().advance(300);
   // The loading scene names the same shapes (its later insertions would draw from them).
@@ -509,11 +517,9 @@ TEST_CASE("dem.load: a state of polyhedra, with and without history", "[dem][loa
                             demfem::test::RockFill("[0.3, 0.3, 0.3]", "30", "3").text() +
                             "[dem.output]\nstate = true\n";
   const Scene a = scene_file(dir, "fill.toml", head + rocks);
-  DemRun whole(a.dem, {}, 1, 0.0, nullptr);
-  whole.system().advance(20000);  // 0.2 s: the rocks have landed and touch
-  DemRun saved(a.dem, dir / "fill", 1, 0.0, nullptr);
-  saved.system().advance(20000);
-  saved.finish();
+  const FillRuns runs = run_and_save(dir, a.dem, 20000);  // 0.2 s: the rocks have landed and touch
+  DemRun& whole = *runs.whole;
+  DemRun& saved = *runs.saved;
   REQUIRE(saved.system().contact_count() > 0);  // resting contacts: the history matters
   // The loader's overlap check measures spheres only: the rocks are reported as unchecked
   // (the log says so), not as free of overlaps.
