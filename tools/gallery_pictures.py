@@ -94,6 +94,7 @@ SCENES = {
     "cases/sleeper_pour1_tiled.toml": (0.002, []),
     "cases/sleeper_bed1_tiled.toml": (0.001, []),
     "cases/sleeper_pour2_tiled.toml": (0.002, []),
+    "cases/sleeper_compact2_tiled.toml": (0.002, []),
     "cases/sleeper_bed2_tiled.toml": (0.001, []),
     "cases/sleeper_land_tiled.toml": (0.001, []),
     "cases/sleeper_tiled.toml": (0.002, []),
