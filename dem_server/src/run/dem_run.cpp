@@ -461,6 +461,32 @@ void DemRun::finish() {
   write_state();
 }
 
+// Where the guard's overlap is: the deepest contact of the state the run stopped in, by
+// particle (its index, its id in the output, its centre) and the particle or walls it
+// touches. Empty where none is found (the CUDA backend).
+std::string DemRun::deepest_contact_text() const {
+  const DeepestContact c = system_->deepest_contact();
+  if (!(c.relative > 0.0)) return {};
+  const ParticleState& p = system_->particles();
+  auto particle = [&](std::int64_t i) {
+    std::ostringstream m;
+    m << "particle " << i;
+    if (static_cast<std::size_t>(i) < ids_.size()) m << " (id " << ids_[i] << " in the output)";
+    m << " at [" << p.px[i] << ", " << p.py[i] << ", " << p.pz[i] << "] m";
+    return m.str();
+  };
+  std::ostringstream m;
+  m << "; the deepest contact after the step, " << c.relative << " of its contact radius ("
+    << c.depth << " m): " << particle(c.particle) << " and ";
+  if (c.other >= 0) {
+    m << particle(c.other);
+  } else {
+    m << (c.walls.size() == 1 ? "the wall " : "the walls ");
+    for (std::size_t k = 0; k < c.walls.size(); ++k) m << (k ? ", '" : "'") << c.walls[k] << "'";
+  }
+  return m.str();
+}
+
 void DemRun::check_stable() const {
   const auto& radius = system_->particles().radius;
   if (radius.empty()) return;
@@ -488,7 +514,7 @@ void DemRun::check_stable() const {
          "polyhedron's dilation; at most "
       << kMaxStableOverlap << "); the largest overlap was " << system_->advance_max_overlap()
       << " m, the smallest contact radius in the bed " << system_->smallest_contact_radius()
-      << " m; the particles' kinetic energy " << ke << " J";
+      << " m; the particles' kinetic energy " << ke << " J" << deepest_contact_text();
   m << ". dt = " << scene_.settings.dt << " s against a Rayleigh time step of "
     << system_->rayleigh_time_step() << " s; reduce dt (" << scene_.dt_where
     << ") or the velocities of the scene where particles collide fast; where a load presses "

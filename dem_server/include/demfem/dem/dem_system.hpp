@@ -205,6 +205,16 @@ struct WallMesh {
   RigidBodySpec body;  ///< enabled: moved by its contact forces (motion must be fixed)
 };
 
+/// @brief The deepest contact of a system now (DemSystem::deepest_contact): where a run that
+/// the overlap guard stopped went wrong.
+struct DeepestContact {
+  double relative = 0.0;         ///< overlap / the smaller contact radius; 0: none found
+  double depth = 0.0;            ///< overlap, m
+  std::int64_t particle = -1;    ///< index of the particle
+  std::int64_t other = -1;       ///< index of the other particle, or -1: a wall
+  std::vector<std::string> walls;  ///< other = -1: the walls the particle touches
+};
+
 /// @brief advance() stopped early because its cancellation flag was set (set_cancel_flag()).
 /// The system is then between two steps of that advance(): fit to be dropped or restored
 /// from a checkpoint, not to be continued.
@@ -271,6 +281,11 @@ class DemSystem {
   /// its sides). Only contacts that press onto the face count (force on the wall against
   /// `direction`): one at its edge from a particle below the face's plane does not.
   WallFaceLoad wall_face_load(std::int32_t wall, const std::array<double, 3>& direction) const;
+  /// The deepest contact now, against its contact radius (phys::relative_overlap), computed
+  /// again on copies of the contacts' history (the system is left as it is): a blow-up's
+  /// report names it. Pairs of two frozen particles are left out, as the steps leave them.
+  /// The CPU backend; on the CUDA backend none is found (relative 0).
+  DeepestContact deepest_contact() const;
   /// Current vertex positions of a wall (it may move).
   std::vector<double> wall_vertices(std::int32_t wall) const;
   /// Where the wall's motion puts its vertices at the system's clock, with its force-limited

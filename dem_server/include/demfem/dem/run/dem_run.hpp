@@ -146,6 +146,7 @@ class DemRun {
   DemScene scene_;
   std::unique_ptr<DemSystem> system_;
   std::size_t setup_particles_ = 0;
+  std::string deepest_contact_text() const;  // for check_stable
   std::vector<std::int64_t> ids_;
   std::int64_t next_id_ = 0;
   std::unique_ptr<SensorSet> sensors_;

@@ -1,0 +1,83 @@
+// A run that the overlap guard stops (DemRun::check_stable) says where: the deepest contact
+// of the state it stopped in (DemSystem::deepest_contact), by particle, its id in the output
+// and its centre, and the particle or the walls it touches. The full-scale sleeper bed's
+// compaction stopped twice with only "a contact overlapped by 0.503 of its contact radius";
+// a diagnostic build was needed to find the column of small rocks over a pressure cell.
+
+#include <catch2/catch.hpp>
+
+#include <fstream>
+#include <string>
+
+#include "demfem/dem/run/dem_run.hpp"
+#include "demfem/dem/scene/dem_scene.hpp"
+#include "demfem_test/box_scene.hpp"
+#include "demfem_test/rock_fill.hpp"
+#include "demfem_test/temp_dir.hpp"
+
+using namespace demfem::dem;
+using demfem::test::TempDir;
+
+namespace {
+
+// The message of the Unstable that advancing `scene` for up to `steps` throws ("" if none).
+std::string blow_up(const TempDir& dir, const std::string& scene, std::int64_t steps) {
+  const auto path = dir / "scene.toml";
+  std::ofstream(path) << scene;
+  const auto doc = demfem::scene::Document::load(path);
+  const DemScene s = read_dem_scene(doc.root().required_table("dem"));
+  DemRun run(s, {}, 1, 0.0, nullptr);
+  try {
+    for (std::int64_t k = 0; k < steps; ++k) run.advance(1);  // stopped in the contact
+  } catch (const Unstable& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST_CASE("A blow-up names its deepest contact: two particles, or a particle and walls",
+          "[dem][guard]") {
+  TempDir dir("blow_up_report");
+  const std::string head = demfem::test::BoxScene{}.text();
+  SECTION("two spheres shot at each other: the pair, by index, id and centre") {
+    std::ofstream(dir / "two.csv") << "x, y, z, r, vx, vy, vz\n"
+                                   << "0.01, 0.02, 0.05, 0.002, 50, 0, 0\n"
+                                   << "0.03, 0.02, 0.05, 0.002, -50, 0, 0\n";
+    const std::string e = blow_up(
+        dir, head + "[dem.load]\nfile = \"two.csv\"\nmaterial = \"wheat\"\n", 200);
+    INFO(e);
+    CHECK_THAT(e, Catch::Contains("a contact overlapped by") &&
+                      Catch::Contains("the deepest contact after the step") &&
+                      Catch::Contains("particle 0 (id 0 in the output) at [") &&
+                      Catch::Contains(" and particle 1 (id 1 in the output) at ["));
+  }
+  SECTION("a sphere squeezed by a plate against the floor: the particle and both walls") {
+    const std::string plate =
+        "[[dem.walls]]\nname = \"plate\"\nmaterial = \"steel\"\n"
+        "box = { lo = [0.001, 0.001, 0.0045], hi = [0.039, 0.039, 0.006] }\n"
+        "motion = { kind = \"translation\", velocity = [0, 0, -1.0] }\n";
+    std::ofstream(dir / "one.csv") << "x, y, z, r\n0.02, 0.02, 0.002, 0.002\n";
+    const std::string e = blow_up(
+        dir, head + plate + "[dem.load]\nfile = \"one.csv\"\nmaterial = \"wheat\"\n", 2000);
+    INFO(e);
+    CHECK_THAT(e, Catch::Contains("the deepest contact after the step") &&
+                      Catch::Contains("particle 0 (id 0 in the output) at [0.02, 0.02, ") &&
+                      Catch::Contains("the walls ") && Catch::Contains("'box'") &&
+                      Catch::Contains("'plate'"));
+  }
+  SECTION("rocks crushed by a plate: the deepest contact of dilated polyhedra") {
+    const std::string rocks = demfem::test::rock_box("[0.3, 0.3, 0.6]").text() +
+                              demfem::test::RandomRockShapes().text() +
+                              demfem::test::RockFill("[0.3, 0.3, 0.3]", "30", "3").text() +
+                              "[[dem.walls]]\nname = \"plate\"\nmaterial = \"steel\"\n"
+                              "box = { lo = [0.005, 0.005, 0.31], hi = [0.295, 0.295, 0.32] }\n"
+                              "motion = { kind = \"translation\", velocity = [0, 0, -2.0] }\n";
+    const std::string e = blow_up(dir, rocks, 20000);
+    INFO(e);
+    CHECK_THAT(e, Catch::Contains("the deepest contact after the step") &&
+                      Catch::Contains("of its contact radius (") &&
+                      Catch::Contains("(id ") && Catch::Contains(" in the output) at ["));
+  }
+}
