@@ -27,12 +27,12 @@ DeepestContact DemSystem::deepest_contact() const {
   auto& I = const_cast<Impl&>(*impl_);
   if (I.gpu != nullptr || I.n() == 0) return out;  // the device's list is not on the host
   const auto& st = I.st;
-  const phys::ParticleView view{st.px.data(), st.py.data(),     st.pz.data(),  st.vx.data(),
-                                st.vy.data(), st.vz.data(),     st.wx.data(),  st.wy.data(),
-                                st.wz.data(), st.radius.data(), st.mass.data()};
+  const phys::ParticleView view = I.particle_view();
   detail::PolyParticles pp = I.poly_particles(view);
-  std::vector<double> rot(9 * I.n()), xprev(3 * I.n()), move(I.n());
+  std::vector<double> rot;
   if (I.poly) {  // the rotations of the current orientations (the narrow phase reads them)
+    rot.resize(9 * I.n());
+    std::vector<double> xprev(3 * I.n()), move(I.n());
     detail::poly_rotations(pp, rot.data(), xprev.data(), move.data(),
                            static_cast<std::int64_t>(I.n()), 1);
     pp.rot = rot.data();

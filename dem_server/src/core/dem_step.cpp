@@ -133,9 +133,7 @@ template <bool Friction, bool Poly>
 void DemSystem::Impl::forces_and_kick() {
   const std::int64_t sn = static_cast<std::int64_t>(n());
   PairKernelArgs a{};
-  a.view = phys::ParticleView{st.px.data(), st.py.data(),     st.pz.data(),  st.vx.data(),
-                              st.vy.data(), st.vz.data(),     st.wx.data(),  st.wy.data(),
-                              st.wz.data(), st.radius.data(), st.mass.data()};
+  a.view = particle_view();
   a.pi = list.owner.data();
   a.pj = list.partner.data();
   a.mat = st.material.data();
@@ -293,6 +291,12 @@ void DemSystem::Impl::forces_and_kick() {
   advance_max_overlap = std::max(advance_max_overlap, mo);
   advance_max_relative_overlap = std::max(advance_max_relative_overlap, mr);
   walls.flexible_max_overlap = std::max(walls.flexible_max_overlap, fmo);
+}
+
+phys::ParticleView DemSystem::Impl::particle_view() const {
+  return phys::ParticleView{st.px.data(), st.py.data(),     st.pz.data(),  st.vx.data(),
+                            st.vy.data(), st.vz.data(),     st.wx.data(),  st.wy.data(),
+                            st.wz.data(), st.radius.data(), st.mass.data()};
 }
 
 detail::PolyParticles DemSystem::Impl::poly_particles(const phys::ParticleView& view) const {

@@ -193,6 +193,8 @@ struct DemSystem::Impl {
   template <bool Friction, bool Poly = false>
   void forces_and_kick();
 
+  // The particles as the contact laws read them (physics/pair.hpp).
+  phys::ParticleView particle_view() const;
   detail::PolyParticles poly_particles(const phys::ParticleView& view) const;
 
   // The arrays that the step integrator (physics/step_integrator.hpp) moves; the principal
