@@ -6,11 +6,9 @@ import subprocess
 import sys
 import tempfile
 
-try:
-    import matplotlib  # noqa: F401
-except ImportError:
-    print("matplotlib is not installed (Debian: python3-matplotlib): skipped")
-    sys.exit(77)
+from module_or_skip import module_or_skip
+
+module_or_skip("matplotlib", "python3-matplotlib")
 
 script = sys.argv[1]
 with tempfile.TemporaryDirectory() as d:

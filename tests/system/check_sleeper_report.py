@@ -14,11 +14,9 @@ import sys
 import tempfile
 import tomllib
 
-try:
-    import matplotlib  # noqa: F401
-except ImportError:
-    print("matplotlib is not installed (Debian: python3-matplotlib): skipped")
-    sys.exit(77)
+from module_or_skip import module_or_skip
+
+module_or_skip("matplotlib", "python3-matplotlib")
 
 script, scene = sys.argv[1], sys.argv[2]
 with open(scene, "rb") as f:
