@@ -12,6 +12,9 @@ difference of every run from the first:
   settlement_mm            mean uz of the sleeper's bottom probes (fem_monitor.csv b*_uz)
   under_load_mm            the same minus its value at T0 (--from: the load's start)
   interface_fz_kN          the rocks' vertical force on the sleeper (fem_monitor.csv force_z)
+  strain_<gauge>_ue        each strain gauge's bottom-fibre axial strain, microstrain: the
+                           monitor's probe pair sg_<gauge>_0/_1 of the run's scene (run.json),
+                           (ux_1 - ux_0) over their distance, as tools/sleeper_report.py
   base_kN                  the rocks' vertical force on the box (sensor_base.csv, -fz)
   <cell>_kPa               each wall_force sensor named cell*: the top face's vertical
                            pressure, -fz over the face's area (force / pressure of its row),
@@ -38,6 +41,7 @@ import os
 import re
 import sys
 
+import demfem_post
 from demfem_post import read_csv, tool_errors
 
 TOOL = "sleeper_compare.py"
@@ -56,6 +60,7 @@ class RunSeries:
         cols = [list(mon.column(p)) for p in probes]
         self.settle = [1e3 * sum(c[i] for c in cols) / len(cols) for i in range(len(self.t))]
         self.fz = list(mon.column("force_z")) if "force_z" in mon else None
+        self.gauges = gauge_strains(path, mon)
         self.sensors = {}
         for name in sorted(os.listdir(path)):
             m = re.match(r"sensor_(\w+)\.csv$", name)
@@ -66,6 +71,25 @@ class RunSeries:
 
     def end(self):
         return self.t[-1]
+
+
+def gauge_strains(path, mon):
+    """{label: bottom-fibre axial strain per monitor row} of the strain gauges sg_<label>_0/_1
+    (probe pairs of the run's scene, run.json; tools/sleeper_report.py's gauges): (ux_1 - ux_0)
+    over the probes' distance in x. Empty when the run records no scene or the scene no gauge."""
+    try:
+        probes = demfem_post.open(path).scene()["fem"]["monitor"]["probes"]
+    except (OSError, KeyError, ValueError):
+        return {}
+    x = {p["name"]: p["point"][0] for p in probes}
+    out = {}
+    for name in sorted(x):
+        m = re.match(r"sg_(\w+)_0$", name)
+        other = f"sg_{m.group(1)}_1" if m else None
+        if m and other in x and f"{name}_ux" in mon and f"{other}_ux" in mon:
+            u0, u1 = mon.column(f"{name}_ux"), mon.column(f"{other}_ux")
+            out[m.group(1)] = [(b - a) / (x[other] - x[name]) for a, b in zip(u0, u1)]
+    return out
 
 
 def mean_at(t, v, tm, half):
@@ -87,6 +111,8 @@ def figures(run, tm, half, t_from):
         f["under_load_mm"] = f["settlement_mm"] - mean_at(run.t, run.settle, t_from, half)
     if run.fz is not None:
         f["interface_fz_kN"] = mean_at(run.t, run.fz, tm, half) / 1e3
+    for label, e in run.gauges.items():
+        f[f"strain_{label}_ue"] = 1e6 * mean_at(run.t, e, tm, half)
     for name, s in run.sensors.items():
         t = list(s.column("time"))
         if name == "base" and "fz" in s:

@@ -4,7 +4,8 @@ from the formulas, not taken from the tool):
 
   probes b1_uz = -0.01 - 0.05 t, b2_uz = -0.01 - 0.03 t (m): settlement 1e3 (-0.01 - 0.04 t) mm;
   the second run 2 mm lower from t = 0.2 s on, and ending at 0.35 s
-  force_z = 1000 + 2e5 t (N); base fz = -(40000 + 1e5 t) (N)
+  force_z = 1000 + 2e5 t (N); the strain gauge sg_centre_0/_1 (x 1.5 and 1.7 m in the first
+  run's scene, named by its run.json; the second has none) ux_1 - ux_0 = 2e-5 t; base fz = -(40000 + 1e5 t) (N)
   cell1: vertical pressure 1e5 (1 + t) Pa on a face of 0.0484 m^2, its force 1 % tilted off the
          vertical (so the pressure is -fz / area, not the force's magnitude over it)
   packing_upper: Z = 4 + t, solid fraction 0.6, every 0.01 s; kinetic energy t J every 0.01 s;
@@ -34,14 +35,18 @@ def write(path, header, rows):
             f.write(",".join(repr(float(x)) for x in r) + "\n")
 
 
-def make_run(d, shift_mm, end):
+def make_run(d, shift_mm, end, scene=None):
     os.makedirs(d)
+    if scene:  # the run's record naming its scene, where the strain gauges' probes stand
+        with open(os.path.join(d, "run.json"), "w") as f:
+            json.dump({"status": "completed", "scene": scene, "overrides": []}, f)
     n = round(end / 0.001)
     times = [0.001 * i for i in range(n + 1)]
     def uz(t, a):
         return -0.01 - a * t - (shift_mm * 1e-3 if t >= 0.2 - 1e-12 else 0.0)
-    write(os.path.join(d, "fem_monitor.csv"), ["time", "b1_ux", "b1_uz", "b2_uz", "force_z"],
-          [(t, 0.0, uz(t, 0.05), uz(t, 0.03), 1000 + 2e5 * t) for t in times])
+    write(os.path.join(d, "fem_monitor.csv"),
+          ["time", "b1_ux", "b1_uz", "b2_uz", "sg_centre_0_ux", "sg_centre_1_ux", "force_z"],
+          [(t, 0.0, uz(t, 0.05), uz(t, 0.03), 0.0, 2e-5 * t, 1000 + 2e5 * t) for t in times])
     write(os.path.join(d, "sensor_base.csv"), ["time", "fx", "fy", "fz", "force", "pressure"],
           [(t, 0, 0, -(40000 + 1e5 * t), 40000 + 1e5 * t, (40000 + 1e5 * t) / 10.24)
            for t in times])
@@ -70,7 +75,11 @@ def close(name, got, want, tol=1e-9):
 
 with tempfile.TemporaryDirectory() as tmp:
     a, b = os.path.join(tmp, "a"), os.path.join(tmp, "b")
-    make_run(a, 0.0, 0.4)
+    scene = os.path.join(tmp, "scene.toml")
+    with open(scene, "w") as f:
+        f.write('[[fem.monitor.probes]]\nname = "sg_centre_0"\npoint = [1.5, 0.5, 0.8]\n'
+                '[[fem.monitor.probes]]\nname = "sg_centre_1"\npoint = [1.7, 0.5, 0.8]\n')
+    make_run(a, 0.0, 0.4, scene)
     make_run(b, 2.0, 0.35)
     js = os.path.join(tmp, "cmp.json")
     r = subprocess.run([sys.executable, script, a, b, "--at", "0.26,0.3", "--window", "0.006",
@@ -89,6 +98,10 @@ with tempfile.TemporaryDirectory() as tmp:
               1e3 * (-0.01 - 0.04 * t) - 2.0)
         close(f"under the load at {t}", fa["under_load_mm"], -40.0 * (t - 0.22))
         close(f"interface force at {t}", fa["interface_fz_kN"], (1000 + 2e5 * t) / 1e3)
+        # gauge 0.2 m long, u1 - u0 = 2e-5 t: strain 1e-4 t = 100 t microstrain
+        close(f"centre gauge at {t}", fa.get("strain_centre_ue", math.nan), 100 * t)
+        if "strain_centre_ue" in fb:
+            fail.append("the run without run.json shows a gauge strain")
         close(f"base at {t}", fa["base_kN"], 40 + 100 * t)
         close(f"cell1 at {t}", fa["cell1_kPa"], 100 * (1 + t))
         close(f"Z at {t}", fa["packing_upper_Z"], 4 + t)
