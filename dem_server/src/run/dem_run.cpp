@@ -494,7 +494,7 @@ void DemRun::check_stable() const {
   // each contact against the smaller contact radius of its two bodies (a polyhedron's:
   // its dilation, its cores intersect at an overlap of r_i + r_j)
   const double rel = system_->advance_max_relative_overlap();
-  if (std::isfinite(ke) && rel <= kMaxStableOverlap) {
+  if (std::isfinite(ke) && rel <= scene_.guard_overlap) {
     // a particle far from every wall (after the overlap check: an exploded contact is
     // reported as such, with its overlap)
     const std::string away = outside_domain(*system_, ids_);
@@ -512,7 +512,8 @@ void DemRun::check_stable() const {
     m << "a contact overlapped by " << rel
       << " of the smaller contact radius of its two bodies (a sphere's radius or a "
          "polyhedron's dilation; at most "
-      << kMaxStableOverlap << "); the largest overlap was " << system_->advance_max_overlap()
+      << scene_.guard_overlap << ", " << scene_.guard_overlap_where
+      << "); the largest overlap was " << system_->advance_max_overlap()
       << " m, the smallest contact radius in the bed " << system_->smallest_contact_radius()
       << " m; the particles' kinetic energy " << ke << " J" << deepest_contact_text();
   m << ". dt = " << scene_.settings.dt << " s against a Rayleigh time step of "

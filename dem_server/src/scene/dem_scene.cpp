@@ -42,6 +42,9 @@ void read_settings(const Table& dem, DemScene& s) {
   st.threads = static_cast<int>(dem.integer("threads", 0, 0, 4096));
   st.dt = dem.number("dt", Range::positive());
   s.dt_where = dem.where("dt");
+  s.guard_overlap = dem.number("guard_overlap", kMaxStableOverlap,
+                               Range::open_closed(0.0, kMaxGuardOverlap));
+  s.guard_overlap_where = dem.where("guard_overlap");
   st.gravity = dem.vec3("gravity", std::array<double, 3>{0.0, 0.0, -9.81});
   st.skin = dem.number("skin", 0.0, Range::non_negative());
   st.list_skin = dem.number("list_skin", 0.0, Range::closed(0.0, 1.0));

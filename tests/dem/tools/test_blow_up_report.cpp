@@ -81,3 +81,63 @@ TEST_CASE("A blow-up names its deepest contact: two particles, or a particle and
                       Catch::Contains("(id ") && Catch::Contains(" in the output) at ["));
   }
 }
+
+namespace {
+
+// The relative overlap the guard's message states ("a contact overlapped by X of"), or -1.
+double stated_overlap(const std::string& e) {
+  const std::string key = "a contact overlapped by ";
+  const auto at = e.find(key);
+  return at == std::string::npos ? -1.0 : std::stod(e.substr(at + key.size()));
+}
+
+}  // namespace
+
+TEST_CASE("dem.guard_overlap: the guard stops a squeezed contact at the scene's limit",
+          "[dem][guard]") {
+  // A sphere of 2 mm squeezed between the floor and a plate coming down at 1 m/s: its overlap
+  // grows by up to 0.005 of its radius per step (10 um of plate per 1e-5 s step), so the
+  // guard stops the run within a few hundredths past the limit.
+  TempDir dir("guard_overlap");
+  std::ofstream(dir / "one.csv") << "x, y, z, r\n0.02, 0.02, 0.002, 0.002\n";
+  const std::string plate =
+      "[[dem.walls]]\nname = \"plate\"\nmaterial = \"steel\"\n"
+      "box = { lo = [0.001, 0.001, 0.0045], hi = [0.039, 0.039, 0.006] }\n"
+      "motion = { kind = \"translation\", velocity = [0, 0, -1.0] }\n"
+      "[dem.load]\nfile = \"one.csv\"\nmaterial = \"wheat\"\n";
+  const std::string head = demfem::test::BoxScene{}.text();
+  auto with_guard = [&](const std::string& value) {
+    std::string h = head;
+    const std::string dt = "[dem]\ndt = 1e-5\n";
+    const auto at = h.find(dt);
+    REQUIRE(at != std::string::npos);
+    if (!value.empty()) h.insert(at + dt.size(), "guard_overlap = " + value + "\n");
+    return h + plate;
+  };
+  SECTION("the default: half of the radius") {
+    const std::string e = blow_up(dir, with_guard(""), 3000);
+    INFO(e);
+    CHECK_THAT(e, Catch::Contains("at most 0.5, "));
+    CHECK(stated_overlap(e) >= 0.5);  // past it, stated to six digits
+    CHECK(stated_overlap(e) < 0.55);
+  }
+  SECTION("a lower limit stops it sooner, a higher one later, each just past its limit") {
+    for (const double limit : {0.3, 0.8}) {
+      const std::string e = blow_up(dir, with_guard(std::to_string(limit)), 6000);
+      INFO(limit << ": " << e);
+      CHECK_THAT(e, Catch::Contains("key 'dem.guard_overlap'"));
+      CHECK(stated_overlap(e) >= limit);
+      CHECK(stated_overlap(e) < limit + 0.05);
+    }
+  }
+  SECTION("out of (0, 1]: refused, naming the key") {
+    for (const std::string bad : {"0", "1.5", "-0.2"}) {
+      const auto path = dir / "bad.toml";
+      std::ofstream(path) << with_guard(bad);
+      const auto doc = demfem::scene::Document::load(path);
+      INFO(bad);
+      CHECK_THROWS_WITH(read_dem_scene(doc.root().required_table("dem")),
+                        Catch::Contains("dem.guard_overlap"));
+    }
+  }
+}

@@ -187,8 +187,8 @@ DEMFEM_HD ContactResult hertz_mindlin(const PairConstants& c, Vec3 n, double del
 
 /// The depth of a contact against its own scale: the overlap over the smaller contact radius
 /// of the two bodies (a sphere's radius, a polyhedron's dilation; a wall: the particle's).
-/// A run's stability guard compares it with kMaxStableOverlap: a contact is judged by its
-/// own bodies, not by the smallest particle in the bed.
+/// A run's stability guard compares it with dem.guard_overlap (kMaxStableOverlap): a contact
+/// is judged by its own bodies, not by the smallest particle in the bed.
 DEMFEM_HD double relative_overlap(double delta, double ri, double rj) {
   return delta / (ri < rj ? ri : rj);
 }

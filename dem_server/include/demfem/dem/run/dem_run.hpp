@@ -34,14 +34,6 @@ class ShapeLibrary;
 /// @brief Rayleigh time-step check (eq. 2.27): error above 1, warning above this fraction.
 inline constexpr double kRayleighWarnFraction = 0.2;
 
-/// @brief Largest overlap a DEM run accepts, as a fraction of the smaller contact radius of
-/// the two bodies in contact (a sphere's radius, a polyhedron's dilation; at a wall, the
-/// particle's): phys::relative_overlap. A Hertz contact of a well-resolved run stays at a few
-/// per cent; half a radius means the spheres pass through each other. Each contact is judged
-/// by its own bodies: 3 mm between two rocks of 10 mm dilation is 0.3, even where the bed's
-/// smallest rock has 6 mm.
-inline constexpr double kMaxStableOverlap = 0.5;
-
 /// @brief The run became unstable (DemRun::check_stable): a blow-up, not a failure.
 class Unstable : public std::runtime_error {
  public:
@@ -123,9 +115,10 @@ class DemRun {
   void after_advance();
   /// Throws Unstable naming the time, the deepest contact's overlap against its own radii,
   /// the largest overlap in m, dt and the Rayleigh time step when the state is not finite or
-  /// two bodies overlap by more than kMaxStableOverlap of the smaller contact radius of the
-  /// two (the soft contact no longer resolves them: dt too large for the stiffness, or loads
-  /// beyond it). Called by after_advance(), so that no such state is sampled or written.
+  /// two bodies overlap by more than dem.guard_overlap (kMaxStableOverlap unless the scene
+  /// sets it) of the smaller contact radius of the two (the soft contact no longer resolves
+  /// them: dt too large for the stiffness, or loads beyond it). Called by after_advance(), so
+  /// that no such state is sampled or written.
   void check_stable() const;
   /// Starts deferred output now (initial sensor samples and snapshot), as the first
   /// advance() would; does nothing when it has started.

@@ -109,6 +109,19 @@ struct FreezeSpec {
   double max_speed = 0.01;  ///< m/s: frozen when |v| + |omega| r (r: bounding radius) is below
 };
 
+/// @brief Default of `dem.guard_overlap`: the largest overlap a DEM run accepts, as a fraction
+/// of the smaller contact radius of the two bodies in contact (a sphere's radius, a
+/// polyhedron's dilation; at a wall, the particle's): phys::relative_overlap. A Hertz contact
+/// of a well-resolved run stays at a few per cent; half a radius means the spheres pass
+/// through each other. Each contact is judged by its own bodies: 3 mm between two rocks of
+/// 10 mm dilation is 0.3, even where the bed's smallest rock has 6 mm.
+inline constexpr double kMaxStableOverlap = 0.5;
+/// @brief The largest `dem.guard_overlap` a scene may set: at an overlap of the smaller
+/// radius two spheres' centres are inside each other; two dilated polyhedra's cores stay
+/// apart until r_i + r_j, but the Hertz law on the dilation is far outside its small-strain
+/// range there.
+inline constexpr double kMaxGuardOverlap = 1.0;
+
 /// @brief Everything [dem] says.
 struct DemScene {
   std::string file;
@@ -116,6 +129,10 @@ struct DemScene {
   DemSettings settings;
   std::string dt_where;       ///< file:line: key 'dem.dt', for the Rayleigh check
   std::string backend_where;  ///< file:line: key 'dem.backend', for an unavailable backend
+  /// [dem] guard_overlap: the stability guard stops a run at a contact deeper than this
+  /// fraction of its smaller contact radius (DemRun::check_stable)
+  double guard_overlap = kMaxStableOverlap;
+  std::string guard_overlap_where;  ///< file:line: key 'dem.guard_overlap' (or the scene's [dem])
   std::vector<WallSpec> walls;
   std::vector<ShapeSpec> shapes;
   std::vector<LatticeSpec> lattices;
