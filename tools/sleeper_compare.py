@@ -14,7 +14,8 @@ difference of every run from the first:
   interface_fz_kN          the rocks' vertical force on the sleeper (fem_monitor.csv force_z)
   strain_<gauge>_ue        each strain gauge's bottom-fibre axial strain, microstrain: the
                            monitor's probe pair sg_<gauge>_0/_1 of the run's scene (run.json),
-                           (ux_1 - ux_0) over their distance, as tools/sleeper_report.py
+                           (ux_1 - ux_0) over the distance of their mesh nodes, as
+                           tools/sleeper_report.py measures it
   base_kN                  the rocks' vertical force on the box (sensor_base.csv, -fz)
   <cell>_kPa               each wall_force sensor named cell*: the top face's vertical
                            pressure, -fz over the face's area (force / pressure of its row),
@@ -42,6 +43,7 @@ import re
 import sys
 
 import demfem_post
+import sleeper_report
 from demfem_post import read_csv, tool_errors
 
 TOOL = "sleeper_compare.py"
@@ -75,21 +77,21 @@ class RunSeries:
 
 def gauge_strains(path, mon):
     """{label: bottom-fibre axial strain per monitor row} of the strain gauges sg_<label>_0/_1
-    (probe pairs of the run's scene, run.json; tools/sleeper_report.py's gauges): (ux_1 - ux_0)
-    over the probes' distance in x. Empty when the run records no scene or the scene no gauge."""
+    of the run's scene (run.json), as tools/sleeper_report.py measures them: (ux_1 - ux_0) over
+    the x distance of the mesh nodes nearest to the two probes. Empty when the run records no
+    scene, or the scene no gauge or no mesh file."""
     try:
-        probes = demfem_post.open(path).scene()["fem"]["monitor"]["probes"]
+        run = demfem_post.open(path)
+        scene = run.scene()
+        mesh = os.path.join(os.path.dirname(os.path.abspath(run.info["scene"])),
+                            scene["fem"]["mesh"]["file"])
+        gauges = sleeper_report.strain_gauges(scene, sleeper_report.inp_nodes(mesh))
     except (OSError, KeyError, ValueError):
         return {}
-    x = {p["name"]: p["point"][0] for p in probes}
-    out = {}
-    for name in sorted(x):
-        m = re.match(r"sg_(\w+)_0$", name)
-        other = f"sg_{m.group(1)}_1" if m else None
-        if m and other in x and f"{name}_ux" in mon and f"{other}_ux" in mon:
-            u0, u1 = mon.column(f"{name}_ux"), mon.column(f"{other}_ux")
-            out[m.group(1)] = [(b - a) / (x[other] - x[name]) for a, b in zip(u0, u1)]
-    return out
+    return {label: [(b - a) / (x1 - x0) for a, b in zip(mon.column(p0 + "_ux"),
+                                                         mon.column(p1 + "_ux"))]
+            for label, (x0, x1, p0, p1) in gauges.items()
+            if p0 + "_ux" in mon and p1 + "_ux" in mon}
 
 
 def mean_at(t, v, tm, half):

@@ -4,8 +4,8 @@ from the formulas, not taken from the tool):
 
   probes b1_uz = -0.01 - 0.05 t, b2_uz = -0.01 - 0.03 t (m): settlement 1e3 (-0.01 - 0.04 t) mm;
   the second run 2 mm lower from t = 0.2 s on, and ending at 0.35 s
-  force_z = 1000 + 2e5 t (N); the strain gauge sg_centre_0/_1 (x 1.5 and 1.7 m in the first
-  run's scene, named by its run.json; the second has none) ux_1 - ux_0 = 2e-5 t; base fz = -(40000 + 1e5 t) (N)
+  force_z = 1000 + 2e5 t (N); the strain gauge sg_centre_0/_1 (probes 1 mm inside the mesh nodes
+  at x 1.5 and 1.7 m of the first run's scene, named by its run.json; the second has none) ux_1 - ux_0 = 2e-5 t; base fz = -(40000 + 1e5 t) (N)
   cell1: vertical pressure 1e5 (1 + t) Pa on a face of 0.0484 m^2, its force 1 % tilted off the
          vertical (so the pressure is -fz / area, not the force's magnitude over it)
   packing_upper: Z = 4 + t, solid fraction 0.6, every 0.01 s; kinetic energy t J every 0.01 s;
@@ -76,9 +76,12 @@ def close(name, got, want, tol=1e-9):
 with tempfile.TemporaryDirectory() as tmp:
     a, b = os.path.join(tmp, "a"), os.path.join(tmp, "b")
     scene = os.path.join(tmp, "scene.toml")
-    with open(scene, "w") as f:
-        f.write('[[fem.monitor.probes]]\nname = "sg_centre_0"\npoint = [1.5, 0.5, 0.8]\n'
-                '[[fem.monitor.probes]]\nname = "sg_centre_1"\npoint = [1.7, 0.5, 0.8]\n')
+    with open(scene, "w") as f:  # the probes 1 mm off the nodes: the gauge is the nodes' 0.2 m
+        f.write('[fem.mesh]\nfile = "mesh.inp"\n'
+                '[[fem.monitor.probes]]\nname = "sg_centre_0"\npoint = [1.501, 0.5, 0.8]\n'
+                '[[fem.monitor.probes]]\nname = "sg_centre_1"\npoint = [1.699, 0.5, 0.8]\n')
+    with open(os.path.join(tmp, "mesh.inp"), "w") as f:
+        f.write("*NODE\n1, 1.3, 0.5, 0.8\n2, 1.5, 0.5, 0.8\n3, 1.7, 0.5, 0.8\n4, 1.9, 0.5, 0.8\n")
     make_run(a, 0.0, 0.4, scene)
     make_run(b, 2.0, 0.35)
     js = os.path.join(tmp, "cmp.json")
