@@ -35,6 +35,23 @@ std::string blow_up(const TempDir& dir, const std::string& scene, std::int64_t s
   return "";
 }
 
+// A sphere of 2 mm on the floor of BoxScene's box under a plate coming down at 1 m/s: the
+// scene's walls and load after the head (its one.csv written into `dir`).
+std::string squeezed_sphere(const TempDir& dir) {
+  std::ofstream(dir / "one.csv") << "x, y, z, r\n0.02, 0.02, 0.002, 0.002\n";
+  return "[[dem.walls]]\nname = \"plate\"\nmaterial = \"steel\"\n"
+         "box = { lo = [0.001, 0.001, 0.0045], hi = [0.039, 0.039, 0.006] }\n"
+         "motion = { kind = \"translation\", velocity = [0, 0, -1.0] }\n"
+         "[dem.load]\nfile = \"one.csv\"\nmaterial = \"wheat\"\n";
+}
+
+// The relative overlap the guard's message states ("a contact overlapped by X of"), or -1.
+double stated_overlap(const std::string& e) {
+  const std::string key = "a contact overlapped by ";
+  const auto at = e.find(key);
+  return at == std::string::npos ? -1.0 : std::stod(e.substr(at + key.size()));
+}
+
 }  // namespace
 
 TEST_CASE("A blow-up names its deepest contact: two particles, or a particle and walls",
@@ -54,13 +71,7 @@ TEST_CASE("A blow-up names its deepest contact: two particles, or a particle and
                       Catch::Contains(" and particle 1 (id 1 in the output) at ["));
   }
   SECTION("a sphere squeezed by a plate against the floor: the particle and both walls") {
-    const std::string plate =
-        "[[dem.walls]]\nname = \"plate\"\nmaterial = \"steel\"\n"
-        "box = { lo = [0.001, 0.001, 0.0045], hi = [0.039, 0.039, 0.006] }\n"
-        "motion = { kind = \"translation\", velocity = [0, 0, -1.0] }\n";
-    std::ofstream(dir / "one.csv") << "x, y, z, r\n0.02, 0.02, 0.002, 0.002\n";
-    const std::string e = blow_up(
-        dir, head + plate + "[dem.load]\nfile = \"one.csv\"\nmaterial = \"wheat\"\n", 2000);
+    const std::string e = blow_up(dir, head + squeezed_sphere(dir), 2000);
     INFO(e);
     CHECK_THAT(e, Catch::Contains("the deepest contact after the step") &&
                       Catch::Contains("particle 0 (id 0 in the output) at [0.02, 0.02, ") &&
@@ -82,29 +93,13 @@ TEST_CASE("A blow-up names its deepest contact: two particles, or a particle and
   }
 }
 
-namespace {
-
-// The relative overlap the guard's message states ("a contact overlapped by X of"), or -1.
-double stated_overlap(const std::string& e) {
-  const std::string key = "a contact overlapped by ";
-  const auto at = e.find(key);
-  return at == std::string::npos ? -1.0 : std::stod(e.substr(at + key.size()));
-}
-
-}  // namespace
-
 TEST_CASE("dem.guard_overlap: the guard stops a squeezed contact at the scene's limit",
           "[dem][guard]") {
   // A sphere of 2 mm squeezed between the floor and a plate coming down at 1 m/s: its overlap
   // grows by up to 0.005 of its radius per step (10 um of plate per 1e-5 s step), so the
   // guard stops the run within a few hundredths past the limit.
   TempDir dir("guard_overlap");
-  std::ofstream(dir / "one.csv") << "x, y, z, r\n0.02, 0.02, 0.002, 0.002\n";
-  const std::string plate =
-      "[[dem.walls]]\nname = \"plate\"\nmaterial = \"steel\"\n"
-      "box = { lo = [0.001, 0.001, 0.0045], hi = [0.039, 0.039, 0.006] }\n"
-      "motion = { kind = \"translation\", velocity = [0, 0, -1.0] }\n"
-      "[dem.load]\nfile = \"one.csv\"\nmaterial = \"wheat\"\n";
+  const std::string plate = squeezed_sphere(dir);
   const std::string head = demfem::test::BoxScene{}.text();
   auto with_guard = [&](const std::string& value) {
     std::string h = head;
