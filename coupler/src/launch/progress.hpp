@@ -28,9 +28,11 @@ class Progress {
   void update(std::int64_t step, std::int64_t total, double time, double end_time);
   /// Ends the in-place line.
   void finish();
-  /// "t = 0.012 s / 0.1 s (12.0 %), 1234 steps/s, ETA 0:00:07"
+  /// "t = 0.012 s / 0.1 s (12.0 %), 1234 steps/s, ETA 0:00:07". `first_step`: the first step
+  /// of this session (a resumed run starts at its checkpoint's step), whose steps since, over
+  /// `elapsed_s`, give the rate; the steps before it ran in earlier sessions.
   static std::string line(std::int64_t step, std::int64_t total, double time, double end_time,
-                          double elapsed_s);
+                          double elapsed_s, std::int64_t first_step = 0);
 
  private:
   using Clock = std::chrono::steady_clock;
@@ -40,6 +42,7 @@ class Progress {
   Clock::time_point start_;
   Clock::time_point last_print_;
   int last_decile_ = 0;
+  std::int64_t first_step_ = -1;  ///< the step of the first update (-1: none yet)
   bool line_open_ = false;
 };
 
