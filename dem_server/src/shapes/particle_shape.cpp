@@ -77,10 +77,35 @@ double solve_steiner(const SteinerCoefficients& s, double r, double target) {
   return l;
 }
 
+/// The core's scale lambda at which core * lambda dilated by r has the bounding diameter `size`
+/// (> 2 r): the bounding radius about the dilated body's centroid grows with lambda from r
+/// (lambda = 0), so bisection between 0 and a doubled upper bound finds it to rounding.
+double bounding_scale(const ConvexPolyhedron& core, double r, double size) {
+  auto diameter = [&](double l) {
+    const ConvexPolyhedron c = core.scaled(l);
+    return 2.0 * (c.radius_about(dilated_mass_properties(c, r).centroid) + r);
+  };
+  double lo = 0.0, hi = 1.0;
+  for (int k = 0; k < 200 && diameter(hi) < size; ++k) hi *= 2.0;
+  for (int it = 0; it < 200 && hi - lo > 1e-15 * hi; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (diameter(mid) < size ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
 }  // namespace
 
 std::string_view to_string(SizeKind kind) {
-  return kind == SizeKind::sieve ? "sieve" : "volume_equivalent";
+  switch (kind) {
+    case SizeKind::sieve:
+      return "sieve";
+    case SizeKind::volume_equivalent:
+      return "volume_equivalent";
+    case SizeKind::bounding:
+      return "bounding";
+  }
+  return "sieve";
 }
 
 ParticleShape describe_dilated(const ConvexPolyhedron& core, double dilation_radius) {
@@ -123,6 +148,8 @@ ParticleShape make_particle_shape(const ConvexPolyhedron& core, double size, Siz
   double lambda = 0.0;
   if (kind == SizeKind::sieve) {
     lambda = (1.0 - 2.0 * f) * size / core_sieve;
+  } else if (kind == SizeKind::bounding) {
+    lambda = bounding_scale(core, r, size);
   } else {
     const double target = kPi * size * size * size / 6.0 - 4.0 / 3.0 * kPi * r * r * r;
     lambda = solve_steiner(steiner_coefficients(core), r, target);

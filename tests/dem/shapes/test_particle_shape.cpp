@@ -1,6 +1,6 @@
-// Particle shapes: the principal frame, sizing to a sieve size or a volume-equivalent
-// diameter with r_d a fraction of the size, exact similarity, and the errors for r_d too
-// large.
+// Particle shapes: the principal frame, sizing to a sieve size, a volume-equivalent diameter
+// or a bounding diameter with r_d a fraction of the size, exact similarity, and the errors for r_d
+// too large.
 
 #include <catch2/catch.hpp>
 
@@ -46,10 +46,25 @@ TEST_CASE("a cube sized by sieve: core edge (1 - 2f) size, rounded-cube volume",
   CHECK(s.flatness == Approx(1.0).epsilon(1e-12));
 }
 
+TEST_CASE("a cube sized by its bounding diameter: core edge (1 - 2f) size / sqrt(3)",
+          "[shapes][particle]") {
+  // The dilated cube's bounding sphere: half the core's diagonal plus r_d, so a bounding
+  // diameter d with r_d = f d leaves a core of edge (1 - 2f) d / sqrt(3).
+  const double size = 0.04, f = 0.1;
+  const auto s = make_particle_shape(make_cube(1.0), size, SizeKind::bounding, f, "cube");
+  const double a = (1 - 2 * f) * size / std::sqrt(3.0);
+  CHECK(s.dilation_radius == Approx(f * size).epsilon(1e-15));
+  CHECK(s.core.width({1, 0, 0}) == Approx(a).epsilon(1e-12));
+  CHECK(2 * s.bounding_radius == Approx(size).epsilon(1e-12));
+  CHECK(s.size(SizeKind::bounding) == Approx(size).epsilon(1e-12));
+  CHECK(s.sieve_size == Approx(a + 2 * f * size).epsilon(1e-9));
+  CHECK(to_string(SizeKind::bounding) == "bounding");
+}
+
 TEST_CASE("a random hull in its principal frame with the size it was asked for",
           "[shapes][particle]") {
   const auto k = random_hull(4, 15);
-  for (const SizeKind kind : {SizeKind::sieve, SizeKind::volume_equivalent}) {
+  for (const SizeKind kind : {SizeKind::sieve, SizeKind::volume_equivalent, SizeKind::bounding}) {
     const double size = 0.05, f = 0.1;
     const auto s = make_particle_shape(k, size, kind, f, "hull");
     INFO(to_string(kind));
@@ -96,7 +111,7 @@ TEST_CASE("the volume-equivalent size of a box solves Steiner's cubic", "[shapes
 }
 
 TEST_CASE("the point core sized is a sphere of that diameter", "[shapes][particle]") {
-  for (const SizeKind kind : {SizeKind::sieve, SizeKind::volume_equivalent}) {
+  for (const SizeKind kind : {SizeKind::sieve, SizeKind::volume_equivalent, SizeKind::bounding}) {
     const auto s =
         make_particle_shape(ConvexPolyhedron::point({1, 2, 3}), 0.01, kind, 0.1, "sphere");
     const double r = 0.005, v = 4.0 / 3.0 * pi * r * r * r;

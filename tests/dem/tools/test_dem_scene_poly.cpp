@@ -76,6 +76,17 @@ TEST_CASE("[[dem.shapes]]: random rocks inserted by count and by mass", "[scene]
   CHECK_THAT(log.str(), Catch::Contains("Rayleigh time step"));
   run.run_to(0.002);
   CHECK(run.system().time() == Approx(0.002));
+  SECTION("sized by their bounding diameter") {
+    // size = "bounding": each rock's bounding sphere (the broad phase's radius) has the drawn
+    // diameter, its scale; sieve-sized, the same rocks reach further than half their size.
+    for (std::size_t i = 0; i < st.size(); ++i) CHECK(2 * st.radius[i] > 1.1 * st.scale[i]);
+    const DemScene b = parse(replace(kRocks, "size = \"sieve\"", "size = \"bounding\""));
+    DemRun rb(b, "", 1, 0.0, nullptr);
+    const auto& pb = rb.system().particles();
+    REQUIRE(pb.size() == 60);
+    for (std::size_t i = 0; i < pb.size(); ++i)
+      CHECK(2 * pb.radius[i] == Approx(pb.scale[i]).epsilon(1e-12));
+  }
   SECTION("by mass") {
     const DemScene m = parse(replace(kRocks, "count = 60", "mass = 5.0"));
     DemRun r2(m, "", 1, 0.0, nullptr);

@@ -55,7 +55,9 @@ struct ShapeSpec {
   std::uint64_t seed = 1;                       ///< random_rock
   std::vector<std::filesystem::path> stl;       ///< stl: the scanned rocks (one shape each)
   std::array<double, 3> aspect{1.0, 1.0, 1.0};  ///< box: side ratios; prism: [1, h/a, -]
-  bool volume_equivalent = false;  ///< size: volume-equivalent diameter (else sieve size)
+  /// size: what the distribution's diameters mean (sieve size, volume-equivalent diameter,
+  /// bounding diameter; shapes::SizeKind)
+  enum class Size { sieve, volume_equivalent, bounding } size = Size::sieve;
   double dilation = 0.1;           ///< r_d as a fraction of the size, (0, 0.5)
   std::string where;               ///< file:line: key of the entry, for errors found later
 };

@@ -27,9 +27,13 @@
 
 namespace demfem::dem::shapes {
 
-enum class SizeKind { sieve, volume_equivalent };
+/// What a particle's size means: its sieve size (the smallest square aperture it passes), the
+/// diameter of the sphere of its volume, or its bounding diameter (twice the largest distance
+/// of the dilated body's surface from its centroid: a template scaled to a length, as DEM
+/// codes that scale one shape by a "characteristic length" do).
+enum class SizeKind { sieve, volume_equivalent, bounding };
 
-/// "sieve" or "volume_equivalent".
+/// "sieve", "volume_equivalent" or "bounding".
 std::string_view to_string(SizeKind kind);
 
 /// @brief A dilated convex polyhedron in its own principal frame.
@@ -50,7 +54,15 @@ struct ParticleShape {
   double flatness = 1.0;                    ///< S / I
 
   double size(SizeKind kind) const {
-    return kind == SizeKind::sieve ? sieve_size : volume_equivalent_diameter;
+    switch (kind) {
+      case SizeKind::sieve:
+        return sieve_size;
+      case SizeKind::volume_equivalent:
+        return volume_equivalent_diameter;
+      case SizeKind::bounding:
+        return 2.0 * bounding_radius;
+    }
+    return sieve_size;
   }
 };
 
