@@ -8,7 +8,11 @@ Reads, from OUTPUT_DIR: fem_monitor.csv (bottom probes b*_uz of the sleeper), se
 (force of the rocks on the box: its fz is minus the base reaction), sensor_cell<k>.csv (force
 of the rocks on pressure cell k), sensor_all_rocks.csv (a packing sensor over the whole box:
 the rocks' volume) and the packing sensors sensor_packing_*.csv / sensor_under_sleeper.csv
-when there; and from SCENE (the load case's TOML): the load pattern (start, ramp, cycles,
+when there, and the stress boxes: packing sensors named stress* with `contacts = true`, whose
+stress_zz (Love-Weber, compression positive) is the vertical Cauchy stress of the rocks'
+contacts in the box, as Song et al. read pressure in their simulation (thesis §6.5): the
+report gives it beside the cells at each load level and in the hold, and draws it (dotted,
+open markers) in cell_pressures_levels.png; and from SCENE (the load case's TOML): the load pattern (start, ramp, cycles,
 time scale, levels and seats), the seating load, the sleeper's density and the mesh (its
 volume from the node bounding box), the cells' density and size, and the all_rocks box;
 --set KEY=VALUE changes a key of SCENE as `demfem run --set` did for the run; the overrides
@@ -158,6 +162,12 @@ def scene_figures(scene_path, rock_density, overrides=()):
             cells.append({"name": w["name"], "x": 0.5 * (b["lo"][0] + b["hi"][0]),
                           "mass": w["body"]["density"] * v, "top": b["hi"][2],
                           "area": (b["hi"][0] - b["lo"][0]) * (b["hi"][1] - b["lo"][1])})
+    # Cauchy-stress boxes (Song et al.'s method, thesis §6.5): packing sensors named stress*
+    # with the contact statistics, their stress_zz the Love-Weber stress of the box
+    stress_boxes = [{"name": s["name"], "x": 0.5 * (s["lo"][0] + s["hi"][0]),
+                     "z_lo": s["lo"][2], "z_hi": s["hi"][2]}
+                    for s in dem.get("sensors", []) if s.get("kind") == "packing"
+                    and s["name"].startswith("stress") and s.get("contacts", False)]
     rocks_box = None
     for s in dem.get("sensors", []):
         if s["name"] == "all_rocks":
@@ -166,7 +176,8 @@ def scene_figures(scene_path, rock_density, overrides=()):
                 rocks_box *= s["hi"][k] - s["lo"][k]
     return {"sleeper_mass": sleeper_density * sleeper_volume, "seating_N": seating,
             "peak_load_N": peak, "pattern": pattern, "rock_density": rho, "cells": cells,
-            "rocks_box_volume": rocks_box, "gauges": strain_gauges(sc, mesh_nodes)}
+            "stress_boxes": stress_boxes, "rocks_box_volume": rocks_box,
+            "gauges": strain_gauges(sc, mesh_nodes)}
 
 
 def read_run(out, fig):
@@ -197,6 +208,10 @@ def read_run(out, fig):
         # the rocks push the cell down: -fz is the vertical load on it
         d.cells.append((c, rows.column("time"),
                         [-f / c["area"] / 1e3 for f in rows.column("fz")]))
+    d.stress = []  # (box, time, vertical stress kPa, compression positive)
+    for b in fig["stress_boxes"]:
+        rows = read_csv(os.path.join(out, f"sensor_{b['name']}.csv"))
+        d.stress.append((b, rows.column("time"), [v / 1e3 for v in rows.column("stress_zz")]))
     base = read_csv(os.path.join(out, "sensor_base.csv"))
     d.tb, d.fb = base.column("time"), base.column("fz")
     # rocks frozen by [dem.freeze] are held by the engine, not the box: the force that
@@ -275,6 +290,8 @@ def hold_figures(fig, d, hold_arg, i_seat):
                 tb, [f * f for f in fb], h0, h1) - base_hold ** 2)),
         })
     hold["cell_pressure_kPa"] = {c["name"]: window_mean(tc, p, h0, h1) for c, tc, p in d.cells}
+    if d.stress:
+        hold["stress_zz_kPa"] = {b["name"]: window_mean(tb, v, h0, h1) for b, tb, v in d.stress}
     read = [(p, c) for (c, _, _), p in zip(d.cells, hold["cell_pressure_kPa"].values())
             if p is not None]
     if read:  # the issue's question: is the pressure largest under a rail seat or the centre?
@@ -380,6 +397,12 @@ def level_figures(fig, d):
         name = max(entry["cell_pressure_kPa"], key=entry["cell_pressure_kPa"].get)
         entry["largest_cell"] = name
         entry["middle_cell_largest"] = name == middle
+        if d.stress:
+            entry["stress_zz_kPa"] = {b["name"]: value_at(tb, v, tm, half)[0]
+                                      for b, tb, v in d.stress}
+            name = max(entry["stress_zz_kPa"], key=entry["stress_zz_kPa"].get)
+            entry["largest_stress_box"] = name
+            entry["middle_stress_box_largest"] = name == middle_cell(fig["stress_boxes"])
         levels.append(entry)
     return levels
 
@@ -479,6 +502,10 @@ def hold_lines(h):
     lines.append("cell pressures in the hold (kPa): " + ", ".join(
         f"{n} {p:.2f}" if p is not None else f"{n} -"
         for n, p in h["cell_pressure_kPa"].items()))
+    if "stress_zz_kPa" in h:
+        lines.append("stress boxes' vertical stress in the hold (kPa): " + ", ".join(
+            f"{n} {p:.2f}" if p is not None else f"{n} -"
+            for n, p in h["stress_zz_kPa"].items()))
     if "largest_cell" in h:
         c = h["largest_cell"]
         lines.append(f"largest cell pressure in the hold: {c['name']} at x = {c['x']:.4f} m "
@@ -495,6 +522,12 @@ def level_lines(report):
              + ", ".join(f"{c['name']} x {c['x']:.3f} top {c['top_m']:.4f} m"
                          + (f" depth {c['depth_m']:.3f} m" if c["depth_m"] is not None else "")
                          for c in cells["cells"])]
+    if "stress_boxes" in report:
+        lines.append("stress boxes (Cauchy stress of the rocks' contacts in a box, Song et al.'s "
+                     "method): " + ", ".join(
+                         f"{b['name']} x {b['x']:.3f} z {b['z_lo']:.3f}-{b['z_hi']:.3f} m"
+                         + (f" centre depth {b['depth_m']:.3f} m" if b["depth_m"] is not None
+                            else "") for b in report["stress_boxes"]))
     for m in report["load_levels"]:
         w = m["window"]
         pressures = ", ".join(f"{n} {p:.2f}" for n, p in m["cell_pressure_kPa"].items())
@@ -508,12 +541,28 @@ def level_lines(report):
             f"cell pressures (kPa) {pressures}; largest {m['largest_cell']}"
             f"{' (the middle cell)' if m['middle_cell_largest'] else ' (not the middle cell)'}; "
             f"settlement {m['settlement_mm']:.3f} mm")
+        if "stress_zz_kPa" in m:
+            lines.append(
+                f"  stress boxes' vertical stress (kPa, Love-Weber) " + ", ".join(
+                    f"{n} {p:.2f}" for n, p in m["stress_zz_kPa"].items())
+                + f"; largest {m['largest_stress_box']}"
+                + (" (the middle box)" if m["middle_stress_box_largest"] else
+                   " (not the middle box)"))
     return lines
 
 
 def depth_span(report):
     """The cells' depths as words ('0.130' or '0.149-0.182'), None when unknown."""
     depths = [c["depth_m"] for c in report["cells"]["cells"] if c["depth_m"] is not None]
+    if not depths:
+        return None
+    lo, hi = f"{min(depths):.3f}", f"{max(depths):.3f}"
+    return lo if lo == hi else f"{lo}-{hi}"
+
+
+def stress_depth_span(report):
+    """The stress boxes' centre depths as words, None when unknown."""
+    depths = [b["depth_m"] for b in report.get("stress_boxes", []) if b["depth_m"] is not None]
     if not depths:
         return None
     lo, hi = f"{min(depths):.3f}", f"{max(depths):.3f}"
@@ -557,6 +606,14 @@ def plot_levels(plt, out, report, beside=()):
                            label=f"{who}{m['level_kN']:g} kN (scene: "
                                  f"{m['load_per_seat_N'] / 1e3:.4g} kN per seat), "
                                  f"t = {m['time']:.4g} s")
+                if "stress_zz_kPa" in m and rep.get("stress_boxes"):
+                    bx = {b["name"]: b["x"] for b in rep["stress_boxes"]}
+                    names = sorted(m["stress_zz_kPa"], key=bx.get)
+                    depth = stress_depth_span(rep)
+                    ax[k].plot([bx[n] for n in names], [m["stress_zz_kPa"][n] for n in names],
+                               "^:" if m["level_kN"] < 100 else "s:", color=f"C{r % 10}",
+                               mfc="none", label=f"{who}{m['level_kN']:g} kN, Cauchy stress "
+                                                 f"in boxes {depth or '?'} m deep")
     for k, stage in enumerate(("before", "after")):
         ax[k].set_title(f"{stage} the cycles")
         ax[k].set_xlabel("cell centre x (m)")
@@ -567,8 +624,9 @@ def plot_levels(plt, out, report, beside=()):
             ax[k].text(0.5, 0.5, "not reached by the run", ha="center",
                        transform=ax[k].transAxes)
     span = depth_span(report)
-    ax[0].set_ylabel("cell pressure (kPa)" + (f", tops {span} m deep" if span and not beside
-                                              else ""))
+    ax[0].set_ylabel(("cell pressure; boxes: vertical stress (kPa)" if report.get("stress_boxes")
+                      else "cell pressure (kPa)")
+                     + (f", tops {span} m deep" if span and not beside else ""))
     f.tight_layout()
     f.savefig(os.path.join(out, "cell_pressures_levels.png"), dpi=110)
 
@@ -666,6 +724,9 @@ def main(argv):
     report = report_of(fig, d, cyc, i_seat, a.hold)
     source, bed_top, cells = cell_depths(out, fig, d)
     report["cells"] = {"source": source, "bed_top_m": bed_top, "cells": cells}
+    if fig["stress_boxes"]:
+        report["stress_boxes"] = [dict(b, depth_m=(bed_top - 0.5 * (b["z_lo"] + b["z_hi"]))
+                                       if bed_top else None) for b in fig["stress_boxes"]]
     report["load_start_s"] = t0  # the pattern's start: tools/sleeper_cutaway.py's reference
     if beside:
         report["beside"] = [{"output": folder, "cells_depth_m": depth_span(other)}

@@ -20,7 +20,11 @@ averages the samples within +-0.6 ms (2 % of the ramp); sampled every 5 ms, with
 that window, it takes the nearest one (0.105, 0.12 s; 0.135 s is a sample), and a run that ends
 at 0.15 s has only the moments up to the first cycle's peak. --beside draws another reported
 run beside this one (its cells' depth in the json); a folder without a report is refused with
-exit 2, the report left as it was. Exit 77 (skipped) without matplotlib."""
+exit 2, the report left as it was. Stress boxes (packing sensors named stress* with contacts = true,
+appended to a copy of the scene): their stress_zz (Pa) is read as kPa at the same moments and in
+the hold, box A 215 kPa, the middle box B 2000 t kPa, box C 30 kPa, so A is the largest at
+0.106 s (212 < 215) and B from 0.118 s; their centre depth is the bed top less the box's middle
+z. Exit 77 (skipped) without matplotlib."""
 
 import json
 import math
@@ -69,6 +73,37 @@ def write_output(d, sample, end):
                 "".join(f"{t!r},100,0.55,4.0,{BED_TOP!r}\n" for t in times))
 
 
+STRESS_BOXES = {"stressA": (0.8, 215.0), "stressB": (1.6, None), "stressC": (2.4, 30.0)}
+STRESS_Z = (0.38, 0.42)        # m: the boxes' z range, centre depth BED_TOP - 0.40
+
+
+def stress_kpa(name, t):
+    return STRESS_BOXES[name][1] if STRESS_BOXES[name][1] is not None else 2000.0 * t
+
+
+def scene_with_stress_boxes(d):
+    """A copy of the scene in d (its mesh file by absolute path) with the three stress boxes."""
+    folder = os.path.dirname(os.path.abspath(scene))
+    text = open(scene).read().replace('file = "geometry/',
+                                      f'file = "{folder}/geometry/')
+    for name, (x, _) in STRESS_BOXES.items():
+        text += (f'\n[[dem.sensors]]\nname = "{name}"\nkind = "packing"\ncontacts = true\n'
+                 f'lo = [{x - 0.1}, 0.4, {STRESS_Z[0]}]\nhi = [{x + 0.1}, 0.6, {STRESS_Z[1]}]\n'
+                 'interval = 0.0002\n')
+    path = os.path.join(d, "scene_stress.toml")
+    with open(path, "w") as f:
+        f.write(text)
+    return path
+
+
+def write_stress(d, sample, end):
+    times = [sample * i for i in range(round(end / sample) + 1)]
+    for name in STRESS_BOXES:
+        with open(os.path.join(d, f"sensor_{name}.csv"), "w") as f:
+            f.write("time,particles,solid_fraction,coordination,top,stress_zz\n" + "".join(
+                f"{t!r},50,0.6,4.5,0.45,{stress_kpa(name, t) * 1e3!r}\n" for t in times))
+
+
 def check_levels(rep, want_times, label):
     fail = []
     got = [(m["level_kN"], m["stage"]) for m in rep["load_levels"]]
@@ -94,9 +129,9 @@ def check_levels(rep, want_times, label):
     return fail
 
 
-def run_report(d):
-    r = subprocess.run([sys.executable, script, d, "--scene", scene], capture_output=True,
-                       text=True)
+def run_report(d, scene_path=None, extra=()):
+    r = subprocess.run([sys.executable, script, d, "--scene", scene_path or scene, *extra],
+                       capture_output=True, text=True)
     if r.returncode != 0:
         print("report failed:", r.returncode, r.stdout, r.stderr)
         sys.exit(1)
@@ -137,6 +172,29 @@ with tempfile.TemporaryDirectory() as d:
         if r.returncode != 2 or "sleeper_report.json" not in r.stderr or \
                 open(os.path.join(d, "sleeper_report.json")).read() != before:
             fail.append(f"a --beside without a report: exit {r.returncode}, {r.stderr[-300:]}")
+with tempfile.TemporaryDirectory() as d:
+    write_output(d, 2e-4, 0.45)
+    write_stress(d, 2e-4, 0.45)
+    rep, text = run_report(d, scene_with_stress_boxes(d), ["--hold", "0.3,0.4"])
+    fail += check_levels(rep, [tm for _, _, _, tm in MOMENTS], "with stress boxes")
+    for m in rep["load_levels"]:
+        for name in STRESS_BOXES:
+            got, want = m["stress_zz_kPa"][name], stress_kpa(name, m["time"])
+            if not math.isclose(got, want, rel_tol=1e-9):
+                fail.append(f"stress box {name} at {m['time']} s: {got} kPa, expected {want}")
+        largest = "stressA" if m["time"] < 0.11 else "stressB"
+        if m["largest_stress_box"] != largest or \
+                m["middle_stress_box_largest"] != (largest == "stressB"):
+            fail.append(f"at {m['time']} s: largest stress box {m['largest_stress_box']} (middle "
+                        f"{m['middle_stress_box_largest']}), expected {largest}")
+    hold = rep["hold"]["stress_zz_kPa"]
+    if not math.isclose(hold["stressB"], 700.0, rel_tol=1e-9) or hold["stressC"] != 30.0:
+        fail.append(f"stress boxes in the hold 0.3-0.4 s: {hold}, expected B 700, C 30 kPa")
+    depths = [b["depth_m"] for b in rep["stress_boxes"]]
+    if any(not math.isclose(z, BED_TOP - 0.4, rel_tol=1e-12) for z in depths):
+        fail.append(f"stress boxes' depths {depths}, expected {BED_TOP - 0.4}")
+    if "largest stressB (the middle box)" not in text:
+        fail.append("the text report lacks the stress boxes: " + text[-600:])
 with tempfile.TemporaryDirectory() as d:
     write_output(d, 5e-3, 0.15)
     rep, _ = run_report(d)
