@@ -117,9 +117,9 @@ ShapeSpec read_shape_spec(const Table& t) {
     s.aspect = {1.0, t.number("height", 1.0, Range::closed(1.0 / kMaxAspect, kMaxAspect)), 1.0};
   }
   const std::string size = t.choice("size", "sieve", {"sieve", "volume_equivalent", "bounding"});
-  s.size = size == "volume_equivalent" ? ShapeSpec::Size::volume_equivalent
-           : size == "bounding"        ? ShapeSpec::Size::bounding
-                                       : ShapeSpec::Size::sieve;
+  for (auto kind : {shapes::SizeKind::sieve, shapes::SizeKind::volume_equivalent,
+                    shapes::SizeKind::bounding})
+    if (size == shapes::to_string(kind)) s.size = kind;
   // r_d is the rocks' contact radius: the stability guard stops a run at an overlap of half
   // of it, while the time step is checked against the particle's size, not r_d; a thinner
   // dilation than kMinDilation of the size gives contacts that the guard stops at ordinary
@@ -133,10 +133,7 @@ std::unique_ptr<shapes::ShapeLibrary> build_shape_library(const ShapeSpec& spec,
                                                           std::uint64_t run_seed, std::size_t entry,
                                                           std::ostream* log) {
   using K = ShapeSpec::Kind;
-  const auto kind = spec.size == ShapeSpec::Size::volume_equivalent
-                        ? shapes::SizeKind::volume_equivalent
-                    : spec.size == ShapeSpec::Size::bounding ? shapes::SizeKind::bounding
-                                                             : shapes::SizeKind::sieve;
+  const auto kind = spec.size;
   try {
     if (spec.kind == K::random_rock) {
       shapes::RockParams p;

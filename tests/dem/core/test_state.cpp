@@ -184,8 +184,8 @@ TEST_CASE("In-memory save point: a step redone from it gives the bits of its fir
     }
     backend = DemBackendKind::cuda;
   }
-  auto make = [](DemBackendKind backend) {
-    DemSystem sys = make_scene(2, false, backend);
+  auto make = [](DemBackendKind kind) {
+    DemSystem sys = make_scene(2, false, kind);
     const WallMesh floor = plane_mesh(0.08, 4);
     demfem::InterfaceMesh mesh;
     mesh.reference_positions = floor.vertices;

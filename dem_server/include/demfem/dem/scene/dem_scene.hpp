@@ -14,6 +14,7 @@
 #include "demfem/dem/placement/insertion.hpp"
 #include "demfem/dem/placement/packed_fill.hpp"
 #include "demfem/dem/scene/particle_source.hpp"
+#include "demfem/dem/shapes/particle_shape.hpp"
 #include "demfem/dem/sensors/sensors.hpp"
 #include "demfem/scene/scene_reader.hpp"
 
@@ -56,8 +57,8 @@ struct ShapeSpec {
   std::vector<std::filesystem::path> stl;       ///< stl: the scanned rocks (one shape each)
   std::array<double, 3> aspect{1.0, 1.0, 1.0};  ///< box: side ratios; prism: [1, h/a, -]
   /// size: what the distribution's diameters mean (sieve size, volume-equivalent diameter,
-  /// bounding diameter; shapes::SizeKind)
-  enum class Size { sieve, volume_equivalent, bounding } size = Size::sieve;
+  /// bounding diameter)
+  shapes::SizeKind size = shapes::SizeKind::sieve;
   double dilation = 0.1;           ///< r_d as a fraction of the size, (0, 0.5)
   std::string where;               ///< file:line: key of the entry, for errors found later
 };
