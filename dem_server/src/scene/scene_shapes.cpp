@@ -133,7 +133,6 @@ std::unique_ptr<shapes::ShapeLibrary> build_shape_library(const ShapeSpec& spec,
                                                           std::uint64_t run_seed, std::size_t entry,
                                                           std::ostream* log) {
   using K = ShapeSpec::Kind;
-  const auto kind = spec.size;
   try {
     if (spec.kind == K::random_rock) {
       shapes::RockParams p;
@@ -142,7 +141,7 @@ std::unique_ptr<shapes::ShapeLibrary> build_shape_library(const ShapeSpec& spec,
       p.flatness = spec.flatness;
       const std::uint64_t seed = spec.has_seed ? spec.seed : run_seed + entry;
       return std::make_unique<shapes::ShapeLibrary>(shapes::ShapeLibrary::random_rocks(
-          p, static_cast<std::size_t>(spec.count), seed, kind, spec.dilation));
+          p, static_cast<std::size_t>(spec.count), seed, spec.size, spec.dilation));
     }
     std::vector<shapes::ConvexPolyhedron> cores;
     switch (spec.kind) {
@@ -161,7 +160,7 @@ std::unique_ptr<shapes::ShapeLibrary> build_shape_library(const ShapeSpec& spec,
           }
           cores.push_back(std::move(h.core));
         }
-        return std::make_unique<shapes::ShapeLibrary>(cores, kind, spec.dilation,
+        return std::make_unique<shapes::ShapeLibrary>(cores, spec.size, spec.dilation,
                                                       sieve_progress(spec, cores, log));
       case K::box:
         cores.push_back(shapes::make_box(spec.aspect[0], spec.aspect[1], spec.aspect[2]));
@@ -184,7 +183,7 @@ std::unique_ptr<shapes::ShapeLibrary> build_shape_library(const ShapeSpec& spec,
       case K::random_rock:
         break;
     }
-    return std::make_unique<shapes::ShapeLibrary>(cores, kind, spec.dilation);
+    return std::make_unique<shapes::ShapeLibrary>(cores, spec.size, spec.dilation);
   } catch (const shapes::ShapeError& e) {
     throw SceneError(spec.where + ": shape '" + spec.name + "': " + e.what());
   } catch (const std::runtime_error& e) {  // an unreadable STL (StlError)
