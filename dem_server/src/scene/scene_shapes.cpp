@@ -117,9 +117,9 @@ ShapeSpec read_shape_spec(const Table& t) {
     s.aspect = {1.0, t.number("height", 1.0, Range::closed(1.0 / kMaxAspect, kMaxAspect)), 1.0};
   }
   const std::string size = t.choice("size", "sieve", {"sieve", "volume_equivalent", "bounding"});
-  for (auto kind : {shapes::SizeKind::sieve, shapes::SizeKind::volume_equivalent,
-                    shapes::SizeKind::bounding})
-    if (size == shapes::to_string(kind)) s.size = kind;
+  for (auto k : {shapes::SizeKind::sieve, shapes::SizeKind::volume_equivalent,
+                 shapes::SizeKind::bounding})
+    if (size == shapes::to_string(k)) s.size = k;
   // r_d is the rocks' contact radius: the stability guard stops a run at an overlap of half
   // of it, while the time step is checked against the particle's size, not r_d; a thinner
   // dilation than kMinDilation of the size gives contacts that the guard stops at ordinary
