@@ -29,6 +29,7 @@ import io
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -139,6 +140,10 @@ def main():
     ap.add_argument("--cases", default="dem,beam,sweep,sheet,sleeper")
     ap.add_argument("--json", type=Path, help="write every file's hash here")
     args = ap.parse_args()
+    missing = [t for t in ("h5ls", "h5dump") if shutil.which(t) is None]
+    if missing:  # the HDF5 outputs are read through them (Debian: hdf5-tools)
+        sys.exit(f"same_bits.py: {' and '.join(missing)} not found: install hdf5-tools "
+                 "(apt-get install hdf5-tools)")
     build = args.build.resolve()
     source = source_of(build)
     scenes = {"beam": "beam_checkpoint_ci.toml", "sheet": "sheet_ci.toml",
