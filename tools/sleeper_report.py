@@ -624,9 +624,9 @@ def plot_levels(plt, out, report, beside=()):
             ax[k].text(0.5, 0.5, "not reached by the run", ha="center",
                        transform=ax[k].transAxes)
     span = depth_span(report)
-    ax[0].set_ylabel(("cell pressure; boxes: vertical stress (kPa)" if report.get("stress_boxes")
+    ax[0].set_ylabel(("cell pressure, box stress (kPa)" if report.get("stress_boxes")
                       else "cell pressure (kPa)")
-                     + (f", tops {span} m deep" if span and not beside else ""))
+                     + (f"\ncells' tops {span} m deep" if span and not beside else ""))
     f.tight_layout()
     f.savefig(os.path.join(out, "cell_pressures_levels.png"), dpi=110)
 
