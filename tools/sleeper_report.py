@@ -12,9 +12,10 @@ when there, and the stress boxes: packing sensors named stress* with `contacts =
 stress_zz (Love-Weber, compression positive) is the vertical Cauchy stress of the rocks'
 contacts in the box, as Song et al. read pressure in their simulation (thesis §6.5): the
 report gives it beside the cells at each load level and in the hold, and draws it (dotted,
-open markers) in cell_pressures_levels.png; and from SCENE (the load case's TOML): the load pattern (start, ramp, cycles,
-time scale, levels and seats), the seating load, the sleeper's density and the mesh (its
-volume from the node bounding box), the cells' density and size, and the all_rocks box;
+open markers) in cell_pressures_levels.png; and from SCENE (the load case's TOML): the load
+pattern (start, ramp, cycles, time scale, levels and seats), the seating load, the sleeper's
+density and the mesh (its volume from the node bounding box), the cells' density and size, and
+the all_rocks box;
 --set KEY=VALUE changes a key of SCENE as `demfem run --set` did for the run; the overrides
 the run recorded in OUTPUT_DIR/run.json are applied first, so the report of a run with
 --set (400 cycles instead of the scene's 100, say) needs none here.
@@ -382,6 +383,7 @@ def level_figures(fig, d):
     _, scale, ramp, _, _ = pattern_times(fig["pattern"])
     half = LEVEL_WINDOW_OF_RAMP * scale * ramp
     middle = middle_cell(fig["cells"])
+    middle_box = middle_cell(fig["stress_boxes"]) if d.stress else None
     levels = []
     for m in level_moments(fig["pattern"]):
         tm = m["time"]
@@ -402,7 +404,7 @@ def level_figures(fig, d):
                                       for b, tb, v in d.stress}
             name = max(entry["stress_zz_kPa"], key=entry["stress_zz_kPa"].get)
             entry["largest_stress_box"] = name
-            entry["middle_stress_box_largest"] = name == middle_cell(fig["stress_boxes"])
+            entry["middle_stress_box_largest"] = name == middle_box
         levels.append(entry)
     return levels
 
@@ -543,7 +545,7 @@ def level_lines(report):
             f"settlement {m['settlement_mm']:.3f} mm")
         if "stress_zz_kPa" in m:
             lines.append(
-                f"  stress boxes' vertical stress (kPa, Love-Weber) " + ", ".join(
+                "  stress boxes' vertical stress (kPa, Love-Weber) " + ", ".join(
                     f"{n} {p:.2f}" for n, p in m["stress_zz_kPa"].items())
                 + f"; largest {m['largest_stress_box']}"
                 + (" (the middle box)" if m["middle_stress_box_largest"] else
@@ -551,18 +553,11 @@ def level_lines(report):
     return lines
 
 
-def depth_span(report):
-    """The cells' depths as words ('0.130' or '0.149-0.182'), None when unknown."""
-    depths = [c["depth_m"] for c in report["cells"]["cells"] if c["depth_m"] is not None]
-    if not depths:
-        return None
-    lo, hi = f"{min(depths):.3f}", f"{max(depths):.3f}"
-    return lo if lo == hi else f"{lo}-{hi}"
-
-
-def stress_depth_span(report):
-    """The stress boxes' centre depths as words, None when unknown."""
-    depths = [b["depth_m"] for b in report.get("stress_boxes", []) if b["depth_m"] is not None]
+def depth_span(report, key="cells"):
+    """The depths of the cells (key "cells") or of the stress boxes' centres ("stress_boxes")
+    as words ('0.130' or '0.149-0.182'), None when unknown."""
+    items = report["cells"]["cells"] if key == "cells" else report.get(key, [])
+    depths = [c["depth_m"] for c in items if c["depth_m"] is not None]
     if not depths:
         return None
     lo, hi = f"{min(depths):.3f}", f"{max(depths):.3f}"
@@ -609,7 +604,7 @@ def plot_levels(plt, out, report, beside=()):
                 if "stress_zz_kPa" in m and rep.get("stress_boxes"):
                     bx = {b["name"]: b["x"] for b in rep["stress_boxes"]}
                     names = sorted(m["stress_zz_kPa"], key=bx.get)
-                    depth = stress_depth_span(rep)
+                    depth = depth_span(rep, "stress_boxes")
                     ax[k].plot([bx[n] for n in names], [m["stress_zz_kPa"][n] for n in names],
                                "^:" if m["level_kN"] < 100 else "s:", color=f"C{r % 10}",
                                mfc="none", label=f"{who}{m['level_kN']:g} kN, Cauchy stress "
