@@ -538,6 +538,29 @@ std::string toml_string(const std::string& s) {
   return q + "\"";
 }
 
+// [dem.load] seed_offset: a run.seed that `pass` passes on reaches the prepare scene shifted by
+// it. The layers of one chain then draw from seeds apart while one --set run.seed names the
+// whole chain, and a chain whose scenes were written with seeds apart (the tiled sleeper
+// chain: its second layer 12, its first layer 11) is the chain of its last seed unchanged.
+// Only a passed run.seed is shifted, not one of `set`.
+scene::Override shift_passed_seed(const Table& t, scene::Override o) {
+  const std::int64_t offset = t.integer("seed_offset", -1'000'000'000, 1'000'000'000);
+  std::string digits;
+  for (const char c : o.value)
+    if (c != '_' && c != '+' && c != ' ') digits += c;
+  std::int64_t seed = -1;
+  const auto r = std::from_chars(digits.data(), digits.data() + digits.size(), seed);
+  if (r.ec != std::errc{} || r.ptr != digits.data() + digits.size() || seed < 0)
+    t.fail("seed_offset", "cannot shift " + o.text() + ": run.seed is a decimal integer >= 0");
+  if (seed + offset < 0)
+    t.fail("seed_offset", std::to_string(offset) + " shifts " + o.text() + " to " +
+                              std::to_string(seed + offset) +
+                              ", below 0 (run.seed >= 0): choose a seed of at least " +
+                              std::to_string(-offset));
+  o.value = std::to_string(seed + offset);
+  return o;
+}
+
 // [dem.load] set and pass: the overrides the prepare scene runs with, and its own folder.
 std::vector<scene::Override> read_prepare_overrides(const Table& t,
                                                     const std::filesystem::path& prepare_scene,
@@ -563,8 +586,12 @@ std::vector<scene::Override> read_prepare_overrides(const Table& t,
       if (o.key != "run.output_dir" &&
           std::any_of(prefixes.begin(), prefixes.end(),
                       [&](const std::string& p) { return o.under(p); }))
-        e.push_back(o);
+        e.push_back(o.key == "run.seed" && t.has("seed_offset") ? shift_passed_seed(t, o) : o);
   }
+  if (t.has("seed_offset") && !t.has("pass"))
+    t.fail("seed_offset", "shifts the run.seed that 'pass' passes on: give pass = "
+                          "[\"run.seed\"] too");
+  if (t.has("seed_offset")) (void)t.integer("seed_offset", -1'000'000'000, 1'000'000'000);
   const bool own_folder = std::none_of(e.begin(), e.end(), [](const scene::Override& o) {
     return o.key == "run.output_dir" || o.key == "run";
   });
@@ -600,7 +627,7 @@ ParticleSource read_particle_source(const Table& t, const std::vector<Material>&
     s.where = t.where("file");
     if (!std::filesystem::is_regular_file(s.file))
       t.fail("file", "\"" + s.file.string() + "\" does not exist or is not a file");
-    for (const char* key : {"set", "pass"})
+    for (const char* key : {"set", "pass", "seed_offset"})
       if (t.has(key)) t.fail(key, "is only used with 'scene' (the overrides of a prepare scene)");
   } else {
     s.prepare_scene = t.path("scene");

@@ -454,8 +454,55 @@ TEST_CASE("dem.load: a prepare scene with overrides ('set', 'pass')", "[dem][loa
   CHECK(state_is_current(dir / "plain" / kStateFileName, dir / "fill.toml"));
   CHECK_FALSE(state_is_current(dir / "plain" / kStateFileName, dir / "fill.toml", made));
 
+  SECTION("seed_offset: a passed run.seed arrives shifted, a set one as written") {
+    std::ofstream(dir / "shift.toml") << std::string(kHead) +
+                                             "[dem.load]\nscene = \"fill.toml\"\n"
+                                             "pass = [\"run.seed\"]\nseed_offset = -1\n";
+    auto shifted = [&](const std::vector<Override>& cli) {
+      const Document d = Document::load(dir / "shift.toml", cli);
+      return read_dem_scene(d.root().required_table("dem")).load->prepare_overrides;
+    };
+    const auto s12 = shifted({Override{"run.seed", "12"}});
+    REQUIRE(s12.size() == 2);  // the seed and the folder
+    CHECK(s12[0].key == "run.seed");
+    CHECK(s12[0].value == "11");
+    CHECK(shifted({Override{"run.seed", "+1_000"}})[0].value == "999");
+    CHECK(shifted({}).empty());  // nothing passed: the prepare scene's own seed
+    // the folder of "seed 12 shifted" is the folder of --set run.seed=11 passed unshifted
+    std::ofstream(dir / "noshift.toml")
+        << std::string(kHead) + "[dem.load]\nscene = \"fill.toml\"\npass = [\"run.seed\"]\n";
+    const Document d11 = Document::load(dir / "noshift.toml", {Override{"run.seed", "11"}});
+    const Document d12 = Document::load(dir / "shift.toml", {Override{"run.seed", "12"}});
+    CHECK(read_dem_scene(d11.root().required_table("dem")).load->file ==
+          read_dem_scene(d12.root().required_table("dem")).load->file);
+    // a set run.seed is not shifted (only what pass passes on)
+    std::ofstream(dir / "setseed.toml")
+        << std::string(kHead) +
+               "[dem.load]\nscene = \"fill.toml\"\nset = [\"run.seed=5\"]\n"
+               "pass = [\"dem.pairs\"]\nseed_offset = -1\n";
+    const Document ds = Document::load(dir / "setseed.toml", {Override{"run.seed", "5"}});
+    const auto set_only = read_dem_scene(ds.root().required_table("dem")).load->prepare_overrides;
+    CHECK(set_only[0].value == "5");
+    // below 0: refused, naming the key, the override and the least seed
+    std::ofstream(dir / "low.toml") << std::string(kHead) +
+                                           "[dem.load]\nscene = \"fill.toml\"\n"
+                                           "pass = [\"run.seed\"]\nseed_offset = -3\n";
+    try {
+      const Document dl = Document::load(dir / "low.toml", {Override{"run.seed", "2"}});
+      (void)read_dem_scene(dl.root().required_table("dem"));
+      FAIL("a seed shifted below 0 was accepted");
+    } catch (const SceneError& e) {
+      CHECK_THAT(std::string(e.what()), Catch::Contains("'dem.load.seed_offset'") &&
+                                            Catch::Contains("run.seed=2") &&
+                                            Catch::Contains("at least 3"));
+    }
+  }
   SECTION("bad entries name the key") {
     const std::string head = std::string(kHead) + "[dem.load]\nscene = \"fill.toml\"\n";
+    CHECK_THAT(error_of(dir, head + "seed_offset = -1\n", false),
+               Catch::Contains("'dem.load.seed_offset'") && Catch::Contains("pass"));
+    CHECK_THAT(error_of(dir, head + "pass = [\"run.seed\"]\nseed_offset = 1.5\n", false),
+               Catch::Contains("'dem.load.seed_offset'"));
     CHECK_THAT(error_of(dir, head + "set = [\"no assignment\"]\n", false),
                Catch::Contains("'dem.load.set'") && Catch::Contains("KEY=VALUE"));
     CHECK_THAT(error_of(dir, head + "pass = [\"run.output_dir\"]\n", false),
