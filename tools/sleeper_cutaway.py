@@ -24,7 +24,10 @@ missing file or field, or a time outside the run.
 On a loaded machine pvbatch (ParaView 5.11 on Xvfb) now and then aborts at its start with
 "vtkXOpenGLRenderWindow: bad X server connection" while it creates its view (measured beside three
 solver runs on two cores: 3 of the first 4 single starts, none of the next 5; 5 of 32 starts
-four at once); run it again (tests/system/check_sleeper_cutaway.py tries three times).
+four at once); run it again (tests/system/check_sleeper_cutaway.py tries three times). Where it
+keeps aborting (measured beside a test-suite run: three tries of `xvfb-run -a`, one of `-n 157`),
+start the X server yourself and give it time: `Xvfb :158 -screen 0 1600x1000x24 &`, then after
+a few seconds `DISPLAY=:158 pvbatch tools/sleeper_cutaway.py ...`.
 """
 
 import argparse
