@@ -127,6 +127,12 @@ def footprint_at(np, run, t):
 
 
 def rocks_at(np, run, t, densities):
+    times = run.fields("particles").times
+    if not times:
+        raise ValueError(f"{run.path}: the particle output has no snapshots")
+    if not times[0] - 1e-9 <= t <= times[-1] + 1e-9:
+        raise ValueError(f"{run.path}: {t:g} s is outside the particle output's times "
+                         f"({times[0]:g}-{times[-1]:g} s)")
     snap = run.particles(t)
     order = np.argsort(np.asarray(snap["id"]).astype(np.int64))
     pos = np.asarray(snap.points, dtype=float)[order]

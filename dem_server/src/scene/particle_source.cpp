@@ -543,8 +543,7 @@ std::string toml_string(const std::string& s) {
 // whole chain, and a chain whose scenes were written with seeds apart (the tiled sleeper
 // chain: its second layer 12, its first layer 11) is the chain of its last seed unchanged.
 // Only a passed run.seed is shifted, not one of `set`.
-scene::Override shift_passed_seed(const Table& t, scene::Override o) {
-  const std::int64_t offset = t.integer("seed_offset", -1'000'000'000, 1'000'000'000);
+scene::Override shift_passed_seed(const Table& t, scene::Override o, std::int64_t offset) {
   std::string digits;
   for (const char c : o.value)
     if (c != '_' && c != '+' && c != ' ') digits += c;
@@ -566,6 +565,12 @@ std::vector<scene::Override> read_prepare_overrides(const Table& t,
                                                     const std::filesystem::path& prepare_scene,
                                                     const std::string& where) {
   std::vector<scene::Override> e;
+  const bool shifts = t.has("seed_offset");
+  const std::int64_t seed_offset =
+      shifts ? t.integer("seed_offset", -1'000'000'000, 1'000'000'000) : 0;
+  if (shifts && !t.has("pass"))
+    t.fail("seed_offset", "shifts the run.seed that 'pass' passes on: give pass = "
+                          "[\"run.seed\"] too");
   if (t.has("set")) {
     for (const auto& a : t.strings("set")) {
       try {
@@ -586,12 +591,8 @@ std::vector<scene::Override> read_prepare_overrides(const Table& t,
       if (o.key != "run.output_dir" &&
           std::any_of(prefixes.begin(), prefixes.end(),
                       [&](const std::string& p) { return o.under(p); }))
-        e.push_back(o.key == "run.seed" && t.has("seed_offset") ? shift_passed_seed(t, o) : o);
+        e.push_back(shifts && o.key == "run.seed" ? shift_passed_seed(t, o, seed_offset) : o);
   }
-  if (t.has("seed_offset") && !t.has("pass"))
-    t.fail("seed_offset", "shifts the run.seed that 'pass' passes on: give pass = "
-                          "[\"run.seed\"] too");
-  if (t.has("seed_offset")) (void)t.integer("seed_offset", -1'000'000'000, 1'000'000'000);
   const bool own_folder = std::none_of(e.begin(), e.end(), [](const scene::Override& o) {
     return o.key == "run.output_dir" || o.key == "run";
   });
