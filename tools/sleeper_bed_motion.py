@@ -150,16 +150,6 @@ def rocks_at(np, run, t, densities):
     return snap.time, ids, pos, mass / rho
 
 
-def scene_path(a, run):
-    if a.scene:
-        return a.scene
-    info = run.info if os.path.exists(run.file("run.json")) else {}
-    path = info.get("scene")
-    if not path:
-        raise ValueError(f"{a.output}: no run.json naming the scene: give --scene")
-    return path
-
-
 def table(a, footprint, t0, times, results):
     x_lo, x_hi, yc = footprint
     print(f"sleeper footprint at {t0:g} s: x {x_lo:.3f}-{x_hi:.3f} m, centre line y = {yc:.3f} m")
@@ -183,7 +173,9 @@ def main(argv):
         np = need_or_exit(TOOL, "numpy", "python3-numpy")
         from demfem_post import Run, load_scene, run_overrides
         run = Run(a.output)
-        scene = load_scene(scene_path(a, run), run_overrides(a.output) + a.set)
+        # the run's own scene and --set overrides (run.json), or --scene with them
+        scene = (load_scene(a.scene, run_overrides(a.output) + a.set) if a.scene
+                 else run.scene(a.set))
         # the walls' materials may have no density: a rock of one is refused in rocks_at
         densities = [float(m.get("density", "nan")) for m in scene["dem"]["materials"]]
         footprint = footprint_at(np, run, a.t0)
